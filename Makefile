@@ -1,0 +1,22 @@
+# The single entry point. `make demo` and `make test` set up everything they need on a fresh machine.
+.PHONY: setup demo test test-fast bench clean
+
+PY := .venv/bin/python
+
+setup:
+	@bash scripts/setup.sh
+
+demo: setup
+	@$(PY) -m demo
+
+test: setup
+	@$(PY) -m pytest -q $(PYTEST_ARGS)
+
+test-fast: setup
+	@$(PY) -m pytest -q -m "not integration and not docker" $(PYTEST_ARGS)
+
+bench: setup
+	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+clean:
+	rm -rf .venv .pytest_cache

@@ -1,0 +1,298 @@
+"""`hri`: the command line users live in — watch, publish, inspect, route."""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import os
+import queue
+import signal
+import sys
+import threading
+import time
+from typing import Any
+
+import zenoh
+
+from common.codec import ENCODING, decode, encode, unpack
+from common.keys import Keys
+from common.runner import SamplePublisher, setup_logging
+from common.schema import InvalidSample, Stats, Transcript, Word
+from common.transport import add_zenoh_arguments, init_zenoh_logging, open_session, resolve, zenoh_config
+
+EXAMPLES = """\
+examples:
+  hri router                                   # the zenoh router every service connects to
+  hri echo 'hri/**'                            # every sample, one JSON line each
+  hri echo 'hri/fusion/**'                     # fused commands and clarification questions
+  hri echo 'hri/camera/*/frame' --count 5      # five frames, then exit
+  hri say "pick up the red cup"                # publish a Transcript as if it had been spoken
+  hri pub hri/speech/kbd/transcript '{"mic":"kbd","start":1.0,"end":2.0,"text":"stop","confidence":1,
+          "words":[],"final":true,"backend":"text"}'
+  hri list                                     # live services (liveliness tokens)
+  hri stats                                    # received / published / rejected counters per service
+"""
+
+
+def summarise(value: Any) -> Any:
+    """JSON-friendly view: binary fields become '<N bytes>'."""
+    if isinstance(value, (bytes, bytearray, memoryview)):
+        return f"<{len(value)} bytes>"
+    if isinstance(value, dict):
+        return {str(k): summarise(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [summarise(v) for v in value]
+    return value
+
+
+def _install_stop(stop: threading.Event) -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+
+
+def _open(args: argparse.Namespace, stop: threading.Event) -> zenoh.Session:
+    log = setup_logging("hri", getattr(args, "log_level", None))
+    session = open_session(args, log, stop)
+    if session is None:
+        sys.exit(0)
+    return session
+
+
+# -- router ------------------------------------------------------------------
+def cmd_router(args: argparse.Namespace) -> int:
+    args.mode = "router"
+    args.listen = args.listen or [e for e in os.environ.get("HRI_LISTEN", "").split(",") if e] or [
+        "tcp/127.0.0.1:7447"]
+    log = setup_logging("hri.router", args.log_level)
+    init_zenoh_logging()
+    conf = zenoh_config(args)
+    try:
+        session = zenoh.open(conf)
+    except zenoh.ZError as exc:
+        log.error("cannot start the router on %s: %s (is another router already listening there?)",
+                  ", ".join(args.listen), str(exc).split(" at ")[0])
+        return 1
+    stop = threading.Event()
+    _install_stop(stop)
+    log.info("zenoh router listening on %s (zid %s)", ", ".join(args.listen), session.zid())
+    stop.wait()
+    session.close()
+    log.info("router stopped")
+    return 0
+
+
+# -- echo --------------------------------------------------------------------
+def cmd_echo(args: argparse.Namespace) -> int:
+    stop = threading.Event()
+    _install_stop(stop)
+    session = _open(args, stop)
+    keys = Keys(args.prefix)
+    inbox: queue.Queue[tuple[str, bytes]] = queue.Queue()
+    sub = session.declare_subscriber(args.keyexpr, lambda s: inbox.put((str(s.key_expr), s.payload.to_bytes())))
+    deadline = time.monotonic() + args.timeout if args.timeout else None
+    printed, invalid = 0, 0
+    try:
+        while not stop.is_set() and (args.count is None or printed < args.count):
+            wait = 0.2 if deadline is None else min(0.2, deadline - time.monotonic())
+            if wait <= 0:
+                break
+            try:
+                key, payload = inbox.get(timeout=wait)
+            except queue.Empty:
+                continue
+            schema = keys.schema_for(key)
+            try:
+                if args.raw or schema is None:
+                    body = unpack(payload, 64 << 20)
+                else:
+                    body = decode(payload, schema).to_dict()
+            except InvalidSample as exc:
+                invalid += 1
+                print(f"hri echo: invalid sample on {key}: {exc}", file=sys.stderr, flush=True)
+                continue
+            line = {"key": key, **(body if isinstance(body, dict) else {"value": body})}
+            print(json.dumps(summarise(line), separators=(",", ":")), flush=True)
+            printed += 1
+    finally:
+        sub.undeclare()
+        session.close()
+    if args.count is not None and printed < args.count:
+        print(f"hri echo: timed out after {args.timeout} s with {printed}/{args.count} samples on "
+              f"{args.keyexpr!r}; is the publisher running and connected to the same router?", file=sys.stderr)
+        return 1
+    return 0
+
+
+# -- pub / say ---------------------------------------------------------------
+def _from_json(value: Any) -> Any:
+    """{"$b64": "..."} stands for a binary field in JSON."""
+    if isinstance(value, dict):
+        if set(value) == {"$b64"}:
+            return base64.b64decode(value["$b64"])
+        return {k: _from_json(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_from_json(v) for v in value]
+    return value
+
+
+def _publish_once(args: argparse.Namespace, key: str, sample: Any) -> int:
+    payload = encode(sample)
+    stop = threading.Event()
+    session = _open(args, stop)
+    pub = SamplePublisher(session, key, lossless=True)
+    pub._pub.put(payload)
+    time.sleep(0.1)  # let the router forward it before the session goes away
+    pub.undeclare()
+    session.close()
+    return 0
+
+
+def cmd_pub(args: argparse.Namespace) -> int:
+    resolve(args)
+    schema = Keys(args.prefix).schema_for(args.key)
+    if schema is None:
+        print(f"hri pub: {args.key!r} is not a key of the wire contract (see docs/wire.md)", file=sys.stderr)
+        return 2
+    try:
+        body = _from_json(json.loads(args.json))
+    except json.JSONDecodeError as exc:
+        print(f"hri pub: the sample is not valid JSON: {exc}", file=sys.stderr)
+        return 2
+    if not isinstance(body, dict):
+        print("hri pub: the sample must be a JSON object", file=sys.stderr)
+        return 2
+    body.setdefault("v", 1)
+    body.setdefault("stamp", time.time())
+    body.setdefault("source", f"cli/{os.getpid()}")
+    try:
+        sample = schema.from_dict(body)
+    except InvalidSample as exc:
+        print(f"hri pub: not a valid {schema.__name__}: {exc}", file=sys.stderr)
+        return 2
+    return _publish_once(args, args.key, sample)
+
+
+def make_transcript(text: str, *, mic: str, end: float, confidence: float, source: str,
+                    seconds_per_word: float = 0.3) -> Transcript:
+    """A Transcript as a recogniser would make it, with evenly spaced word times ending at `end`."""
+    tokens = text.split()
+    start = end - seconds_per_word * max(len(tokens), 1)
+    words = [Word(word=w, start=start + i * seconds_per_word, end=start + (i + 1) * seconds_per_word,
+                  confidence=confidence) for i, w in enumerate(tokens)]
+    return Transcript(stamp=end, source=source, mic=mic, start=start, end=end, text=text,
+                      confidence=confidence, words=words, final=True, backend="text")
+
+
+def cmd_say(args: argparse.Namespace) -> int:
+    resolve(args)
+    text = " ".join(args.text).strip()
+    if not text:
+        print("hri say: nothing to say", file=sys.stderr)
+        return 2
+    sample = make_transcript(text, mic=args.mic, end=time.time(), confidence=args.confidence,
+                             source=f"cli/{os.getpid()}")
+    return _publish_once(args, Keys(args.prefix).transcript(args.mic), sample)
+
+
+# -- list / stats --------------------------------------------------------------
+def cmd_list(args: argparse.Namespace) -> int:
+    stop = threading.Event()
+    session = _open(args, stop)
+    keys = Keys(args.prefix)
+    found = []
+    for reply in session.liveliness().get(keys.alive("*", "*"), timeout=args.timeout):
+        if reply.ok is not None:
+            parsed = keys.parse_alive(str(reply.ok.key_expr))
+            if parsed:
+                found.append(parsed)
+    session.close()
+    for service, instance in sorted(found):
+        print(f"{service:10s} {instance}")
+    if not found:
+        print("no live services (is the router running, and are the services connected to it?)", file=sys.stderr)
+    return 0
+
+
+def cmd_stats(args: argparse.Namespace) -> int:
+    stop = threading.Event()
+    session = _open(args, stop)
+    keys = Keys(args.prefix)
+    rows = []
+    for reply in session.get(keys.stats(args.service or "*", "*"), timeout=args.timeout):
+        if reply.ok is None:
+            continue
+        try:
+            rows.append(decode(reply.ok.payload.to_bytes(), Stats))
+        except InvalidSample as exc:
+            print(f"hri stats: bad reply on {reply.ok.key_expr}: {exc}", file=sys.stderr)
+    session.close()
+    for st in sorted(rows, key=lambda s: (s.service, s.instance)):
+        print(json.dumps(st.to_dict(), separators=(",", ":")))
+    if not rows:
+        print("no service answered (is anything running?)", file=sys.stderr)
+    return 0
+
+
+# -- entry point ---------------------------------------------------------------
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="hri", description="hri-fusion command line: route, watch, publish and inspect samples.",
+        epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name: str, help_: str, examples: str = "") -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help_, description=help_, epilog=examples,
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        p.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
+        add_zenoh_arguments(p)
+        return p
+
+    p = command("router", "run the zenoh router (listens on tcp/127.0.0.1:7447 unless --listen / HRI_LISTEN)",
+                "example:\n  hri router --listen tcp/0.0.0.0:7447")
+    p.set_defaults(func=cmd_router)
+
+    p = command("echo", "print samples on a key expression as JSON lines (binary fields as <N bytes>)",
+                "examples:\n  hri echo 'hri/**'\n  hri echo 'hri/vision/*/objects' --count 10 --timeout 5")
+    p.add_argument("keyexpr", help="zenoh key expression, e.g. 'hri/**'")
+    p.add_argument("--raw", action="store_true", help="print the msgpack map as is, without contract validation")
+    p.add_argument("--count", type=int, default=None, help="exit 0 after N samples (1 if the timeout comes first)")
+    p.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
+    p.set_defaults(func=cmd_echo)
+
+    p = command("pub", "validate a JSON sample against the contract and publish it once",
+                "example:\n  hri pub hri/speech/kbd/transcript '{\"mic\":\"kbd\",\"start\":1,\"end\":2,\"text\":"
+                "\"stop\",\"confidence\":1,\"words\":[],\"final\":true,\"backend\":\"text\"}'\n"
+                "v, stamp (now) and source are filled in when absent; binary fields are {\"$b64\": \"...\"}.")
+    p.add_argument("key", help="a concrete key of the contract, e.g. hri/speech/kbd/transcript")
+    p.add_argument("json", help="the sample as a JSON object")
+    p.set_defaults(func=cmd_pub)
+
+    p = command("say", "publish a final Transcript as if the words had just been spoken",
+                "examples:\n  hri say pick up the red cup\n  hri say --confidence 0.4 \"bring me that\"")
+    p.add_argument("text", nargs="+", help="the utterance")
+    p.add_argument("--mic", default="kbd", help="microphone id in the key and sample (default kbd)")
+    p.add_argument("--confidence", type=float, default=1.0, help="recogniser confidence 0–1 (default 1)")
+    p.set_defaults(func=cmd_say)
+
+    p = command("list", "list live services from their liveliness tokens", "example:\n  hri list")
+    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
+    p.set_defaults(func=cmd_list)
+
+    p = command("stats", "print each service's counters (received, published, rejected by reason, skipped)",
+                "examples:\n  hri stats\n  hri stats --service vision")
+    p.add_argument("--service", default=None, help="only this service")
+    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
+    p.set_defaults(func=cmd_stats)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    code = args.func(args)
+    sys.stdout.flush()
+    sys.exit(code)
+
+
+if __name__ == "__main__":
+    main()

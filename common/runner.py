@@ -1,0 +1,349 @@
+"""The process shell every service runs in.
+
+It opens the session (waiting for the router), declares the liveliness token and
+the stats queryable, validates every incoming sample in the Zenoh callback,
+hands valid ones to a single worker thread through a bounded inbox with an
+explicit policy per stream, and on SIGINT/SIGTERM undeclares everything, closes
+the session and exits 0.
+
+Policies:
+- `latest`: one slot per key; a newer sample replaces an unprocessed one (counted
+  as skipped). For camera frames: lag never grows.
+- `fifo`: lossless up to `maxlen` queued samples (transcripts, events, commands);
+  beyond that the oldest is dropped and counted, never silently.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import logging
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import zenoh
+
+from common.codec import ENCODING, decode, encode
+from common.keys import Keys, check_chunk
+from common.schema import InvalidSample, Sample, Stats
+from common.transport import add_zenoh_arguments, open_session, resolve
+
+LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
+SHUTDOWN_GRACE_S = 1.8  # the contract promises exit within 2 s of SIGTERM
+
+
+def setup_logging(name: str, level: str | None = None) -> logging.Logger:
+    level = (level or os.environ.get("HRI_LOG_LEVEL") or "INFO").upper()
+    logging.basicConfig(level=level, format=LOG_FORMAT, stream=sys.stderr)
+    return logging.getLogger(name)
+
+
+def service_parser(name: str, description: str, epilog: str = "") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=f"hri-{name}", description=description, epilog=epilog,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--instance", default=os.environ.get("HRI_INSTANCE"),
+                        help="this instance's id in liveliness/stats keys and `source` (default host-pid)")
+    parser.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
+    add_zenoh_arguments(parser)
+    return parser
+
+
+class Counters:
+    """Thread-safe counters, exposed through the stats queryable."""
+
+    LOG_FIRST = 5
+    LOG_EVERY = 100
+
+    def __init__(self, log: logging.Logger):
+        self._lock = threading.Lock()
+        self._log = log
+        self.received = 0
+        self.published = 0
+        self.skipped = 0
+        self.rejected: collections.Counter[str] = collections.Counter()
+        self.other: collections.Counter[str] = collections.Counter()
+
+    def add(self, name: str, n: int = 1) -> None:
+        with self._lock:
+            if name in ("received", "published", "skipped"):
+                setattr(self, name, getattr(self, name) + n)
+            else:
+                self.other[name] += n
+
+    def reject(self, reason: str, detail: str, key: str = "") -> None:
+        with self._lock:
+            self.rejected[reason] += 1
+            n = self.rejected[reason]
+        if n <= self.LOG_FIRST or n % self.LOG_EVERY == 0:
+            self._log.warning("dropped invalid sample%s (%s, #%d): %s", f" on {key}" if key else "", reason, n, detail)
+
+    def snapshot(self) -> dict[str, Any]:
+        with self._lock:
+            return {"received": self.received, "published": self.published, "skipped": self.skipped,
+                    "rejected": dict(self.rejected), "other": dict(self.other)}
+
+
+@dataclass(slots=True)
+class Delivery:
+    key: str
+    sample: Any
+    received_at: float  # wall time the callback ran (for lag measurement, never for joins)
+
+
+class Inbox:
+    """Bounded mailbox between Zenoh callback threads and the one worker thread."""
+
+    def __init__(self, counters: Counters):
+        self._cond = threading.Condition()
+        self._fifo: collections.deque[tuple[Callable, Delivery, int]] = collections.deque()
+        self._fifo_len: collections.Counter[int] = collections.Counter()
+        self._latest: dict[str, tuple[Callable, Delivery]] = {}
+        self._counters = counters
+        self._closed = False
+
+    def put_fifo(self, handler: Callable, delivery: Delivery, channel: int, maxlen: int) -> None:
+        with self._cond:
+            if self._fifo_len[channel] >= maxlen:
+                # drop the oldest of this channel: count it, keep the stream moving
+                for i, (_, old, ch) in enumerate(self._fifo):
+                    if ch == channel:
+                        del self._fifo[i]
+                        self._fifo_len[channel] -= 1
+                        self._counters.add("dropped_overflow")
+                        break
+            self._fifo.append((handler, delivery, channel))
+            self._fifo_len[channel] += 1
+            self._cond.notify()
+
+    def put_latest(self, handler: Callable, delivery: Delivery) -> None:
+        with self._cond:
+            if delivery.key in self._latest:
+                self._counters.add("skipped")
+            self._latest[delivery.key] = (handler, delivery)
+            self._cond.notify()
+
+    def get(self, timeout: float | None) -> tuple[Callable, Delivery] | None:
+        """Next item: lossless streams first (they are small and urgent), then the oldest latest-slot."""
+        with self._cond:
+            if not self._fifo and not self._latest and not self._closed:
+                self._cond.wait(timeout)
+            if self._fifo:
+                handler, delivery, channel = self._fifo.popleft()
+                self._fifo_len[channel] -= 1
+                return handler, delivery
+            if self._latest:
+                key = next(iter(self._latest))  # insertion order: round-robin across cameras
+                return self._latest.pop(key)
+            return None
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+
+class Service:
+    """A running hri service: session, liveliness, stats, validated inputs, one worker thread."""
+
+    def __init__(self, name: str, args: argparse.Namespace, log: logging.Logger | None = None):
+        resolve(args)
+        self.name = check_chunk(name, "service name")
+        self.instance = check_chunk(args.instance or f"{socket.gethostname()}-{os.getpid()}", "instance")
+        self.source = f"{self.name}/{self.instance}"
+        self.args = args
+        self.keys = Keys(args.prefix)
+        self.log = log or setup_logging(f"hri.{name}", getattr(args, "log_level", None))
+        self.counters = Counters(self.log)
+        self.stop_event = threading.Event()
+        self.session: zenoh.Session | None = None
+        self._inbox = Inbox(self.counters)
+        self._subscribers: list[Any] = []
+        self._declared: list[Any] = []
+        self._publishers: dict[str, "SamplePublisher"] = {}
+        self._on_close: list[Callable[[], None]] = []
+        self._started = time.monotonic()
+        self._channels = 0
+
+    # -- set-up ------------------------------------------------------------
+    def connect(self) -> bool:
+        """Open the session and announce ourselves. False if asked to stop while waiting for the router."""
+        self._install_signal_handlers()
+        self.session = open_session(self.args, self.log, self.stop_event)
+        if self.session is None:
+            return False
+        self._declared.append(self.session.liveliness().declare_token(self.keys.alive(self.name, self.instance)))
+        self._declared.append(self.session.declare_queryable(self.keys.stats(self.name, self.instance),
+                                                             self._answer_stats))
+        return True
+
+    def _install_signal_handlers(self) -> None:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda *_: self.stop_event.set())
+
+    def subscribe(self, keyexpr: str, schema: type[Sample], handler: Callable[[Delivery], None], *,
+                  latest: bool = False, maxlen: int = 1000, monotonic: bool = False) -> None:
+        """Validate samples on `keyexpr` as `schema` and hand valid ones to `handler` on the worker thread.
+
+        `monotonic`: per key, a sample older than the last one accepted is rejected as out_of_order.
+        """
+        assert self.session is not None, "connect() first"
+        channel = self._channels
+        self._channels += 1
+        last_stamp: dict[str, float] = {}
+
+        def on_sample(zsample: zenoh.Sample) -> None:
+            key = str(zsample.key_expr)
+            self.counters.add("received")
+            try:
+                sample = decode(zsample.payload.to_bytes(), schema)
+            except InvalidSample as exc:
+                self.counters.reject(exc.reason, exc.detail, key)
+                return
+            if monotonic:
+                if sample.stamp < last_stamp.get(key, 0.0):
+                    self.counters.reject("out_of_order", f"stamp {sample.stamp:.6f} is older than "
+                                         f"{last_stamp[key]:.6f} already seen", key)
+                    return
+                last_stamp[key] = sample.stamp
+            delivery = Delivery(key, sample, time.time())
+            if latest:
+                self._inbox.put_latest(handler, delivery)
+            else:
+                self._inbox.put_fifo(handler, delivery, channel, maxlen)
+
+        self._subscribers.append(self.session.declare_subscriber(keyexpr, on_sample))
+
+    def publish(self, key: str, sample: Sample, *, lossless: bool = True, realtime: bool = False) -> None:
+        pub = self._publishers.get(key)
+        if pub is None:
+            assert self.session is not None, "connect() first"
+            pub = self._publishers[key] = SamplePublisher(self.session, key, lossless=lossless, realtime=realtime)
+        pub.put(sample)
+        self.counters.add("published")
+
+    def on_close(self, fn: Callable[[], None]) -> None:
+        self._on_close.append(fn)
+
+    def stats(self) -> Stats:
+        snap = self.counters.snapshot()
+        return Stats(stamp=time.time(), source=self.source, service=self.name, instance=self.instance,
+                     uptime=time.monotonic() - self._started, **snap)
+
+    def _answer_stats(self, query: zenoh.Query) -> None:
+        try:
+            query.reply(self.keys.stats(self.name, self.instance), encode(self.stats()), encoding=ENCODING)
+        except Exception as exc:  # a stats reply must never take the service down
+            self.log.warning("could not answer a stats query: %s", exc)
+
+    # -- running -----------------------------------------------------------
+    def run(self, loop: Callable[[threading.Event], None] | None = None,
+            tick: Callable[[], None] | None = None, tick_interval: float = 0.05) -> int:
+        """Run until SIGINT/SIGTERM (or until `loop` returns). Returns the process exit code."""
+        if self.session is None and not self.connect():
+            return 0
+        worker = threading.Thread(target=self._work, args=(loop, tick, tick_interval),
+                                  name=f"{self.name}-worker", daemon=True)
+        worker.start()
+        self.log.info("%s %s running (prefix %s)", self.name, self.instance, self.keys.prefix)
+        while not self.stop_event.wait(0.2):
+            if not worker.is_alive():
+                break
+        return self.shutdown(worker)
+
+    def _work(self, loop: Callable | None, tick: Callable | None, tick_interval: float) -> None:
+        try:
+            if loop is not None:
+                loop(self.stop_event)
+                return
+            while not self.stop_event.is_set():
+                item = self._inbox.get(tick_interval if tick else 0.5)
+                if item is not None:
+                    handler, delivery = item
+                    try:
+                        handler(delivery)
+                    except Exception:
+                        self.counters.add("handler_error")
+                        self.log.exception("error while handling a sample on %s; it is dropped, the "
+                                           "service goes on", delivery.key)
+                if tick is not None:
+                    tick()
+        except Exception:
+            self.log.exception("worker failed")
+            self._exit_code = 1
+
+    _exit_code = 0
+
+    def fail(self, code: int, message: str) -> None:
+        """Log a fatal error and stop the service with exit code `code`."""
+        self.log.error("%s", message)
+        self._exit_code = code
+        self.stop_event.set()
+
+    def shutdown(self, worker: threading.Thread | None = None) -> int:
+        self.stop_event.set()
+        watchdog = threading.Thread(target=self._force_exit, daemon=True)
+        watchdog.start()
+        for sub in self._subscribers:
+            _quietly(sub.undeclare)
+        self._inbox.close()
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(1.0)
+        for fn in self._on_close:
+            _quietly(fn)
+        for pub in self._publishers.values():
+            _quietly(pub.undeclare)
+        for obj in reversed(self._declared):
+            _quietly(obj.undeclare)
+        if self.session is not None:
+            _quietly(self.session.close)
+        self.log.info("%s %s stopped: %s", self.name, self.instance, self.counters.snapshot())
+        return self._exit_code
+
+    def _force_exit(self) -> None:
+        time.sleep(SHUTDOWN_GRACE_S)
+        self.log.error("shutdown took longer than %.1f s; forcing exit", SHUTDOWN_GRACE_S)
+        logging.shutdown()
+        os._exit(self._exit_code)
+
+
+class SamplePublisher:
+    """A declared publisher that encodes (and so validates) every sample it sends."""
+
+    def __init__(self, session: zenoh.Session, key: str, *, lossless: bool = True, realtime: bool = False):
+        self.key = key
+        self._pub = session.declare_publisher(
+            key, encoding=zenoh.Encoding(ENCODING),
+            congestion_control=zenoh.CongestionControl.BLOCK if lossless else zenoh.CongestionControl.DROP,
+            priority=zenoh.Priority.REAL_TIME if realtime else (
+                zenoh.Priority.DATA_HIGH if lossless else zenoh.Priority.DATA),
+            express=realtime)
+
+    def put(self, sample: Sample) -> None:
+        self._pub.put(encode(sample))
+
+    def undeclare(self) -> None:
+        self._pub.undeclare()
+
+
+def _quietly(fn: Callable[[], Any]) -> None:
+    try:
+        fn()
+    except Exception:
+        pass
+
+
+def main_exit(code: int) -> None:
+    logging.shutdown()
+    sys.exit(code)

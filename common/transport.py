@@ -1,0 +1,104 @@
+"""Opening a Zenoh session from command-line flags and environment, with retry."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import threading
+import time
+
+import zenoh
+
+from common.keys import DEFAULT_PREFIX
+
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+
+_zenoh_log_started = False
+
+
+def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
+    """The flags every process shares. Each also reads an HRI_* environment variable (for compose)."""
+    g = parser.add_argument_group("zenoh")
+    g.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
+                   help=f"router endpoint to connect to, repeatable (env HRI_CONNECT, comma-separated; "
+                        f"default {DEFAULT_ENDPOINT})")
+    g.add_argument("--listen", action="append", default=None, metavar="ENDPOINT",
+                   help="endpoint to listen on, repeatable (env HRI_LISTEN)")
+    g.add_argument("--mode", choices=("client", "peer", "router"), default=None,
+                   help="zenoh mode (env HRI_MODE; default client)")
+    g.add_argument("--config", dest="zenoh_config", default=None, metavar="FILE",
+                   help="a zenoh json5 config file; the flags above override it (env HRI_ZENOH_CONFIG)")
+    g.add_argument("--prefix", default=None,
+                   help=f"key expression prefix (env HRI_PREFIX; default {DEFAULT_PREFIX})")
+
+
+def _env_list(name: str) -> list[str] | None:
+    raw = os.environ.get(name, "").strip()
+    return [e.strip() for e in raw.split(",") if e.strip()] or None
+
+
+def resolve(args: argparse.Namespace) -> argparse.Namespace:
+    """Fill unset zenoh flags from the environment and defaults, in place."""
+    args.connect = args.connect or _env_list("HRI_CONNECT")
+    args.listen = args.listen or _env_list("HRI_LISTEN")
+    args.mode = args.mode or os.environ.get("HRI_MODE") or "client"
+    args.zenoh_config = args.zenoh_config or os.environ.get("HRI_ZENOH_CONFIG") or None
+    args.prefix = args.prefix or os.environ.get("HRI_PREFIX") or DEFAULT_PREFIX
+    if args.mode == "client" and not args.connect:
+        args.connect = [DEFAULT_ENDPOINT]
+    return args
+
+
+def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
+    resolve(args)
+    if args.zenoh_config:
+        try:
+            conf = zenoh.Config.from_file(args.zenoh_config)
+        except Exception as exc:
+            raise SystemExit(f"cannot read zenoh config {args.zenoh_config!r}: {exc}") from None
+    else:
+        conf = zenoh.Config()
+        # Scouting by multicast finds strangers' routers on a shared LAN; we connect where we are told.
+        conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("mode", json.dumps(args.mode))
+    if args.connect:
+        conf.insert_json5("connect/endpoints", json.dumps(args.connect))
+    if args.listen:
+        conf.insert_json5("listen/endpoints", json.dumps(args.listen))
+    return conf
+
+
+def init_zenoh_logging() -> None:
+    global _zenoh_log_started
+    if not _zenoh_log_started:
+        zenoh.init_log_from_env_or("error")
+        _zenoh_log_started = True
+
+
+def open_session(args: argparse.Namespace, log: logging.Logger,
+                 stop: threading.Event | None = None, max_delay: float = 2.0) -> zenoh.Session | None:
+    """Open a session, retrying with back-off while the router is not up yet.
+
+    Returns None if `stop` is set while waiting (the process was asked to quit).
+    """
+    init_zenoh_logging()
+    conf = zenoh_config(args)
+    delay, attempt, started = 0.1, 0, time.monotonic()
+    while True:
+        try:
+            session = zenoh.open(conf)
+            if attempt:
+                log.info("connected to %s after %.1f s", ", ".join(args.connect or []), time.monotonic() - started)
+            return session
+        except zenoh.ZError as exc:
+            attempt += 1
+            if attempt == 1 or attempt % 10 == 0:
+                log.warning("waiting for the zenoh router at %s (%s); start it with `hri router` "
+                            "or pass --connect ENDPOINT", ", ".join(args.connect or ["?"]), str(exc).split(" at ")[0])
+            if stop is None:
+                time.sleep(delay)
+            elif stop.wait(delay):
+                return None
+            delay = min(delay * 2, max_delay)

@@ -1,0 +1,107 @@
+"""Frame sources and frame encoding — no Zenoh here."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+IMAGE_EXTENSIONS = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp"}
+
+
+class SourceError(RuntimeError):
+    """A source that cannot be opened or read; the message says which and what to do."""
+
+
+@dataclass
+class Source:
+    """An opened source. `frames()` yields BGR images; `native_fps` is None when the source has no clock."""
+    description: str
+    native_fps: float | None
+    finite: bool
+
+    def frames(self) -> Iterator[np.ndarray]:
+        raise NotImplementedError
+
+    def rewind(self) -> None:
+        """Start over (for --loop)."""
+
+    def close(self) -> None:
+        pass
+
+
+class ImageListSource(Source):
+    def __init__(self, paths: list[Path], description: str):
+        super().__init__(description, None, True)
+        self.paths = paths
+
+    def frames(self) -> Iterator[np.ndarray]:
+        for path in self.paths:
+            img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            if img is None:
+                raise SourceError(f"cannot decode image {path}: is it a valid image file?")
+            yield img
+
+
+class CaptureSource(Source):
+    def __init__(self, cap: cv2.VideoCapture, description: str, finite: bool):
+        fps = cap.get(cv2.CAP_PROP_FPS)
+        super().__init__(description, fps if fps and 0 < fps < 1000 else None, finite)
+        self.cap = cap
+
+    def frames(self) -> Iterator[np.ndarray]:
+        while True:
+            ok, img = self.cap.read()
+            if not ok:
+                if self.finite:
+                    return
+                raise SourceError(f"{self.description} stopped delivering frames (unplugged or in use?)")
+            yield img
+
+    def rewind(self) -> None:
+        self.cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+
+    def close(self) -> None:
+        self.cap.release()
+
+
+def open_source(spec: str) -> Source:
+    """'0' -> V4L2 device 0, a folder -> its images in name order, an image file, else a video file."""
+    if spec.isdigit():
+        cap = cv2.VideoCapture(int(spec))
+        if not cap.isOpened():
+            raise SourceError(f"cannot open camera device {spec} (/dev/video{spec}): is a camera attached and "
+                              f"readable by this user? Use --source PATH for a video file or image folder.")
+        return CaptureSource(cap, f"camera device {spec}", finite=False)
+    path = Path(spec)
+    if not path.exists():
+        raise SourceError(f"source {spec!r} does not exist: give a device index, a video file, an image file "
+                          f"or a folder of images")
+    if path.is_dir():
+        images = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS)
+        if not images:
+            raise SourceError(f"folder {spec} holds no images ({', '.join(sorted(IMAGE_EXTENSIONS))})")
+        return ImageListSource(images, f"image folder {spec} ({len(images)} images)")
+    if path.suffix.lower() in IMAGE_EXTENSIONS:
+        return ImageListSource([path], f"image {spec}")
+    if not os.access(path, os.R_OK):
+        raise SourceError(f"cannot read {spec}: permission denied")
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        raise SourceError(f"cannot open video file {spec}: not a video OpenCV can decode")
+    return CaptureSource(cap, f"video {spec}", finite=True)
+
+
+def encode_image(img: np.ndarray, encoding: str, jpeg_quality: int = 90) -> bytes:
+    """BGR image -> bytes for a Frame's `data`."""
+    if encoding == "bgr8":
+        return np.ascontiguousarray(img, dtype=np.uint8).tobytes()
+    ext, params = (".jpg", [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality]) if encoding == "jpeg" else (".png", [])
+    ok, buf = cv2.imencode(ext, img, params)
+    if not ok:
+        raise SourceError(f"OpenCV could not encode a {img.shape} frame as {encoding}")
+    return buf.tobytes()
