@@ -1,0 +1,233 @@
+"""Helpers for integration tests: real processes on loopback with free ports, always cleaned up."""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import zenoh
+
+from common.codec import decode
+from common.keys import Keys
+from common.runner import SamplePublisher
+from common.schema import Sample
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "data"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for_port(port: int, timeout: float = 15.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        time.sleep(0.05)
+    raise TimeoutError(f"nothing listens on 127.0.0.1:{port} after {timeout} s")
+
+
+class Proc:
+    """A child process whose output goes to a log file (read it with .output())."""
+
+    def __init__(self, name: str, argv: list[str], env: dict[str, str] | None = None):
+        self.name = name
+        self.argv = argv
+        self.log = tempfile.NamedTemporaryFile(prefix=f"hri-{name}-", suffix=".log", delete=False)
+        full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+        self.popen = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT, env=full_env,
+                                      start_new_session=True)
+
+    @property
+    def pid(self) -> int:
+        return self.popen.pid
+
+    def output(self) -> str:
+        return Path(self.log.name).read_text(errors="replace")
+
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+    def terminate(self, timeout: float = 2.0) -> tuple[int | None, float]:
+        """SIGTERM, then wait; returns (exit code or None if it had to be killed, seconds taken)."""
+        if not self.alive():
+            return self.popen.returncode, 0.0
+        t0 = time.monotonic()
+        self.popen.send_signal(signal.SIGTERM)
+        try:
+            code = self.popen.wait(timeout)
+            return code, time.monotonic() - t0
+        except subprocess.TimeoutExpired:
+            self.kill()
+            return None, time.monotonic() - t0
+
+    def kill(self) -> None:
+        try:
+            os.killpg(self.popen.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        self.popen.wait(5)
+
+    def children_gone(self) -> bool:
+        """True if nothing is left of this process's session (no orphans)."""
+        try:
+            os.killpg(self.popen.pid, 0)
+        except ProcessLookupError:
+            return True
+        return False
+
+
+class ProcessGroup:
+    """Starts the router and services on a free port; `close()` stops them all, whatever happened."""
+
+    def __init__(self) -> None:
+        self.port = free_port()
+        self.endpoint = f"tcp/127.0.0.1:{self.port}"
+        self.procs: list[Proc] = []
+
+    def start(self, name: str, *args: str, env: dict[str, str] | None = None, connect: bool = True) -> Proc:
+        argv = [sys.executable, "-m", *args]
+        if connect:
+            argv += ["--connect", self.endpoint]
+        proc = Proc(name, argv, env)
+        self.procs.append(proc)
+        return proc
+
+    def router(self) -> Proc:
+        proc = self.start("router", "common.cli", "router", "--listen", self.endpoint, connect=False)
+        wait_for_port(self.port)
+        return proc
+
+    def service(self, name: str, *args: str, env: dict[str, str] | None = None) -> Proc:
+        return self.start(name, f"services.{name}", *args, env=env)
+
+    def hri(self, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess:
+        """Run an `hri` subcommand to completion against this group's router."""
+        argv = [sys.executable, "-m", "common.cli", args[0], "--connect", self.endpoint, *args[1:]]
+        return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+
+    def echo(self, keyexpr: str, count: int, timeout: float = 30.0) -> list[dict[str, Any]]:
+        res = self.hri("echo", keyexpr, "--count", str(count), "--timeout", str(timeout), timeout=timeout + 15)
+        assert res.returncode == 0, f"hri echo failed ({res.returncode}): {res.stderr[-2000:]}\n{self.logs()}"
+        return [json.loads(line) for line in res.stdout.splitlines() if line.strip()]
+
+    def logs(self) -> str:
+        return "\n".join(f"----- {p.name} (pid {p.pid}) -----\n{p.output()[-4000:]}" for p in self.procs)
+
+    def close(self) -> None:
+        for proc in reversed(self.procs):
+            if proc.alive():
+                proc.terminate()
+            if not proc.children_gone():
+                proc.kill()
+
+
+class Client:
+    """An in-test zenoh client: publish contract samples and collect decoded ones."""
+
+    def __init__(self, endpoint: str, prefix: str = "hri"):
+        conf = zenoh.Config()
+        conf.insert_json5("mode", '"client"')
+        conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+        conf.insert_json5("scouting/multicast/enabled", "false")
+        self.session = zenoh.open(conf)
+        self.keys = Keys(prefix)
+        self._pubs: dict[str, SamplePublisher] = {}
+        self._subs: list[Any] = []
+
+    def publish(self, key: str, sample: Sample, realtime: bool = False) -> None:
+        pub = self._pubs.get(key)
+        if pub is None:
+            pub = self._pubs[key] = SamplePublisher(self.session, key, lossless=True, realtime=realtime)
+        pub.put(sample)
+
+    def put_raw(self, key: str, payload: bytes) -> None:
+        self.session.put(key, payload)
+
+    def collect(self, keyexpr: str) -> "Collector":
+        col = Collector(self.keys)
+        self._subs.append(self.session.declare_subscriber(keyexpr, col.on_sample))
+        return col
+
+    def stats(self, service: str, timeout: float = 2.0) -> dict[str, Any]:
+        from common.schema import Stats
+        for reply in self.session.get(self.keys.stats(service, "*"), timeout=timeout):
+            if reply.ok is not None:
+                return decode(reply.ok.payload.to_bytes(), Stats).to_dict()
+        raise AssertionError(f"service {service!r} did not answer a stats query")
+
+    def alive(self, timeout: float = 1.0) -> list[tuple[str, str]]:
+        found = []
+        for reply in self.session.liveliness().get(self.keys.alive(), timeout=timeout):
+            if reply.ok is not None:
+                found.append(self.keys.parse_alive(str(reply.ok.key_expr)))
+        return found
+
+    def wait_alive(self, service: str, timeout: float = 30.0) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if any(s == service for s, _ in self.alive()):
+                return
+            time.sleep(0.1)
+        raise TimeoutError(f"service {service!r} never declared its liveliness token")
+
+    def close(self) -> None:
+        for sub in self._subs:
+            sub.undeclare()
+        for pub in self._pubs.values():
+            pub.undeclare()
+        self.session.close()
+
+
+class Collector:
+    """Decoded samples received on a subscription, in arrival order."""
+
+    def __init__(self, keys: Keys):
+        self.keys = keys
+        self.items: queue.Queue[tuple[str, Any]] = queue.Queue()
+        self.seen: list[tuple[str, Any]] = []
+
+    def on_sample(self, s: zenoh.Sample) -> None:
+        key = str(s.key_expr)
+        schema = self.keys.schema_for(key)
+        self.items.put((key, decode(s.payload.to_bytes(), schema) if schema else s.payload.to_bytes()))
+
+    def wait(self, n: int = 1, timeout: float = 10.0,
+             where: Callable[[str, Any], bool] = lambda k, s: True) -> list[tuple[str, Any]]:
+        """Block until `n` matching samples have arrived (in total); returns them."""
+        deadline = time.monotonic() + timeout
+        while True:
+            matching = [item for item in self.seen if where(*item)]
+            if len(matching) >= n:
+                return matching[:n]
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"got {len(matching)}/{n} matching samples in {timeout} s "
+                                   f"(all received: {[k for k, _ in self.seen]})")
+            try:
+                self.seen.append(self.items.get(timeout=min(left, 0.2)))
+            except queue.Empty:
+                pass
+
+    def drain(self, seconds: float = 0.0) -> list[tuple[str, Any]]:
+        deadline = time.monotonic() + seconds
+        while True:
+            try:
+                self.seen.append(self.items.get(timeout=max(0.0, deadline - time.monotonic())))
+            except queue.Empty:
+                return self.seen
