@@ -284,6 +284,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--service", default=None, help="only this service")
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
     p.set_defaults(func=cmd_stats)
+
+    from common import recording  # imports mcap only when record/replay actually run
+    recording.add_record_arguments(command(
+        "record", "write every sample on key expressions to an MCAP file (Ctrl-C finishes it)",
+        recording.RECORD_EXAMPLES))
+    recording.add_replay_arguments(command(
+        "replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES))
     return parser
 
 

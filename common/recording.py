@@ -1,0 +1,621 @@
+"""`hri record` / `hri replay`: sessions on disk as MCAP, and back onto the bus.
+
+File layout (what a reader of the .mcap can count on):
+- one channel per concrete key; topic = the key, message_encoding = "msgpack", no schema record
+  (schema_id 0); channel metadata names the contract type ("schema": "Transcript", or "" for keys
+  outside the contract) and the zenoh encoding the first sample arrived with;
+- message data = the payload bytes exactly as received;
+- log_time = receive time (ns since the UNIX epoch, the recorder's clock);
+- publish_time = the sample's own `stamp` when the payload decodes under the contract, else the
+  receive time; sequence = per-channel count from 1;
+- one metadata record "hri.record" (key expressions, prefix, start time, host).
+
+The top half of this module is the functional core (MCAP writing/reading, the replay clock,
+progress lines) and imports neither zenoh nor the transport; the `cmd_*` shells at the bottom
+import them lazily and are wired into `hri` by common/cli.py.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import queue
+import signal
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Callable, Iterable, Iterator
+
+from common.codec import ENCODING, decode
+from common.keys import Keys
+from common.schema import InvalidSample
+
+MESSAGE_ENCODING = "msgpack"
+PROFILE = ""  # no well-known MCAP profile fits; the contract lives in channel metadata
+METADATA_NAME = "hri.record"
+COMPRESSIONS = ("zstd", "lz4", "none")
+NS = 1_000_000_000
+
+RECORD_EXAMPLES = """\
+examples:
+  hri record -o session.mcap 'hri/**'                    # everything, until Ctrl-C
+  hri record -o inputs.mcap 'hri/speech/**' 'hri/vision/**' 'hri/gesture/*/event'
+  hri record -o ten.mcap 'hri/fusion/**' --count 10      # stop after 10 samples
+  hri record -o minute.mcap --duration 60                # default key expression: <prefix>/**
+The file is finished properly (summary, indexes) on Ctrl-C / SIGTERM, --count or --duration.
+"""
+
+REPLAY_EXAMPLES = """\
+examples:
+  hri replay session.mcap                                # original timing
+  hri replay session.mcap --speed 2                      # twice as fast; --speed 0: as fast as possible
+  hri replay session.mcap --only 'hri/speech/**' --only 'hri/vision/**'   # only these keys
+  hri replay session.mcap --loop                         # over and over until Ctrl-C
+Payloads are republished byte for byte (application/msgpack, congestion control BLOCK).
+"""
+
+
+def _mcap():
+    try:
+        import mcap.reader
+        import mcap.writer
+    except ImportError:  # pragma: no cover - the record extra is part of the default set-up
+        raise SystemExit("hri record/replay need the `mcap` package: pip install 'hri-fusion[record]'") from None
+    return mcap
+
+
+def human_bytes(n: float) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if abs(n) < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return f"{n:.1f} GB"  # unreachable, keeps type checkers calm
+
+
+# ---------------------------------------------------------------------------
+# Writing
+# ---------------------------------------------------------------------------
+def stamp_ns(key: str, payload: bytes, keys: Keys) -> int | None:
+    """The sample's `stamp` in ns if `payload` is a valid contract sample for `key`, else None."""
+    schema = keys.schema_for(key)
+    if schema is None:
+        return None
+    try:
+        return int(round(decode(payload, schema).stamp * NS))
+    except InvalidSample:
+        return None
+
+
+@dataclass
+class KeyTally:
+    samples: int = 0
+    bytes: int = 0
+    not_contract: int = 0  # payloads that did not decode under the contract (publish time = receive time)
+
+
+class SessionWriter:
+    """Writes received samples to an MCAP stream: one channel per key, payload bytes untouched."""
+
+    def __init__(self, stream: IO[bytes], keys: Keys, *, compression: str = "zstd",
+                 metadata: dict[str, str] | None = None, chunk_size: int = 1 << 20):
+        mcap = _mcap()
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression must be one of {COMPRESSIONS}, not {compression!r}")
+        kind = {"zstd": mcap.writer.CompressionType.ZSTD, "lz4": mcap.writer.CompressionType.LZ4,
+                "none": mcap.writer.CompressionType.NONE}[compression]
+        self.keys = keys
+        self._writer = mcap.writer.Writer(stream, chunk_size=chunk_size, compression=kind)
+        self._writer.start(profile=PROFILE, library="hri-fusion record")
+        if metadata:
+            self._writer.add_metadata(METADATA_NAME, metadata)
+        self._channels: dict[str, int] = {}
+        self.tally: dict[str, KeyTally] = collections.defaultdict(KeyTally)
+        self.samples = 0
+        self.bytes = 0
+        self.finished = False
+
+    def add(self, key: str, payload: bytes, receive_ns: int, zenoh_encoding: str = ENCODING) -> int:
+        """Write one sample; returns the publish time written (stamp, or receive time)."""
+        channel = self._channels.get(key)
+        if channel is None:
+            schema = self.keys.schema_for(key)
+            channel = self._channels[key] = self._writer.register_channel(
+                topic=key, message_encoding=MESSAGE_ENCODING, schema_id=0,
+                metadata={"schema": schema.__name__ if schema else "", "zenoh_encoding": zenoh_encoding})
+        stamp = stamp_ns(key, payload, self.keys)
+        tally = self.tally[key]
+        tally.samples += 1
+        tally.bytes += len(payload)
+        if stamp is None:
+            tally.not_contract += 1
+        publish_ns = receive_ns if stamp is None else stamp
+        self._writer.add_message(channel_id=channel, log_time=receive_ns, data=payload,
+                                 publish_time=publish_ns, sequence=tally.samples)
+        self.samples += 1
+        self.bytes += len(payload)
+        return publish_ns
+
+    def finish(self) -> None:
+        """Write the summary and indexes (the file is a complete MCAP afterwards)."""
+        if not self.finished:
+            self._writer.finish()
+            self.finished = True
+
+
+# ---------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------
+@dataclass(frozen=True, slots=True)
+class Recorded:
+    key: str
+    payload: bytes
+    log_ns: int
+    publish_ns: int
+    sequence: int
+
+
+@dataclass
+class RecordingInfo:
+    """What the summary says (or what a linear scan found when the summary is missing)."""
+    keys: dict[str, int] = field(default_factory=dict)  # key -> message count
+    start_ns: int = 0
+    end_ns: int = 0
+    complete: bool = True  # False: no summary (the recorder was killed); read linearly up to the damage
+
+    @property
+    def samples(self) -> int:
+        return sum(self.keys.values())
+
+    @property
+    def span_s(self) -> float:
+        return (self.end_ns - self.start_ns) / NS if self.samples else 0.0
+
+
+class RecordingError(Exception):
+    """The file is missing, not MCAP, or not something hri recorded; the message says which."""
+
+
+class SessionReader:
+    """Reads an .mcap written by `hri record` (or any MCAP whose msgpack channels are zenoh keys)."""
+
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
+        mcap = _mcap()
+        self._errors = (mcap.exceptions.McapError, EOFError, ValueError, OSError)
+        try:
+            self._stream = open(self.path, "rb")
+        except OSError as exc:
+            raise RecordingError(f"cannot open {self.path}: {exc.strerror or exc}") from None
+        try:
+            self._reader = mcap.reader.make_reader(self._stream)
+        except self._errors as exc:
+            self._stream.close()
+            raise RecordingError(f"{self.path} is not an MCAP file ({type(exc).__name__}: {exc})") from None
+        self.skipped_encodings: dict[str, str] = {}  # key -> message encoding we cannot republish
+        self.damaged: str | None = None  # why a linear read stopped early
+        self.info = self._read_info()
+
+    def _read_info(self) -> RecordingInfo:
+        try:
+            summary = self._reader.get_summary()
+        except self._errors:
+            summary = None
+        if summary is not None and summary.statistics is not None:
+            info = RecordingInfo(start_ns=summary.statistics.message_start_time,
+                                 end_ns=summary.statistics.message_end_time)
+            for cid, channel in summary.channels.items():
+                if channel.message_encoding != MESSAGE_ENCODING:
+                    self.skipped_encodings[channel.topic] = channel.message_encoding
+                    continue
+                info.keys[channel.topic] = info.keys.get(channel.topic, 0) + \
+                    summary.statistics.channel_message_counts.get(cid, 0)
+            return info
+        # No summary: the recording was cut short. One linear pass tells what is readable.
+        info = RecordingInfo(complete=False)
+        first = True
+        for item in self._linear():
+            info.keys[item.key] = info.keys.get(item.key, 0) + 1
+            info.start_ns = item.log_ns if first else min(info.start_ns, item.log_ns)
+            info.end_ns = item.log_ns if first else max(info.end_ns, item.log_ns)
+            first = False
+        return info
+
+    def _linear(self) -> Iterator[Recorded]:
+        mcap = _mcap()
+        self._stream.seek(0)
+        reader = mcap.reader.NonSeekingReader(self._stream)
+        try:
+            for _, channel, message in reader.iter_messages(log_time_order=False):
+                if channel.message_encoding != MESSAGE_ENCODING:
+                    self.skipped_encodings[channel.topic] = channel.message_encoding
+                    continue
+                yield Recorded(channel.topic, message.data, message.log_time, message.publish_time, message.sequence)
+        except self._errors as exc:
+            self.damaged = f"{type(exc).__name__}: {exc}"
+
+    def messages(self, keep: Callable[[str], bool] = lambda key: True) -> Iterator[Recorded]:
+        """Messages on kept keys in log-time (receive) order."""
+        topics = [k for k in self.info.keys if keep(k)]
+        if not topics:
+            return
+        if not self.info.complete:
+            # written in arrival order, which is log-time order up to the writer's queueing
+            yield from (m for m in self._linear() if keep(m.key))
+            return
+        for _, channel, message in self._reader.iter_messages(topics=topics, log_time_order=True):
+            yield Recorded(channel.topic, message.data, message.log_time, message.publish_time, message.sequence)
+
+    def metadata(self) -> dict[str, str]:
+        try:
+            for record in self._reader.iter_metadata():
+                if record.name == METADATA_NAME:
+                    return dict(record.metadata)
+        except self._errors:
+            pass
+        return {}
+
+    def close(self) -> None:
+        self._stream.close()
+
+
+# ---------------------------------------------------------------------------
+# Replay timing and progress
+# ---------------------------------------------------------------------------
+class ReplayClock:
+    """When to send each message: original gaps divided by `speed`, anchored at the first one.
+
+    The schedule is absolute, so one late send does not delay the rest (they catch up);
+    speed 0 means no waiting at all.
+    """
+
+    def __init__(self, speed: float, now: Callable[[], float] = time.monotonic):
+        if speed < 0:
+            raise ValueError("speed must be >= 0")
+        self.speed = speed
+        self._now = now
+        self._anchor: tuple[int, float] | None = None
+
+    def restart(self) -> None:
+        self._anchor = None
+
+    def wait_for(self, log_ns: int) -> float:
+        """Seconds to wait before sending the message logged at `log_ns` (0 if due or late)."""
+        if self.speed == 0:
+            return 0.0
+        if self._anchor is None:
+            self._anchor = (log_ns, self._now())
+            return 0.0
+        first_ns, first_wall = self._anchor
+        due = first_wall + (log_ns - first_ns) / NS / self.speed
+        return max(0.0, due - self._now())
+
+
+class Progress:
+    """A status line on stderr about once a second: rewritten in place on a terminal, appended otherwise."""
+
+    def __init__(self, stream: IO[str] = sys.stderr, interval: float = 1.0,
+                 now: Callable[[], float] = time.monotonic):
+        self.stream = stream
+        self.interval = interval
+        self._now = now
+        self._last = now()
+        self._tty = bool(getattr(stream, "isatty", lambda: False)())
+        self._open_line = False
+
+    def due(self) -> bool:
+        return self._now() - self._last >= self.interval
+
+    def show(self, line: str) -> None:
+        self._last = self._now()
+        if self._tty:
+            self.stream.write("\r\x1b[2K" + line)
+            self._open_line = True
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def end(self, line: str) -> None:
+        if self._open_line:
+            self.stream.write("\r\x1b[2K")
+            self._open_line = False
+        self.stream.write(line + "\n")
+        self.stream.flush()
+
+
+def rate_line(verb: str, samples: int, nbytes: int, elapsed: float, extra: str = "") -> str:
+    elapsed = max(elapsed, 1e-9)
+    return (f"{verb}: {samples} samples, {human_bytes(nbytes)}, {samples / elapsed:.1f} samples/s "
+            f"({human_bytes(nbytes / elapsed)}/s), {elapsed:.0f} s{extra}")
+
+
+def key_table(counts: dict[str, KeyTally] | dict[str, int]) -> str:
+    rows = []
+    for key in sorted(counts):
+        value = counts[key]
+        if isinstance(value, KeyTally):
+            note = f", {value.not_contract} outside the contract" if value.not_contract else ""
+            rows.append(f"  {key}: {value.samples} ({human_bytes(value.bytes)}{note})")
+        else:
+            rows.append(f"  {key}: {value}")
+    return "\n".join(rows)
+
+
+# ---------------------------------------------------------------------------
+# Shells: `hri record` and `hri replay`
+# ---------------------------------------------------------------------------
+def add_record_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("keyexpr", nargs="*", help="zenoh key expressions to record (default '<prefix>/**')")
+    p.add_argument("-o", "--output", default=None,
+                   help="the .mcap file to write (default hri-YYYYmmdd-HHMMSS.mcap in the current folder)")
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.add_argument("--count", type=int, default=None, help="stop after N samples")
+    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    p.add_argument("--compression", choices=COMPRESSIONS, default="zstd", help="chunk compression (default zstd)")
+    p.add_argument("--max-backlog-mb", type=float, default=256.0,
+                   help="received but not yet written data above which new samples are dropped and counted "
+                        "(default 256)")
+    p.set_defaults(func=cmd_record)
+
+
+def add_replay_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", help="an .mcap written by `hri record`")
+    p.add_argument("--speed", type=float, default=1.0,
+                   help="time scale: 1 = original timing (default), 2 = twice as fast, 0 = as fast as possible")
+    p.add_argument("--only", action="append", default=None, metavar="KEYEXPR",
+                   help="replay only keys intersecting this key expression, repeatable (e.g. 'hri/speech/**')")
+    p.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
+    p.add_argument("--wait-subscribers", type=float, default=2.0, metavar="S",
+                   help="wait up to S seconds for a subscriber on a replayed key before the first send "
+                        "(default 2; 0 = do not wait)")
+    p.set_defaults(func=cmd_replay)
+
+
+def _stop_on_signals(stop: threading.Event) -> None:
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+
+
+def _check_keyexprs(exprs: Iterable[str], what: str) -> list[Any] | None:
+    import zenoh
+    out = []
+    for expr in exprs:
+        try:
+            out.append(zenoh.KeyExpr(expr))
+        except zenoh.ZError as exc:
+            print(f"hri {what}: {expr!r} is not a valid key expression: {str(exc).split(' at ')[0]}",
+                  file=sys.stderr)
+            return None
+    return out
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    import zenoh
+
+    from common.runner import setup_logging
+    from common.transport import open_session, resolve
+
+    resolve(args)
+    keys = Keys(args.prefix)
+    exprs = args.keyexpr or [f"{keys.prefix}/**"]
+    if _check_keyexprs(exprs, "record") is None:
+        return 2
+    if args.count is not None and args.count <= 0 or args.duration is not None and args.duration <= 0:
+        print("hri record: --count and --duration must be > 0", file=sys.stderr)
+        return 2
+    out = Path(args.output or time.strftime("hri-%Y%m%d-%H%M%S.mcap"))
+    if out.exists() and not args.force:
+        print(f"hri record: {out} already exists; pass --force to overwrite it or choose another -o",
+              file=sys.stderr)
+        return 2
+    try:
+        stream = open(out, "wb")
+    except OSError as exc:
+        print(f"hri record: cannot write {out}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    log = setup_logging("hri.record", args.log_level)
+    stop = threading.Event()
+    _stop_on_signals(stop)
+    writer = SessionWriter(stream, keys, compression=args.compression,
+                           metadata={"keyexpr": " ".join(exprs), "prefix": keys.prefix, "host": socket.gethostname(),
+                                     "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "tool": "hri record"})
+
+    # Zenoh callbacks only enqueue; the main thread decodes stamps and writes, so a slow disk
+    # shows up as backlog (and, past --max-backlog-mb, as counted drops) instead of stalling the session.
+    inbox: queue.SimpleQueue[tuple[str, bytes, int, str]] = queue.SimpleQueue()
+    backlog = {"bytes": 0, "dropped": 0}
+    backlog_lock = threading.Lock()
+    max_backlog = int(args.max_backlog_mb * 1e6)
+
+    def on_sample(sample: zenoh.Sample) -> None:
+        if sample.kind != zenoh.SampleKind.PUT:
+            return  # deletions (and liveliness going away) are not data
+        payload = sample.payload.to_bytes()
+        with backlog_lock:
+            if backlog["bytes"] + len(payload) > max_backlog:
+                backlog["dropped"] += 1
+                return
+            backlog["bytes"] += len(payload)
+        inbox.put((str(sample.key_expr), payload, time.time_ns(), str(sample.encoding)))
+
+    session = open_session(args, log, stop)
+    subscribers = []
+    if session is not None:
+        subscribers = [session.declare_subscriber(expr, on_sample) for expr in exprs]
+        log.info("recording %s to %s (Ctrl-C to finish)", " ".join(repr(e) for e in exprs), out)
+    progress = Progress()
+    started = time.monotonic()
+    deadline = started + args.duration if args.duration else None
+    error = 0
+
+    def extra() -> str:
+        with backlog_lock:
+            b, d = backlog["bytes"], backlog["dropped"]
+        return (f", {len(writer.tally)} keys" + (f", backlog {human_bytes(b)}" if b > 1_000_000 else "")
+                + (f", {d} DROPPED (disk too slow)" if d else ""))
+
+    def write_one(item: tuple[str, bytes, int, str]) -> None:
+        key, payload, receive_ns, encoding = item
+        with backlog_lock:
+            backlog["bytes"] -= len(payload)
+        writer.add(key, payload, receive_ns, encoding)
+
+    try:
+        while session is not None and not stop.is_set():
+            if args.count is not None and writer.samples >= args.count:
+                break
+            wait = 0.2 if deadline is None else min(0.2, deadline - time.monotonic())
+            if wait <= 0:
+                break
+            try:
+                write_one(inbox.get(timeout=wait))
+            except queue.Empty:
+                pass
+            if progress.due():
+                progress.show(rate_line("recording", writer.samples, writer.bytes,
+                                        time.monotonic() - started, extra()))
+        for sub in subscribers:
+            sub.undeclare()
+        # what already arrived is written, up to --count
+        while args.count is None or writer.samples < args.count:
+            try:
+                write_one(inbox.get_nowait())
+            except queue.Empty:
+                break
+    except OSError as exc:
+        log.error("writing %s failed: %s; the file is incomplete", out, exc.strerror or exc)
+        error = 1
+    finally:
+        try:
+            writer.finish()
+            stream.close()
+        except OSError as exc:
+            log.error("finishing %s failed: %s", out, exc.strerror or exc)
+            error = 1
+        if session is not None:
+            session.close()
+    elapsed = time.monotonic() - started
+    progress.end(rate_line("recorded", writer.samples, writer.bytes, elapsed, extra()) + f" -> {out}")
+    if writer.tally:
+        print(key_table(writer.tally), file=sys.stderr, flush=True)
+    return error
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    import zenoh
+
+    from common.runner import setup_logging
+    from common.transport import open_session, resolve
+
+    resolve(args)
+    if args.speed < 0:
+        print("hri replay: --speed must be >= 0 (0 = as fast as possible)", file=sys.stderr)
+        return 2
+    only = _check_keyexprs(args.only or [], "replay")
+    if only is None:
+        return 2
+    try:
+        reader = SessionReader(args.file)
+    except RecordingError as exc:
+        print(f"hri replay: {exc}", file=sys.stderr)
+        return 2
+    log = setup_logging("hri.replay", args.log_level)
+
+    def keep(key: str) -> bool:
+        return not only or any(zenoh.KeyExpr(key).intersects(o) for o in only)
+
+    info = reader.info
+    selected = {k: n for k, n in info.keys.items() if keep(k)}
+    for key, enc in reader.skipped_encodings.items():
+        log.warning("skipping %s: message encoding %r is not msgpack", key, enc)
+    if not info.complete:
+        log.warning("%s has no summary (the recorder did not finish it); replaying the %d readable samples",
+                    args.file, info.samples)
+    if not selected:
+        what = f" matching {' '.join(args.only)}" if args.only else ""
+        print(f"hri replay: nothing to replay{what} in {args.file} (keys: {', '.join(sorted(info.keys)) or 'none'})",
+              file=sys.stderr)
+        reader.close()
+        return 1
+    total = sum(selected.values())
+    log.info("replaying %d samples on %d keys spanning %.1f s from %s at %s", total, len(selected), info.span_s,
+             args.file, "full speed" if args.speed == 0 else f"x{args.speed:g}")
+
+    stop = threading.Event()
+    _stop_on_signals(stop)
+    session = open_session(args, log, stop)
+    if session is None:
+        reader.close()
+        return 0
+    publishers = {key: session.declare_publisher(key, encoding=zenoh.Encoding(ENCODING),
+                                                 congestion_control=zenoh.CongestionControl.BLOCK,
+                                                 priority=zenoh.Priority.DATA_HIGH)
+                  for key in sorted(selected)}
+    _wait_for_subscribers(publishers, args.wait_subscribers, stop, log)
+
+    clock = ReplayClock(args.speed)
+    progress = Progress()
+    started = time.monotonic()
+    sent, sent_bytes, loops, error = 0, 0, 0, 0
+    try:
+        while not stop.is_set():
+            loops += 1
+            clock.restart()
+            first_ns = None
+            for i, msg in enumerate(reader.messages(keep), 1):
+                delay = clock.wait_for(msg.log_ns)
+                if delay > 0 and stop.wait(delay):
+                    break
+                if stop.is_set():
+                    break
+                publishers[msg.key].put(msg.payload)
+                sent += 1
+                sent_bytes += len(msg.payload)
+                first_ns = msg.log_ns if first_ns is None else first_ns
+                if progress.due():
+                    where = f", {(msg.log_ns - first_ns) / NS:.1f}/{info.span_s:.1f} s recorded time"
+                    loop = f", loop {loops}" if args.loop else ""
+                    progress.show(rate_line("replaying", sent, sent_bytes, time.monotonic() - started,
+                                            f" [{i}/{total}{where}{loop}]"))
+            if reader.damaged:
+                log.warning("stopped reading at damaged data in %s: %s", args.file, reader.damaged)
+            if not args.loop:
+                break
+    except zenoh.ZError as exc:
+        log.error("publishing failed: %s", exc)
+        error = 1
+    finally:
+        time.sleep(0.3)  # let the last puts leave the socket before the session goes away
+        for pub in publishers.values():
+            pub.undeclare()
+        session.close()
+        reader.close()
+    elapsed = time.monotonic() - started
+    progress.end(rate_line("replayed", sent, sent_bytes, elapsed,
+                           f" on {len(selected)} keys (recording spans {info.span_s:.1f} s, "
+                           f"{'full speed' if args.speed == 0 else f'x{args.speed:g}'}"
+                           f"{f', {loops} loops' if args.loop else ''})"))
+    return error
+
+
+def _wait_for_subscribers(publishers: dict[str, Any], seconds: float, stop: threading.Event, log: Any) -> None:
+    """Samples sent before anyone subscribes are lost; give late subscribers a moment."""
+    if seconds <= 0:
+        return
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and not stop.is_set():
+        if any(_matching(pub) for pub in publishers.values()):
+            return
+        stop.wait(0.05)
+    if not stop.is_set():
+        log.warning("no subscriber on any replayed key after %.1f s; replaying anyway", seconds)
+
+
+def _matching(pub: Any) -> bool:
+    try:
+        return bool(pub.matching_status.matching)
+    except Exception:  # matching status unsupported by this zenoh build: do not block the replay
+        return True
