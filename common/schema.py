@@ -61,181 +61,280 @@ def name(**kw: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------
-# Validator compilation. A checker takes (value, path) and returns the value in
-# its canonical Python form (floats as float, nested maps as dataclasses), or
-# raises InvalidSample.
+# Validator generation. For each class, Python source is generated from the type
+# hints and compiled once: one function that validates a decoded map and builds
+# the object, one that validates an object while turning it into a map. The
+# success path builds no strings; a failing check raises _Bad, and each enclosing
+# level adds its piece of the path on the way out.
 # ---------------------------------------------------------------------------
-Checker = Callable[[Any, str], Any]
+class _Bad(Exception):
+    def __init__(self, reason: str, message: str, *path: str):
+        self.reason, self.message, self.path = reason, message, list(path)
+
+    def under(self, *prefix: str) -> "_Bad":
+        self.path[:0] = prefix
+        return self
+
+    def as_invalid(self, root: str) -> InvalidSample:
+        where = root
+        for part in self.path:
+            where = f"{where}{part}" if part.startswith("[") else (f"{where}.{part}" if where else part)
+        return InvalidSample(self.reason, f"{where}: {self.message}" if where else self.message)
 
 
 def _type_name(value: Any) -> str:
     return type(value).__name__
 
 
-def _check_int(value: Any, path: str) -> int:
-    if type(value) is not int:  # bool is a subclass of int: refuse it explicitly
-        raise InvalidSample("wrong_type", f"{path}: expected int, got {_type_name(value)}")
-    return value
+def _bad_type(expected: str, value: Any, *path: str) -> _Bad:
+    return _Bad("wrong_type", f"expected {expected}, got {_type_name(value)}", *path)
 
 
-def _check_float(value: Any, path: str) -> float:
-    t = type(value)
+def _float(x: Any) -> float:
+    t = type(x)
     if t is float:
-        if not math.isfinite(value):
-            raise InvalidSample("not_finite", f"{path}: {value!r} is not a finite number")
-        return value
+        if x - x != 0.0:  # NaN and ±inf are the only floats for which x - x is not 0
+            raise _Bad("not_finite", f"{x!r} is not a finite number")
+        return x
     if t is int:
-        return float(value)
-    raise InvalidSample("wrong_type", f"{path}: expected number, got {_type_name(value)}")
+        return float(x)
+    raise _bad_type("number", x)
 
 
-def _check_str(value: Any, path: str) -> str:
-    if type(value) is not str:
-        raise InvalidSample("wrong_type", f"{path}: expected str, got {_type_name(value)}")
-    return value
+def _floats(x: Any, length: int | None) -> list[float]:
+    if type(x) is not list:
+        if type(x) is not tuple:
+            raise _bad_type("list", x)
+        x = list(x)
+    if length is not None and len(x) != length:
+        raise _Bad("bad_value", f"expected {length} items, got {len(x)}")
+    for v in x:  # fast path: all finite floats, nothing to convert
+        if type(v) is not float or v - v != 0.0:
+            break
+    else:
+        return x
+    out = list(x)
+    for i, v in enumerate(out):
+        if type(v) is not float or v - v != 0.0:
+            try:
+                out[i] = _float(v)
+            except _Bad as bad:
+                raise bad.under(f"[{i}]") from None
+    return out
 
 
-def _check_bool(value: Any, path: str) -> bool:
-    if type(value) is not bool:
-        raise InvalidSample("wrong_type", f"{path}: expected bool, got {_type_name(value)}")
-    return value
+def _points(x: Any, length: int | None) -> list[list[float]]:
+    """A list of [x, y] pairs (landmarks): the hot loop of Hands, kept flat."""
+    if type(x) is not list and type(x) is not tuple:
+        raise _bad_type("list", x)
+    if length is not None and len(x) != length:
+        raise _Bad("bad_value", f"expected {length} items, got {len(x)}")
+    out = []
+    append = out.append
+    for i, p in enumerate(x):
+        if type(p) is list and len(p) == 2:
+            a, b = p
+            if type(a) is float and type(b) is float and a - a == 0.0 and b - b == 0.0:
+                append(p)
+                continue
+        try:
+            append(_floats(p, 2))
+        except _Bad as bad:
+            raise bad.under(f"[{i}]") from None
+    return out
 
 
-def _check_bytes(value: Any, path: str) -> bytes:
-    if type(value) is bytes:
-        return value
-    if isinstance(value, (bytearray, memoryview)):
-        return bytes(value)
-    raise InvalidSample("wrong_type", f"{path}: expected bin, got {_type_name(value)}")
+def _items(x: Any, convert: Callable[[Any], Any], length: int | None) -> list:
+    if type(x) is not list and type(x) is not tuple:
+        raise _bad_type("list", x)
+    if length is not None and len(x) != length:
+        raise _Bad("bad_value", f"expected {length} items, got {len(x)}")
+    out = []
+    for i, v in enumerate(x):
+        try:
+            out.append(convert(v))
+        except _Bad as bad:
+            raise bad.under(f"[{i}]") from None
+    return out
 
 
-_SCALARS: dict[Any, Checker] = {
-    int: _check_int, float: _check_float, str: _check_str, bool: _check_bool, bytes: _check_bytes,
-}
+def _mapping(x: Any, key: Callable[[Any], Any], val: Callable[[Any], Any]) -> dict:
+    if type(x) is not dict:
+        raise _bad_type("map", x)
+    out = {}
+    for k, v in x.items():
+        try:
+            out[key(k)] = val(v)
+        except _Bad as bad:
+            raise bad.under(str(k)) from None
+    return out
 
 
-def _compile(tp: Any, meta: dict[str, Any] | None = None) -> Checker:
-    meta = meta or {}
-    origin = get_origin(tp)
-    if origin in (Union, types.UnionType):
-        args = [a for a in get_args(tp) if a is not type(None)]
-        inner = _compile(args[0] if len(args) == 1 else Union[tuple(args)], meta)
+class _Gen:
+    """Emits the check of one value `x` (already bound) for a type, for the decode or encode direction."""
 
-        def check_optional(value: Any, path: str) -> Any:
-            return None if value is None else inner(value, path)
-        return check_optional
-    if origin is Literal:
-        choices = get_args(tp)
+    def __init__(self, encode: bool):
+        self.encode = encode
+        self.env: dict[str, Any] = {
+            "_Bad": _Bad, "_bad_type": _bad_type, "_float": _float, "_floats": _floats, "_points": _points,
+            "_items": _items, "_mapping": _mapping, "bytearray": bytearray, "memoryview": memoryview,
+        }
+        self.n = 0
 
-        def check_choice(value: Any, path: str) -> Any:
-            if type(value) is not str:
-                raise InvalidSample("wrong_type", f"{path}: expected str, got {_type_name(value)}")
-            if value not in choices:
-                raise InvalidSample("bad_value", f"{path}: {value!r} is not one of {list(choices)}")
-            return value
-        return check_choice
-    if origin is list:
-        (item_tp,) = get_args(tp)
-        item = _compile(item_tp)
+    def const(self, value: Any) -> str:
+        self.n += 1
+        name = f"_c{self.n}"
+        self.env[name] = value
+        return name
+
+    def converter(self, tp: Any) -> str:
+        """A name bound to a function converting one value of type `tp`."""
+        lines = self.check(tp, {}, "x", "    ")
+        self.n += 1
+        fname = f"_conv{self.n}"
+        src = f"def {fname}(x):\n" + "".join(lines) + "    return x\n"
+        exec(src, self.env)
+        return fname
+
+    def check(self, tp: Any, meta: dict[str, Any], x: str, ind: str) -> list[str]:
+        origin = get_origin(tp)
+        if origin in (Union, types.UnionType):
+            args = [a for a in get_args(tp) if a is not type(None)]
+            inner = self.check(args[0], meta, x, ind + "    ")
+            return [f"{ind}if {x} is not None:\n", *inner] if inner else []
+        if origin is Literal:
+            choices = self.const(frozenset(get_args(tp)))
+            listed = self.const(sorted(get_args(tp)))
+            return [f"{ind}if type({x}) is not str: raise _bad_type('str', {x})\n",
+                    f"{ind}if {x} not in {choices}: raise _Bad('bad_value', f'{{{x}!r}} is not one of {{{listed}}}')\n"]
         length = meta.get("length")
+        if origin is list:
+            (item,) = get_args(tp)
+            if item is float:
+                return [f"{ind}{x} = _floats({x}, {length!r})\n"]
+            if get_origin(item) is list and get_args(item) == (float,):
+                return [f"{ind}{x} = _points({x}, {length!r})\n"]
+            return [f"{ind}{x} = _items({x}, {self.converter(item)}, {length!r})\n"]
+        if origin is dict:
+            key_tp, val_tp = get_args(tp)
+            return [f"{ind}{x} = _mapping({x}, {self.converter(key_tp)}, {self.converter(val_tp)})\n"]
+        if isinstance(tp, type) and issubclass(tp, Struct):
+            cls = self.const(tp)
+            if self.encode:
+                return [f"{ind}if type({x}) is not {cls}: raise _bad_type({tp.__name__!r}, {x})\n",
+                        f"{ind}{x} = {x}._encode_map()\n"]
+            return [f"{ind}{x} = {cls}._decode_map({x})\n"]
+        lines: list[str]
+        if tp is float:
+            lines = [f"{ind}if type({x}) is not float or {x} - {x} != 0.0: {x} = _float({x})\n"]
+        elif tp is int:
+            lines = [f"{ind}if type({x}) is not int: raise _bad_type('int', {x})\n"]
+        elif tp is str:
+            lines = [f"{ind}if type({x}) is not str: raise _bad_type('str', {x})\n"]
+        elif tp is bool:
+            lines = [f"{ind}if type({x}) is not bool: raise _bad_type('bool', {x})\n"]
+        elif tp is bytes:
+            lines = [f"{ind}if type({x}) is not bytes:\n",
+                     f"{ind}    if isinstance({x}, (bytearray, memoryview)): {x} = bytes({x})\n",
+                     f"{ind}    else: raise _bad_type('bin', {x})\n"]
+        else:
+            raise TypeError(f"no wire validator for type {tp!r}")
+        rng = meta.get("rng")
+        if rng is not None:
+            lo, hi = rng
+            lines.append(f"{ind}if not {lo!r} <= {x} <= {hi!r}: "
+                         f"raise _Bad('out_of_range', f'{{{x}}} is outside [{lo}, {hi}]')\n")
+        if meta.get("nonempty"):
+            lines.append(f"{ind}if not {x}: raise _Bad('bad_value', 'must not be empty')\n")
+        return lines
 
-        def check_list(value: Any, path: str) -> list:
-            if type(value) is not list and type(value) is not tuple:
-                raise InvalidSample("wrong_type", f"{path}: expected list, got {_type_name(value)}")
-            if length is not None and len(value) != length:
-                raise InvalidSample("bad_value", f"{path}: expected {length} items, got {len(value)}")
-            return [item(v, f"{path}[{i}]") for i, v in enumerate(value)]
-        return check_list
-    if origin is dict:
-        key_tp, val_tp = get_args(tp)
-        key, val = _compile(key_tp), _compile(val_tp)
 
-        def check_dict(value: Any, path: str) -> dict:
-            if type(value) is not dict:
-                raise InvalidSample("wrong_type", f"{path}: expected map, got {_type_name(value)}")
-            return {key(k, f"{path}.<key>"): val(v, f"{path}.{k}") for k, v in value.items()}
-        return check_dict
-    if isinstance(tp, type) and is_dataclass(tp):
-        return lambda value, path: tp.from_dict(value, path)
-    base = _SCALARS.get(tp)
-    if base is None:
-        raise TypeError(f"no wire validator for type {tp!r}")
-    rng, nonempty = meta.get("rng"), meta.get("nonempty")
-    if rng is not None:
-        lo, hi = rng
+def _generate(cls: type) -> None:
+    hints = get_type_hints(cls)
+    specs = []
+    for f in fields(cls):  # type: ignore[arg-type]
+        required = f.default is MISSING and f.default_factory is MISSING
+        specs.append((f.name, hints[f.name], dict(f.metadata), required, f))
+    cls._names = tuple(s[0] for s in specs)
+    cls._required = tuple(s[0] for s in specs if s[3])
 
-        def check_range(value: Any, path: str) -> Any:
-            value = base(value, path)
-            if not lo <= value <= hi:
-                raise InvalidSample("out_of_range", f"{path}: {value} is outside [{lo}, {hi}]")
-            return value
-        return check_range
-    if nonempty:
-        def check_nonempty(value: Any, path: str) -> Any:
-            value = base(value, path)
-            if not value:
-                raise InvalidSample("bad_value", f"{path}: must not be empty")
-            return value
-        return check_nonempty
-    return base
+    dec = _Gen(encode=False)
+    dec.env.update({"_cls": cls, "_new": object.__new__})
+    body = ["def _decode_map(data):\n",
+            "    if type(data) is not dict: raise _bad_type('map', data)\n",
+            "    obj = _new(_cls)\n", "    d = obj.__dict__\n"]
+    for fname, tp, meta, required, f in specs:
+        body.append(f"    x = data.get({fname!r}, _MISSING)\n")
+        body.append("    if x is _MISSING:\n")
+        if required:
+            body.append(f"        raise _Bad('missing_field', 'required field is missing', {fname!r})\n")
+        elif f.default_factory is not MISSING:
+            body.append(f"        x = {dec.const(f.default_factory)}()\n")
+        else:
+            body.append(f"        x = {dec.const(f.default)}\n")
+        body.append("    else:\n        try:\n")
+        body += dec.check(tp, meta, "x", "            ") or ["            pass\n"]
+        body.append(f"        except _Bad as bad: raise bad.under({fname!r}) from None\n")
+        body.append(f"    d[{fname!r}] = x\n")
+    body.append("    obj._check_invariants()\n    return obj\n")
+    dec.env["_MISSING"] = MISSING
+    exec("".join(body), dec.env)
+    cls._decode_map = staticmethod(dec.env["_decode_map"])
 
-
-def _to_wire(value: Any) -> Any:
-    if isinstance(value, Struct):
-        return value.to_dict()
-    if type(value) is list or type(value) is tuple:
-        return [_to_wire(v) for v in value]
-    if type(value) is dict:
-        return {k: _to_wire(v) for k, v in value.items()}
-    return value
+    enc = _Gen(encode=True)
+    body = ["def _encode_map(self):\n", "    self._check_invariants()\n", "    d = self.__dict__\n", "    out = {}\n"]
+    for fname, tp, meta, _, _ in specs:
+        body.append(f"    x = d[{fname!r}]\n    try:\n")
+        body += enc.check(tp, meta, "x", "        ") or ["        pass\n"]
+        body.append(f"    except _Bad as bad: raise bad.under({fname!r}) from None\n")
+        body.append(f"    out[{fname!r}] = x\n")
+    body.append("    return out\n")
+    exec("".join(body), enc.env)
+    cls._encode_map = enc.env["_encode_map"]
 
 
 class Struct:
-    """Base of every wire map. Subclasses are `@dataclass(kw_only=True)`."""
+    """Base of every wire map. Subclasses are made with `@wire` (keyword-only dataclasses)."""
 
-    _checkers: ClassVar[tuple[tuple[str, Checker, bool, Any], ...]]
     _names: ClassVar[tuple[str, ...]]
+    _required: ClassVar[tuple[str, ...]]
 
     @classmethod
-    def _compile_checkers(cls) -> None:
-        hints = get_type_hints(cls)
-        specs = []
-        for f in fields(cls):  # type: ignore[arg-type]
-            required = f.default is MISSING and f.default_factory is MISSING
-            default = f.default if f.default is not MISSING else f.default_factory
-            specs.append((f.name, _compile(hints[f.name], dict(f.metadata)), required, default))
-        cls._checkers = tuple(specs)
-        cls._names = tuple(s[0] for s in specs)
-
-    @classmethod
-    def from_dict(cls, data: Any, path: str = "") -> Any:
+    def from_dict(cls, data: Any) -> Any:
         """Validate a decoded msgpack map and build the typed object. Unknown keys are ignored."""
         if type(data) is not dict:
-            raise InvalidSample("not_a_map" if not path else "wrong_type",
-                                f"{path or cls.__name__}: expected map, got {_type_name(data)}")
-        values = {}
-        for fname, check, required, default in cls._checkers:
-            if fname in data:
-                values[fname] = check(data[fname], f"{path}.{fname}" if path else fname)
-            elif required:
-                raise InvalidSample("missing_field", f"{path}.{fname}" if path else fname)
-            else:
-                values[fname] = default() if callable(default) else default
-        obj = cls(**values)
-        obj._check_invariants(path or cls.__name__)
-        return obj
-
-    def _check_invariants(self, path: str) -> None:
-        """Cross-field rules; subclasses override."""
+            raise InvalidSample("not_a_map", f"{cls.__name__}: expected a map, got {_type_name(data)}")
+        try:
+            return cls._decode_map(data)
+        except _Bad as bad:
+            raise bad.as_invalid("") from None
 
     def to_dict(self) -> dict[str, Any]:
-        return {n: _to_wire(getattr(self, n)) for n in self._names}
+        """Validate this object and return it as a plain map (what goes on the wire)."""
+        try:
+            return self._encode_map()
+        except _Bad as bad:
+            raise bad.as_invalid("") from None
+
+    @classmethod
+    def required_fields(cls) -> tuple[str, ...]:
+        return cls._required
+
+    def _check_invariants(self) -> None:
+        """Cross-field rules; subclasses override and raise _Bad."""
+
+    @staticmethod
+    def _decode_map(data: dict) -> Any:  # replaced per class by _generate
+        raise NotImplementedError
+
+    def _encode_map(self) -> dict:  # replaced per class by _generate
+        raise NotImplementedError
 
 
 def wire(cls: type) -> type:
-    """Class decorator: make a keyword-only dataclass and compile its validator."""
+    """Class decorator: make a keyword-only dataclass and generate its validators."""
     cls = dataclass(kw_only=True)(cls)
-    cls._compile_checkers()
+    _generate(cls)
     return cls
 
 
@@ -265,10 +364,10 @@ class Ray(Struct):
     direction: list[float] = vec(2)  # unit vector, image axes (x right, y down)
     confidence: float = unit(default=1.0)
 
-    def _check_invariants(self, path: str) -> None:
+    def _check_invariants(self) -> None:
         norm = math.hypot(*self.direction)
         if abs(norm - 1.0) > 1e-3:
-            raise InvalidSample("bad_value", f"{path}.direction: not a unit vector (norm {norm:.4f})")
+            raise _Bad("bad_value", f"not a unit vector (norm {norm:.4f})", "direction")
 
 
 @wire
@@ -279,10 +378,6 @@ class Hand(Struct):
     gesture: Optional[Literal["point", "open_palm", "wave", "fist", "thumbs_up"]] = None
     ray: Optional[Ray] = None
 
-    def _check_invariants(self, path: str) -> None:
-        for i, point in enumerate(self.landmarks):
-            if len(point) != 2:
-                raise InvalidSample("bad_value", f"{path}.landmarks[{i}]: expected [x, y]")
 
 
 @wire
@@ -324,14 +419,14 @@ class Weights(Struct):
 class Sample(Struct):
     MAX_BYTES: ClassVar[int] = 1 * MIB
 
-    def _check_invariants(self, path: str) -> None:
+    def _check_invariants(self) -> None:
         if self.v != SCHEMA_VERSION:
-            raise InvalidSample("bad_version", f"v={self.v}, this build speaks v{SCHEMA_VERSION}")
-        if self.stamp <= 0:
-            raise InvalidSample("out_of_range", f"stamp: {self.stamp} is not a UNIX time")
-        self._check_sample(path)
+            raise _Bad("bad_version", f"v={self.v}, this build speaks v{SCHEMA_VERSION}", "v")
+        if not self.stamp > 0:
+            raise _Bad("out_of_range", f"{self.stamp} is not a UNIX time", "stamp")
+        self._check_sample()
 
-    def _check_sample(self, path: str) -> None:
+    def _check_sample(self) -> None:
         """Schema-specific cross-field rules."""
 
 
@@ -356,12 +451,11 @@ class Frame(Sample):
     encoding: Literal["jpeg", "png", "bgr8"]
     data: bytes
 
-    def _check_sample(self, path: str) -> None:
+    def _check_sample(self) -> None:
         if self.width <= 0 or self.height <= 0 or self.seq < 0:
-            raise InvalidSample("out_of_range", f"{path}: width/height must be > 0 and seq >= 0")
+            raise _Bad("out_of_range", "width/height must be > 0 and seq >= 0")
         if self.encoding == "bgr8" and len(self.data) != self.width * self.height * 3:
-            raise InvalidSample(
-                "bad_value", f"{path}.data: bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}")
+            raise _Bad("bad_value", f"bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}", "data")
 
 
 @_envelope
@@ -373,11 +467,11 @@ class AudioChunk(Sample):
     format: Literal["s16le"]
     data: bytes
 
-    def _check_sample(self, path: str) -> None:
+    def _check_sample(self) -> None:
         if not 1000 <= self.rate <= 384000 or not 1 <= self.channels <= 32:
-            raise InvalidSample("out_of_range", f"{path}: rate {self.rate} Hz / {self.channels} channels")
+            raise _Bad("out_of_range", f"rate {self.rate} Hz / {self.channels} channels is not plausible audio")
         if len(self.data) % (2 * self.channels):
-            raise InvalidSample("bad_value", f"{path}.data: {len(self.data)} bytes is not whole s16le frames")
+            raise _Bad("bad_value", f"{len(self.data)} bytes is not whole s16le frames", "data")
 
 
 @_envelope
@@ -413,9 +507,9 @@ class GestureEvent(Sample):
     hand: Literal["left", "right"]
     ray: Optional[Ray] = None
 
-    def _check_sample(self, path: str) -> None:
+    def _check_sample(self) -> None:
         if self.start > self.end:
-            raise InvalidSample("bad_value", f"{path}: start {self.start} is after end {self.end}")
+            raise _Bad("bad_value", f"start {self.start} is after end {self.end}", "start")
 
 
 @_envelope
@@ -429,9 +523,9 @@ class Transcript(Sample):
     final: bool
     backend: str = name()
 
-    def _check_sample(self, path: str) -> None:
+    def _check_sample(self) -> None:
         if self.start > self.end:
-            raise InvalidSample("bad_value", f"{path}: start {self.start} is after end {self.end}")
+            raise _Bad("bad_value", f"start {self.start} is after end {self.end}", "start")
 
 
 @_envelope

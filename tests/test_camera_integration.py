@@ -1,23 +1,73 @@
-import time
+"""Camera service, router and `hri echo` as real processes on loopback."""
 
+import subprocess
+import sys
+
+import numpy as np
 import pytest
 
-from common.image import decode_image
-from tests.harness import DATA
+from common.image import frame_image
+from tests.harness import DATA, ROOT, Client
 
 pytestmark = pytest.mark.integration
+TABLETOP = DATA / "images" / "tabletop"
 
 
 def test_camera_frames_reach_echo_and_everything_stops_cleanly(group):
     router = group.router()
-    camera = group.service("camera", "--source", str(DATA / "images" / "tabletop"), "--fps", "20", "--loop")
+    camera = group.service("camera", "--source", str(TABLETOP), "--fps", "20", "--loop")
     frames = group.echo("hri/camera/*/frame", count=5, timeout=30)
     assert len(frames) == 5
     seqs = [f["seq"] for f in frames]
     assert seqs == sorted(seqs) and len(set(seqs)) == 5
-    assert all(f["encoding"] == "jpeg" and f["data"].endswith("bytes>") for f in frames)
+    assert all(f["encoding"] == "jpeg" and f["data"].endswith(" bytes>") for f in frames)
+    stamps = [f["stamp"] for f in frames]
+    assert stamps == sorted(stamps)
     for proc in (camera, router):
         code, took = proc.terminate(timeout=2.0)
         assert code == 0, f"{proc.name} exit code {code}\n{proc.output()}"
         assert took < 2.0
         assert proc.children_gone()
+
+
+@pytest.mark.parametrize("encoding", ["jpeg", "bgr8"])
+def test_frames_decode_to_the_shipped_photos_with_gap_free_seq(group, encoding):
+    group.router()
+    client = Client(group.endpoint)
+    try:
+        frames = client.collect("hri/camera/front/frame")
+        group.service("camera", "--source", str(TABLETOP), "--cam", "front", "--fps", "30", "--loop",
+                      "--encoding", encoding)
+        got = [s for _, s in frames.wait(6, timeout=30)]
+    finally:
+        client.close()
+    first = got[0].seq
+    assert [f.seq for f in got] == list(range(first, first + 6))
+    import cv2
+    photos = [cv2.imread(str(p)) for p in sorted(TABLETOP.iterdir())]
+    for frame in got:
+        img = frame_image(frame)
+        expected = photos[frame.seq % len(photos)]
+        assert img.shape == expected.shape
+        error = np.abs(img.astype(int) - expected.astype(int)).mean()
+        assert error < (4 if encoding == "jpeg" else 1e-9), error
+
+
+def test_camera_count_stops_after_n_frames(group):
+    group.router()
+    camera = group.service("camera", "--source", str(TABLETOP), "--fps", "50", "--count", "3")
+    camera.popen.wait(30)
+    assert camera.popen.returncode == 0, camera.output()
+    assert "published': 3" in camera.output()
+
+
+@pytest.mark.parametrize("source,message", [
+    ("/nonexistent/folder", "does not exist"),
+    (str(ROOT / "pyproject.toml"), "cannot open video file"),
+    ("97", "cannot open camera device 97"),
+])
+def test_a_source_that_cannot_be_opened_is_a_clear_error(source, message):
+    res = subprocess.run([sys.executable, "-m", "services.camera", "--source", source, "--connect",
+                          "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2
+    assert message in res.stderr

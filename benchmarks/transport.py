@@ -1,0 +1,152 @@
+"""Per-sample cost of the contract path vs raw zenoh-python + msgpack, same payloads, one run.
+
+contract: encode (validate + pack) -> SamplePublisher.put -> router -> subscriber -> decode (unpack + validate)
+raw:      msgpack.packb(dict)      -> Publisher.put       -> router -> subscriber -> msgpack.unpackb
+
+Both paths use the same router, sessions, congestion control (BLOCK) and payload dicts; the ratio is the price
+of the contract. Two figures per payload:
+- latency: one sample in flight at a time, publish -> decoded in the subscriber (what a sample costs in a live
+  pipeline, where sensors publish at 5-30 Hz);
+- burst: samples published back to back, total time / n (saturated throughput; here the Python work of both
+  ends shares one GIL, so validation shows at its worst).
+Target: <= 1.3x. Usage: python benchmarks/transport.py [--n 2000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import threading
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import cv2  # noqa: E402
+import msgpack  # noqa: E402
+import zenoh  # noqa: E402
+
+from common.codec import ENCODING, decode, encode  # noqa: E402
+from common.runner import SamplePublisher  # noqa: E402
+from tests.harness import DATA, ProcessGroup  # noqa: E402
+from tests.test_codec import examples  # noqa: E402
+
+
+def payloads() -> dict[str, object]:
+    by_name = {type(s).__name__: s for s in examples()}
+    img = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
+    frame = by_name["Frame"]
+    frame.encoding, frame.width, frame.height = "jpeg", 640, 480
+    frame.data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
+    det = by_name["Detections"]
+    det.objects = det.objects * 12
+    return {"Frame 640x480 jpeg": frame, "Detections x12": det, "Hands x1": by_name["Hands"],
+            "Transcript": by_name["Transcript"], "FusedCommand": by_name["FusedCommand"]}
+
+
+def session(endpoint: str) -> zenoh.Session:
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return zenoh.open(conf)
+
+
+def run_once(pub_session, sub_session, key: str, n: int, send, on_payload) -> float:
+    """Seconds per sample for n samples published back to back until the last is decoded."""
+    done = threading.Event()
+    count = [0]
+
+    def callback(sample: zenoh.Sample) -> None:
+        on_payload(sample.payload.to_bytes())
+        count[0] += 1
+        if count[0] == n:
+            done.set()
+
+    sub = sub_session.declare_subscriber(key, callback)
+    time.sleep(0.3)  # let the subscription reach the router
+    t0 = time.perf_counter()
+    for _ in range(n):
+        send()
+    if not done.wait(60):
+        raise RuntimeError(f"only {count[0]}/{n} samples arrived on {key}")
+    elapsed = time.perf_counter() - t0
+    sub.undeclare()
+    return elapsed / n
+
+
+def run_latency(pub_session, sub_session, key: str, n: int, send, on_payload) -> float:
+    """Median seconds from publish to decoded, one sample in flight."""
+    arrived = threading.Event()
+
+    def callback(sample: zenoh.Sample) -> None:
+        on_payload(sample.payload.to_bytes())
+        arrived.set()
+
+    sub = sub_session.declare_subscriber(key, callback)
+    time.sleep(0.3)
+    times = []
+    for _ in range(n):
+        arrived.clear()
+        t0 = time.perf_counter()
+        send()
+        if not arrived.wait(5):
+            raise RuntimeError(f"a sample on {key} did not arrive within 5 s")
+        times.append(time.perf_counter() - t0)
+    sub.undeclare()
+    return statistics.median(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--n", type=int, default=3000, help="samples per measurement (default 3000)")
+    parser.add_argument("--repeats", type=int, default=3, help="alternating measurements per path (default 3)")
+    args = parser.parse_args()
+
+    group = ProcessGroup()
+    group.router()
+    pub_s, sub_s = session(group.endpoint), session(group.endpoint)
+    try:
+        print(f"{'':31s}{'latency (1 in flight)':^30s} {'burst (back to back)':^30s}")
+        print(f"{'payload':22s} {'bytes':>8s} {'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}  "
+              f"{'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}")
+        worst, worst_burst = 0.0, 0.0
+        for i, (label, sample) in enumerate(payloads().items()):
+            schema = type(sample)
+            as_dict = sample.to_dict()
+            size = len(msgpack.packb(as_dict, use_bin_type=True))
+            raw_key, contract_key = f"bench/raw/{i}", f"bench/contract/{i}"
+            raw_pub = pub_s.declare_publisher(raw_key, encoding=zenoh.Encoding(ENCODING),
+                                              congestion_control=zenoh.CongestionControl.BLOCK,
+                                              priority=zenoh.Priority.DATA_HIGH)
+            contract_pub = SamplePublisher(pub_s, contract_key, lossless=True)
+            n = max(200, args.n // 10) if size > 10_000 else args.n
+            raw_send = lambda: raw_pub.put(msgpack.packb(as_dict, use_bin_type=True))  # noqa: E731
+            raw_recv = lambda b: msgpack.unpackb(b, raw=False)  # noqa: E731
+            contract_send = lambda: contract_pub.put(sample)  # noqa: E731
+            contract_recv = lambda b: decode(b, schema)  # noqa: E731
+            figures = {}
+            for mode, measure in (("latency", run_latency), ("burst", run_once)):
+                raw_times, contract_times = [], []
+                for _ in range(args.repeats):  # alternate so drift hits both paths alike
+                    raw_times.append(measure(pub_s, sub_s, raw_key, n, raw_send, raw_recv))
+                    contract_times.append(measure(pub_s, sub_s, contract_key, n, contract_send, contract_recv))
+                raw_us, contract_us = statistics.median(raw_times) * 1e6, statistics.median(contract_times) * 1e6
+                figures[mode] = (raw_us, contract_us, contract_us / raw_us)
+            worst = max(worst, figures["latency"][2])
+            worst_burst = max(worst_burst, figures["burst"][2])
+            (lr, lc, lx), (br, bc, bx) = figures["latency"], figures["burst"]
+            print(f"{label:22s} {size:8d} {lr:9.1f} {lc:12.1f} {lx:5.2f}x  {br:9.1f} {bc:12.1f} {bx:5.2f}x", flush=True)
+            raw_pub.undeclare()
+            contract_pub.undeclare()
+        print(f"worst ratio: latency {worst:.2f}x, burst {worst_burst:.2f}x (target <= 1.30x)")
+    finally:
+        pub_s.close()
+        sub_s.close()
+        group.close()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,208 @@
+"""The wire contract: every schema round-trips; every kind of bad payload is rejected with a clear reason."""
+
+import copy
+import math
+
+import msgpack
+import pytest
+
+from common.codec import decode, encode
+from common.keys import Keys
+from common.schema import (
+    ALL_SAMPLES, AudioChunk, Clarification, DetectedObject, Detections, Frame, FusedCommand, GestureEvent, Hand,
+    Hands, ImageQuality, InvalidSample, Location, Ray, Stats, Target, Transcript, Weights, Word,
+)
+
+T = 1_790_000_000.0
+LANDMARKS = [[100.0 + i, 200.0 - i] for i in range(21)]
+RAY = Ray(origin=[120.0, 180.0], direction=[0.6, -0.8], confidence=0.9)
+TARGET = Target(id="o3", label="cup", color="red", bbox=[10, 20, 30, 40], center=[25, 40], score=0.8, cam="cam0")
+
+
+def examples():
+    return [
+        Frame(stamp=T, source="camera/a", seq=7, cam="cam0", width=2, height=2, encoding="bgr8", data=bytes(12)),
+        AudioChunk(stamp=T, source="mic/a", mic="mic0", rate=16000, channels=1, format="s16le", data=bytes(640)),
+        Detections(stamp=T, source="vision/a", seq=7, cam="cam0", width=640, height=480,
+                   objects=[DetectedObject(id="o1", label="candy", color="red", score=0.9, bbox=[1, 2, 3, 4],
+                                           center=[2.5, 4.0])],
+                   quality=ImageQuality(brightness=0.5, contrast=0.4, sharpness=0.9)),
+        Hands(stamp=T, source="gesture/a", seq=7, cam="cam0", width=640, height=480,
+              hands=[Hand(hand="right", score=0.97, landmarks=LANDMARKS, gesture="point", ray=RAY)]),
+        GestureEvent(stamp=T, source="gesture/a", cam="cam0", width=640, height=480, gesture="point", phase="start",
+                     start=T - 0.2, end=T, score=0.9, hand="right", ray=RAY),
+        Transcript(stamp=T, source="speech/a", mic="mic0", start=T - 1.2, end=T, text="pick up that cup",
+                   confidence=0.8, words=[Word(word="pick", start=T - 1.2, end=T - 1.0, confidence=0.9)],
+                   final=True, backend="pocketsphinx"),
+        FusedCommand(stamp=T, source="fusion/a", id="c1", intent="pick_up", text="pick up that cup", target=TARGET,
+                     location=Location(x=10, y=20, cam="cam0"), gesture="point", confidence=0.7,
+                     weights=Weights(speech=0.4, vision=0.3, gesture=0.3),
+                     inputs={"speech": T, "vision": T - 0.1, "gesture": None},
+                     explanation="red cup, pointed at", prompt="Command: pick up ..."),
+        Clarification(stamp=T, source="fusion/a", id="q1", text="pick up the cup", reason="ambiguous",
+                      question="Which cup: the red one on the left or the blue one on the right?",
+                      candidates=[TARGET, TARGET]),
+        Stats(stamp=T, source="vision/a", service="vision", instance="a", uptime=3.0, received=10, published=9,
+              skipped=1, rejected={"not_msgpack": 2}, other={"undecodable": 1}),
+    ]
+
+
+def test_every_schema_has_an_example():
+    assert {type(s) for s in examples()} == set(ALL_SAMPLES)
+
+
+@pytest.mark.parametrize("sample", examples(), ids=lambda s: type(s).__name__)
+def test_round_trip(sample):
+    payload = encode(sample)
+    assert isinstance(payload, bytes)
+    back = decode(payload, type(sample))
+    assert back == sample
+    assert back.to_dict() == msgpack.unpackb(payload)
+
+
+@pytest.mark.parametrize("sample", examples(), ids=lambda s: type(s).__name__)
+def test_each_required_field_missing_is_rejected(sample):
+    data = sample.to_dict()
+    required = type(sample).required_fields()
+    assert {"stamp", "source"} <= set(required)
+    for name in required:
+        broken = {k: v for k, v in data.items() if k != name}
+        with pytest.raises(InvalidSample) as err:
+            decode(msgpack.packb(broken), type(sample))
+        assert err.value.reason == "missing_field" and name in err.value.detail
+
+
+@pytest.mark.parametrize("sample", examples(), ids=lambda s: type(s).__name__)
+def test_each_field_with_the_wrong_type_is_rejected(sample):
+    data = sample.to_dict()
+    for name, value in data.items():
+        wrong = {"x": 1} if not isinstance(value, dict) else "not a map"
+        broken = {**data, name: wrong}
+        with pytest.raises(InvalidSample) as err:
+            decode(msgpack.packb(broken), type(sample))
+        assert err.value.reason in ("wrong_type", "bad_value"), (name, err.value)
+
+
+def test_unknown_fields_are_ignored():
+    sample = examples()[5]
+    data = {**sample.to_dict(), "added_in_v1_5": {"anything": [1, 2]}}
+    assert decode(msgpack.packb(data), Transcript) == sample
+
+
+def _nested_set(data, path, value):
+    node = data
+    for part in path[:-1]:
+        node = node[part]
+    node[path[-1]] = value
+
+
+INVALID = [
+    # (schema index, path in the map, bad value, expected reason)
+    (0, ["stamp"], float("nan"), "not_finite"),
+    (0, ["stamp"], float("inf"), "not_finite"),
+    (0, ["stamp"], -5.0, "out_of_range"),
+    (0, ["v"], 2, "bad_version"),
+    (0, ["seq"], True, "wrong_type"),
+    (0, ["encoding"], "gif", "bad_value"),
+    (0, ["data"], bytes(11), "bad_value"),           # bgr8 size does not match width*height*3
+    (0, ["width"], 0, "out_of_range"),
+    (0, ["source"], "", "bad_value"),
+    (1, ["rate"], 12, "out_of_range"),
+    (1, ["data"], bytes(3), "bad_value"),             # half an s16 sample
+    (1, ["format"], "f32le", "bad_value"),
+    (2, ["objects", 0, "score"], 1.5, "out_of_range"),
+    (2, ["objects", 0, "bbox"], [1, 2, 3], "bad_value"),
+    (2, ["objects", 0, "bbox", 2], float("nan"), "not_finite"),
+    (2, ["objects", 0, "center"], "middle", "wrong_type"),
+    (2, ["quality", "sharpness"], -0.1, "out_of_range"),
+    (2, ["objects"], {"o1": 1}, "wrong_type"),
+    (3, ["hands", 0, "landmarks"], LANDMARKS[:20], "bad_value"),
+    (3, ["hands", 0, "landmarks", 4], [1.0], "bad_value"),
+    (3, ["hands", 0, "hand"], "middle", "bad_value"),
+    (3, ["hands", 0, "ray", "direction"], [3.0, 4.0], "bad_value"),   # not a unit vector
+    (4, ["phase"], "begin", "bad_value"),
+    (4, ["start"], T + 5, "bad_value"),               # start after end
+    (5, ["final"], 1, "wrong_type"),
+    (5, ["words", 0, "confidence"], float("-inf"), "not_finite"),
+    (5, ["confidence"], 2, "out_of_range"),
+    (6, ["weights", "speech"], "high", "wrong_type"),
+    (6, ["inputs", "speech"], "now", "wrong_type"),
+    (6, ["target", "cam"], None, "wrong_type"),
+    (7, ["reason"], "confused", "bad_value"),
+    (7, ["candidates", 1], [], "wrong_type"),
+]
+
+
+@pytest.mark.parametrize("index,path,value,reason", INVALID,
+                         ids=[f"{type(examples()[i]).__name__}.{'.'.join(map(str, p))}" for i, p, _, _ in INVALID])
+def test_invalid_values_are_rejected_with_a_reason(index, path, value, reason):
+    sample = examples()[index]
+    data = copy.deepcopy(sample.to_dict())
+    _nested_set(data, path, value)
+    with pytest.raises(InvalidSample) as err:
+        decode(msgpack.packb(data), type(sample))
+    assert err.value.reason == reason
+    assert err.value.detail  # says where
+
+
+@pytest.mark.parametrize("sample", examples(), ids=lambda s: type(s).__name__)
+def test_truncated_msgpack_is_rejected(sample):
+    payload = encode(sample)
+    for cut in (1, len(payload) // 2, len(payload) - 1):
+        with pytest.raises(InvalidSample) as err:
+            decode(payload[:cut], type(sample))
+        assert err.value.reason in ("not_msgpack", "not_a_map", "missing_field")
+
+
+@pytest.mark.parametrize("payload,reason", [
+    (b"", "not_msgpack"),
+    (b"\xc1", "not_msgpack"),                         # never-used msgpack byte
+    (msgpack.packb([1, 2, 3]), "not_a_map"),
+    (msgpack.packb("pick up the cup"), "not_a_map"),
+    (msgpack.packb(None), "not_a_map"),
+    (b"\x81\xa1v\x01" + b"garbage", "not_msgpack"),  # a map followed by trailing bytes
+    (b'{"json": "is not msgpack"}', "not_msgpack"),
+])
+def test_not_a_sample_at_all(payload, reason):
+    with pytest.raises(InvalidSample) as err:
+        decode(payload, Transcript)
+    assert err.value.reason == reason
+
+
+def test_oversized_payload_is_rejected_before_parsing():
+    big = Transcript.MAX_BYTES + 1
+    with pytest.raises(InvalidSample) as err:
+        decode(b"\x00" * big, Transcript)
+    assert err.value.reason == "oversized"
+    sample = examples()[5]
+    sample.text = "x" * big
+    with pytest.raises(InvalidSample) as err:
+        encode(sample)
+    assert err.value.reason == "oversized"
+
+
+def test_encode_refuses_what_decode_would_reject():
+    sample = examples()[2]
+    sample.objects[0].score = math.nan
+    with pytest.raises(InvalidSample) as err:
+        encode(sample)
+    assert err.value.reason == "not_finite"
+
+
+def test_keys_map_to_schemas_under_any_prefix():
+    for prefix in ("hri", "lab/robot7"):
+        keys = Keys(prefix)
+        assert keys.schema_for(keys.frame("cam0")) is Frame
+        assert keys.schema_for(keys.audio("m")) is AudioChunk
+        assert keys.schema_for(keys.objects("cam0")) is Detections
+        assert keys.schema_for(keys.hands("cam0")) is Hands
+        assert keys.schema_for(keys.gesture_event("cam0")) is GestureEvent
+        assert keys.schema_for(keys.transcript("m")) is Transcript
+        assert keys.schema_for(keys.command()) is FusedCommand
+        assert keys.schema_for(keys.clarification()) is Clarification
+        assert keys.schema_for(keys.stats("vision", "a")) is Stats
+        assert keys.schema_for(f"{prefix}/camera/cam0/other") is None
+        assert keys.schema_for("elsewhere/camera/cam0/frame") is None
+        assert keys.parse_alive(keys.alive("vision", "host-1")) == ("vision", "host-1")
+    with pytest.raises(ValueError):
+        Keys().frame("a/b")
