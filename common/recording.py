@@ -329,7 +329,7 @@ class Progress:
 def rate_line(verb: str, samples: int, nbytes: int, elapsed: float, extra: str = "") -> str:
     elapsed = max(elapsed, 1e-9)
     return (f"{verb}: {samples} samples, {human_bytes(nbytes)}, {samples / elapsed:.1f} samples/s "
-            f"({human_bytes(nbytes / elapsed)}/s), {elapsed:.0f} s{extra}")
+            f"({human_bytes(nbytes / elapsed)}/s), {elapsed:.1f} s{extra}")
 
 
 def key_table(counts: dict[str, KeyTally] | dict[str, int]) -> str:
