@@ -1,0 +1,39 @@
+# One image for every hri-fusion process: the router (`python -m common.cli router`) and each service
+# (`python -m services.<name>`); docker-compose.yml picks the command.
+#
+# Python packages come from docker/wheels/ when docker/fetch-wheels.sh has filled it (no network needed
+# during the build), else from the package index. Where no registry is reachable, docker/build-base-image.sh
+# makes a local python:3.11-slim. docker/ci.sh does all of it.
+FROM python:3.11-slim
+
+# Extras of pyproject.toml installed in the image (docker/fetch-wheels.sh reads this line).
+ARG HRI_EXTRAS=gesture,vision,speech,record
+
+ENV PYTHONUNBUFFERED=1 \
+    PYTHONDONTWRITEBYTECODE=1 \
+    PIP_DISABLE_PIP_VERSION_CHECK=1 \
+    PIP_NO_CACHE_DIR=1 \
+    PIP_ROOT_USER_ACTION=ignore
+
+WORKDIR /app
+
+# Dependencies first, in their own layer: a code change does not reinstall them.
+COPY pyproject.toml constraints.txt ./
+COPY docker/project-requirements.py docker/install-python-packages.sh docker/
+# The wheels are bind-mounted, not copied: they would stay in a layer (200 MB) even if deleted later.
+RUN --mount=type=bind,source=docker/wheels,target=/tmp/wheels \
+    sh docker/install-python-packages.sh "$HRI_EXTRAS" /tmp/wheels
+
+# The code. README.md is optional here (pyproject names it; the build only needs it to exist).
+COPY common/ common/
+COPY services/ services/
+COPY docker/healthcheck.py docker/
+RUN touch README.md && pip install --no-deps --no-build-isolation --no-index -q . \
+    && python -c "import common.cli, services" \
+    && useradd --system --no-create-home --home-dir /app hri
+
+# Inputs (photos, WAVs) are mounted here read-only by docker-compose.yml.
+VOLUME ["/data"]
+USER hri
+EXPOSE 7447
+CMD ["python", "-m", "common.cli", "--help"]
