@@ -285,6 +285,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
     p.set_defaults(func=cmd_stats)
 
+    from common import launcher
+    p = command("up", "start the router and every service as one group; Ctrl-C stops them all",
+                launcher.UP_EXAMPLES)
+    launcher.add_up_arguments(p)
+    p.set_defaults(func=launcher.cmd_up)
     from common import recording  # imports mcap only when record/replay actually run
     recording.add_record_arguments(command(
         "record", "write every sample on key expressions to an MCAP file (Ctrl-C finishes it)",

@@ -1,0 +1,253 @@
+"""`hri up`: the router and every service as child processes of one command.
+
+It starts the router (unless told to use one that already runs), then each service, prefixes their log lines
+with the service name, waits until each has declared its liveliness token, and on Ctrl-C / SIGTERM stops them
+in reverse order (SIGTERM, then SIGKILL after a grace period) and exits 0 — no orphans.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import IO, Callable
+
+import zenoh
+
+from common.keys import Keys
+from common.transport import DEFAULT_ENDPOINT
+
+STOP_GRACE_S = 3.0
+
+UP_EXAMPLES = """\
+examples:
+  hri up                                             # webcam 0, microphone, every service
+  hri up --camera data/images/tabletop --speech-input text    # type commands on stdin
+  hri up --camera clip.mp4 --speech-input wav --wav commands/
+  hri up --no-gesture --vision-backend onnx --model yolov8n.onnx
+  hri echo 'hri/fusion/**'                            # in another terminal
+"""
+
+
+@dataclass
+class ServiceSpec:
+    name: str
+    argv: list[str]
+    stdin: int | IO | None = subprocess.DEVNULL
+    env: dict[str, str] = field(default_factory=dict)
+
+
+def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
+    """The service command lines `hri up`'s flags describe (the router is separate)."""
+    specs: list[ServiceSpec] = []
+    if args.camera is not None:
+        cam = ["--source", args.camera, "--cam", args.cam]
+        if args.fps:
+            cam += ["--fps", str(args.fps)]
+        if args.loop:
+            cam.append("--loop")
+        specs.append(ServiceSpec("camera", ["services.camera", *cam]))
+    if not args.no_vision:
+        vision = ["--backend", args.vision_backend]
+        if args.model:
+            vision += ["--model", args.model]
+        specs.append(ServiceSpec("vision", ["services.vision", *vision]))
+    if not args.no_gesture:
+        gesture = ["--mirrored"] if args.mirrored else []
+        specs.append(ServiceSpec("gesture", ["services.gesture", *gesture]))
+    if args.speech_input != "none":
+        speech = ["--input", args.speech_input]
+        stdin: int | IO | None = subprocess.DEVNULL
+        if args.speech_input == "text":
+            speech = ["--backend", "text", "--input", "text"]
+            stdin = None  # the terminal's stdin goes to the speech service
+        elif args.speech_input == "wav":
+            if not args.wav:
+                raise SystemExit("hri up: --speech-input wav needs --wav FILE_OR_FOLDER")
+            speech += ["--wav", *args.wav, "--wait-for", "fusion"]
+        if args.speech_backend and args.speech_input != "text":
+            speech += ["--backend", args.speech_backend]
+        specs.append(ServiceSpec("speech", ["services.speech", *speech], stdin=stdin))
+    specs.append(ServiceSpec("fusion", ["services.fusion", *args.fusion_arg]))
+    return specs
+
+
+class Child:
+    """One child process, its output relayed line by line with a name prefix."""
+
+    def __init__(self, name: str, argv: list[str], out: Callable[[str], None], stdin: int | IO | None,
+                 env: dict[str, str]):
+        self.name = name
+        self.popen = subprocess.Popen(argv, stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                      env={**os.environ, "PYTHONUNBUFFERED": "1", **env},
+                                      start_new_session=True, text=True, errors="replace")
+        self._relay = threading.Thread(target=self._pump, args=(out,), daemon=True)
+        self._relay.start()
+
+    def _pump(self, out: Callable[[str], None]) -> None:
+        assert self.popen.stdout is not None
+        for line in self.popen.stdout:
+            out(f"[{self.name:7s}] {line.rstrip()}")
+
+    def alive(self) -> bool:
+        return self.popen.poll() is None
+
+    def stop(self, grace: float = STOP_GRACE_S) -> int | None:
+        if self.alive():
+            self.popen.send_signal(signal.SIGTERM)
+            try:
+                self.popen.wait(grace)
+            except subprocess.TimeoutExpired:
+                os.killpg(self.popen.pid, signal.SIGKILL)
+                self.popen.wait(5)
+        try:  # anything the child left in its session goes too
+            os.killpg(self.popen.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        self._relay.join(1.0)
+        return self.popen.returncode
+
+
+class Launcher:
+    """Runs a set of services (and the router) as one group."""
+
+    def __init__(self, endpoint: str, prefix: str, start_router: bool, out: Callable[[str], None] = print):
+        self.endpoint = endpoint
+        self.prefix = prefix
+        self.start_router = start_router
+        self.keys = Keys(prefix)
+        self._lock = threading.Lock()
+        self._out = out
+        self.children: list[Child] = []
+        self.session: zenoh.Session | None = None
+
+    def say(self, line: str) -> None:
+        with self._lock:
+            self._out(line)
+
+    def _start(self, name: str, module_args: list[str], stdin: int | IO | None = subprocess.DEVNULL,
+               env: dict[str, str] | None = None) -> Child:
+        argv = [sys.executable, "-m", *module_args]
+        child = Child(name, argv, self.say, stdin, {"HRI_PREFIX": self.prefix, **(env or {})})
+        self.children.append(child)
+        return child
+
+    def start(self, specs: list[ServiceSpec], live_timeout: float = 60.0) -> None:
+        if self.start_router:
+            self._start("router", ["common.cli", "router", "--listen", self.endpoint])
+        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0)
+        for spec in specs:
+            self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)
+        self.wait_live([s.name for s in specs], live_timeout)
+
+    def start_service(self, spec: ServiceSpec, live_timeout: float = 60.0) -> Child:
+        child = self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)
+        self.wait_live([spec.name], live_timeout)
+        return child
+
+    def live_services(self) -> set[str]:
+        assert self.session is not None
+        live = set()
+        for reply in self.session.liveliness().get(self.keys.alive(), timeout=1.0):
+            if reply.ok is not None:
+                parsed = self.keys.parse_alive(str(reply.ok.key_expr))
+                if parsed:
+                    live.add(parsed[0])
+        return live
+
+    def wait_live(self, names: list[str], timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        waiting = set(names)
+        while waiting:
+            waiting -= self.live_services()
+            dead = [c for c in self.children if c.name in waiting and not c.alive()]
+            if dead:
+                raise RuntimeError(f"{dead[0].name} exited with code {dead[0].popen.returncode} before it came up "
+                                   f"(its log lines are above, prefixed [{dead[0].name}])")
+            if not waiting:
+                break
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"not live after {timeout:.0f} s: {', '.join(sorted(waiting))}")
+            time.sleep(0.2)
+        self.say(f"[hri up ] live: {', '.join(names)}")
+
+    def stop(self) -> None:
+        if self.session is not None:
+            self.session.close()
+            self.session = None
+        for child in reversed(self.children):  # services first, the router last
+            code = child.stop()
+            if code not in (0, None, -signal.SIGTERM):
+                self.say(f"[hri up ] {child.name} exited with code {code}")
+        self.children.clear()
+
+
+def _client_session(endpoint: str, router_starting: bool, timeout: float) -> zenoh.Session:
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", f'["{endpoint}"]')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return zenoh.open(conf)
+        except zenoh.ZError:
+            if time.monotonic() > deadline:
+                hint = "the router did not start" if router_starting else "is `hri router` running there?"
+                raise RuntimeError(f"cannot reach the zenoh router at {endpoint}: {hint}") from None
+            time.sleep(0.2)
+
+
+def add_up_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--camera", default="0", help="camera source: device index, video, image or folder "
+                   "(default 0); 'none' for no camera service")
+    p.add_argument("--cam", default="cam0", help="camera id (default cam0)")
+    p.add_argument("--fps", type=float, default=None, help="camera publish rate")
+    p.add_argument("--loop", action="store_true", help="loop a video file or image folder")
+    p.add_argument("--vision-backend", choices=("color", "onnx"), default="color")
+    p.add_argument("--model", default=None, help="ONNX model path for --vision-backend onnx")
+    p.add_argument("--no-vision", action="store_true", help="do not start the vision service")
+    p.add_argument("--no-gesture", action="store_true", help="do not start the gesture service")
+    p.add_argument("--mirrored", action="store_true", help="the camera image is mirrored (selfie view)")
+    p.add_argument("--speech-input", choices=("mic", "wav", "zenoh", "text", "none"), default="mic",
+                   help="mic (default), wav files (--wav), AudioChunks over zenoh, text lines on stdin, or none")
+    p.add_argument("--wav", nargs="+", default=None, help="WAV files or folders for --speech-input wav")
+    p.add_argument("--speech-backend", choices=("pocketsphinx", "whisper"), default=None)
+    p.add_argument("--fusion-arg", action="append", default=[], metavar="ARG",
+                   help="extra argument for the fusion service, repeatable (e.g. --fusion-arg=--weights=fixed)")
+    p.add_argument("--live-timeout", type=float, default=90.0, help="seconds to wait for each service to come up")
+
+
+def cmd_up(args: argparse.Namespace) -> int:
+    if args.camera == "none":
+        args.camera = None
+    specs = services_from_args(args)
+    # --connect: use a router that already runs; else start one on --listen (default tcp/127.0.0.1:7447)
+    endpoint = (args.connect or args.listen or [DEFAULT_ENDPOINT])[0]
+    prefix = args.prefix or os.environ.get("HRI_PREFIX") or "hri"
+    launcher = Launcher(endpoint, prefix, start_router=not args.connect)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    code = 0
+    try:
+        launcher.start(specs, args.live_timeout)
+        launcher.say(f"[hri up ] all up; watch with: hri echo '{prefix}/fusion/**' "
+                     f"--connect {launcher.endpoint}   (Ctrl-C stops everything)")
+        while not stop.wait(0.5):
+            for child in launcher.children:
+                if not child.alive() and not getattr(child, "reported", False):
+                    child.reported = True  # type: ignore[attr-defined]
+                    launcher.say(f"[hri up ] {child.name} exited with code {child.popen.returncode}")
+    except RuntimeError as exc:
+        launcher.say(f"[hri up ] {exc}")
+        code = 1
+    finally:
+        launcher.stop()
+    launcher.say("[hri up ] stopped")
+    return code
