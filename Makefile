@@ -7,7 +7,7 @@ setup:
 	@bash scripts/setup.sh
 
 demo: setup
-	@$(PY) -m demo
+	@$(PY) -m demo $(DEMO_ARGS)
 
 test: setup
 	@$(PY) -m pytest -q $(PYTEST_ARGS)

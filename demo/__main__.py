@@ -1,0 +1,255 @@
+"""The demo: the whole pipeline on real photos and real (synthesised) speech, no camera or microphone.
+
+    make demo            # or: .venv/bin/python -m demo
+
+It starts the router, vision, gesture, speech (fed AudioChunks over Zenoh, as a remote microphone would)
+and fusion with `hri up`'s launcher, then plays a script: for each step a camera service shows a real
+photo, the step's sentence — spoken by espeak-ng into a WAV — streams in real time to the speech service,
+and the fused command or clarification question that comes back is printed. It ends with a summary and
+exits 1 if any step did not give what it should.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import queue
+import socket
+import sys
+import threading
+import time
+import wave
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import zenoh
+
+from common.codec import decode
+from common.launcher import Launcher, ServiceSpec
+from common.runner import SamplePublisher
+from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "data" / "demo"
+AUDIO_CACHE = ROOT / "var" / "demo" / "audio"
+MIC = "demo"
+CAM = "table"
+CHUNK_S = 0.02
+
+
+@dataclass
+class Step:
+    scene: str            # photo the camera shows
+    say: str | None       # sentence spoken (None: gesture only)
+    expect: str           # "command:<intent>" or "clarification:<reason>"
+    check: str            # what must be true of the result, in words, for the summary
+    target_color: str | None = None
+    target_side: str | None = None  # "left"/"right": the target's centre relative to the other candidates
+    hand_in_view: bool = False
+
+
+SCRIPT = [
+    Step("table.png", "pick up the red one", "command:pick_up", "the red candy, by colour", target_color="red"),
+    Step("table.png", "bring me the green one", "clarification:ambiguous",
+         "two green candies: a question instead of a guess"),
+    Step("table.png", "the left one", "command:bring", "the answer resolves it to the left green candy",
+         target_color="green", target_side="left"),
+    Step("pointing.png", "pick up that one", "command:pick_up", "the candy the finger points at (red), not the "
+         "blue one", target_color="red", hand_in_view=True),
+    Step("stop.png", None, "command:stop", "an open palm stops the robot at once, no words needed",
+         hand_in_view=True),
+]
+
+
+def free_endpoint(preferred: int = 7447) -> str:
+    for port in (preferred, 0):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    raise RuntimeError("no free TCP port on 127.0.0.1")
+
+
+def speech_audio(text: str) -> Path:
+    """The sentence as a 16 kHz WAV, made once by espeak-ng and cached under var/demo/audio."""
+    from services.speech.synth import synthesize
+    AUDIO_CACHE.mkdir(parents=True, exist_ok=True)
+    path = AUDIO_CACHE / (text.replace(" ", "_") + ".wav")
+    if not path.exists():
+        synthesize(text, path)
+    return path
+
+
+def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
+    """Stream a WAV as AudioChunks in real time; each chunk stamped with its first sample's time."""
+    with wave.open(str(path), "rb") as w:
+        rate, channels, data = w.getframerate(), w.getnchannels(), w.readframes(w.getnframes())
+    samples = np.frombuffer(data, "<i2")
+    per_chunk = int(rate * CHUNK_S) * channels
+    # half a second of silence before and after, as a microphone would hear
+    pad = np.zeros(int(rate * 0.5) * channels, "<i2")
+    samples = np.concatenate([pad, samples, pad])
+    t0 = time.time()
+    for i in range(0, len(samples), per_chunk):
+        at = t0 + (i // channels) / rate
+        delay = at - time.time()
+        if delay > 0:
+            time.sleep(delay)
+        publisher.put(AudioChunk(stamp=at, source=source, mic=MIC, rate=rate, channels=channels, format="s16le",
+                                 data=samples[i:i + per_chunk].tobytes()))
+
+
+def describe(key: str, sample: FusedCommand | Clarification) -> str:
+    if isinstance(sample, Clarification):
+        names = ", ".join(f"{c.color or ''} {c.label} {c.id} at ({c.center[0]:.0f},{c.center[1]:.0f})".strip()
+                          for c in sample.candidates)
+        return f"  ? CLARIFICATION ({sample.reason}): {sample.question}\n      candidates: {names or 'none'}"
+    target = ""
+    if sample.target is not None:
+        t = sample.target
+        target = f" -> {t.color or ''} {t.label} {t.id} at ({t.center[0]:.0f},{t.center[1]:.0f}) in {t.cam}"
+    if sample.location is not None:
+        target += f" -> place ({sample.location.x:.0f},{sample.location.y:.0f})"
+    w = sample.weights
+    missing = [m for m, s in sample.inputs.items() if s is None]
+    return (f"  ✔ COMMAND {sample.intent}{target}  confidence {sample.confidence:.2f}\n"
+            f"      weights speech {w.speech:.2f} vision {w.vision:.2f} gesture {w.gesture:.2f}"
+            f"{'  (missing: ' + ', '.join(missing) + ')' if missing else ''}\n"
+            f"      why: {sample.explanation}")
+
+
+def check(step: Step, sample: FusedCommand | Clarification | None, detections: Detections | None) -> str | None:
+    """None if the result is what the step expects, else what is wrong."""
+    if sample is None:
+        return "no command or clarification arrived"
+    kind, what = step.expect.split(":")
+    if kind == "clarification":
+        if not isinstance(sample, Clarification) or sample.reason != what:
+            return f"expected a clarification ({what}), got {type(sample).__name__}"
+        return None
+    if not isinstance(sample, FusedCommand) or sample.intent != what:
+        return f"expected command {what}, got {type(sample).__name__} {getattr(sample, 'intent', '')}"
+    if step.target_color and (sample.target is None or sample.target.color != step.target_color):
+        return f"expected a {step.target_color} target, got {sample.target and sample.target.color}"
+    if step.target_side and sample.target is not None and detections is not None:
+        same = [o for o in detections.objects if o.color == sample.target.color]
+        xs = sorted(o.center[0] for o in same)
+        want = xs[0] if step.target_side == "left" else xs[-1]
+        if abs(sample.target.center[0] - want) > 20:
+            return f"expected the {step.target_side} {sample.target.color} candy"
+    return None
+
+
+def _drain(q: queue.Queue) -> None:
+    while not q.empty():
+        q.get_nowait()
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--timeout", type=float, default=20.0, help="seconds to wait for each step's result")
+    parser.add_argument("--verbose", action="store_true", help="show the services' log lines")
+    args = parser.parse_args()
+
+    print("hri-fusion demo: real photos + spoken commands -> grounded robot commands\n")
+    print("making the spoken sentences with espeak-ng ...", flush=True)
+    audio = {s.say: speech_audio(s.say) for s in SCRIPT if s.say}
+
+    endpoint = free_endpoint()
+    logs: list[str] = []
+    out = print if args.verbose else logs.append
+    launcher = Launcher(endpoint, "hri", start_router=True, out=out)
+    results: queue.Queue[tuple[str, object]] = queue.Queue()
+    latest_detections: dict[str, Detections] = {}
+    hands_seen = threading.Event()
+    failures = 0
+    try:
+        print(f"starting router ({endpoint}), vision, gesture, speech and fusion ...", flush=True)
+        launcher.start([
+            ServiceSpec("vision", ["services.vision"]),
+            ServiceSpec("gesture", ["services.gesture"]),
+            ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),
+            ServiceSpec("fusion", ["services.fusion"]),
+        ], live_timeout=120)
+        session = launcher.session
+        assert session is not None
+        print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {endpoint}\n")
+
+        def on_result(s: zenoh.Sample) -> None:
+            key = str(s.key_expr)
+            schema = FusedCommand if key.endswith("/command") else Clarification
+            results.put((key, decode(s.payload.to_bytes(), schema)))
+
+        def on_detections(s: zenoh.Sample) -> None:
+            det = decode(s.payload.to_bytes(), Detections)
+            latest_detections[det.source] = det
+
+        def on_hands(s: zenoh.Sample) -> None:
+            if decode(s.payload.to_bytes(), Hands).hands:
+                hands_seen.set()
+
+        subs = [session.declare_subscriber("hri/fusion/**", on_result),
+                session.declare_subscriber(f"hri/vision/{CAM}/objects", on_detections),
+                session.declare_subscriber(f"hri/gesture/{CAM}/hands", on_hands)]
+        mic = SamplePublisher(session, f"hri/audio/{MIC}/pcm", lossless=True)
+
+        camera = None
+        shown = None
+        for n, step in enumerate(SCRIPT, 1):
+            if step.scene != shown:
+                if camera is not None:
+                    camera.stop()
+                    launcher.children.remove(camera)
+                latest_detections.clear()
+                hands_seen.clear()
+                _drain(results)  # a gesture-only result may come while the new scene settles: keep only those
+                camera = launcher.start_service(ServiceSpec(
+                    "camera", ["services.camera", "--source", str(SCENES / step.scene), "--cam", CAM,
+                               "--fps", "10", "--loop"]))
+                shown = step.scene
+                deadline = time.monotonic() + 30
+                while not latest_detections and time.monotonic() < deadline:
+                    time.sleep(0.05)
+                if step.hand_in_view and not hands_seen.wait(15):
+                    print("  (the gesture service has not reported the hand yet)")
+                time.sleep(1.0)  # a second of frames: tracks settle, a held gesture starts
+            said = f'says "{step.say}"' if step.say else "says nothing"
+            print(f"▶ step {n}/{len(SCRIPT)}: camera shows {step.scene}, the person {said}")
+            print(f"  expected: {step.check}", flush=True)
+            if step.say:
+                _drain(results)
+                play_wav(mic, audio[step.say], source=f"demo/{os.getpid()}")
+            try:
+                _, sample = results.get(timeout=args.timeout)
+            except queue.Empty:
+                sample = None
+            if sample is not None:
+                print(describe("", sample))
+            detections = next(iter(latest_detections.values()), None)
+            problem = check(step, sample, detections)
+            if problem:
+                failures += 1
+                print(f"  ✘ {problem}")
+            print(flush=True)
+        mic.undeclare()
+        for sub in subs:
+            sub.undeclare()
+    except (RuntimeError, KeyboardInterrupt) as exc:
+        print(f"demo stopped: {exc}")
+        failures += 1
+        if not args.verbose:
+            print("\n".join(logs[-60:]))
+    finally:
+        launcher.stop()
+    passed = len(SCRIPT) - failures
+    print(f"demo: {passed} passed, {failures} failed")
+    if failures and not args.verbose:
+        print("run `.venv/bin/python -m demo --verbose` to see every service's log lines")
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
