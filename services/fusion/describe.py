@@ -1,0 +1,150 @@
+"""Words for people and planners: clarification questions, explanations, the planner prompt. Pure."""
+
+from __future__ import annotations
+
+from services.fusion.evidence import Pointing
+from services.fusion.ground import Scored, SceneObject
+from services.fusion.parse import ObjectPhrase
+
+PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
+
+
+def region(o: SceneObject) -> str:
+    """Where an object is in its image, in words."""
+    fx, fy = o.center[0] / max(o.width, 1), o.center[1] / max(o.height, 1)
+    horiz = "left" if fx < 1 / 3 else "right" if fx > 2 / 3 else "middle"
+    vert = "top" if fy < 1 / 3 else "bottom" if fy > 2 / 3 else ""
+    if horiz == "middle":
+        return f"at the {vert}" if vert else "in the middle"
+    return f"at the {vert} {horiz}" if vert else f"on the {horiz}"
+
+
+def relative_positions(objs: list[SceneObject]) -> list[str]:
+    """Position words that tell the objects apart: relative for 2-3, image regions beyond."""
+    if len(objs) == 2:
+        a, b = objs
+        dx, dy = b.center[0] - a.center[0], b.center[1] - a.center[1]
+        if abs(dx) >= abs(dy):
+            return ["on the left", "on the right"] if dx > 0 else ["on the right", "on the left"]
+        return ["at the top", "at the bottom"] if dy > 0 else ["at the bottom", "at the top"]
+    if len(objs) == 3:
+        order = sorted(range(3), key=lambda i: objs[i].center[0])
+        words = [""] * 3
+        for rank, i in enumerate(order):
+            words[i] = ("on the left", "in the middle", "on the right")[rank]
+        return words
+    return [region(o) for o in objs]
+
+
+def candidate_phrases(objs: list[SceneObject]) -> list[str]:
+    """'the red one on the left', 'the blue cup on the right' … enough words to tell them apart."""
+    colors_differ = len({o.color for o in objs}) > 1
+    labels_differ = len({o.label for o in objs}) > 1
+    where = relative_positions(objs)
+    out = []
+    for o, pos in zip(objs, where):
+        words = ["the"]
+        if colors_differ and o.color:
+            words.append(o.color)
+        words.append(o.label if labels_differ else "one")
+        out.append(" ".join(words) + " " + pos)
+    return out
+
+
+def or_list(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
+
+
+def ambiguous_question(phrase: ObjectPhrase, candidates: list[Scored]) -> str:
+    objs = [c.obj for c in candidates]
+    labels = {o.label for o in objs}
+    what = next(iter(labels)) if len(labels) == 1 else "one"
+    if len(objs) > 3 and len({o.color for o in objs}) == 1 and len(set(relative_positions(objs))) < len(objs):
+        return (f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{what}s that fit. "
+                f"Which one? Point at it, or say where it is (left, right, top, bottom).")
+    return f"Which {what}: {or_list(candidate_phrases(objs))}?"
+
+
+def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> str:
+    a, b = candidate_phrases([said.obj, pointed.obj])
+    return (f"You said the {phrase.describe()} but pointed at the {pointed.obj.name()}. "
+            f"Which one do you mean: {a} or {b}?")
+
+
+def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
+    what = f"the {phrase.describe()}" if phrase.specific else "what you mean"
+    if vision_missing:
+        return f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
+    if not visible:
+        return f"I can't see {what}: I don't see any objects. Can you show me?"
+    names = [f"a {o.name()} {region(o)}" for o in visible[:4]]
+    return f"I can't see {what}. I can see {or_list(names).replace(' or ', ' and ')}. Which one do you mean?"
+
+
+def confirm_question(text: str, candidate: Scored | None) -> str:
+    if candidate is not None:
+        return f"I'm not sure. Do you mean the {candidate.obj.name()} {region(candidate.obj)}?"
+    return f"I'm not sure I heard you. Did you say: \"{text}\"?"
+
+
+def explain_target(choice_winner: Scored, runner_up: Scored | None, weights: dict[str, float],
+                   phrase: ObjectPhrase, overruled: str | None) -> str:
+    o = choice_winner.obj
+    reasons = []
+    if phrase.specific:
+        said = phrase.describe()
+        fit = "fits" if choice_winner.match >= 0.5 else "does not fit"
+        reasons.append(f"it {fit} '{said}' (speech {choice_winner.speech:.2f}, vision trust {choice_winner.trust:.2f})")
+    if choice_winner.gesture is not None:
+        angle = f"{choice_winner.angle:.0f} deg off the pointing ray" if choice_winner.angle is not None else \
+            "not on the pointing ray"
+        reasons.append(f"{angle} (gesture {choice_winner.gesture:.2f})")
+    if not reasons:
+        reasons.append("it is the only object in view")
+    text = f"{o.id} ({o.name()}, {region(o)}) won with {choice_winner.total:.2f}: " + "; ".join(reasons)
+    if runner_up is not None:
+        text += f"; runner-up {runner_up.obj.id} ({runner_up.obj.name()}) {runner_up.total:.2f}"
+    if overruled == "speech":
+        text += (f". Speech and pointing disagreed; pointing won (gesture weight {weights['gesture']:.2f} vs "
+                 f"speech {weights['speech']:.2f}, and vision trusts its labels for the said object only "
+                 f"{choice_winner.trust:.2f})")
+    elif overruled == "gesture":
+        text += (f". Speech and pointing disagreed; speech won (speech weight {weights['speech']:.2f} vs "
+                 f"gesture {weights['gesture']:.2f})")
+    return text
+
+
+def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None, location: tuple | None,
+                   place: str | None, pointing: Pointing | None, gesture: str | None,
+                   objects: list[SceneObject], missing: list[str], explanation: str) -> str:
+    """Everything a planner needs, in plain text, from the same data the decision used."""
+    lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
+    if target is not None:
+        lines.append(f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
+                     f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}")
+    if location is not None:
+        lines.append(f"Location: pixel ({location[0]:.0f}, {location[1]:.0f}) in camera {location[2]}")
+    if place:
+        lines.append(f"Place: {place}")
+    if pointing is not None:
+        lines.append(f"Gesture: {pointing.hand} hand pointing from ({pointing.origin[0]:.0f}, "
+                     f"{pointing.origin[1]:.0f}) towards ({pointing.direction[0]:.2f}, {pointing.direction[1]:.2f}) "
+                     f"in camera {pointing.cam}")
+    elif gesture:
+        lines.append(f"Gesture: {gesture}")
+    if objects:
+        shown = sorted(objects, key=lambda o: (-o.score, o.cam, o.id))[:PROMPT_MAX_OBJECTS]
+        if target is not None and target not in shown:
+            shown[-1] = target
+        lines.append(f"Objects in view ({len(objects)}" + (f", {len(shown)} most confident listed" if
+                                                        len(shown) < len(objects) else "") + "):")
+        for o in sorted(shown, key=lambda o: (o.cam, o.center[0], o.id)):
+            lines.append(f"- {o.id}: {o.name()} at ({o.center[0]:.0f}, {o.center[1]:.0f}) size "
+                         f"{o.bbox[2]:.0f}x{o.bbox[3]:.0f} in camera {o.cam} ({o.width}x{o.height}), {region(o)}, "
+                         f"score {o.score:.2f}")
+    else:
+        lines.append("Objects in view: none reported")
+    if missing:
+        lines.append("Missing inputs: " + ", ".join(missing))
+    lines.append(f"Why: {explanation}")
+    return "\n".join(lines)

@@ -1,0 +1,233 @@
+"""Grounding: which detected object (or which point) an utterance and a gesture refer to. Pure.
+
+Every candidate gets two pieces of evidence:
+- speech S in [0, 1]: how well the said attributes (colour, class, spatial words) match what
+  vision reports. In adaptive mode it is pulled towards 0.5 ("don't know") by how little vision
+  can be trusted for that object (detection score x image quality x recency): in a dark frame
+  "red" says little about which object is red.
+- gesture G in [0, 1]: agreement with the pointing ray (angle between the ray and the direction
+  from the ray origin to the object, less the angle the object itself covers; 0 behind the hand).
+The total is their weighted mean with the normalised modality weights. The winner must lead the
+runner-up by `margin`, otherwise the caller asks (ambiguous, or conflict when speech and gesture
+each back a different object).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from common.language import canonical_label
+from common.schema import Detections, Target, Weights
+from services.fusion.evidence import Pointing, image_quality
+from services.fusion.parse import ObjectPhrase
+
+POINTING_SIGMA_DEG = 8.0  # angular noise of a pointing ray from hand landmarks
+SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
+RECENCY_S = 2.0
+DEFAULT_MARGIN = 0.1
+MIN_EVIDENCE = 0.15  # below this the winner is a guess: confirm first
+LOCATION_REACH = 0.35  # fraction of the image diagonal along the ray when no object is on it
+MAX_CANDIDATES = 5
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """A detected object with the context of the sample it came from."""
+    id: str
+    label: str  # canonical class
+    raw_label: str
+    color: str | None
+    bbox: tuple[float, float, float, float]
+    center: tuple[float, float]
+    score: float
+    cam: str
+    width: int
+    height: int
+    stamp: float
+    quality: float  # image quality in [0, 1]
+
+    def to_target(self) -> Target:
+        return Target(id=self.id, label=self.raw_label, color=self.color, bbox=list(self.bbox),
+                      center=list(self.center), score=self.score, cam=self.cam)
+
+    @property
+    def key(self) -> tuple[str, str]:
+        return self.cam, self.id
+
+    def name(self) -> str:
+        return f"{self.color + ' ' if self.color else ''}{self.label}"
+
+
+def scene_objects(detections: list[Detections]) -> list[SceneObject]:
+    out = []
+    for det in detections:
+        q = image_quality(det.quality)
+        for o in det.objects:
+            out.append(SceneObject(id=o.id, label=canonical_label(o.label), raw_label=o.label, color=o.color,
+                                   bbox=tuple(o.bbox), center=tuple(o.center), score=o.score, cam=det.cam,
+                                   width=det.width, height=det.height, stamp=det.stamp, quality=q))
+    return out
+
+
+@dataclass(frozen=True)
+class Scored:
+    obj: SceneObject
+    match: float  # how well the words fit, taking vision's labels at face value
+    trust: float  # how far vision's labels for this object can be trusted
+    speech: float
+    gesture: float | None
+    angle: float | None  # degrees off the ray
+    total: float
+
+    @property
+    def evidence(self) -> float:
+        """Support above chance from either side."""
+        return max(abs(self.speech - 0.5) * 2 if self.match >= 0.5 else 0.0, self.gesture or 0.0)
+
+
+def _attribute_match(phrase: ObjectPhrase, o: SceneObject) -> float:
+    m = 1.0
+    if phrase.label and phrase.label != "object" and o.label != phrase.label:
+        m = 0.0
+    if phrase.color:
+        m *= 0.5 if o.color is None else (1.0 if o.color == phrase.color else 0.0)
+    return m
+
+
+def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """Preference in [0, 1] for each object of `group` (1 for the best fit)."""
+    def expo(gap: float, size: float) -> float:
+        return math.exp(-max(gap, 0.0) / (SPATIAL_SCALE * size))
+    xs = {o.key: o.center[0] for o in group}
+    ys = {o.key: o.center[1] for o in group}
+    bottoms = {o.key: o.bbox[1] + o.bbox[3] for o in group}
+    areas = {o.key: max(o.bbox[2] * o.bbox[3], 1e-6) for o in group}
+    w = max(o.width for o in group)
+    h = max(o.height for o in group)
+    if word == "left":
+        return {i: expo(x - min(xs.values()), w) for i, x in xs.items()}
+    if word == "right":
+        return {i: expo(max(xs.values()) - x, w) for i, x in xs.items()}
+    if word == "top":
+        return {i: expo(y - min(ys.values()), h) for i, y in ys.items()}
+    if word == "bottom":
+        return {i: expo(max(ys.values()) - y, h) for i, y in ys.items()}
+    if word == "middle":
+        mid = (min(xs.values()) + max(xs.values())) / 2
+        return {i: expo(abs(x - mid), w) for i, x in xs.items()}
+    if word == "nearest":  # no depth: nearer to the camera = lower in the image
+        return {i: expo(max(bottoms.values()) - b, h) for i, b in bottoms.items()}
+    if word == "farthest":
+        return {i: expo(b - min(bottoms.values()), h) for i, b in bottoms.items()}
+    if word == "biggest":
+        return {i: (a / max(areas.values())) ** 2 for i, a in areas.items()}
+    if word == "smallest":
+        return {i: (min(areas.values()) / a) ** 2 for i, a in areas.items()}
+    return {i: 1.0 for i in xs}
+
+
+def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
+    """(G, angle in degrees). Objects in another camera or behind the hand score 0."""
+    if o.cam != p.cam:
+        return 0.0, None
+    vx, vy = o.center[0] - p.origin[0], o.center[1] - p.origin[1]
+    dist = math.hypot(vx, vy)
+    radius = 0.5 * math.hypot(o.bbox[2], o.bbox[3]) * 0.5  # half of the half-diagonal: the object's core
+    if dist <= 1e-6:
+        return 1.0, 0.0
+    cos = (vx * p.direction[0] + vy * p.direction[1]) / dist
+    angle = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+    if cos <= 0:
+        return 0.0, angle
+    covered = math.degrees(math.atan2(radius, dist))
+    sigma = max(POINTING_SIGMA_DEG, p.spread_deg)
+    effective = max(0.0, angle - covered)
+    return math.exp(-0.5 * (effective / sigma) ** 2), angle
+
+
+def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, weights: Weights,
+          *, adaptive: bool = True, ref: float | None = None) -> list[Scored]:
+    """All objects scored and ranked (best first; ties broken by camera and id for determinism)."""
+    if not objects:
+        return []
+    match = {o.key: _attribute_match(phrase, o) for o in objects}
+    fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
+    for word in phrase.spatial:  # spatial words choose among the objects that fit the other words
+        prefs = _spatial_scores(word, fitting)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 1.0)
+    use_gesture = pointing is not None and weights.gesture > 0
+    ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
+    if ws + wg <= 0:
+        ws = 1.0
+    scored = []
+    for o in objects:
+        m = match[o.key]
+        if adaptive:
+            recency = math.exp(-abs(o.stamp - ref) / RECENCY_S) if ref is not None else 1.0
+            trust = o.score * o.quality * recency
+        else:
+            trust = 1.0
+        s = 0.5 + (m - 0.5) * trust
+        g, angle = pointing_score(pointing, o) if use_gesture else (None, None)
+        total = (ws * s + wg * (g or 0.0)) / (ws + wg)
+        scored.append(Scored(o, m, trust, s, g, angle, total))
+    scored.sort(key=lambda c: (-round(c.total, 9), c.obj.cam, c.obj.id))
+    return scored
+
+
+@dataclass(frozen=True)
+class Choice:
+    kind: str  # "target", "ambiguous", "conflict", "not_found", "low_confidence"
+    winner: Scored | None
+    candidates: tuple[Scored, ...]
+    speech_best: Scored | None = None
+    gesture_best: Scored | None = None
+    overruled: str | None = None  # "speech" or "gesture" when the other side won a disagreement
+
+
+def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAULT_MARGIN,
+           check_evidence: bool = True) -> Choice:
+    if not scored:
+        return Choice("not_found", None, ())
+    pointing = scored[0].gesture is not None
+    speech_best = max(scored, key=lambda c: (c.speech, -scored.index(c))) if phrase.specific else None
+    gesture_best = max(scored, key=lambda c: (c.gesture or 0.0, -scored.index(c))) if pointing else None
+    pointed = gesture_best is not None and (gesture_best.gesture or 0.0) >= 0.5
+    if phrase.specific and max(c.match for c in scored) < 0.5 and not pointed:
+        return Choice("not_found", None, (), speech_best, gesture_best)
+    winner = scored[0]
+    runner_up = scored[1] if len(scored) > 1 else None
+    disagree = (speech_best is not None and gesture_best is not None and pointed
+                and speech_best.obj != gesture_best.obj and speech_best.match >= 0.5)
+    if runner_up is not None and winner.total - runner_up.total < margin:
+        if disagree and {winner.obj, runner_up.obj} == {speech_best.obj, gesture_best.obj}:
+            return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best)
+        close = tuple(c for c in scored if winner.total - c.total < margin)[:MAX_CANDIDATES]
+        return Choice("ambiguous", None, close, speech_best, gesture_best)
+    if check_evidence and winner.evidence < MIN_EVIDENCE:
+        return Choice("low_confidence", winner, (winner,), speech_best, gesture_best)
+    overruled = None
+    if disagree:
+        overruled = "speech" if winner.obj == gesture_best.obj else "gesture"
+    return Choice("target", winner, (winner,), speech_best, gesture_best, overruled)
+
+
+def ray_point(p: Pointing, reach: float = LOCATION_REACH) -> tuple[float, float]:
+    """The image point the ray indicates when no object lies on it: `reach` of the image diagonal
+    along the ray, stopped at the image border."""
+    ox, oy = p.origin
+    dx, dy = p.direction
+    limits = []
+    for o, d, size in ((ox, dx, p.width), (oy, dy, p.height)):
+        if d > 1e-9:
+            limits.append((size - 1 - o) / d)
+        elif d < -1e-9:
+            limits.append(-o / d)
+    t = min([reach * math.hypot(p.width, p.height), *[lim for lim in limits if lim >= 0]])
+    x = min(max(ox + t * dx, 0.0), p.width - 1)
+    y = min(max(oy + t * dy, 0.0), p.height - 1)
+    return round(x, 1), round(y, 1)
+
+
