@@ -185,8 +185,12 @@ done
 say "live: $(awk '{print $1}' "$LOGDIR/alive.txt" | sort | tr '\n' ' ')"
 
 if [[ " $services " == *" fusion "* ]]; then
-    say "demo input: hri say \"$DEMO_UTTERANCE\"; waiting for a fused command on hri/fusion/**"
-    hri echo 'hri/fusion/**' --count 1 --timeout 90 >"$LOGDIR/fused.jsonl" 2>"$LOGDIR/fused.err" &
+    # with vision in the stack the command can be grounded: insist on a FusedCommand; without, any answer
+    # of fusion (a clarification "I see no red candy") shows the path works
+    fusion_key='hri/fusion/**' grounded=()
+    [[ " $services " == *" vision "* ]] && fusion_key='hri/fusion/command' grounded=(--grounded)
+    say "demo input: hri say \"$DEMO_UTTERANCE\"; waiting for fusion's answer on $fusion_key"
+    hri echo "$fusion_key" --count 1 --timeout 90 >"$LOGDIR/fused.jsonl" 2>"$LOGDIR/fused.err" &
     echo_pid=$!
     # the echo subscription needs a moment; say again until something comes back (at most 10 times)
     for _ in $(seq 10); do
@@ -194,8 +198,10 @@ if [[ " $services " == *" fusion "* ]]; then
         kill -0 "$echo_pid" 2>/dev/null || break
         hri say "$DEMO_UTTERANCE" >/dev/null 2>>"$LOGDIR/fused.err" || true
     done
-    wait "$echo_pid" || { cat "$LOGDIR/fused.err" >&2; show_state; die "no fused command or clarification for \"$DEMO_UTTERANCE\""; }
-    say "fused: $(head -n1 "$LOGDIR/fused.jsonl" | cut -c1-300)"
+    wait "$echo_pid" || { cat "$LOGDIR/fused.err" >&2; show_state; die "nothing on $fusion_key for \"$DEMO_UTTERANCE\""; }
+    verdict=$("$PYTHON" docker/check_fused.py "$LOGDIR/fused.jsonl" --utterance "$DEMO_UTTERANCE" "${grounded[@]}") ||
+        { show_state; die "$verdict"; }
+    say "$verdict"
 else
     say "no fusion service in the compose file yet: fused-command check not run"
 fi
