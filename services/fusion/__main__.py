@@ -96,6 +96,7 @@ def main(argv: list[str] | None = None) -> None:
 
     def handler(feed):
         def handle(d: Delivery) -> None:
+            service.log.debug("in %s %.3f", d.key, d.sample.stamp)
             emit(feed(d.key, d.sample, d.received_at))
         return handle
 

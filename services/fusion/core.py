@@ -31,6 +31,7 @@ from services.fusion.parse import ObjectPhrase, Utterance, parse
 
 TARGET_INTENTS = ("pick_up", "bring")  # must name an object
 ON_RAY = 0.7  # gesture score from which "there" means the object on the ray
+OPEN_PALM_FRAMES = 3  # hand frames showing an open palm during an utterance cancel it (one frame may be noise)
 
 
 @dataclass
@@ -130,7 +131,10 @@ class FusionCore:
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
         self.liveness.arrived(modality, wall)
-        status = self.streams.add(modality, key, stamp, item, ident)
+        keep_from = min((q.lo for q in self.pending), default=None)
+        if keep_from is not None:
+            keep_from -= self.cfg.vision_lookback
+        status = self.streams.add(modality, key, stamp, item, ident, keep_from)
         if status == "duplicate":
             self.count("duplicate")
             return False
@@ -226,6 +230,18 @@ class FusionCore:
             out.extend(self.decide(head, how))
         return out
 
+    def _stop_shown(self, lo: float, hi: float) -> bool:
+        """An open palm during the utterance: from a stop event, or from hand frames (which arrive in order
+        with the gesture watermark, so the answer does not depend on whether the event overtook the transcript)."""
+        if any(lo <= s <= hi for s in self.gesture_stops):
+            return True
+        frames = 0
+        for _, item in self.streams.between("gesture", lo, hi):
+            if isinstance(item, Hands) and any(h.gesture == "open_palm" and h.score >= self.cfg.gesture_min_score
+                                               for h in item.hands):
+                frames += 1
+        return frames >= OPEN_PALM_FRAMES
+
     def _ref_time(self, t: Transcript, u: Utterance) -> float:
         """When the person meant the object: the deictic word if there is one, else mid-utterance."""
         if u.deictic:
@@ -256,12 +272,16 @@ class FusionCore:
         inputs = {"speech": t.stamp, "vision": max((d.stamp for d in detections), default=None),
                   "gesture": pointing.stamp if pointing else None}
         missing = [m for m in WAITED_MODALITIES if inputs[m] is None]
+        if self.log.isEnabledFor(logging.DEBUG):
+            self.log.debug("window [%.3f, %.3f] of '%s' closed by %s: %d detections, %d pointing observations, "
+                           "watermarks %s", p.lo, p.hi, t.text, how, len(detections), len(obs),
+                           {m: round(self.streams.watermark(m), 3) for m in WAITED_MODALITIES})
         return Context(scene_objects(detections), detections, pointing, weights, rel, inputs, missing, ref, how)
 
     # -- decisions ------------------------------------------------------------
     def decide(self, p: PendingTranscript, how: str) -> list[Output]:
         t, u = p.transcript, p.utterance
-        if any(t.start <= s <= p.hi for s in self.gesture_stops):
+        if self._stop_shown(t.start, p.hi):
             self.count("cancelled_by_stop_gesture")
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
             return []

@@ -27,10 +27,12 @@ class StreamBuffer:
     idents: list[Any] = field(default_factory=list)
     watermark: float = 0.0
 
-    def add(self, stamp: float, item: Any, ident: Any = None) -> str:
+    def add(self, stamp: float, item: Any, ident: Any = None, keep_from: float | None = None) -> str:
         """Insert in stamp order. Returns "added", "duplicate", "late" (older than the horizon) or "reset".
 
-        A duplicate has the same stamp and the same `ident` (default: any item at that stamp)."""
+        A duplicate has the same stamp and the same `ident` (default: any item at that stamp).
+        `keep_from`: keep samples from this stamp on even beyond the horizon (a transcript still needs them);
+        the item cap still applies."""
         status = "added"
         if self.stamps and stamp < self.watermark - self.reset_gap:
             self.stamps.clear()
@@ -48,11 +50,14 @@ class StreamBuffer:
         self.items.insert(j, item)
         self.idents.insert(j, ident)
         self.watermark = max(self.watermark, stamp)
-        self._prune()
+        self._prune(keep_from)
         return status
 
-    def _prune(self) -> None:
-        cut = bisect.bisect_left(self.stamps, self.watermark - self.horizon)
+    def _prune(self, keep_from: float | None = None) -> None:
+        oldest = self.watermark - self.horizon
+        if keep_from is not None:
+            oldest = min(oldest, keep_from)
+        cut = bisect.bisect_left(self.stamps, oldest)
         cut = max(cut, len(self.stamps) - self.max_items)
         if cut > 0:
             del self.stamps[:cut]
@@ -74,12 +79,13 @@ class Streams:
         self.max_items = max_items
         self.buffers: dict[str, dict[str, StreamBuffer]] = {}
 
-    def add(self, modality: str, key: str, stamp: float, item: Any, ident: Any = None) -> str:
+    def add(self, modality: str, key: str, stamp: float, item: Any, ident: Any = None,
+            keep_from: float | None = None) -> str:
         per_key = self.buffers.setdefault(modality, {})
         buf = per_key.get(key)
         if buf is None:
             buf = per_key[key] = StreamBuffer(self.horizon, self.max_items)
-        return buf.add(stamp, item, ident)
+        return buf.add(stamp, item, ident, keep_from)
 
     def between(self, modality: str, lo: float, hi: float) -> list[tuple[str, Any]]:
         """(key, item) in the window from every key of the modality, keys in name order."""

@@ -143,14 +143,17 @@ def ray_towards(origin: tuple[float, float], target: tuple[float, float], jitter
 
 def hands(t: float, point_at: tuple[float, float] | None = None, origin: tuple[float, float] = (320.0, 470.0),
           score: float = 0.95, ray_conf: float = 0.9, jitter_deg: float = 0.0, cam: str = "cam0",
-          hand: str = "right") -> Step:
-    """A Hands frame: one pointing hand if `point_at`, else no hands."""
+          hand: str = "right", show: str | None = None) -> Step:
+    """A Hands frame: one pointing hand if `point_at`, else no hands. `jitter_deg`: the ray wobbles
+    by up to that much from frame to frame (a shaky or badly tracked hand)."""
     def build(base: float) -> tuple[str, Sample]:
         found = []
         if point_at is not None:
-            d = ray_towards(origin, point_at, jitter_deg)
+            d = ray_towards(origin, point_at, jitter_deg * math.sin(t * 37.0))
             found.append(Hand(hand=hand, score=score, landmarks=landmarks_at(*origin), gesture="point",
                               ray=Ray(origin=list(origin), direction=list(d), confidence=ray_conf)))
+        elif show is not None:  # a hand showing another gesture (open_palm, fist …), no ray
+            found.append(Hand(hand=hand, score=score, landmarks=landmarks_at(*origin), gesture=show))
         return KEYS.hands(cam), Hands(stamp=base + t, source=f"gesture/{cam}", seq=int(t * 30) + 5000, cam=cam,
                                       width=W, height=H, hands=found)
     return Step(t, build, "hands" + (f" pointing at {point_at}" if point_at else " (none)"))

@@ -127,7 +127,7 @@ SCENARIOS: list[Scenario] = [
                                                      quality=DARK),
       [cmd("pick_up", "cup_blue")], ("conflict", "dark", "eval")),
     S("conflict: clear speech, shaky weak pointing", normal(TWO_CUPS, "pick up the red cup", BLUE_CUP.center,
-                                                            jitter_deg=0.0, score=0.45, ray_conf=0.5),
+                                                            jitter_deg=15.0, score=0.6, ray_conf=0.6),
       [cmd("pick_up", "cup_red")], ("conflict", "eval")),
     S("agreement: says red, points red", normal(TWO_CUPS, "pick up the red cup", RED_CUP.center),
       [cmd("pick_up", "cup_red")], ("pointing", "eval")),
@@ -185,7 +185,9 @@ SCENARIOS: list[Scenario] = [
       [cmd("stop")], ("gesture",)),
     S("wave: come here", [gesture(0.5, "wave", "start")], [cmd("come_here")], ("gesture",)),
     S("weak open palm is ignored", [gesture(0.5, "open_palm", "start", score=0.2)], [], ("gesture",)),
-    S("stop gesture during speech wins", by_time(scene(TWO_CUPS) + pointing(None) + [
+    S("stop gesture during speech wins", by_time(scene(TWO_CUPS) + [
+        s for s in pointing(None) if not 0.5 <= s.t <= 1.2] + [hands(t, show="open_palm") for t in (
+            0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2)] + [
         say(0.0, 1.5, "pick up the red cup"), gesture(0.9, "open_palm", "start")]), [cmd("stop")],
       ("gesture", "safety")),
     # -- speech-only intents ------------------------------------------------------------------------
