@@ -32,8 +32,8 @@ RUN touch README.md && pip install --no-deps --no-build-isolation --no-index -q 
     && python -c "import common.cli, services" \
     && useradd --system --no-create-home --home-dir /app hri
 
-# Inputs (photos, WAVs) are mounted here read-only by docker-compose.yml.
-VOLUME ["/data"]
+# Inputs (photos, WAVs) are bind-mounted read-only at /data by docker-compose.yml (no VOLUME here: it
+# would leave an anonymous volume behind for every container that does not mount one).
 USER hri
 EXPOSE 7447
 CMD ["python", "-m", "common.cli", "--help"]

@@ -34,6 +34,10 @@ is_root() { [ "$(id -u)" = 0 ]; }
 engine_up() { docker info >/dev/null 2>&1; }
 
 mkdir -p "$LOGDIR"
+# One run at a time on a machine: a run that started the engine stops it at its end, under another's feet.
+if command -v flock >/dev/null && { exec 9>>"${TMPDIR:-/tmp}/hri-docker-ci.lock"; } 2>/dev/null; then
+    flock -n 9 || { say "another docker/ci.sh runs on this machine; waiting for it"; flock -w 1800 9; }
+fi
 [ -x "$PYTHON" ] || die "no host python at $PYTHON: run \`make setup\` first (or set PYTHON=...)"
 
 started_dockerd=""
@@ -49,7 +53,7 @@ cleanup() {
     local code=$?
     if [ -z "${HRI_KEEP_STACK:-}" ] && [ -n "${stack_started:-}" ]; then
         say "docker compose down"
-        "${COMPOSE[@]}" down --remove-orphans --timeout 10 >"$LOGDIR/down.log" 2>&1 ||
+        "${COMPOSE[@]}" down --volumes --remove-orphans --timeout 10 >"$LOGDIR/down.log" 2>&1 ||
             say "compose down failed: see $LOGDIR/down.log"
     fi
     docker image prune -f >/dev/null 2>&1 || true   # dangling layers of older builds
