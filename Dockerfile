@@ -30,7 +30,7 @@ COPY services/ services/
 COPY docker/healthcheck.py docker/
 RUN touch README.md && pip install --no-deps --no-build-isolation --no-index -q . \
     && python -c "import common.cli, services" \
-    && useradd --system --no-create-home --home-dir /app hri
+    && useradd --system --create-home --home-dir /home/hri hri
 
 # Inputs (photos, WAVs) are bind-mounted read-only at /data by docker-compose.yml (no VOLUME here: it
 # would leave an anonymous volume behind for every container that does not mount one).

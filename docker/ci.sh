@@ -155,6 +155,7 @@ PYTHON="$PYTHON" docker/fetch-wheels.sh
 
 # -- 5. compose up -------------------------------------------------------------------
 export HRI_ROUTER_PORT=${HRI_ROUTER_PORT:-$("$PYTHON" -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')}
+export COMPOSE_BAKE=false   # no buildx here: the built-in BuildKit client, without a warning
 COMPOSE=(docker compose -p "$PROJECT")
 ENDPOINT="tcp/127.0.0.1:$HRI_ROUTER_PORT"
 hri() { "$PYTHON" -m common.cli "$@" --connect "$ENDPOINT"; }
