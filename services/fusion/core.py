@@ -123,7 +123,7 @@ class FusionCore:
         self.liveness = Liveness(config.live_recent_s)
         self.pending: list[PendingTranscript] = []
         self.dialogue: Dialogue | None = None
-        self.seen_transcripts: collections.OrderedDict[tuple[str, float], None] = collections.OrderedDict()
+        self.seen_transcripts: collections.OrderedDict[tuple[str, float], float] = collections.OrderedDict()
         self.gesture_stops: collections.deque[float] = collections.deque(maxlen=64)
         self.gesture_waves: collections.deque[float] = collections.deque(maxlen=64)
         self.episodes: dict[tuple, tuple[float, bool]] = {}  # (key, hand, gesture) -> (last stamp, ended)
@@ -192,8 +192,9 @@ class FusionCore:
         if ident in self.seen_transcripts:
             self.count("duplicate")
             return []
-        self.seen_transcripts[ident] = None
-        while len(self.seen_transcripts) > 1024:
+        self.seen_transcripts[ident] = t.stamp
+        while self.seen_transcripts and (len(self.seen_transcripts) > 1024 or next(
+                iter(self.seen_transcripts.values())) < t.stamp - self.cfg.horizon):
             self.seen_transcripts.popitem(last=False)
         u = parse(t.text)
         if u.intent == "stop":  # no window to wait for: stop now

@@ -38,7 +38,7 @@ class StreamBuffer:
             self.stamps.clear()
             self.items.clear()
             self.idents.clear()
-            self.watermark = 0.0
+            self.watermark = stamp
             status = "reset"
         elif stamp < self.watermark - self.horizon:
             return "late"

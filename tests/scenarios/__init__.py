@@ -204,6 +204,8 @@ def run_in_process(scenario: Scenario, config: Any = None, base: float = BASE_ST
     core = FusionCore(cfg, "fusion/test")
     out: list[Sample] = []
     wall = 1000.0
+    for modality in ("vision", "gesture"):  # the services are running, as in a deployment (liveliness tokens)
+        core.on_liveliness(modality, "test", True)
     steps = [scenario.steps[i] for i in order] if order is not None else scenario.steps
     for step in steps:
         key, sample = step.build(base)
