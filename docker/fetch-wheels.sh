@@ -36,10 +36,17 @@ trap 'rm -f "$reqs"' EXIT
 # setuptools/wheel: to build the project itself inside the image without an index
 echo "setuptools>=68" >>"$reqs"
 echo "wheel" >>"$reqs"
-say "downloading wheels for extras [$extras] into $WHEELS (about 300 MB on a cold cache)"
-"$PYTHON" -m pip download -q --disable-pip-version-check -d "$WHEELS" "${TARGET[@]}" -c constraints.txt -r "$reqs"
+say "downloading wheels for extras [$extras] into $WHEELS (about 200 MB; half a minute on a cold cache)"
+log=$WHEELS/.download.log
+download() {
+    "$PYTHON" -m pip download -q --disable-pip-version-check -d "$WHEELS" "${TARGET[@]}" -c constraints.txt "$@" \
+        >>"$log" 2>&1 || { grep -v "is ignored: it is neither" "$log" | tail -n 20 >&2
+                          say "pip download failed (full log: $log)"; exit 1; }
+}
+: >"$log"
+download -r "$reqs"
 # mediapipe's metadata pins numpy<2 and pulls opencv-contrib: the image installs it with --no-deps, like setup.sh
-"$PYTHON" -m pip download -q --disable-pip-version-check -d "$WHEELS" "${TARGET[@]}" -c constraints.txt --no-deps mediapipe
+download --no-deps mediapipe
 
 rm -f "$WHEELS"/.fetched-*
 touch "$stamp"
