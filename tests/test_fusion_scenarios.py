@@ -24,6 +24,7 @@ pytestmark = pytest.mark.integration
 # (samples on different keys may overtake each other on the way, so the sentinel's frames can be
 # buffered before a scenario's transcript is; they must not push its window out of the buffers).
 SENTINEL_AT = 25.0
+SPEEDUP = 20.0
 
 
 def _scenario_base(index: int) -> float:
@@ -60,8 +61,15 @@ class FusionRig:
         raise AssertionError(f"fusion never received the warm-up samples\n{self.group.logs()}")
 
     def run(self, scenario: Scenario, base: float, timeout: float = 30.0) -> list:
-        for key, sample in scenario.samples(base):
-            self.client.publish(key, sample)
+        # Paced at SPEEDUP x real time: fusion's subscriptions each have their own callback thread, so
+        # samples on different keys sent within microseconds of each other may be handled in any order;
+        # live services are milliseconds apart (a replay at 20x keeps that order with a wide margin).
+        previous = None
+        for step in scenario.steps:
+            if previous is not None and step.t > previous:
+                time.sleep((step.t - previous) / SPEEDUP)
+            previous = step.t
+            self.client.publish(*step.build(base))
         sentinel = [see(SENTINEL_AT + 1.0, []), hands(SENTINEL_AT + 1.0),
                     say(SENTINEL_AT - 1.0, SENTINEL_AT, "hello", mic="sentinel", lag=0.0)]
         for step in sentinel:

@@ -324,7 +324,7 @@ class FusionCore:
             if choice.kind not in ("target", "low_confidence"):
                 return [self._clarify(t, u, ctx, choice, Draft(intent, t.text, place=u.place))]
             target = choice.winner
-            runner_up = next((c for c in self._scored(u.obj, ctx) if c.obj != target.obj), None)
+            runner_up = choice.runner_up
             overruled = choice.overruled
             if choice.kind == "low_confidence":
                 return [self._clarify(t, u, ctx, choice, Draft(intent, t.text, target=target.obj, place=u.place))]
@@ -400,8 +400,7 @@ class FusionCore:
         if choice.kind == "target" and choice.winner is not None:
             d.draft.target = choice.winner.obj
             why = f"'{t.text}' answered question {d.clarification_id}: " + describe.explain_target(
-                choice.winner, next((c for c in scored if c.obj != choice.winner.obj), None), ctx.weights.to_dict(),
-                u.obj, None)
+                choice.winner, choice.runner_up, ctx.weights.to_dict(), u.obj, None)
             return [self._from_draft(t, d.draft, ctx, why, confidence=choice.winner.total)]
         self.count("dialogue_unresolved")
         narrowed = [c.obj for c in choice.candidates] or d.candidates

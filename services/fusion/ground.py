@@ -185,33 +185,41 @@ class Choice:
     speech_best: Scored | None = None
     gesture_best: Scored | None = None
     overruled: str | None = None  # "speech" or "gesture" when the other side won a disagreement
+    runner_up: Scored | None = None
 
 
 def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAULT_MARGIN,
            check_evidence: bool = True) -> Choice:
+    """Decide from a ranked list (as `score` returns it). Linear in the number of candidates."""
     if not scored:
         return Choice("not_found", None, ())
     pointing = scored[0].gesture is not None
-    speech_best = max(scored, key=lambda c: (c.speech, -scored.index(c))) if phrase.specific else None
-    gesture_best = max(scored, key=lambda c: (c.gesture or 0.0, -scored.index(c))) if pointing else None
+    # argmax keeps the first (best ranked) on ties: max() over (value, -rank)
+    speech_best = scored[max(range(len(scored)), key=lambda i: (scored[i].speech, -i))] if phrase.specific else None
+    gesture_best = scored[max(range(len(scored)), key=lambda i: (scored[i].gesture or 0.0, -i))] if pointing else None
     pointed = gesture_best is not None and (gesture_best.gesture or 0.0) >= 0.5
     if phrase.specific and max(c.match for c in scored) < 0.5 and not pointed:
         return Choice("not_found", None, (), speech_best, gesture_best)
     winner = scored[0]
     runner_up = scored[1] if len(scored) > 1 else None
     disagree = (speech_best is not None and gesture_best is not None and pointed
-                and speech_best.obj != gesture_best.obj and speech_best.match >= 0.5)
+                and speech_best is not gesture_best and speech_best.match >= 0.5)
     if runner_up is not None and winner.total - runner_up.total < margin:
-        if disagree and {winner.obj, runner_up.obj} == {speech_best.obj, gesture_best.obj}:
-            return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best)
-        close = tuple(c for c in scored if winner.total - c.total < margin)[:MAX_CANDIDATES]
-        return Choice("ambiguous", None, close, speech_best, gesture_best)
+        if disagree and {id(winner), id(runner_up)} == {id(speech_best), id(gesture_best)}:
+            return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best,
+                          runner_up=runner_up)
+        close = []
+        for c in scored:  # ranked: stop at the first that is clearly behind
+            if winner.total - c.total >= margin or len(close) == MAX_CANDIDATES:
+                break
+            close.append(c)
+        return Choice("ambiguous", None, tuple(close), speech_best, gesture_best, runner_up=runner_up)
     if check_evidence and winner.evidence < MIN_EVIDENCE:
-        return Choice("low_confidence", winner, (winner,), speech_best, gesture_best)
+        return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
     overruled = None
     if disagree:
-        overruled = "speech" if winner.obj == gesture_best.obj else "gesture"
-    return Choice("target", winner, (winner,), speech_best, gesture_best, overruled)
+        overruled = "speech" if winner is gesture_best else "gesture"
+    return Choice("target", winner, (winner,), speech_best, gesture_best, overruled, runner_up)
 
 
 def ray_point(p: Pointing, reach: float = LOCATION_REACH) -> tuple[float, float]:
