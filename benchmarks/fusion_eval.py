@@ -1,0 +1,111 @@
+"""Fixed vs adaptive modality weights: accuracy side by side.
+
+Runs (in process, deterministic) the scenario suite of tests/scenarios plus a seeded sweep of
+degraded trials, once with `--weights adaptive` and once with `--weights fixed`:
+- noisy speech: ASR heard the wrong colour, with low confidence; the person points clearly at the
+  right object -> expected: the pointed object;
+- dark frame: vision mislabels colours in a dark frame (the red cup comes out "blue" and vice
+  versa); the person says "the red cup" and points at it -> expected: the pointed object;
+- shaky gesture: clear speech names the object; a weak, wobbling ray points near the other one
+  -> expected: the named object;
+- clear gesture: "that cup" + a steady point -> the pointed object;
+- clear both, disagreeing: says one, points at the other -> expected: a conflict question.
+An outcome counts as correct only if it is exactly the expected command or question.
+
+Run: .venv/bin/python benchmarks/fusion_eval.py [--trials N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import random
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from services.fusion.core import Config  # noqa: E402
+from tests.scenarios import DARK, Expect, Obj, Scenario, by_time, check, pointing, run_in_process, say, scene  # noqa
+from tests.scenarios.suite import SCENARIOS  # noqa: E402
+
+COLORS = ("red", "blue", "green", "yellow")
+
+
+def two_cups(rng: random.Random) -> tuple[Obj, Obj]:
+    ca, cb = rng.sample(COLORS, 2)
+    xa = rng.uniform(80, 260)
+    xb = rng.uniform(380, 560)
+    y = rng.uniform(200, 330)
+    a = Obj("cup_a", "cup", ca, (xa, y), score=rng.uniform(0.75, 0.95))
+    b = Obj("cup_b", "cup", cb, (xb, y + rng.uniform(-40, 40)), score=rng.uniform(0.75, 0.95))
+    return a, b
+
+
+def cmd(target: str) -> Expect:
+    return Expect("command", intent="pick_up", target=target)
+
+
+def trial(kind: str, rng: random.Random) -> Scenario:
+    a, b = two_cups(rng)
+    truth, other = (a, b) if rng.random() < 0.5 else (b, a)
+    if kind == "noisy speech":
+        steps = scene([a, b]) + pointing(truth.center)
+        steps.append(say(0.0, 1.5, f"pick up the {other.color} cup", conf=rng.uniform(0.3, 0.5)))
+        expect = [cmd(truth.id)]
+    elif kind == "dark frame":
+        swapped = [Obj(o.id, o.label, (b.color if o is a else a.color), o.center, o.size, o.score) for o in (a, b)]
+        steps = scene(swapped, quality=DARK) + pointing(truth.center)
+        steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.8, 0.95)))
+        expect = [cmd(truth.id)]
+    elif kind == "shaky gesture":
+        steps = scene([a, b]) + pointing(other.center, jitter_deg=rng.uniform(12, 25), score=rng.uniform(0.4, 0.7),
+                                         ray_conf=rng.uniform(0.4, 0.7))
+        steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.85, 0.97)))
+        expect = [cmd(truth.id)]
+    elif kind == "clear gesture":
+        steps = scene([a, b]) + pointing(truth.center)
+        steps.append(say(0.0, 1.5, "pick up that cup", conf=rng.uniform(0.8, 0.97)))
+        expect = [cmd(truth.id)]
+    elif kind == "clear both, disagreeing":
+        steps = scene([a, b]) + pointing(other.center)
+        steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.85, 0.97)))
+        expect = [Expect("clarification", reason="conflict")]
+    else:
+        raise ValueError(kind)
+    return Scenario(f"{kind} #{rng.random():.6f}", by_time(steps), expect, (kind,))
+
+
+KINDS = ("noisy speech", "dark frame", "shaky gesture", "clear gesture", "clear both, disagreeing")
+
+
+def evaluate(scenarios: list[Scenario], mode: str) -> dict[str, list[bool]]:
+    results: dict[str, list[bool]] = defaultdict(list)
+    for sc in scenarios:
+        ok = not check(sc, run_in_process(sc, Config(weights=mode, **sc.config)))
+        results[sc.tags[0] if sc.tags else "untagged"].append(ok)
+        results["ALL"].append(ok)
+    return results
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--trials", type=int, default=40, help="degraded trials per kind (default 40)")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    rng = random.Random(args.seed)
+    sweep = [trial(kind, rng) for kind in KINDS for _ in range(args.trials)]
+    print(f"scenario suite: {len(SCENARIOS)} scenarios; degraded sweep: {len(sweep)} trials "
+          f"({args.trials} per kind, seed {args.seed})\n")
+    for title, scenarios in (("scenario suite (by first tag)", SCENARIOS), ("degraded sweep", sweep)):
+        adaptive, fixed = evaluate(scenarios, "adaptive"), evaluate(scenarios, "fixed")
+        print(f"{title:34s} {'n':>4s} {'adaptive':>9s} {'fixed':>9s}")
+        for group in sorted(adaptive, key=lambda g: (g == "ALL", g)):
+            n = len(adaptive[group])
+            a, f = sum(adaptive[group]) / n, sum(fixed[group]) / n
+            print(f"  {group:32s} {n:4d} {a:9.0%} {f:9.0%}")
+        print()
+
+
+if __name__ == "__main__":
+    main()
