@@ -13,7 +13,7 @@ import pytest
 from mcap.reader import make_reader
 
 from common.cli import make_transcript
-from common.codec import encode
+from common.codec import decode, encode
 from common.keys import Keys
 from common.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
 from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray
@@ -321,3 +321,120 @@ def test_record_refuses_to_overwrite_and_replay_rejects_bad_input(group, tmp_pat
     assert res.returncode == 1 and "nothing to replay" in res.stderr
     res = group.hri("replay", str(empty), "--only", "hri//bad")
     assert res.returncode == 2 and "not a valid key expression" in res.stderr
+
+
+# ---------------------------------------------------------------------------
+# The point of it all: a recorded session replayed into a fresh fusion service
+# ---------------------------------------------------------------------------
+REPLAYED_SCENARIOS = ("colour: the red cup", "pointing: that cup", "follow-up: the red one",
+                      "open palm: stop at once")
+INPUT_KEYS = [KEYS.transcript("mic0"), KEYS.objects("cam0"), KEYS.hands("cam0"), KEYS.gesture_event("cam0")]
+
+
+def outcome(sample) -> tuple:
+    """What a fused output decides (the volatile parts — stamps, explanation wording — left out)."""
+    from common.schema import Clarification
+    if isinstance(sample, Clarification):
+        return ("clarification", sample.id, sample.reason, sorted(c.id for c in sample.candidates))
+    return ("command", sample.id, sample.intent, sample.target.id if sample.target else None,
+            sample.location is not None)
+
+
+def warm_up_fusion(client: Client, timeout: float = 30.0) -> None:
+    """Inputs that decide nothing (no objects, no hands), until fusion counts them: its routes exist."""
+    from tests.scenarios import BASE_STAMP, hands, see
+    deadline, round_ = time.monotonic() + timeout, 0
+    while time.monotonic() < deadline:
+        before = client.stats("fusion")["received"]
+        for step in (see(0.0, []), hands(0.0)):
+            client.publish(*step.build(BASE_STAMP - 10_000 + round_))
+        time.sleep(0.3)
+        if client.stats("fusion")["received"] - before >= 2:
+            return
+        round_ += 1
+    raise AssertionError("fusion never received the warm-up samples")
+
+
+@pytest.mark.integration
+def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_commands(group, tmp_path):
+    from common.schema import Clarification, FusedCommand
+    from tests.scenarios import BASE_STAMP, SCENARIO_SPACING, check, say, see
+    from tests.scenarios.suite import SCENARIOS
+
+    by_name = {s.name: s for s in SCENARIOS}
+    missing = [n for n in REPLAYED_SCENARIOS if n not in by_name]
+    assert not missing, f"scenarios {missing} are gone from tests/scenarios/suite.py; pick others"
+    chosen = [by_name[n] for n in REPLAYED_SCENARIOS]
+    base0 = BASE_STAMP + 500 * SCENARIO_SPACING  # far from the warm-up stamps
+    sentinel_at = 25.0  # as in tests/test_fusion_scenarios.py: after every step, inside fusion's horizon
+
+    group.router()
+    path = tmp_path / "fusion-session.mcap"
+    recorder = group.start("record", "common.cli", "record", "-o", str(path), "hri/**")
+    wait_for_text(recorder, "recording 'hri/**'")
+    client = Client(group.endpoint)
+    try:
+        wait_matched(client, INPUT_KEYS)  # only the recorder subscribes so far: its route exists
+        outputs = client.collect("hri/fusion/**")
+        fusion = group.service("fusion")
+        client.wait_alive("fusion")
+        warm_up_fusion(client)
+
+        def decided(since: int, base: float) -> list:
+            """Wait for the sentinel's command of the scenario at `base`; return that scenario's outputs."""
+            def is_sentinel(key: str, s: object) -> bool:
+                return isinstance(s, FusedCommand) and s.stamp == base + sentinel_at
+            earlier = sum(1 for item in outputs.seen[:since] if is_sentinel(*item))  # A's, when B replays
+            try:
+                outputs.wait(earlier + 1, 30, where=is_sentinel)
+            except TimeoutError as exc:
+                raise AssertionError(f"no answer to the sentinel at {base + sentinel_at}: {exc}\n"
+                                     f"{group.logs()}") from None
+            outputs.drain(0.05)
+            return [s for _, s in outputs.seen[since:] if isinstance(s, (FusedCommand, Clarification))
+                    and base - 10 <= s.stamp < base + sentinel_at]
+
+        # -- live: the scenarios' inputs into fusion A, everything recorded
+        live = []
+        for i, scenario in enumerate(chosen):
+            base = base0 + i * SCENARIO_SPACING
+            since = len(outputs.seen)
+            for key, sample in scenario.samples(base):
+                client.publish(key, sample)
+            for step in (see(sentinel_at + 1.0, []), say(sentinel_at - 1.0, sentinel_at, "hello", lag=0.0)):
+                client.publish(*step.build(base))
+            got = decided(since, base)
+            assert not check(scenario, got), f"live fusion: {scenario.name}: {check(scenario, got)}"
+            live.append([outcome(s) for s in got])
+        code, _ = recorder.terminate(timeout=5.0)
+        assert code == 0, recorder.output()
+        code, _ = fusion.terminate(timeout=5.0)
+        assert code == 0, fusion.output()
+
+        # the recording holds A's answers too, exactly as the collector received them
+        reader = SessionReader(path)
+        in_file = [decode(m.payload, KEYS.schema_for(m.key))
+                   for m in reader.messages(lambda k: k.startswith("hri/fusion/"))]
+        reader.close()
+        answered_live = [outcome(s) for _, s in outputs.seen if s.stamp >= base0 - 10]
+        assert sorted(outcome(s) for s in in_file if s.stamp >= base0 - 10) == sorted(answered_live)
+
+        # -- replay only the inputs into a fresh fusion B
+        fresh = group.service("fusion")
+        client.wait_alive("fusion")
+        wait_matched(client, INPUT_KEYS)  # A and the recorder are gone: this is B's route
+        since = len(outputs.seen)
+        res = group.hri("replay", str(path), "--only", "hri/speech/**", "--only", "hri/vision/**",
+                        "--only", "hri/gesture/**", timeout=180)
+        assert res.returncode == 0, res.stderr
+        replayed = []
+        for i, scenario in enumerate(chosen):
+            base = base0 + i * SCENARIO_SPACING
+            got = decided(since, base)
+            replayed.append([outcome(s) for s in got])
+        assert replayed == live, f"live {live}\nreplayed {replayed}\n{group.logs()}"
+        assert sum(1 for _, s in outputs.seen[since:] if s.stamp >= base0 - 10) == len(answered_live), \
+            "the replay made fusion B publish more or fewer outputs than A did live"
+        assert fresh.alive()
+    finally:
+        client.close()
