@@ -32,6 +32,9 @@ examples:
           "words":[],"final":true,"backend":"text"}'
   hri list                                     # live services (liveliness tokens)
   hri stats                                    # received / published / rejected counters per service
+  hri up --camera data/images/tabletop --speech-input text   # router + every service, type commands
+  hri record -o session.mcap 'hri/**'          # everything to MCAP until Ctrl-C (--count N / --duration S)
+  hri replay session.mcap --only 'hri/speech/**' --speed 2   # back onto the bus, original timing x2
 """
 
 
