@@ -170,7 +170,7 @@ class Service:
         self._inbox = Inbox(self.counters)
         self._subscribers: list[Any] = []
         self._declared: list[Any] = []
-        self._publishers: dict[str, "SamplePublisher"] = {}
+        self._publishers: dict[tuple[str, bool, bool], "SamplePublisher"] = {}
         self._on_close: list[Callable[[], None]] = []
         self._started = time.monotonic()
         self._channels = 0
@@ -226,10 +226,11 @@ class Service:
         self._subscribers.append(self.session.declare_subscriber(keyexpr, on_sample))
 
     def publish(self, key: str, sample: Sample, *, lossless: bool = True, realtime: bool = False) -> None:
-        pub = self._publishers.get(key)
-        if pub is None:
+        pub = self._publishers.get((key, lossless, realtime))
+        if pub is None:  # one declared publisher per key and QoS (a stop and a pick_up share a key, not a QoS)
             assert self.session is not None, "connect() first"
-            pub = self._publishers[key] = SamplePublisher(self.session, key, lossless=lossless, realtime=realtime)
+            pub = self._publishers[(key, lossless, realtime)] = SamplePublisher(self.session, key, lossless=lossless,
+                                                                                realtime=realtime)
         pub.put(sample)
         self.counters.add("published")
 

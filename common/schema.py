@@ -535,6 +535,7 @@ class FusedCommand(Sample):
     text: Optional[str] = None
     target: Optional[Target] = None
     location: Optional[Location] = None
+    place: Optional[str] = None  # a named place of common.language.PLACE_PHRASES ("go to the kitchen")
     gesture: Optional[str] = None
     confidence: float = unit()
     weights: Weights

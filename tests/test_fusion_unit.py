@@ -317,3 +317,12 @@ def test_prompt_lists_the_scene_and_is_bounded():
     (cmd,) = out
     assert isinstance(cmd, FusedCommand) and "Objects in view (1000, 25 most confident listed)" in cmd.prompt
     assert len(cmd.prompt.splitlines()) < 40
+
+
+def test_named_places_are_published_in_the_command():
+    from tests.scenarios import Scenario, run_in_process, say
+    out = run_in_process(Scenario("place", [say(0.0, 1.2, "go to the kitchen")], []))
+    (cmd,) = out
+    assert cmd.intent == "go_to" and cmd.place == "kitchen" and cmd.location is None
+    out = run_in_process(Scenario("no place", [say(0.0, 1.2, "come here")], []))
+    assert out[0].place is None

@@ -7,7 +7,7 @@ import time
 
 import zenoh
 
-from common.runner import Delivery, SamplePublisher, Service, main_exit, service_parser
+from common.runner import Delivery, Service, main_exit, service_parser
 from common.schema import Clarification, Detections, FusedCommand, GestureEvent, Hands, Transcript
 from services.fusion.core import Config, FusionCore, Output
 
@@ -64,19 +64,13 @@ def main(argv: list[str] | None = None) -> None:
     keys = service.keys
     assert service.session is not None
     command_key, clarification_key = keys.command(), keys.clarification()
-    # Stops go out on their own REAL_TIME, blocking publisher (the runner keeps one publisher per key).
-    stop_publisher = SamplePublisher(service.session, command_key, lossless=True, realtime=True)
-    service.on_close(stop_publisher.undeclare)
 
     def emit(outputs: list[Output]) -> None:
         for out in outputs:
             sample = out.sample
             if isinstance(sample, FusedCommand):
-                if out.realtime:
-                    stop_publisher.put(sample)
-                    service.counters.add("published")
-                else:
-                    service.publish(command_key, sample, lossless=True)
+                # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
+                service.publish(command_key, sample, lossless=True, realtime=out.realtime)
                 service.log.info("command %s %s%s: %s", sample.id, sample.intent,
                                  f" -> {sample.target.id}" if sample.target else "", sample.explanation)
             elif isinstance(sample, Clarification):

@@ -349,7 +349,7 @@ class FusionCore:
             f"; location from the pointing ray at ({location[0]:.0f}, {location[1]:.0f})" if location else "")
         return [Output(self._command(t, intent, weights=ctx.weights, inputs=ctx.inputs, location=location,
                                      confidence=speech_rel, explanation=expl,
-                                     gesture="point" if location and ctx.pointing else None,
+                                     gesture="point" if location and ctx.pointing else None, place=u.place,
                                      prompt=self._prompt(t.text, intent, None, location, u.place, ctx, expl)))]
 
     def _scored(self, phrase: ObjectPhrase, ctx: Context) -> list[Scored]:
@@ -425,7 +425,7 @@ class FusionCore:
         return Output(self._command(
             t, draft.intent, text=text, target=target.to_target() if target else None, location=draft.location,
             weights=ctx.weights, inputs=ctx.inputs, confidence=max(0.0, min(1.0, conf)), explanation=why,
-            gesture="point" if ctx.pointing else None,
+            gesture="point" if ctx.pointing else None, place=draft.place,
             prompt=self._prompt(text, draft.intent, target, draft.location, draft.place, ctx, why)))
 
     def _clarify(self, t: Transcript, u: Utterance, ctx: Context, choice: Choice, draft: Draft,
@@ -475,16 +475,16 @@ class FusionCore:
         return Output(self._command(
             t, intent, target=target.obj.to_target(), location=location, weights=ctx.weights, inputs=ctx.inputs,
             confidence=max(0.0, min(1.0, target.total)), explanation=explanation,
-            gesture="point" if target.gesture is not None else None,
+            gesture="point" if target.gesture is not None else None, place=place,
             prompt=self._prompt(t.text, intent, target.obj, location, place, ctx, explanation)))
 
     def _command(self, t: Transcript, intent: str, *, weights: Weights, inputs: dict, confidence: float,
                  explanation: str, prompt: str, text: str | None = None, target=None, location=None,
-                 gesture: str | None = None) -> FusedCommand:
+                 gesture: str | None = None, place: str | None = None) -> FusedCommand:
         loc = Location(x=float(location[0]), y=float(location[1]), cam=location[2]) if location else None
         return FusedCommand(stamp=t.stamp, source=self.source, id=stable_id("cmd", t.source, t.stamp, t.mic),
                             intent=intent, text=text if text is not None else t.text, target=target, location=loc,
-                            gesture=gesture, confidence=round(max(0.0, min(1.0, confidence)), 4), weights=weights,
+                            place=place, gesture=gesture, confidence=round(max(0.0, min(1.0, confidence)), 4), weights=weights,
                             inputs=inputs, explanation=explanation, prompt=prompt)
 
     def _gesture_command(self, ev: GestureEvent, intent: str, realtime: bool, why: str) -> Output:
