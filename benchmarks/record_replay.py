@@ -17,8 +17,6 @@ from __future__ import annotations
 
 import argparse
 import io
-import json
-import subprocess
 import sys
 import tempfile
 import threading
@@ -29,7 +27,6 @@ ROOT = Path(__file__).resolve().parent.parent if (Path(__file__).resolve().paren
     else Path("/work/main")
 sys.path.insert(0, str(ROOT))
 
-import cv2  # noqa: E402
 import zenoh  # noqa: E402
 from mcap.reader import make_reader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
@@ -37,35 +34,21 @@ from mcap.writer import CompressionType, Writer  # noqa: E402
 from common.codec import ENCODING, encode  # noqa: E402
 from common.keys import Keys  # noqa: E402
 from common.recording import SessionWriter  # noqa: E402
-from tests.harness import DATA, ProcessGroup, Proc  # noqa: E402
-from tests.test_codec import examples  # noqa: E402
+from tests.harness import ProcessGroup, Proc  # noqa: E402
+from benchmarks.payloads import realistic_samples  # noqa: E402
+from common.transport import open_client  # noqa: E402
 
 
 def payloads() -> dict[str, tuple[str, bytes]]:
-    by_name = {type(s).__name__: s for s in examples()}
-    keys = Keys()
-    img = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
-    frame = by_name["Frame"]
-    frame.encoding, frame.width, frame.height = "jpeg", 640, 480
-    frame.data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
-    det = by_name["Detections"]
-    det.objects = det.objects * 12
-    return {"Transcript": (keys.transcript("mic0"), encode(by_name["Transcript"])),
-            "Detections x12": (keys.objects("cam0"), encode(det)),
-            "Frame 640x480 jpeg": (keys.frame("cam0"), encode(frame))}
-
-
-def session(endpoint: str) -> zenoh.Session:
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(conf)
+    samples, keys = realistic_samples(), Keys()
+    return {"Transcript": (keys.transcript("mic0"), encode(samples["Transcript"])),
+            "Detections x12": (keys.objects("cam0"), encode(samples["Detections x12"])),
+            "Frame 640x480 jpeg": (keys.frame("cam0"), encode(samples["Frame 640x480 jpeg"]))}
 
 
 # -- the bare-library child processes ------------------------------------------------------------
 def bare_recorder(endpoint: str, out: str, n: int) -> None:
-    s = session(endpoint)
+    s = open_client(endpoint)
     f = open(out, "wb")
     writer = Writer(f, compression=CompressionType.ZSTD)
     writer.start()
@@ -95,7 +78,7 @@ def bare_recorder(endpoint: str, out: str, n: int) -> None:
 
 
 def bare_replayer(endpoint: str, path: str) -> None:
-    s = session(endpoint)
+    s = open_client(endpoint)
     pubs: dict[str, zenoh.Publisher] = {}
     with open(path, "rb") as f:
         for _, channel, message in make_reader(f).iter_messages():
@@ -200,7 +183,7 @@ def main() -> None:
 
     group = ProcessGroup()
     group.router()
-    pub_s, sub_s = session(group.endpoint), session(group.endpoint)
+    pub_s, sub_s = open_client(group.endpoint), open_client(group.endpoint)
     me = str(Path(__file__).resolve())
     tmp = Path(tempfile.mkdtemp(prefix="bench-record-"))
     try:

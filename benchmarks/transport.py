@@ -15,7 +15,6 @@ Target: <= 1.3x. Usage: python benchmarks/transport.py [--n 2000]
 from __future__ import annotations
 
 import argparse
-import json
 import statistics
 import sys
 import threading
@@ -24,34 +23,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-import cv2  # noqa: E402
 import msgpack  # noqa: E402
 import zenoh  # noqa: E402
 
-from common.codec import ENCODING, decode, encode  # noqa: E402
+from common.codec import ENCODING, decode  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
-from tests.harness import DATA, ProcessGroup  # noqa: E402
-from tests.test_codec import examples  # noqa: E402
-
-
-def payloads() -> dict[str, object]:
-    by_name = {type(s).__name__: s for s in examples()}
-    img = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
-    frame = by_name["Frame"]
-    frame.encoding, frame.width, frame.height = "jpeg", 640, 480
-    frame.data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
-    det = by_name["Detections"]
-    det.objects = det.objects * 12
-    return {"Frame 640x480 jpeg": frame, "Detections x12": det, "Hands x1": by_name["Hands"],
-            "Transcript": by_name["Transcript"], "FusedCommand": by_name["FusedCommand"]}
-
-
-def session(endpoint: str) -> zenoh.Session:
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(conf)
+from benchmarks.payloads import realistic_samples  # noqa: E402
+from common.transport import open_client  # noqa: E402
+from tests.harness import ProcessGroup  # noqa: E402
 
 
 def run_once(pub_session, sub_session, key: str, n: int, send, on_payload) -> float:
@@ -107,13 +86,13 @@ def main() -> None:
 
     group = ProcessGroup()
     group.router()
-    pub_s, sub_s = session(group.endpoint), session(group.endpoint)
+    pub_s, sub_s = open_client(group.endpoint), open_client(group.endpoint)
     try:
         print(f"{'':31s}{'latency (1 in flight)':^30s} {'burst (back to back)':^30s}")
         print(f"{'payload':22s} {'bytes':>8s} {'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}  "
               f"{'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}")
         worst, worst_burst = 0.0, 0.0
-        for i, (label, sample) in enumerate(payloads().items()):
+        for i, (label, sample) in enumerate(realistic_samples().items()):
             schema = type(sample)
             as_dict = sample.to_dict()
             size = len(msgpack.packb(as_dict, use_bin_type=True))

@@ -15,7 +15,7 @@ from typing import Any
 
 import zenoh
 
-from common.codec import ENCODING, decode, encode, unpack
+from common.codec import decode, encode, unpack
 from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
 from common.schema import InvalidSample, Stats, Transcript, Word

@@ -20,7 +20,7 @@ from typing import IO, Callable
 import zenoh
 
 from common.keys import Keys
-from common.transport import DEFAULT_ENDPOINT
+from common.transport import DEFAULT_ENDPOINT, open_client
 
 STOP_GRACE_S = 3.0
 
@@ -188,14 +188,10 @@ class Launcher:
 
 
 def _client_session(endpoint: str, router_starting: bool, timeout: float) -> zenoh.Session:
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", f'["{endpoint}"]')
-    conf.insert_json5("scouting/multicast/enabled", "false")
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return zenoh.open(conf)
+            return open_client(endpoint)
         except zenoh.ZError:
             if time.monotonic() > deadline:
                 hint = "the router did not start" if router_starting else "is `hri router` running there?"

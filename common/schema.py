@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import types
-from dataclasses import MISSING, dataclass, field, fields, is_dataclass
+from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Callable, ClassVar, Literal, Optional, Union, get_args, get_origin, get_type_hints
 
 SCHEMA_VERSION = 1

@@ -102,3 +102,17 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
             elif stop.wait(delay):
                 return None
             delay = min(delay * 2, max_delay)
+
+
+def client_config(endpoint: str) -> zenoh.Config:
+    """A client of the router at `endpoint`, no multicast scouting: what tools and tests open."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    return conf
+
+
+def open_client(endpoint: str) -> zenoh.Session:
+    init_zenoh_logging()
+    return zenoh.open(client_config(endpoint))

@@ -10,7 +10,6 @@ import socket
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -21,6 +20,7 @@ from common.codec import decode
 from common.keys import Keys
 from common.runner import SamplePublisher
 from common.schema import Sample
+from common.transport import open_client
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "data"
@@ -141,11 +141,7 @@ class Client:
     """An in-test zenoh client: publish contract samples and collect decoded ones."""
 
     def __init__(self, endpoint: str, prefix: str = "hri"):
-        conf = zenoh.Config()
-        conf.insert_json5("mode", '"client"')
-        conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
-        conf.insert_json5("scouting/multicast/enabled", "false")
-        self.session = zenoh.open(conf)
+        self.session = open_client(endpoint)
         self.keys = Keys(prefix)
         self._pubs: dict[str, SamplePublisher] = {}
         self._subs: list[Any] = []

@@ -1,0 +1,22 @@
+"""Realistic samples for the benchmarks: the contract examples of tests/test_codec.py, with a real
+640x480 JPEG frame and a dozen detections."""
+
+from __future__ import annotations
+
+import cv2
+
+from common.schema import Sample
+from tests.harness import DATA
+from tests.test_codec import examples
+
+
+def realistic_samples() -> dict[str, Sample]:
+    by_name = {type(s).__name__: s for s in examples()}
+    img = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
+    frame = by_name["Frame"]
+    frame.encoding, frame.width, frame.height = "jpeg", 640, 480
+    frame.data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
+    det = by_name["Detections"]
+    det.objects = det.objects * 12
+    return {"Frame 640x480 jpeg": frame, "Detections x12": det, "Hands x1": by_name["Hands"],
+            "Transcript": by_name["Transcript"], "FusedCommand": by_name["FusedCommand"]}
