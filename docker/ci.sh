@@ -161,8 +161,13 @@ ENDPOINT="tcp/127.0.0.1:$HRI_ROUTER_PORT"
 hri() { "$PYTHON" -m common.cli "$@" --connect "$ENDPOINT"; }
 
 "${COMPOSE[@]}" config -q || die "docker compose config -q: docker-compose.yml is invalid"
-services=$("${COMPOSE[@]}" config --services | sort | tr '\n' ' ')
-say "compose file valid; services: $services"
+# Services are written in parallel: start those whose code is in this checkout (and say which are not).
+services="" missing=""
+for svc in $("${COMPOSE[@]}" config --services | sort); do
+    if [ "$svc" = router ] || [ -f "services/$svc/__main__.py" ]; then services+="$svc "; else missing+="$svc "; fi
+done
+services=${services% }
+say "compose file valid; starting: $services${missing:+ (not in this checkout yet, left out: ${missing% })}"
 
 show_state() {
     "${COMPOSE[@]}" ps -a >&2 || true
@@ -173,7 +178,8 @@ say "docker compose up --build (project $PROJECT, router on host port $HRI_ROUTE
 "${COMPOSE[@]}" build >"$LOGDIR/build.log" 2>&1 || { tail -n 40 "$LOGDIR/build.log" >&2; die "image build failed"; }
 say "image built: $(docker image inspect -f '{{.Size}}' "${HRI_IMAGE:-hri-fusion:latest}" | awk '{printf "%.0f MB", $1/1e6}')"
 stack_started=1
-"${COMPOSE[@]}" up --build -d --wait --wait-timeout 300 >"$LOGDIR/up.log" 2>&1 || {
+# shellcheck disable=SC2086  # a list of names
+"${COMPOSE[@]}" up --build -d --wait --wait-timeout 300 $services >"$LOGDIR/up.log" 2>&1 || {
     tail -n 20 "$LOGDIR/up.log" >&2; show_state; die "the stack did not become healthy within 300 s"; }
 say "every container is up and healthy"
 

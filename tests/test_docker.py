@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import pytest
@@ -60,3 +61,6 @@ def test_compose_stack_builds_starts_and_answers_from_the_host(tmp_path: Path) -
     assert "frames flow: " in output, tail(output)
     assert '"key":"hri/camera/cam0/frame"' in output, tail(output)
     assert "all docker checks passed" in output, tail(output)
+    left_out = [ln for ln in output.splitlines() if "not in this checkout yet" in ln]
+    if left_out:  # visible in the warnings summary: the stack ran without some services
+        warnings.warn(left_out[0].split("] ", 1)[-1])
