@@ -9,7 +9,7 @@ import pytest
 from common.codec import encode
 from common.cli import make_transcript
 from common.schema import Frame
-from tests.harness import DATA, Client
+from tests.harness import DATA, Client, requires_services
 
 pytestmark = pytest.mark.integration
 
@@ -47,7 +47,8 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("service,argv,key,make_valid,output_key", CASES, ids=[c[0] for c in CASES])
+@pytest.mark.parametrize("service,argv,key,make_valid,output_key",
+                         [pytest.param(*c, marks=requires_services(c[0])) for c in CASES], ids=[c[0] for c in CASES])
 def test_malformed_inputs_are_counted_and_do_not_stop_the_service(group, service, argv, key, make_valid,
                                                                    output_key):
     group.router()

@@ -10,7 +10,7 @@ import pytest
 
 from common.cli import make_transcript
 from common.schema import Clarification, FusedCommand
-from tests.harness import DATA, ROOT, Client, Proc, free_port, wait_for_port
+from tests.harness import DATA, ROOT, Client, Proc, free_port, requires_services, wait_for_port
 
 pytestmark = pytest.mark.integration
 
@@ -41,6 +41,7 @@ def descendants(pid: int) -> list[int]:
     return found
 
 
+@requires_services("vision", "fusion")
 def test_hri_up_runs_the_pipeline_and_stops_the_whole_group_cleanly():
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
@@ -73,6 +74,7 @@ def test_hri_up_runs_the_pipeline_and_stops_the_whole_group_cleanly():
         up.kill()
 
 
+@requires_services("vision", "gesture", "speech", "fusion")
 def test_demo_runs_every_scenario_on_real_data():
     res = subprocess.run([sys.executable, "-m", "demo", "--timeout", "30"], cwd=ROOT, capture_output=True,
                          text=True, timeout=600)
@@ -84,6 +86,7 @@ def test_demo_runs_every_scenario_on_real_data():
     assert "COMMAND stop" in out
 
 
+@requires_services("vision", "fusion")
 def test_a_killed_modality_is_reported_missing_and_rejoins_when_restarted(group):
     group.router()
     group.service("camera", "--source", str(TABLE), "--fps", "10", "--loop")
