@@ -34,8 +34,10 @@ def speech_reliability(transcript: Transcript, utterance: Utterance) -> float:
 
 
 def image_quality(q: ImageQuality) -> float:
-    """1 for a well exposed, contrasted, sharp frame; towards 0 for dark, blown-out, flat or blurred ones."""
-    exposure = min(1.0, q.brightness / 0.25, (1.0 - q.brightness) / 0.1)
+    """1 for a well exposed, contrasted, sharp frame; towards 0 for dark, flat or blurred ones.
+
+    Bright is not bad in itself (a white table); a blown-out frame shows as low contrast (docs/vision.md)."""
+    exposure = min(1.0, q.brightness / 0.25)
     contrast = 0.4 + 0.6 * min(1.0, q.contrast / 0.2)
     sharpness = 0.4 + 0.6 * min(1.0, q.sharpness / 0.2)
     return max(0.0, min(1.0, exposure * contrast * sharpness))

@@ -1,0 +1,81 @@
+"""The default detector: colour segmentation, no model needed.
+
+Chromatic blobs: pixels saturated and bright enough (any hue), smoothed (Gaussian blur, morphological open and
+close), split into connected components; each component is one object, named by the hue histogram of its own
+pixels — so an orange candy with a reddish shadow stays one orange object. Achromatic blobs: dark pixels
+(black) and bright unsaturated ones (white) the same way, but only those that do not touch two or more image
+borders (that is background: a table, a wall). Components smaller than `min_area_frac` or larger than
+`max_area_frac` of the image are dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, color_name
+
+
+@dataclass
+class Detection:
+    """One object in one frame, before tracking gives it an id."""
+    label: str
+    color: str | None
+    score: float
+    bbox: tuple[float, float, float, float]  # x, y, w, h (px)
+
+    @property
+    def center(self) -> tuple[float, float]:
+        x, y, w, h = self.bbox
+        return x + w / 2.0, y + h / 2.0
+
+
+@dataclass
+class ColorSegmenter:
+    min_saturation: int = 100
+    min_value: int = DARK_VALUE
+    min_area_frac: float = 0.0015
+    max_area_frac: float = 0.25
+    achromatic: bool = True
+    labels: dict[str, str] = field(default_factory=dict)  # colour -> label, "*" for any; default "object"
+
+    def __post_init__(self) -> None:
+        self._kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+
+    def label_for(self, color: str | None) -> str:
+        return self.labels.get(color or "", self.labels.get("*", "object"))
+
+    def detect(self, bgr: np.ndarray) -> list[Detection]:
+        hsv = cv2.cvtColor(cv2.GaussianBlur(bgr, (5, 5), 0), cv2.COLOR_BGR2HSV)
+        sat, val = hsv[..., 1], hsv[..., 2]
+        masks = [((sat >= self.min_saturation) & (val >= self.min_value), False)]
+        if self.achromatic:
+            masks.append((val < DARK_VALUE, True))
+            masks.append(((sat < ACHROMATIC_SATURATION) & (val >= WHITE_VALUE), True))
+        found: list[Detection] = []
+        for mask, skip_background in masks:
+            found += self._components(hsv, mask, skip_background)
+        return found
+
+    def _components(self, hsv: np.ndarray, mask: np.ndarray, skip_background: bool) -> list[Detection]:
+        h, w = mask.shape
+        m = mask.astype(np.uint8) * 255
+        m = cv2.morphologyEx(m, cv2.MORPH_OPEN, self._kernel)
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, self._kernel)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        min_area, max_area = self.min_area_frac * h * w, self.max_area_frac * h * w
+        out = []
+        for i in range(1, n):
+            x, y, bw, bh, area = (int(v) for v in stats[i])
+            if not min_area <= area <= max_area:
+                continue
+            if skip_background and (x == 0) + (y == 0) + (x + bw == w) + (y + bh == h) >= 2:
+                continue
+            inside = labels[y:y + bh, x:x + bw] == i
+            color, agreement = color_name(hsv[y:y + bh, x:x + bw][inside])
+            fill = area / float(bw * bh)  # a disc fills pi/4 of its box
+            score = float(np.clip(0.4 + 0.3 * agreement + 0.3 * min(1.0, fill / 0.785), 0.0, 1.0))
+            out.append(Detection(self.label_for(color), color, score, (float(x), float(y), float(bw), float(bh))))
+        return out
