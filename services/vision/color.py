@@ -53,3 +53,10 @@ def color_name(hsv_pixels: np.ndarray) -> tuple[str | None, float]:
     votes.update({name: int(n) for name, n in zip(CHROMATIC, hist)})
     best = max(votes, key=votes.__getitem__)
     return best, votes[best] / len(pixels)
+
+
+def hue_name(hue_hist: np.ndarray) -> tuple[str, float]:
+    """The chromatic colour of a 180-bin hue histogram, and the share of its pixels that agree (0–1)."""
+    votes = np.bincount(_HUE_TO_COLOR, weights=hue_hist.ravel(), minlength=len(CHROMATIC))
+    best = int(votes.argmax())
+    return CHROMATIC[best], float(votes[best] / max(votes.sum(), 1.0))

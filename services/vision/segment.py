@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, color_name
+from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, hue_name
 
 
 @dataclass
@@ -49,20 +49,21 @@ class ColorSegmenter:
 
     def detect(self, bgr: np.ndarray) -> list[Detection]:
         hsv = cv2.cvtColor(cv2.GaussianBlur(bgr, (5, 5), 0), cv2.COLOR_BGR2HSV)
-        sat, val = hsv[..., 1], hsv[..., 2]
-        masks = [((sat >= self.min_saturation) & (val >= self.min_value), False)]
+        masks = [(cv2.inRange(hsv, (0, self.min_saturation, self.min_value), (180, 255, 255)), None)]
         if self.achromatic:
-            masks.append((val < DARK_VALUE, True))
-            masks.append(((sat < ACHROMATIC_SATURATION) & (val >= WHITE_VALUE), True))
+            masks.append((cv2.inRange(hsv, (0, 0, 0), (180, 255, DARK_VALUE - 1)), "black"))
+            masks.append((cv2.inRange(hsv, (0, 0, WHITE_VALUE), (180, ACHROMATIC_SATURATION - 1, 255)), "white"))
         found: list[Detection] = []
-        for mask, skip_background in masks:
-            found += self._components(hsv, mask, skip_background)
+        for mask, achromatic_color in masks:
+            found += self._components(hsv, mask, achromatic_color)
         return found
 
-    def _components(self, hsv: np.ndarray, mask: np.ndarray, skip_background: bool) -> list[Detection]:
+    def _components(self, hsv: np.ndarray, mask: np.ndarray, achromatic_color: str | None) -> list[Detection]:
+        """Connected components of `mask`. Chromatic ones (achromatic_color None) are named by the hue
+        histogram of their own pixels; achromatic ones have the colour of their mask and must not be
+        background (touching two or more image borders)."""
         h, w = mask.shape
-        m = mask.astype(np.uint8) * 255
-        m = cv2.morphologyEx(m, cv2.MORPH_OPEN, self._kernel)
+        m = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._kernel)
         m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, self._kernel)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         min_area, max_area = self.min_area_frac * h * w, self.max_area_frac * h * w
@@ -71,10 +72,14 @@ class ColorSegmenter:
             x, y, bw, bh, area = (int(v) for v in stats[i])
             if not min_area <= area <= max_area:
                 continue
-            if skip_background and (x == 0) + (y == 0) + (x + bw == w) + (y + bh == h) >= 2:
+            if achromatic_color and (x == 0) + (y == 0) + (x + bw == w) + (y + bh == h) >= 2:
                 continue
-            inside = labels[y:y + bh, x:x + bw] == i
-            color, agreement = color_name(hsv[y:y + bh, x:x + bw][inside])
+            if achromatic_color:
+                color, agreement = achromatic_color, 1.0
+            else:
+                inside = (labels[y:y + bh, x:x + bw] == i).view(np.uint8)
+                hist = cv2.calcHist([hsv[y:y + bh, x:x + bw]], [0], inside, [180], [0, 180])
+                color, agreement = hue_name(hist)
             fill = area / float(bw * bh)  # a disc fills pi/4 of its box
             score = float(np.clip(0.4 + 0.3 * agreement + 0.3 * min(1.0, fill / 0.785), 0.0, 1.0))
             out.append(Detection(self.label_for(color), color, score, (float(x), float(y), float(bw), float(bh))))

@@ -1,0 +1,133 @@
+"""Vision: the service's detection path vs a bare OpenCV loop doing the same segmentation, one run.
+
+1. Throughput on the same 640x480 frames (the shipped photos, resized):
+   - bare: blur, HSV, threshold, open/close, connected components, bounding boxes — plain OpenCV;
+   - service path: JPEG decode is excluded from both; VisionPipeline.process = the same segmentation plus
+     colour naming, tracking, image quality and building the contract objects.
+   Target: service >= 0.9x the bare loop's frames/s.
+2. End-to-end lag at 30 fps input: camera-like publisher -> router -> vision service -> subscriber; lag =
+   receive time - frame stamp, p50/p99 per 10 s slice over 60 s (it must not grow).
+
+Usage: python benchmarks/vision.py [--seconds 60] [--frames 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from common.codec import decode  # noqa: E402
+from common.runner import SamplePublisher  # noqa: E402
+from common.schema import Detections, Frame  # noqa: E402
+from services.vision.core import VisionPipeline  # noqa: E402
+from services.vision.segment import ColorSegmenter  # noqa: E402
+from tests.harness import DATA, Client, ProcessGroup  # noqa: E402
+
+
+def frames_640() -> list[np.ndarray]:
+    paths = sorted((DATA / "images" / "tabletop").iterdir()) + sorted((DATA / "demo").glob("*.png"))
+    return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
+
+
+def bare_segmentation(bgr: np.ndarray, kernel: np.ndarray) -> list[tuple[int, int, int, int]]:
+    hsv = cv2.cvtColor(cv2.GaussianBlur(bgr, (5, 5), 0), cv2.COLOR_BGR2HSV)
+    boxes = []
+    for lo, hi in (((0, 100, 75), (180, 255, 255)), ((0, 0, 0), (180, 255, 74)), ((0, 0, 180), (180, 59, 255))):
+        m = cv2.morphologyEx(cv2.inRange(hsv, lo, hi), cv2.MORPH_OPEN, kernel)
+        m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, kernel)
+        n, _, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        boxes += [tuple(int(v) for v in stats[i, :4]) for i in range(1, n) if stats[i, 4] > 460]
+    return boxes
+
+
+def throughput(frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    pipeline = VisionPipeline(ColorSegmenter())
+    bare_fps, service_fps = [], []
+    for _ in range(repeats):  # alternate so drift hits both alike
+        t0 = time.perf_counter()
+        for i in range(n):
+            bare_segmentation(frames[i % len(frames)], kernel)
+        bare_fps.append(n / (time.perf_counter() - t0))
+        t0 = time.perf_counter()
+        for i in range(n):
+            pipeline.process("cam0", frames[i % len(frames)])
+        service_fps.append(n / (time.perf_counter() - t0))
+    b, s = statistics.median(bare_fps), statistics.median(service_fps)
+    print(f"throughput on {n} frames 640x480 (median of {repeats}):")
+    print(f"  bare OpenCV segmentation  {b:7.1f} frames/s")
+    print(f"  vision service path       {s:7.1f} frames/s   ratio {s / b:.2f}x (target >= 0.90x)")
+
+
+def lag(frames: list[np.ndarray], seconds: float, fps: float = 30.0) -> None:
+    group = ProcessGroup()
+    group.router()
+    group.service("vision")
+    client = Client(group.endpoint)
+    lags: list[tuple[float, float]] = []  # (time since start, lag)
+    received = [0]
+    start = time.time()
+
+    def on_detections(sample) -> None:
+        det = decode(sample.payload.to_bytes(), Detections)
+        now = time.time()
+        lags.append((now - start, now - det.stamp))
+        received[0] += 1
+
+    try:
+        client.wait_alive("vision", timeout=60)
+        sub = client.session.declare_subscriber("hri/vision/bench/objects", on_detections)
+        payloads = [cv2.imencode(".jpg", f, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes() for f in frames]
+        sent = 0
+        start = time.time()
+        next_at = time.monotonic()
+        pub = SamplePublisher(client.session, "hri/camera/bench/frame", lossless=False)
+        while time.time() - start < seconds:
+            next_at += 1.0 / fps
+            pub.put(Frame(stamp=time.time(), source="bench/cam", seq=sent, cam="bench", width=640, height=480,
+                          encoding="jpeg", data=payloads[sent % len(payloads)]))
+            sent += 1
+            delay = next_at - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        time.sleep(1.0)
+        sub.undeclare()
+        pub.undeclare()
+        stats = client.stats("vision")
+    finally:
+        client.close()
+        group.close()
+    print(f"end-to-end lag at {fps:.0f} fps for {seconds:.0f} s: {sent} frames sent, {received[0]} Detections "
+          f"received, {stats['skipped']} stale frames skipped by the service")
+    slice_s = max(seconds / 6, 1.0)
+    for k in range(int(seconds // slice_s)):
+        part = [l for t, l in lags if k * slice_s <= t < (k + 1) * slice_s]
+        if part:
+            p50, p99 = np.percentile(part, [50, 99]) * 1000
+            print(f"  {k * slice_s:4.0f}-{(k + 1) * slice_s:3.0f} s  p50 {p50:6.1f} ms  p99 {p99:6.1f} ms  n={len(part)}")
+    all_lags = [l for _, l in lags]
+    if all_lags:
+        p50, p99 = np.percentile(all_lags, [50, 99]) * 1000
+        print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
+    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
+    args = parser.parse_args()
+    frames = frames_640()
+    throughput(frames, args.frames)
+    lag(frames, args.seconds)
+
+
+if __name__ == "__main__":
+    main()
