@@ -59,10 +59,12 @@ def main() -> None:
     hand = cv2.imread(str(HTML / "handSrc.jpg"))
     p = landmarks(hand)
     mask = np.zeros(hand.shape[:2], np.uint8)
-    width = int(np.linalg.norm(p[5] - p[9]))
+    # wide strokes from just above the knuckles to past the tips: narrower ones leave enough finger for
+    # MediaPipe to see the fingers as still extended (checked with the lite and the full model)
+    width = int(1.3 * np.linalg.norm(p[5] - p[9]))
     for mcp, tip in ((9, 12), (13, 16), (17, 20)):
-        start = p[mcp] + 0.35 * (p[mcp + 1] - p[mcp])
-        end = p[tip] + 0.5 * (p[tip] - p[tip - 1])
+        start = p[mcp] + 0.3 * (p[mcp + 1] - p[mcp])
+        end = p[tip] + 0.8 * (p[tip] - p[tip - 1])
         cv2.line(mask, tuple(map(int, start)), tuple(map(int, end)), 255, width)
     pointing = cv2.inpaint(hand, mask, 7, cv2.INPAINT_TELEA)
     q = landmarks(pointing)
