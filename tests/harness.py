@@ -164,7 +164,8 @@ class Client:
         pub.put(sample)
 
     def put_raw(self, key: str, payload: bytes) -> None:
-        self.session.put(key, payload)
+        """Arbitrary bytes (malformed samples), never dropped on the way (BLOCK)."""
+        self.session.put(key, payload, congestion_control=zenoh.CongestionControl.BLOCK)
 
     def collect(self, keyexpr: str) -> "Collector":
         col = Collector(self.keys)

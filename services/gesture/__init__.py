@@ -1,0 +1,1 @@
+"""Gesture service: MediaPipe hand landmarks -> point / wave / open palm / fist / thumbs-up, with a pointing ray."""

@@ -1,0 +1,81 @@
+"""Process shell of the gesture service: Frame -> Hands (every frame) and GestureEvents."""
+
+from __future__ import annotations
+
+from common.image import UndecodableFrame, frame_image
+from common.runner import Delivery, Service, main_exit, service_parser
+from common.schema import Frame, GestureEvent, Hand, Hands, Ray
+from services.gesture.landmarks import HandLandmarker, LandmarkError
+from services.gesture.temporal import GestureTracker
+
+EPILOG = """\
+examples:
+  hri-gesture                          # lite hand model, every camera, robot (non-mirrored) camera
+  hri-gesture --model full --max-hands 1
+  hri-gesture --mirrored               # selfie-style camera image: `hand` stays the person's own hand
+"""
+
+
+def to_ray(ray) -> Ray | None:
+    if ray is None:
+        return None
+    return Ray(origin=[round(v, 2) for v in ray.origin], direction=list(ray.direction), confidence=ray.confidence)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = service_parser("gesture", "Find hands (MediaPipe), classify gestures over time, publish Hands for "
+                            "every frame and GestureEvents (start/hold/end) with a pointing ray.", EPILOG)
+    parser.add_argument("--model", choices=("lite", "full"), default="lite", help="hand landmark model (default lite)")
+    parser.add_argument("--max-hands", type=int, default=2, help="hands to track per camera (default 2)")
+    parser.add_argument("--mirrored", action="store_true",
+                        help="the camera image is mirrored (selfie view); default: a robot's normal camera")
+    parser.add_argument("--start-frames", type=int, default=3, help="frames a gesture must hold to start (3)")
+    parser.add_argument("--end-frames", type=int, default=3, help="frames it must be absent to end (3)")
+    parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
+    args = parser.parse_args(argv)
+
+    service = Service("gesture", args)
+    try:
+        HandLandmarker(args.model, args.max_hands, args.mirrored).close()  # fail now, with the reason
+    except LandmarkError as exc:
+        service.log.error("%s", exc)
+        main_exit(2)
+    landmarkers: dict[str, HandLandmarker] = {}
+    trackers: dict[str, GestureTracker] = {}
+    service.on_close(lambda: [lm.close() for lm in landmarkers.values()])
+    if not service.connect():
+        main_exit(0)
+
+    def on_frame(d: Delivery) -> None:
+        frame: Frame = d.sample
+        try:
+            img = frame_image(frame)
+        except UndecodableFrame as exc:
+            service.counters.reject("undecodable", str(exc), d.key)
+            return
+        if frame.cam not in landmarkers:  # one graph per stream: MediaPipe tracks between frames
+            landmarkers[frame.cam] = HandLandmarker(args.model, args.max_hands, args.mirrored)
+            trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames)
+        observations = landmarkers[frame.cam].detect(img)
+        tracked, events = trackers[frame.cam].update(frame.stamp, observations)
+        hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
+                                                                       o.landmarks.tolist()],
+                      gesture=t.gesture, ray=to_ray(t.ray)) for o, t in zip(observations, tracked)]
+        service.publish(service.keys.hands(frame.cam), Hands(
+            stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
+            height=frame.height, hands=hands))
+        for ev in events:
+            service.publish(service.keys.gesture_event(frame.cam), GestureEvent(
+                stamp=frame.stamp, source=service.source, cam=frame.cam, width=frame.width, height=frame.height,
+                gesture=ev.gesture, phase=ev.phase, start=ev.start, end=ev.end, score=ev.score, hand=ev.hand,
+                ray=to_ray(ev.ray)), lossless=True, realtime=ev.gesture == "open_palm")
+            if ev.phase != "hold":
+                service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)
+
+    for cam in args.cams.split(","):
+        service.subscribe(service.keys.frame(cam.strip()), Frame, on_frame, latest=True, monotonic=True)
+    main_exit(service.run())
+
+
+if __name__ == "__main__":
+    main()

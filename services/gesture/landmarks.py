@@ -1,0 +1,54 @@
+"""MediaPipe hand landmarks (the legacy `mediapipe.solutions.hands` API, models shipped in the wheel).
+
+Handedness: the legacy API assumes a mirrored, selfie-style image. A robot's camera is not mirrored, so by
+default the label is swapped and `hand` is the person's own left or right; pass `mirrored=True` for a
+selfie view (a laptop webcam preview, a mirrored stream).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from services.gesture.temporal import Observation
+
+MODELS = {"lite": 0, "full": 1}
+
+
+class LandmarkError(RuntimeError):
+    """MediaPipe is missing or cannot start; the message says how to install it."""
+
+
+class HandLandmarker:
+    """One MediaPipe hands graph for one video stream (it tracks between frames). Not thread-safe."""
+
+    def __init__(self, model: str = "lite", max_hands: int = 2, mirrored: bool = False, video: bool = True,
+                 min_detection: float = 0.5, min_tracking: float = 0.5):
+        try:
+            from mediapipe.python.solutions import hands as mp_hands
+        except ImportError as exc:
+            raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
+                                f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)") from None
+        if model not in MODELS:
+            raise LandmarkError(f"unknown hand model {model!r}: use one of {', '.join(MODELS)}")
+        self.mirrored = mirrored
+        self._hands = mp_hands.Hands(static_image_mode=not video, max_num_hands=max_hands,
+                                     model_complexity=MODELS[model], min_detection_confidence=min_detection,
+                                     min_tracking_confidence=min_tracking)
+
+    def detect(self, bgr: np.ndarray) -> list[Observation]:
+        h, w = bgr.shape[:2]
+        result = self._hands.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        if not result.multi_hand_landmarks:
+            return []
+        out = []
+        for lms, handedness in zip(result.multi_hand_landmarks, result.multi_handedness):
+            label = handedness.classification[0].label.lower()  # as seen in a mirror
+            if not self.mirrored:
+                label = "left" if label == "right" else "right"
+            points = np.array([[lm.x * w, lm.y * h] for lm in lms.landmark], dtype=float)
+            out.append(Observation(label, float(handedness.classification[0].score), points))
+        return out
+
+    def close(self) -> None:
+        self._hands.close()
