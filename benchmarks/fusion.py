@@ -17,7 +17,6 @@ Run: .venv/bin/python benchmarks/fusion.py [--quick]
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import time
 import tracemalloc
@@ -28,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from common.codec import encode  # noqa: E402
 from common.schema import FusedCommand  # noqa: E402
 from services.fusion.core import Config, FusionCore  # noqa: E402
-from services.fusion.ground import choose, scene_objects, score  # noqa: E402
+from services.fusion.ground import choose, score  # noqa: E402
 from services.fusion.parse import parse  # noqa: E402
 from tests.scenarios import BASE_STAMP, Obj, gesture, hands, say, see  # noqa: E402
 

@@ -24,12 +24,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from common.codec import decode  # noqa: E402
-from common.runner import SamplePublisher  # noqa: E402
-from common.schema import Detections, Frame  # noqa: E402
+from benchmarks.lag import frame_lag  # noqa: E402
+from common.schema import Detections  # noqa: E402
 from services.vision.core import VisionPipeline  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
-from tests.harness import DATA, Client, ProcessGroup  # noqa: E402
+from tests.harness import DATA  # noqa: E402
 
 
 def frames_640() -> list[np.ndarray]:
@@ -67,58 +66,6 @@ def throughput(frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
     print(f"  vision service path       {s:7.1f} frames/s   ratio {s / b:.2f}x (target >= 0.90x)")
 
 
-def lag(frames: list[np.ndarray], seconds: float, fps: float = 30.0) -> None:
-    group = ProcessGroup()
-    group.router()
-    group.service("vision")
-    client = Client(group.endpoint)
-    lags: list[tuple[float, float]] = []  # (time since start, lag)
-    received = [0]
-    start = time.time()
-
-    def on_detections(sample) -> None:
-        det = decode(sample.payload.to_bytes(), Detections)
-        now = time.time()
-        lags.append((now - start, now - det.stamp))
-        received[0] += 1
-
-    try:
-        client.wait_alive("vision", timeout=60)
-        sub = client.session.declare_subscriber("hri/vision/bench/objects", on_detections)
-        payloads = [cv2.imencode(".jpg", f, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes() for f in frames]
-        sent = 0
-        start = time.time()
-        next_at = time.monotonic()
-        pub = SamplePublisher(client.session, "hri/camera/bench/frame", lossless=False)
-        while time.time() - start < seconds:
-            next_at += 1.0 / fps
-            pub.put(Frame(stamp=time.time(), source="bench/cam", seq=sent, cam="bench", width=640, height=480,
-                          encoding="jpeg", data=payloads[sent % len(payloads)]))
-            sent += 1
-            delay = next_at - time.monotonic()
-            if delay > 0:
-                time.sleep(delay)
-        time.sleep(1.0)
-        sub.undeclare()
-        pub.undeclare()
-        stats = client.stats("vision")
-    finally:
-        client.close()
-        group.close()
-    print(f"end-to-end lag at {fps:.0f} fps for {seconds:.0f} s: {sent} frames sent, {received[0]} Detections "
-          f"received, {stats['skipped']} stale frames skipped by the service")
-    slice_s = max(seconds / 6, 1.0)
-    for k in range(int(seconds // slice_s)):
-        part = [l for t, l in lags if k * slice_s <= t < (k + 1) * slice_s]
-        if part:
-            p50, p99 = np.percentile(part, [50, 99]) * 1000
-            print(f"  {k * slice_s:4.0f}-{(k + 1) * slice_s:3.0f} s  p50 {p50:6.1f} ms  p99 {p99:6.1f} ms  n={len(part)}")
-    all_lags = [l for _, l in lags]
-    if all_lags:
-        p50, p99 = np.percentile(all_lags, [50, 99]) * 1000
-        print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
@@ -126,7 +73,7 @@ def main() -> None:
     args = parser.parse_args()
     frames = frames_640()
     throughput(frames, args.frames)
-    lag(frames, args.seconds)
+    frame_lag("vision", [], "hri/vision/bench/objects", Detections, frames, args.seconds)
 
 
 if __name__ == "__main__":

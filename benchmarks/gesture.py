@@ -1,0 +1,72 @@
+"""Gesture: the service's per-frame path vs bare MediaPipe `Hands.process` on the same frames, one run.
+
+1. Throughput on the same 640x480 real hand photos (decoded once, before timing):
+   - bare: `mediapipe.solutions.hands.Hands(...).process(rgb)` in a loop (video mode, lite model, 2 hands);
+   - service path: HandLandmarker.detect (the same call plus landmark conversion and handedness) followed by
+     GestureTracker.update (rules, hysteresis, wave, ray).
+   Target: service >= 0.9x the bare loop's frames/s.
+2. End-to-end lag at 30 fps input into a real gesture process: p50/p99 per slice (it must not grow).
+
+Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import cv2  # noqa: E402
+
+from benchmarks.lag import frame_lag  # noqa: E402
+from common.schema import Hands  # noqa: E402
+from services.gesture.landmarks import HandLandmarker  # noqa: E402
+from services.gesture.temporal import GestureTracker  # noqa: E402
+from tests.harness import DATA  # noqa: E402
+
+
+def hand_frames() -> list:
+    paths = [DATA / "demo" / "pointing.png", DATA / "demo" / "stop.png", *sorted((DATA / "images" / "hands").iterdir())]
+    return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
+
+
+def throughput(frames: list, n: int, repeats: int = 3) -> None:
+    from mediapipe.python.solutions import hands as mp_hands
+    bare_fps, service_fps = [], []
+    # each photo is shown for 10 frames in a row, as a camera would: MediaPipe tracks between frames
+    sequence = [f for f in frames for _ in range(10)]
+    for _ in range(repeats):  # alternate so drift hits both alike
+        bare = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0)
+        t0 = time.perf_counter()
+        for i in range(n):
+            bare.process(cv2.cvtColor(sequence[i % len(sequence)], cv2.COLOR_BGR2RGB))
+        bare_fps.append(n / (time.perf_counter() - t0))
+        bare.close()
+        landmarker, tracker = HandLandmarker("lite", 2), GestureTracker()
+        t0 = time.perf_counter()
+        for i in range(n):
+            tracker.update(i / 30.0, landmarker.detect(sequence[i % len(sequence)]))
+        service_fps.append(n / (time.perf_counter() - t0))
+        landmarker.close()
+    b, s = statistics.median(bare_fps), statistics.median(service_fps)
+    print(f"throughput on {n} frames 640x480 of real hands (median of {repeats}):")
+    print(f"  bare MediaPipe Hands.process   {b:7.1f} frames/s")
+    print(f"  gesture service path           {s:7.1f} frames/s   ratio {s / b:.2f}x (target >= 0.90x)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
+    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
+    args = parser.parse_args()
+    frames = hand_frames()
+    throughput(frames, args.frames)
+    frame_lag("gesture", [], "hri/gesture/bench/hands", Hands, frames, args.seconds)
+
+
+if __name__ == "__main__":
+    main()
