@@ -5,6 +5,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from typing import Any, Callable
+
 from common.schema import Frame
 
 
@@ -29,3 +31,16 @@ def decode_image(data: bytes, encoding: str, width: int, height: int) -> np.ndar
 def frame_image(frame: Frame) -> np.ndarray:
     """The BGR image carried by a Frame (raises UndecodableFrame)."""
     return decode_image(frame.data, frame.encoding, frame.width, frame.height)
+
+
+def frame_handler(service: Any, handle: Callable[[Frame, np.ndarray], None]) -> Callable[[Any], None]:
+    """A runner handler for Frame subscriptions: decodes the image and calls `handle(frame, image)`; a frame
+    whose image does not decode is rejected as `undecodable` in the service's counters, with the reason."""
+    def on_frame(delivery: Any) -> None:
+        try:
+            img = frame_image(delivery.sample)
+        except UndecodableFrame as exc:
+            service.counters.reject("undecodable", str(exc), delivery.key)
+            return
+        handle(delivery.sample, img)
+    return on_frame

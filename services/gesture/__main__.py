@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from common.image import UndecodableFrame, frame_image
-from common.runner import Delivery, Service, main_exit, service_parser
+from common.image import frame_handler
+from common.runner import Service, main_exit, service_parser
 from common.schema import Frame, GestureEvent, Hand, Hands, Ray
 from services.gesture.landmarks import HandLandmarker, LandmarkError
 from services.gesture.temporal import GestureTracker
@@ -46,13 +46,7 @@ def main(argv: list[str] | None = None) -> None:
     if not service.connect():
         main_exit(0)
 
-    def on_frame(d: Delivery) -> None:
-        frame: Frame = d.sample
-        try:
-            img = frame_image(frame)
-        except UndecodableFrame as exc:
-            service.counters.reject("undecodable", str(exc), d.key)
-            return
+    def on_image(frame: Frame, img) -> None:
         if frame.cam not in landmarkers:  # one graph per stream: MediaPipe tracks between frames
             landmarkers[frame.cam] = HandLandmarker(args.model, args.max_hands, args.mirrored)
             trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames)
@@ -73,7 +67,8 @@ def main(argv: list[str] | None = None) -> None:
                 service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)
 
     for cam in args.cams.split(","):
-        service.subscribe(service.keys.frame(cam.strip()), Frame, on_frame, latest=True, monotonic=True)
+        service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
+                          monotonic=True)
     main_exit(service.run())
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 
-from common.image import UndecodableFrame, frame_image
-from common.runner import Delivery, Service, main_exit, service_parser
+from common.image import frame_handler
+from common.runner import Service, main_exit, service_parser
 from common.schema import Detections, Frame
 from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter
@@ -50,20 +50,15 @@ def main(argv: list[str] | None = None) -> None:
     if not service.connect():
         main_exit(0)
 
-    def on_frame(d: Delivery) -> None:
-        frame: Frame = d.sample
-        try:
-            img = frame_image(frame)
-        except UndecodableFrame as exc:
-            service.counters.reject("undecodable", str(exc), d.key)
-            return
+    def on_image(frame: Frame, img) -> None:
         objects, quality = pipeline.process(frame.cam, img)
         service.publish(service.keys.objects(frame.cam), Detections(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, objects=objects, quality=quality))
 
     for cam in args.cams.split(","):
-        service.subscribe(service.keys.frame(cam.strip()), Frame, on_frame, latest=True, monotonic=True)
+        service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
+                          monotonic=True)
     main_exit(service.run())
 
 
