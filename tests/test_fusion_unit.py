@@ -326,3 +326,28 @@ def test_named_places_are_published_in_the_command():
     assert cmd.intent == "go_to" and cmd.place == "kitchen" and cmd.location is None
     out = run_in_process(Scenario("no place", [say(0.0, 1.2, "come here")], []))
     assert out[0].place is None
+
+
+def test_the_pointing_hand_is_never_its_own_target():
+    """A skin-coloured blob of the pointing finger lies right on the ray; the object beyond it is meant."""
+    from common.schema import DetectedObject, Detections, ImageQuality, Weights
+    from services.fusion.evidence import Pointing
+    from services.fusion.ground import choose, scene_objects, score
+    from services.fusion.parse import parse
+
+    def obj(i, color, cx, cy):
+        return DetectedObject(id=i, label="object", color=color, score=0.95, bbox=[cx - 20, cy - 20, 40, 40],
+                              center=[cx, cy])
+    det = Detections(stamp=10.0, source="v", seq=1, cam="cam0", width=640, height=480,
+                     objects=[obj("finger", "orange", 430, 167), obj("candy", "red", 548, 132)],
+                     quality=ImageQuality(brightness=0.6, contrast=0.5, sharpness=0.6))
+    pointing = Pointing(stamp=10.0, cam="cam0", hand="right", origin=(271.0, 186.0), direction=(0.981, -0.193),
+                        confidence=0.9, stability=1.0, spread_deg=0.0, n=10, width=640, height=480,
+                        hand_box=(60.0, 20.0, 495.0, 400.0))
+    weights = Weights(speech=0.4, vision=0.35, gesture=0.25)
+    phrase = parse("pick up that one").obj
+    ranked = score(phrase, scene_objects([det]), pointing, weights, ref=10.0)
+    assert [c.obj.id for c in ranked][0] == "candy" and ranked[1].gesture == 0.0
+    assert choose(phrase, ranked).kind == "target"
+    without_box = Pointing(**{**pointing.__dict__, "hand_box": None})
+    assert choose(phrase, score(phrase, scene_objects([det]), without_box, weights, ref=10.0)).kind == "ambiguous"

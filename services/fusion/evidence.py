@@ -65,6 +65,7 @@ class PointingObs:
     confidence: float  # ray confidence x hand score
     width: int
     height: int
+    hand_box: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of the hand's landmarks
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,7 @@ class Pointing:
     n: int
     width: int
     height: int
+    hand_box: tuple[float, float, float, float] | None = None  # the pointing hand itself: never its target
 
     @property
     def reliability(self) -> float:
@@ -92,8 +94,10 @@ def pointing_from_hands(hands: Hands) -> list[PointingObs]:
     for h in hands.hands:
         if h.ray is None or h.gesture not in (None, "point"):
             continue
+        xs, ys = [p[0] for p in h.landmarks], [p[1] for p in h.landmarks]
         out.append(PointingObs(hands.stamp, hands.cam, h.hand, tuple(h.ray.origin), tuple(h.ray.direction),
-                               h.ray.confidence * h.score, hands.width, hands.height))
+                               h.ray.confidence * h.score, hands.width, hands.height,
+                               (min(xs), min(ys), max(xs), max(ys))))
     return out
 
 
@@ -130,9 +134,12 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
     else:
         spread, stability = 0.0, SINGLE_SAMPLE_STABILITY
     confidence = sum(o.confidence for o in cluster) / len(cluster)
+    boxes = [o.hand_box for o in cluster if o.hand_box is not None]
+    hand_box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes),
+                max(b[3] for b in boxes)) if boxes else None
     return Pointing(stamp=nearest.stamp, cam=nearest.cam, hand=nearest.hand, origin=(ox, oy), direction=direction,
                     confidence=confidence, stability=stability, spread_deg=spread, n=len(cluster),
-                    width=nearest.width, height=nearest.height)
+                    width=nearest.width, height=nearest.height, hand_box=hand_box)
 
 
 def modality_weights(mode: str, reliabilities: dict[str, float | None]) -> Weights:

@@ -128,9 +128,14 @@ def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str]
 
 
 def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
-    """(G, angle in degrees). Objects in another camera or behind the hand score 0."""
+    """(G, angle in degrees). Objects in another camera, behind the hand, or on the pointing hand itself (a
+    skin-coloured blob of the finger lies right on the ray) score 0."""
     if o.cam != p.cam:
         return 0.0, None
+    if p.hand_box is not None:
+        x0, y0, x1, y1 = p.hand_box
+        if x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1:
+            return 0.0, None
     vx, vy = o.center[0] - p.origin[0], o.center[1] - p.origin[1]
     dist = math.hypot(vx, vy)
     radius = 0.5 * math.hypot(o.bbox[2], o.bbox[3]) * 0.5  # half of the half-diagonal: the object's core

@@ -105,7 +105,7 @@ class GestureTracker:
             ray = None
             if raw == "point":
                 track.rays.append(pointing_ray(obs.landmarks))
-                ray = self._steady_ray(track, obs.score)
+                ray = self._steady_ray(track)
             else:
                 track.rays.clear()
             if raw == "open_palm" and self._waving(track, stamp):
@@ -138,14 +138,15 @@ class GestureTracker:
             out.append(best)
         return out
 
-    def _steady_ray(self, track: _Track, score: float) -> Ray:
+    def _steady_ray(self, track: _Track) -> Ray:
         origins = np.array([o for o, _ in track.rays])
         dirs = np.array([d for _, d in track.rays])
         mean = dirs.mean(axis=0)
         resultant = float(np.linalg.norm(mean))  # 1 when every frame pointed the same way
         direction = mean / (resultant or 1.0)
         frames = len(track.rays) / self.ray_frames  # a ray seen for one frame is less sure than one held
-        confidence = max(0.0, min(1.0, score * resultant ** 8 * (0.5 + 0.5 * frames)))
+        # steadiness only: consumers weigh the hand's own landmark score separately
+        confidence = max(0.0, min(1.0, resultant ** 8 * (0.5 + 0.5 * frames)))
         o = origins.mean(axis=0)
         return Ray((float(o[0]), float(o[1])), (float(direction[0]), float(direction[1])), round(confidence, 4))
 

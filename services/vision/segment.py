@@ -75,6 +75,8 @@ class ColorSegmenter:
             if achromatic_color and (x == 0) + (y == 0) + (x + bw == w) + (y + bh == h) >= 2:
                 continue
             if achromatic_color:
+                if not stands_out(hsv[..., 2], labels, i, (x, y, bw, bh), achromatic_color == "white"):
+                    continue  # a brighter (or darker) patch of the table, not an object on it
                 color, agreement = achromatic_color, 1.0
             else:
                 inside = (labels[y:y + bh, x:x + bw] == i).view(np.uint8)
@@ -84,3 +86,21 @@ class ColorSegmenter:
             score = float(np.clip(0.4 + 0.3 * agreement + 0.3 * min(1.0, fill / 0.785), 0.0, 1.0))
             out.append(Detection(self.label_for(color), color, score, (float(x), float(y), float(bw), float(bh))))
         return out
+
+
+EDGE_CONTRAST = 25  # grey levels between an achromatic object and the ring of pixels around it
+
+
+def stands_out(val: np.ndarray, labels: np.ndarray, i: int, box: tuple[int, int, int, int], brighter: bool) -> bool:
+    """Whether component `i` is brighter (or darker) than the ring of pixels around its box by EDGE_CONTRAST:
+    a white ball on a grey table is; a sunlit patch of a white table is not."""
+    x, y, bw, bh = box
+    m = max(4, int(0.3 * max(bw, bh)))
+    y0, y1, x0, x1 = max(0, y - m), min(val.shape[0], y + bh + m), max(0, x - m), min(val.shape[1], x + bw + m)
+    region, owner = val[y0:y1, x0:x1], labels[y0:y1, x0:x1]
+    inside = owner == i
+    ring = ~inside
+    if not ring.any():
+        return True
+    diff = float(region[inside].mean()) - float(region[ring].mean())
+    return diff >= EDGE_CONTRAST if brighter else -diff >= EDGE_CONTRAST
