@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Frame, GestureEvent, Hand, Hands, Ray
@@ -30,9 +32,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--mirrored", action="store_true",
                         help="the camera image is mirrored (selfie view); default: a robot's normal camera")
     parser.add_argument("--start-frames", type=int, default=3, help="frames a gesture must hold to start (3)")
+    parser.add_argument("--start-ms", type=float, default=0.0,
+                        help="or: milliseconds it must hold to start, whichever comes first (default 0: frames only)")
     parser.add_argument("--end-frames", type=int, default=3, help="frames it must be absent to end (3)")
+    parser.add_argument("--idle-end", type=float, default=1.0,
+                        help="seconds without frames from a camera after which its gestures end (default 1)")
     parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
     args = parser.parse_args(argv)
+    for flag in ("max_hands", "start_frames", "end_frames"):
+        if getattr(args, flag) < 1:
+            parser.error(f"--{flag.replace('_', '-')} must be at least 1")
+    if args.start_ms < 0 or args.idle_end <= 0:
+        parser.error("--start-ms must be >= 0 and --idle-end > 0")
 
     service = Service("gesture", args)
     try:
@@ -42,6 +53,7 @@ def main(argv: list[str] | None = None) -> None:
         main_exit(2)
     landmarkers: dict[str, HandLandmarker] = {}
     trackers: dict[str, GestureTracker] = {}
+    last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic receive time, latest frame processed)
     service.on_close(lambda: [lm.close() for lm in landmarkers.values()])
     if not service.connect():
         main_exit(0)
@@ -49,7 +61,9 @@ def main(argv: list[str] | None = None) -> None:
     def on_image(frame: Frame, img) -> None:
         if frame.cam not in landmarkers:  # one graph per stream: MediaPipe tracks between frames
             landmarkers[frame.cam] = HandLandmarker(args.model, args.max_hands, args.mirrored)
-            trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames)
+            trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames,
+                                                 start_time=args.start_ms / 1000.0)
+        last_frame[frame.cam] = (time.monotonic(), frame)
         observations = landmarkers[frame.cam].detect(img)
         tracked, events = trackers[frame.cam].update(frame.stamp, observations)
         hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
@@ -58,6 +72,9 @@ def main(argv: list[str] | None = None) -> None:
         service.publish(service.keys.hands(frame.cam), Hands(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, hands=hands))
+        publish_events(frame, events)
+
+    def publish_events(frame: Frame, events: list) -> None:
         for ev in events:
             service.publish(service.keys.gesture_event(frame.cam), GestureEvent(
                 stamp=frame.stamp, source=service.source, cam=frame.cam, width=frame.width, height=frame.height,
@@ -66,10 +83,22 @@ def main(argv: list[str] | None = None) -> None:
             if ev.phase != "hold":
                 service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)
 
+    def end_idle_streams() -> None:
+        """A camera that stopped sends no frame to show the hand is gone: end its gestures after --idle-end s."""
+        now = time.monotonic()
+        for cam, (received, frame) in list(last_frame.items()):
+            if now - received >= args.idle_end:
+                del last_frame[cam]
+                ended = trackers[cam].flush()
+                if ended:
+                    service.counters.add("ended_idle_stream", len(ended))
+                    service.log.info("no frame from %s for %.1f s: its gestures end", cam, args.idle_end)
+                    publish_events(frame, ended)
+
     for cam in args.cams.split(","):
         service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
                           monotonic=True)
-    main_exit(service.run())
+    main_exit(service.run(tick=end_idle_streams, tick_interval=0.1))
 
 
 if __name__ == "__main__":

@@ -2,9 +2,11 @@
 
 Feed `GestureTracker.update(stamp, observations)` once per processed frame (stamps increasing). It returns
 each observation's track (with the steadied ray when the hand points) and the GestureEvents to publish:
-- a gesture **starts** once the per-frame class has held for `start_frames` frames in a row;
+- a gesture **starts** once the per-frame class has held for `start_frames` frames in a row, or (if
+  `start_time` > 0) for `start_time` seconds over at least 2 frames, whichever comes first;
 - it **holds** (an event at most every `hold_interval` s) while it lasts;
-- it **ends** once the hand has shown something else, or been missing, for `end_frames` frames;
+- it **ends** once the hand has shown something else, or been missing, for `end_frames` frames, or when
+  `flush()` says the stream stopped (no frames come to show it is gone);
 - **wave**: an open palm whose wrist moved side to side with at least `wave_reversals` direction changes,
   each swing at least `wave_amplitude` palm sizes, within the last `wave_window` seconds. A wave replaces the
   open palm it grew out of (the open palm ends, the wave starts).
@@ -81,6 +83,7 @@ class _Track:
 class GestureTracker:
     start_frames: int = 3
     end_frames: int = 3
+    start_time: float = 0.0  # s; 0: frames only
     hold_interval: float = 0.1
     wave_window: float = 1.5
     wave_reversals: int = 2
@@ -186,10 +189,29 @@ class GestureTracker:
                     events.append(Event(track.active, "end", track.active_start, track.active_last, score,
                                         track.hand, None))
                     track.active = None
-        if track.active is None and raw is not None and (track.run_len >= self.start_frames or raw == "wave"):
+        if track.active is None and raw is not None and (self._held(track, stamp) or raw == "wave"):
             track.active, track.active_start, track.active_last = raw, track.run_start, stamp
             track.misses, track.last_emit = 0, stamp
             events.append(Event(raw, "start", track.run_start, stamp, score, track.hand, ray))
+        return events
+
+
+    def _held(self, track: _Track, stamp: float) -> bool:
+        """Has the current per-frame class lasted long enough to start? Never on a single frame."""
+        if track.run_len >= self.start_frames:
+            return True
+        return self.start_time > 0 and track.run_len >= 2 and stamp - track.run_start >= self.start_time - 1e-9
+
+    def active(self) -> list[str]:
+        """The gestures going on now, one per hand that shows one."""
+        return [t.active for t in self.tracks if t.active is not None]
+
+    def flush(self) -> list[Event]:
+        """End every gesture going on and forget all hands: the stream stopped, so nothing will end them."""
+        events = [Event(t.active, "end", t.active_start, t.active_last,
+                        round(float(np.mean(t.scores)) if t.scores else 0.0, 4), t.hand, None)
+                  for t in self.tracks if t.active is not None]
+        self.tracks = []
         return events
 
 
