@@ -30,7 +30,7 @@ from tests.harness import DATA  # noqa: E402
 
 
 def hand_frames() -> list:
-    paths = [DATA / "demo" / "pointing.png", DATA / "demo" / "stop.png", *sorted((DATA / "images" / "hands").iterdir())]
+    paths = [DATA / "demo" / "pointing.png", DATA / "demo" / "stop.png", *sorted((DATA / "images" / "hands").glob("*.jpg"))]
     return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
 
 

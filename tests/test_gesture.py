@@ -207,3 +207,28 @@ def test_two_hands_keep_their_own_tracks_and_gestures():
         for t in frame:
             ids.setdefault(t.gesture, set()).add(t.track_id)
     assert all(len(v) == 1 for v in ids.values()) and ids["point"] != ids["open_palm"]
+
+
+def tilt(p: np.ndarray, degrees: float, squash: float, axis: int) -> np.ndarray:
+    """A real hand turned in the image, then tilted away from the camera: foreshortened along one image axis."""
+    q = rotate(p, degrees) - 500
+    q[:, axis] *= squash
+    return q + 500
+
+
+@pytest.mark.parametrize("squash", [0.7, 0.5])
+@pytest.mark.parametrize("name,expected", [("open_palm_up", "open_palm"), ("open_palm_sideways", "open_palm"),
+                                           ("point_right", "point")])
+def test_a_hand_tilted_away_from_the_camera_keeps_its_class(name, expected, squash):
+    """Tilted up to 60° (half its length), at every image rotation: a straight finger still projects straight."""
+    for degrees in range(0, 360, 15):
+        for axis in (0, 1):
+            assert classify(tilt(real(name), degrees, squash, axis)) == expected, (degrees, axis)
+
+
+def test_a_tilted_fist_is_never_taken_for_a_point_or_an_open_palm():
+    fist = fold_index(real("point_right"))
+    for degrees in range(0, 360, 15):
+        for squash in (0.7, 0.5):
+            for axis in (0, 1):
+                assert classify(tilt(fist, degrees, squash, axis)) not in ("point", "open_palm")

@@ -1,9 +1,11 @@
 """Gesture classes from the 21 hand landmarks of one frame — pure, rotation- and scale-invariant.
 
-A finger is *extended* when its tip is far from its knuckle (MCP) relative to the palm (wrist → middle MCP)
-and farther from the wrist than its middle joint (PIP); *curled* otherwise. Both are ratios of distances, so a
-hand held sideways, pointing down or at any distance from the camera gives the same answer — unlike the
-usual `tip.y < pip.y` rule, which only works for an upright hand.
+A finger is *extended* when its tip is farther from the wrist than its middle joint (PIP) and either far from
+its knuckle (MCP) relative to the palm size or in a straight line with its joints (a hand tilted away from the
+camera looks short but stays straight); *curled* when the tip is no farther from the wrist than the PIP, or
+near the knuckle with the finger bent. All are ratios of distances, so a hand held sideways, pointing down or
+at any distance from the camera gives the same answer — unlike the usual `tip.y < pip.y` rule, which only
+works for an upright hand.
 
 Classes (first match):
 - `open_palm`: index, middle, ring and little finger extended (the stop sign);
@@ -21,18 +23,25 @@ import math
 import numpy as np
 
 WRIST, THUMB_MCP, THUMB_IP, THUMB_TIP = 0, 2, 3, 4
-INDEX_MCP, INDEX_TIP, MIDDLE_MCP = 5, 8, 9
+INDEX_MCP, INDEX_TIP, MIDDLE_MCP, LITTLE_MCP = 5, 8, 9, 17
 FINGERS = (5, 9, 13, 17)  # MCP of index, middle, ring, little; PIP = +1, TIP = +3
 
 EXTENDED_REACH = 0.5     # |tip - MCP| / palm at least this: extended
 CURLED_REACH = 0.45      # below this: curled
+STRAIGHT = 0.9           # |tip - MCP| / length of its three bones: a straight finger...
+SHORT_REACH = 0.3        # ...this long counts as extended too (a hand tilted away looks short, not bent)
 TIP_BEYOND_PIP = 1.1     # |tip - wrist| / |PIP - wrist| at least this for an extended finger
 THUMB_OUT = 0.65         # |thumb tip - index MCP| / palm at least this: thumb sticks out
 THUMB_UP_DEG = 50.0
+PALM_LENGTH_PER_WIDTH = 1.45
 
 
 def palm_size(p: np.ndarray) -> float:
-    return float(np.linalg.norm(p[MIDDLE_MCP] - p[WRIST])) or 1.0
+    """Palm length (wrist → middle MCP), or its width (index MCP → little MCP) × 1.45 if larger: a hand tilted
+    away from the camera shortens one of them, rarely both (1.45 = length / width of the recorded real hands)."""
+    length = float(np.linalg.norm(p[MIDDLE_MCP] - p[WRIST]))
+    width = float(np.linalg.norm(p[LITTLE_MCP] - p[INDEX_MCP]))
+    return max(length, PALM_LENGTH_PER_WIDTH * width) or 1.0
 
 
 def finger_states(p: np.ndarray) -> list[str]:
@@ -40,11 +49,14 @@ def finger_states(p: np.ndarray) -> list[str]:
     palm = palm_size(p)
     states = []
     for mcp in FINGERS:
-        reach = float(np.linalg.norm(p[mcp + 3] - p[mcp])) / palm
+        tip_to_mcp = float(np.linalg.norm(p[mcp + 3] - p[mcp]))
+        reach = tip_to_mcp / palm
+        bones = sum(float(np.linalg.norm(p[mcp + i + 1] - p[mcp + i])) for i in range(3)) or 1.0
+        straight = tip_to_mcp / bones  # 1 for a straight finger, however tilted: a line projects to a line
         beyond = float(np.linalg.norm(p[mcp + 3] - p[WRIST])) / (float(np.linalg.norm(p[mcp + 1] - p[WRIST])) or 1.0)
-        if reach >= EXTENDED_REACH and beyond >= TIP_BEYOND_PIP:
+        if beyond >= TIP_BEYOND_PIP and (reach >= EXTENDED_REACH or (straight >= STRAIGHT and reach >= SHORT_REACH)):
             states.append("extended")
-        elif reach < CURLED_REACH or beyond < 1.0:
+        elif beyond < 1.0 or (reach < CURLED_REACH and straight < STRAIGHT):
             states.append("curled")
         else:
             states.append("unclear")
