@@ -1,10 +1,13 @@
 """camera (real photos) -> gesture -> hri echo / events, as real processes."""
 
+import math
+
 import pytest
 
 from tests.harness import DATA, Client
 
 pytestmark = pytest.mark.integration
+RED_CANDY = (548.0, 132.0)  # centre of the red candy in data/demo/pointing.png (px)
 
 
 @pytest.mark.parametrize("scene,gesture", [("pointing.png", "point"), ("stop.png", "open_palm")])
@@ -20,6 +23,9 @@ def test_camera_to_gesture_events(group, scene, gesture):
         assert start.gesture == gesture and start.start <= start.end and start.cam == "cam0"
         if gesture == "point":
             assert start.ray is not None and start.ray.direction[0] > 0.9 and 0 < start.ray.confidence <= 1
+            to_candy = (RED_CANDY[0] - start.ray.origin[0], RED_CANDY[1] - start.ray.origin[1])
+            cos = (to_candy[0] * start.ray.direction[0] + to_candy[1] * start.ray.direction[1]) / math.hypot(*to_candy)
+            assert math.degrees(math.acos(min(1.0, cos))) < 8, (start.ray, "does not point at the red candy")
         hands = group.echo("hri/gesture/cam0/hands", count=2, timeout=30)
         assert all(len(h["hands"]) == 1 and len(h["hands"][0]["landmarks"]) == 21 for h in hands)
         assert hands[0]["hands"][0]["gesture"] == gesture
