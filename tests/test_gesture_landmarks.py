@@ -1,6 +1,8 @@
-"""The recorded landmark arrays are what MediaPipe really gives on the photos; the full model works too."""
+"""The landmark path on real photos beyond single frames: the recorded arrays are what MediaPipe really gives,
+the full model holds a gesture over repeated frames, a real palm slid side to side waves."""
 
 import json
+import math
 from pathlib import Path
 
 import cv2
@@ -10,6 +12,7 @@ import pytest
 from services.gesture.landmarks import HandLandmarker, LandmarkError
 from services.gesture.record_landmarks import SOURCES, record
 from services.gesture.rules import classify
+from services.gesture.temporal import GestureTracker
 from tests.harness import DATA
 
 RECORDED = json.loads((Path(__file__).parent / "data" / "landmarks" / "real_hands.json").read_text())
@@ -38,3 +41,30 @@ def test_full_model_in_video_mode_keeps_the_gesture_over_repeated_frames(scene, 
 def test_an_unknown_model_is_a_clear_error():
     with pytest.raises(LandmarkError, match="unknown hand model 'huge'"):
         HandLandmarker("huge")
+
+
+def moving_palm_events(amplitude_px: float, frames: int = 60, fps: float = 30.0, hz: float = 1.5) -> list:
+    """The real open palm of stop.png slid side to side across a wider frame, through MediaPipe and the tracker."""
+    img = cv2.imread(str(DATA / "demo" / "stop.png"))
+    margin = 120
+    landmarker = HandLandmarker("lite", max_hands=2, video=True)
+    tracker = GestureTracker()
+    events = []
+    try:
+        for i in range(frames):
+            dx = int(round(margin + amplitude_px * math.sin(2 * math.pi * hz * i / fps)))
+            canvas = cv2.copyMakeBorder(img, 0, 0, dx, 2 * margin - dx, cv2.BORDER_REPLICATE)
+            events += tracker.update(10.0 + i / fps, landmarker.detect(canvas))[1]
+    finally:
+        landmarker.close()
+    return [(e.gesture, e.phase) for e in events if e.phase != "hold"]
+
+
+def test_a_real_palm_moved_side_to_side_waves():
+    # ±100 px is ±0.6 palm sizes (the palm in stop.png is ~170 px): 1.5 waves per second for 2 s
+    assert moving_palm_events(100) == [("open_palm", "start"), ("open_palm", "end"), ("wave", "start")]
+
+
+def test_a_real_palm_held_still_or_trembling_does_not_wave():
+    assert moving_palm_events(0) == [("open_palm", "start")]
+    assert moving_palm_events(12) == [("open_palm", "start")]  # ±0.07 palm sizes
