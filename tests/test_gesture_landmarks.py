@@ -11,7 +11,7 @@ import pytest
 
 from services.gesture.landmarks import HandLandmarker, LandmarkError
 from services.gesture.record_landmarks import SOURCES, record
-from services.gesture.rules import classify
+from services.gesture.rules import classify, pointing_ray
 from services.gesture.temporal import GestureTracker
 from tests.harness import DATA
 
@@ -68,3 +68,37 @@ def test_a_real_palm_moved_side_to_side_waves():
 def test_a_real_palm_held_still_or_trembling_does_not_wave():
     assert moving_palm_events(0) == [("open_palm", "start")]
     assert moving_palm_events(12) == [("open_palm", "start")]  # ±0.07 palm sizes
+
+
+# image turned by cv2 -> the same turn applied to a direction vector in image axes (x right, y down)
+TURNS = {
+    "90cw": (lambda im: cv2.rotate(im, cv2.ROTATE_90_CLOCKWISE), lambda d: (-d[1], d[0])),
+    "180": (lambda im: cv2.rotate(im, cv2.ROTATE_180), lambda d: (-d[0], -d[1])),
+    "90ccw": (lambda im: cv2.rotate(im, cv2.ROTATE_90_COUNTERCLOCKWISE), lambda d: (d[1], -d[0])),
+    "mirror": (lambda im: cv2.flip(im, 1), lambda d: (-d[0], d[1])),
+}
+
+
+@pytest.fixture(scope="module")
+def still_landmarker():
+    landmarker = HandLandmarker("lite", max_hands=2, video=False)
+    yield landmarker
+    landmarker.close()
+
+
+@pytest.mark.parametrize("turn", sorted(TURNS))
+@pytest.mark.parametrize("photo,expected", [
+    (DATA / "demo" / "pointing.png", "point"),
+    (DATA / "demo" / "stop.png", "open_palm"),
+    (DATA / "images" / "hands" / "handSrc.jpg", "open_palm"),
+    (DATA / "images" / "hands" / "Back_Projection_Theory0.jpg", "open_palm"),
+])
+def test_real_photos_turned_and_mirrored_keep_their_gesture_and_ray(still_landmarker, photo, expected, turn):
+    img = cv2.imread(str(photo))
+    turn_image, turn_vector = TURNS[turn]
+    (upright,), (turned,) = still_landmarker.detect(img), still_landmarker.detect(turn_image(img))
+    assert classify(turned.landmarks) == expected
+    if expected == "point":
+        want = turn_vector(pointing_ray(upright.landmarks)[1])
+        got = pointing_ray(turned.landmarks)[1]
+        assert math.degrees(math.acos(min(1.0, want[0] * got[0] + want[1] * got[1]))) < 5, (want, got)
