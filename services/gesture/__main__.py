@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> None:
         main_exit(2)
     landmarkers: dict[str, HandLandmarker] = {}
     trackers: dict[str, GestureTracker] = {}
-    last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic receive time, latest frame processed)
+    last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
     service.on_close(lambda: [lm.close() for lm in landmarkers.values()])
     if not service.connect():
         main_exit(0)
@@ -63,7 +63,6 @@ def main(argv: list[str] | None = None) -> None:
             landmarkers[frame.cam] = HandLandmarker(args.model, args.max_hands, args.mirrored)
             trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames,
                                                  start_time=args.start_ms / 1000.0)
-        last_frame[frame.cam] = (time.monotonic(), frame)
         observations = landmarkers[frame.cam].detect(img)
         tracked, events = trackers[frame.cam].update(frame.stamp, observations)
         hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
@@ -73,6 +72,8 @@ def main(argv: list[str] | None = None) -> None:
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, hands=hands))
         publish_events(frame, events)
+        # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
+        last_frame[frame.cam] = (time.monotonic(), frame)
 
     def publish_events(frame: Frame, events: list) -> None:
         for ev in events:
@@ -86,8 +87,8 @@ def main(argv: list[str] | None = None) -> None:
     def end_idle_streams() -> None:
         """A camera that stopped sends no frame to show the hand is gone: end its gestures after --idle-end s."""
         now = time.monotonic()
-        for cam, (received, frame) in list(last_frame.items()):
-            if now - received >= args.idle_end:
+        for cam, (done, frame) in list(last_frame.items()):
+            if now - done >= args.idle_end:
                 del last_frame[cam]
                 ended = trackers[cam].flush()
                 if ended:
