@@ -57,6 +57,30 @@ def test_demo_scenes_have_the_objects_the_demo_relies_on():
     assert abs(red.center[0] - 555) < 30 and abs(red.center[1] - 125) < 30
 
 
+def touching_candies() -> np.ndarray:
+    """Real red, blue and orange candies cut from smarties.png and laid side by side so that they touch."""
+    img = photo("smarties.png")
+    canvas = np.full((160, 260, 3), 255, np.uint8)
+    x = 20
+    for (x0, y0) in ((260, 186), (319, 210), (177, 183)):  # red, blue, orange: 58×57 patches, white margins
+        patch = img[y0:y0 + 57, x0:x0 + 58]
+        canvas[50:107, x:x + 58] = np.minimum(canvas[50:107, x:x + 58], patch)  # darker pixel wins: no seams
+        x += 50
+    return canvas
+
+
+def test_touching_candies_of_different_colours_stay_separate_objects():
+    img = touching_candies()
+    hsv = cv2.cvtColor(cv2.GaussianBlur(img, (5, 5), 0), cv2.COLOR_BGR2HSV)
+    vivid = cv2.inRange(hsv, (0, 100, 75), (180, 255, 255))
+    n, _ = cv2.connectedComponents(vivid)
+    assert n - 1 == 1, "the three candies must touch for this test to mean anything"
+    found = sorted(ColorSegmenter().detect(img), key=lambda d: d.bbox[0])
+    assert [d.color for d in found] == ["red", "blue", "orange"]
+    for d, left in zip(found, (20, 70, 120)):
+        assert abs(d.center[0] - (left + 29)) < 8 and 40 < d.bbox[2] < 62, d
+
+
 def test_red_uses_both_ends_of_the_hue_circle():
     img = photo("smarties.png")
     hsv = cv2.cvtColor(cv2.GaussianBlur(img, (5, 5), 0), cv2.COLOR_BGR2HSV)

@@ -1,11 +1,14 @@
 """The default detector: colour segmentation, no model needed.
 
-Chromatic blobs: pixels saturated and bright enough (any hue), smoothed (Gaussian blur, morphological open and
-close), split into connected components; each component is one object, named by the hue histogram of its own
-pixels — so an orange candy with a reddish shadow stays one orange object. Achromatic blobs: dark pixels
-(black) and bright unsaturated ones (white) the same way, but only those that do not touch two or more image
-borders (that is background: a table, a wall). Components smaller than `min_area_frac` or larger than
-`max_area_frac` of the image are dropped.
+Chromatic blobs: one mask per palette colour (pixels saturated and bright enough whose hue lies in that colour's
+ranges — red from both ends of the hue circle), smoothed (Gaussian blur, morphological open and close), split
+into connected components. One mask per colour, not one for all hues, so a red candy touching a blue one stays
+two objects. A candy whose pixels straddle two ranges (orange candies have a reddish rim) gives a big component
+in one mask and a sliver in the other: a box lying mostly inside a bigger kept box is dropped. Each kept
+component is named by the hue histogram of its own pixels. Achromatic blobs: dark pixels (black) and bright
+unsaturated ones (white) the same way, but only those that do not touch two or more image borders (that is
+background: a table, a wall). Components smaller than `min_area_frac` or larger than `max_area_frac` of the
+image are dropped.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, hue_name
+from services.vision.color import ACHROMATIC_SATURATION, CHROMATIC, DARK_VALUE, HUE_RANGES, WHITE_VALUE, hue_name
 
 
 @dataclass
@@ -39,23 +42,33 @@ class ColorSegmenter:
     min_area_frac: float = 0.0015
     max_area_frac: float = 0.25
     achromatic: bool = True
+    contained: float = 0.5  # drop a box when more than this share of it lies inside a bigger kept box
     labels: dict[str, str] = field(default_factory=dict)  # colour -> label, "*" for any; default "object"
 
     def __post_init__(self) -> None:
         self._kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+        # hue -> 1 + index into CHROMATIC, for one LUT pass then one inRange per colour
+        lut = np.zeros(256, np.uint8)
+        for k, name in enumerate(CHROMATIC):
+            for lo, hi in HUE_RANGES[name]:
+                lut[lo:hi] = k + 1
+        self._hue_lut = lut
 
     def label_for(self, color: str | None) -> str:
         return self.labels.get(color or "", self.labels.get("*", "object"))
 
     def detect(self, bgr: np.ndarray) -> list[Detection]:
         hsv = cv2.cvtColor(cv2.GaussianBlur(bgr, (5, 5), 0), cv2.COLOR_BGR2HSV)
-        masks = [(cv2.inRange(hsv, (0, self.min_saturation, self.min_value), (180, 255, 255)), None)]
-        if self.achromatic:
-            masks.append((cv2.inRange(hsv, (0, 0, 0), (180, 255, DARK_VALUE - 1)), "black"))
-            masks.append((cv2.inRange(hsv, (0, 0, WHITE_VALUE), (180, ACHROMATIC_SATURATION - 1, 255)), "white"))
+        vivid = cv2.inRange(hsv, (0, self.min_saturation, self.min_value), (180, 255, 255))
+        colour_index = cv2.bitwise_and(cv2.LUT(hsv[..., 0], self._hue_lut), vivid)  # 0 where not vivid
         found: list[Detection] = []
-        for mask, achromatic_color in masks:
-            found += self._components(hsv, mask, achromatic_color)
+        for k in range(1, len(CHROMATIC) + 1):
+            found += self._components(hsv, cv2.inRange(colour_index, k, k), None)
+        found = drop_contained(found, self.contained)
+        if self.achromatic:
+            found += self._components(hsv, cv2.inRange(hsv, (0, 0, 0), (180, 255, DARK_VALUE - 1)), "black")
+            found += self._components(hsv, cv2.inRange(hsv, (0, 0, WHITE_VALUE), (180, ACHROMATIC_SATURATION - 1, 255)),
+                                      "white")
         return found
 
     def _components(self, hsv: np.ndarray, mask: np.ndarray, achromatic_color: str | None) -> list[Detection]:
@@ -104,3 +117,21 @@ def stands_out(val: np.ndarray, labels: np.ndarray, i: int, box: tuple[int, int,
         return True
     diff = float(region[inside].mean()) - float(region[ring].mean())
     return diff >= EDGE_CONTRAST if brighter else -diff >= EDGE_CONTRAST
+
+
+def drop_contained(found: list[Detection], share: float) -> list[Detection]:
+    """Largest first, keep a box unless more than `share` of it lies inside a box already kept."""
+    kept: list[Detection] = []
+    for det in sorted(found, key=lambda d: -d.bbox[2] * d.bbox[3]):
+        if all(inside_share(det.bbox, k.bbox) <= share for k in kept):
+            kept.append(det)
+    return kept
+
+
+def inside_share(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> float:
+    """The share of box a's area that lies inside box b."""
+    ax, ay, aw, ah = a
+    bx, by, bw, bh = b
+    iw = min(ax + aw, bx + bw) - max(ax, bx)
+    ih = min(ay + ah, by + bh) - max(ay, by)
+    return iw * ih / (aw * ah) if iw > 0 and ih > 0 and aw * ah > 0 else 0.0
