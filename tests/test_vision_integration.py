@@ -57,3 +57,67 @@ def test_a_missing_model_is_a_clear_error_and_exit_code_2():
                           "--connect", "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert "not found" in res.stderr and "--backend color" in res.stderr
+
+
+def _frame(img, seq: int, stamp: float, encoding: str = "jpeg", data: bytes | None = None):
+    import cv2
+    from common.schema import Frame
+    if data is None:
+        data = cv2.imencode(".jpg" if encoding == "jpeg" else ".png", img)[1].tobytes()
+    return Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=img.shape[1], height=img.shape[0],
+                 encoding=encoding, data=data)
+
+
+def test_undecodable_frames_are_counted_and_the_service_goes_on(group):
+    import time
+
+    import cv2
+    img = cv2.imread(str(DATA / "demo" / "table.png"))
+    group.router()
+    proc = group.service("vision")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("vision", timeout=60)
+        out = client.collect("hri/vision/cam0/objects")
+        good_jpeg = cv2.imencode(".jpg", img)[1].tobytes()
+        client.publish("hri/camera/cam0/frame", _frame(img, 1, time.time(), data=good_jpeg[:len(good_jpeg) // 3]))
+        small = cv2.imencode(".png", cv2.resize(img, (100, 80)))[1].tobytes()  # header says 506×460
+        client.publish("hri/camera/cam0/frame", _frame(img, 2, time.time(), "png", data=small))
+        time.sleep(0.5)
+        client.publish("hri/camera/cam0/frame", _frame(img, 3, time.time()))
+        (_, det), = out.wait(1, timeout=30)
+        assert det.seq == 3 and len(det.objects) >= 6
+        stats = client.stats("vision")
+        assert stats["rejected"].get("undecodable", 0) == 2, stats
+        assert proc.alive() and "does not decode" in proc.output() and "header says 506x460" in proc.output()
+    finally:
+        client.close()
+
+
+def test_a_burst_of_frames_is_skipped_to_the_latest_not_queued(group):
+    import time
+
+    import cv2
+    big = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (1280, 1104))
+    group.router()
+    group.service("vision")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("vision", timeout=60)
+        out = client.collect("hri/vision/cam0/objects")
+        data = cv2.imencode(".jpg", big)[1].tobytes()
+        stamps = []
+        for seq in range(40):  # back to back: far faster than a 1280-pixel frame is processed
+            stamps.append(time.time())
+            client.publish("hri/camera/cam0/frame", _frame(big, seq, stamps[-1], data=data))
+        last = out.wait(1, timeout=60, where=lambda k, s: s.seq == 39)[0][1]
+        assert last.stamp == stamps[39]  # Detections carry the frame's own stamp
+        time.sleep(0.5)
+        got = [s for _, s in out.drain(0.5)]
+        seqs = [s.seq for s in got]
+        assert seqs == sorted(seqs) and len(got) < 40
+        stats = client.stats("vision")
+        assert stats["skipped"] >= 1 and stats["published"] + stats["skipped"] == 40, stats
+        assert all(len(s.objects) >= 12 for s in got)  # the photo's candies, at any frame it processed
+    finally:
+        client.close()
