@@ -238,3 +238,22 @@ def test_a_bad_model_path_is_a_clear_error(tmp_path):
     junk.write_bytes(b"not a model")
     with pytest.raises(ModelError, match="cannot load"):
         YoloDetector(str(junk))
+
+
+def test_labels_file_maps_colours_to_language_classes(tmp_path):
+    from services.vision.segment import read_labels
+    assert read_labels(DATA / "demo" / "labels.json") == ({"*": "candy"}, [])
+    good = tmp_path / "labels.json"
+    good.write_text('{"red": "mug", "blue": "box", "*": "widget"}')
+    labels, warnings = read_labels(good)
+    assert labels == {"red": "cup", "blue": "box", "*": "widget"}  # "mug" is a cup to the language
+    assert len(warnings) == 1 and "widget" in warnings[0]
+    seg = ColorSegmenter(labels=labels)
+    assert [seg.label_for(c) for c in ("red", "blue", "green")] == ["cup", "box", "widget"]
+    for text, message in (('["red"]', "JSON object"), ('{"pink": "x"}', "not colours"), ("{", "not JSON")):
+        bad = tmp_path / "bad.json"
+        bad.write_text(text)
+        with pytest.raises(ValueError, match=message):
+            read_labels(bad)
+    with pytest.raises(ValueError, match="cannot read"):
+        read_labels(tmp_path / "missing.json")

@@ -59,12 +59,12 @@ def test_a_missing_model_is_a_clear_error_and_exit_code_2():
     assert "not found" in res.stderr and "--backend color" in res.stderr
 
 
-def _frame(img, seq: int, stamp: float, encoding: str = "jpeg", data: bytes | None = None):
+def _frame(img, seq: int, stamp: float, encoding: str = "jpeg", data: bytes | None = None, cam: str = "cam0"):
     import cv2
     from common.schema import Frame
     if data is None:
         data = cv2.imencode(".jpg" if encoding == "jpeg" else ".png", img)[1].tobytes()
-    return Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=img.shape[1], height=img.shape[0],
+    return Frame(stamp=stamp, source="test/cam", seq=seq, cam=cam, width=img.shape[1], height=img.shape[0],
                  encoding=encoding, data=data)
 
 
@@ -80,9 +80,11 @@ def test_undecodable_frames_are_counted_and_the_service_goes_on(group):
         client.wait_alive("vision", timeout=60)
         out = client.collect("hri/vision/cam0/objects")
         good_jpeg = cv2.imencode(".jpg", img)[1].tobytes()
-        client.publish("hri/camera/cam0/frame", _frame(img, 1, time.time(), data=good_jpeg[:len(good_jpeg) // 3]))
+        # two cameras: each has its own latest-frame slot, so neither bad frame can be skipped for the other
+        client.publish("hri/camera/bad1/frame", _frame(img, 1, time.time(), data=good_jpeg[:len(good_jpeg) // 3],
+                                                       cam="bad1"))
         small = cv2.imencode(".png", cv2.resize(img, (100, 80)))[1].tobytes()  # header says 506×460
-        client.publish("hri/camera/cam0/frame", _frame(img, 2, time.time(), "png", data=small))
+        client.publish("hri/camera/bad2/frame", _frame(img, 2, time.time(), "png", data=small, cam="bad2"))
         time.sleep(0.5)
         client.publish("hri/camera/cam0/frame", _frame(img, 3, time.time()))
         (_, det), = out.wait(1, timeout=30)
@@ -121,3 +123,12 @@ def test_a_burst_of_frames_is_skipped_to_the_latest_not_queued(group):
         assert all(len(s.objects) >= 12 for s in got)  # the photo's candies, at any frame it processed
     finally:
         client.close()
+
+
+def test_a_bad_labels_file_is_a_clear_error_and_exit_code_2(tmp_path):
+    bad = tmp_path / "labels.json"
+    bad.write_text('{"pink": "candy"}')
+    res = subprocess.run([sys.executable, "-m", "services.vision", "--labels", str(bad), "--connect",
+                          "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2
+    assert "not colours" in res.stderr

@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import json
-
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Detections, Frame
 from services.vision.core import VisionPipeline
-from services.vision.segment import ColorSegmenter
+from services.vision.segment import ColorSegmenter, read_labels
 from services.vision.yolo import COCO_NAMES, ModelError, YoloDetector, read_names
 
 EPILOG = """\
@@ -41,7 +39,9 @@ def main(argv: list[str] | None = None) -> None:
                 raise ModelError("--backend onnx needs --model PATH (no model ships with hri-fusion)")
             detector = YoloDetector(args.model, read_names(args.names) if args.names else COCO_NAMES, args.conf)
         else:
-            labels = json.loads(open(args.labels).read()) if args.labels else {}
+            labels, warnings = read_labels(args.labels) if args.labels else ({}, [])
+            for warning in warnings:
+                service.log.warning("%s", warning)
             detector = ColorSegmenter(labels=labels)
     except (ModelError, OSError, ValueError) as exc:
         service.log.error("%s", exc)

@@ -13,11 +13,14 @@ image are dropped.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
 
+from common.language import COLOR_PHRASES, OBJECT_PHRASES, canonical_label
 from services.vision.color import ACHROMATIC_SATURATION, CHROMATIC, DARK_VALUE, HUE_RANGES, WHITE_VALUE, hue_name
 
 
@@ -135,3 +138,27 @@ def inside_share(a: tuple[float, float, float, float], b: tuple[float, float, fl
     iw = min(ax + aw, bx + bw) - max(ax, bx)
     ih = min(ay + ah, by + bh) - max(ay, by)
     return iw * ih / (aw * ah) if iw > 0 and ih > 0 and aw * ah > 0 else 0.0
+
+
+def read_labels(path: str | Path) -> tuple[dict[str, str], list[str]]:
+    """The colour backend's label rule from a JSON file: {colour: label, "*": label for any other colour}.
+
+    Labels go through `canonical_label` ("mug" -> "cup"), so they are the language's classes where one fits.
+    Returns the mapping and warnings (labels speech has no word for). Raises ValueError saying what is wrong.
+    """
+    try:
+        raw = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise ValueError(f"cannot read --labels file {path}: {exc.strerror}") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"--labels file {path} is not JSON: {exc}") from None
+    if not isinstance(raw, dict) or not all(isinstance(k, str) and isinstance(v, str) and v.strip()
+                                            for k, v in raw.items()):
+        raise ValueError(f'--labels file {path} must be a JSON object of colour -> label, e.g. {{"*": "candy"}}')
+    unknown = sorted(set(raw) - set(COLOR_PHRASES) - {"*"})
+    if unknown:
+        raise ValueError(f"--labels file {path}: {unknown} are not colours; use {', '.join(COLOR_PHRASES)} or \"*\"")
+    labels = {colour: canonical_label(label) for colour, label in raw.items()}
+    warnings = [f"label {label!r} is not a class of common.language: speech cannot name it"
+                for label in sorted(set(labels.values())) if label not in OBJECT_PHRASES]
+    return labels, warnings
