@@ -55,6 +55,8 @@ def test_demo_scenes_have_the_objects_the_demo_relies_on():
     assert (pointing["red"], pointing["blue"]) == (1, 1)
     red = [d for d in ColorSegmenter().detect(photo("pointing.png")) if d.color == "red"][0]
     assert abs(red.center[0] - 555) < 30 and abs(red.center[1] - 125) < 30
+    blue = [d for d in ColorSegmenter().detect(photo("pointing.png")) if d.color == "blue"][0]
+    assert abs(blue.center[0] - 540) < 30 and abs(blue.center[1] - 320) < 30  # the hand is neither
 
 
 def touching_candies() -> np.ndarray:
@@ -215,19 +217,29 @@ def test_decode_undoes_the_letterbox_and_suppresses_duplicates():
 
 
 def test_yolo_detector_runs_a_generated_model_end_to_end(tmp_path):
-    model = tmp_path / "tiny.onnx"
-    tiny_yolo(model, planted([(320, 320, 100, 50, 1, 0.9), (500, 200, 60, 60, 0, 0.6)]))
-    detector = YoloDetector(str(model), names=("ball", "cup", "bottle"))
-    img = photo("table.png")  # 506×460: scale 640/506, padded top and bottom
-    found = detector.detect(img)
-    assert [label for label, _, _ in found] == ["cup", "ball"]
+    img = photo("table.png")  # 506×460: scale 640/506, padded 29 px top and bottom
     scale = 640 / 506
     pad_y = round((640 - round(460 * scale)) / 2 - 0.1)
-    x, y, w, h = found[0][2]
-    assert abs(x - (270 / scale)) < 1.5 and abs(y - (295 - pad_y) / scale) < 1.5 and abs(w - 100 / scale) < 1
-    pipeline = VisionPipeline(detector)
-    objects, quality = pipeline.process("cam0", img)
-    assert {o.label for o in objects} == {"cup", "ball"} and all(o.color for o in objects)
+
+    def to_input(x, y, w, h):  # a box in table.png pixels -> centre/size in the model's letterboxed input
+        return (x + w / 2) * scale, (y + h / 2) * scale + pad_y, w * scale, h * scale
+
+    red_candy, blue_candy = (203, 296, 106, 103), (381, 30, 107, 107)  # where they are in the photo
+    model = tmp_path / "tiny.onnx"
+    tiny_yolo(model, planted([
+        (*to_input(*red_candy), 1, 0.9),
+        (*to_input(red_candy[0] + 4, red_candy[1] - 3, 106, 103), 1, 0.7),  # a duplicate NMS must drop
+        (*to_input(*blue_candy), 0, 0.6),
+        (*to_input(20, 20, 40, 40), 2, 0.1),  # under the confidence threshold
+    ]))
+    detector = YoloDetector(str(model), names=("sports ball", "wine glass", "bottle"))
+    found = detector.detect(img)
+    assert [label for label, _, _ in found] == ["wine glass", "sports ball"]
+    for (_, _, box), planted_box in zip(found, (red_candy, blue_candy)):
+        assert np.allclose(box, planted_box, atol=1.0), (box, planted_box)
+    objects, quality = VisionPipeline(detector).process("cam0", img)
+    # labels through canonical_label; colour from each box's own pixels, so "the red cup" works with a DNN
+    assert sorted((o.label, o.color) for o in objects) == [("ball", "blue"), ("cup", "red")]
     assert quality.sharpness > 0
 
 

@@ -132,3 +132,23 @@ def test_a_bad_labels_file_is_a_clear_error_and_exit_code_2(tmp_path):
                           "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2
     assert "not colours" in res.stderr
+
+
+def test_onnx_backend_without_a_model_runs_the_color_backend(group):
+    import time
+
+    import cv2
+    img = cv2.imread(str(DATA / "demo" / "table.png"))
+    group.router()
+    proc = group.service("vision", "--backend", "onnx")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("vision", timeout=60)
+        out = client.collect("hri/vision/cam0/objects")
+        client.publish("hri/camera/cam0/frame", _frame(img, 0, time.time()))
+        (_, det), = out.wait(1, timeout=30)
+        assert sorted(o.color for o in det.objects if o.color in ("red", "green", "blue")) == \
+            ["blue", "blue", "green", "green", "red"]
+        assert "without --model" in proc.output()
+    finally:
+        client.close()

@@ -34,9 +34,10 @@ def main(argv: list[str] | None = None) -> None:
 
     service = Service("vision", args)
     try:
-        if args.backend == "onnx" or args.model:
-            if not args.model:
-                raise ModelError("--backend onnx needs --model PATH (no model ships with hri-fusion)")
+        if args.backend == "onnx" and not args.model:
+            service.log.warning("--backend onnx without --model: no model ships with hri-fusion, so the color "
+                                "backend runs; give --model PATH (a YOLOv8/v11 detector exported to ONNX)")
+        if args.model:  # a model given means the onnx backend
             detector = YoloDetector(args.model, read_names(args.names) if args.names else COCO_NAMES, args.conf)
         else:
             labels, warnings = read_labels(args.labels) if args.labels else ({}, [])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from common.language import canonical_label
 from common.schema import DetectedObject, ImageQuality
 from services.vision.color import color_name
 from services.vision.quality import image_quality
@@ -33,7 +34,9 @@ class VisionPipeline:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
         hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
-        return [Detection(label, box_color(hsv, box), score, box) for label, score, box in self.detector.detect(bgr)]
+        # the language's class where one fits ("wine glass" -> "cup"), so "the cup" finds it
+        return [Detection(canonical_label(label), box_color(hsv, box), score, box)
+                for label, score, box in self.detector.detect(bgr)]
 
     def process(self, cam: str, bgr: np.ndarray) -> tuple[list[DetectedObject], ImageQuality]:
         tracker = self.trackers.setdefault(cam, Tracker(prefix=f"{cam}-o"))
