@@ -69,12 +69,14 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> list[int
 
 
 def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_threshold: float,
-           iou_threshold: float) -> list[tuple[int, float, tuple[float, float, float, float]]]:
-    """(class index, score, (x, y, w, h) in original image px) for a 1×(4+C)×N YOLO output."""
+           iou_threshold: float, classes: int | None = None) -> list[tuple[int, float, tuple[float, float, float, float]]]:
+    """(class index, score, (x, y, w, h) in original image px) for a 1×(4+C)×N YOLO output (or 1×N×(4+C) when
+    `classes` says which axis holds the 4+C attributes)."""
     pred = np.asarray(output)[0]
-    if pred.ndim != 2 or pred.shape[0] < 5:
+    if pred.ndim == 2 and not (classes and pred.shape[1] == 4 + classes != pred.shape[0]):
+        pred = pred.T  # 1×(4+C)×N (v8/v11 export) -> N × (4+C); some exports are already 1×N×(4+C)
+    if pred.ndim != 2 or pred.shape[1] < 5:
         raise ModelError(f"expected a 1×(4+C)×N YOLO output, got shape {np.asarray(output).shape}")
-    pred = pred.T  # N × (4+C)
     class_scores = pred[:, 4:]
     cls = class_scores.argmax(axis=1)
     score = class_scores[np.arange(len(cls)), cls]
@@ -129,7 +131,8 @@ class YoloDetector:
     def detect(self, bgr: np.ndarray) -> list[tuple[str, float, tuple[float, float, float, float]]]:
         tensor, lb = letterbox(bgr, self.size)
         (output,) = self.session.run(None, {self.input_name: tensor})[:1]
-        found = decode(output, lb, (bgr.shape[1], bgr.shape[0]), self.conf_threshold, self.iou_threshold)
+        found = decode(output, lb, (bgr.shape[1], bgr.shape[0]), self.conf_threshold, self.iou_threshold,
+                       len(self.names))
         return [(self.names[c] if c < len(self.names) else f"class{c}", s, box) for c, s, box in found]
 
 
