@@ -68,8 +68,11 @@ def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> list[int
     return keep
 
 
+Found = list[tuple[int, float, tuple[float, float, float, float]]]
+
+
 def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_threshold: float,
-           iou_threshold: float, classes: int | None = None) -> list[tuple[int, float, tuple[float, float, float, float]]]:
+           iou_threshold: float, classes: int | None = None) -> Found:
     """(class index, score, (x, y, w, h) in original image px) for a 1×(4+C)×N YOLO output (or 1×N×(4+C) when
     `classes` says which axis holds the 4+C attributes)."""
     pred = np.asarray(output)[0]
