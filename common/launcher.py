@@ -56,6 +56,8 @@ def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
         vision = ["--backend", args.vision_backend]
         if args.model:
             vision += ["--model", args.model]
+        if args.vision_labels:
+            vision += ["--labels", args.vision_labels]
         specs.append(ServiceSpec("vision", ["services.vision", *vision]))
     if not args.no_gesture:
         gesture = ["--mirrored"] if args.mirrored else []
@@ -207,6 +209,8 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--loop", action="store_true", help="loop a video file or image folder")
     p.add_argument("--vision-backend", choices=("color", "onnx"), default="color")
     p.add_argument("--model", default=None, help="ONNX model path for --vision-backend onnx")
+    p.add_argument("--vision-labels", default=None, metavar="FILE",
+                   help='colour -> label JSON for the color backend, e.g. data/demo/labels.json ({"*": "candy"})')
     p.add_argument("--no-vision", action="store_true", help="do not start the vision service")
     p.add_argument("--no-gesture", action="store_true", help="do not start the gesture service")
     p.add_argument("--mirrored", action="store_true", help="the camera image is mirrored (selfie view)")

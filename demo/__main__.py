@@ -169,7 +169,7 @@ def main() -> int:
     try:
         print(f"starting router ({endpoint}), vision, gesture, speech and fusion ...", flush=True)
         launcher.start([
-            ServiceSpec("vision", ["services.vision"]),
+            ServiceSpec("vision", ["services.vision", "--labels", str(SCENES / "labels.json")]),
             ServiceSpec("gesture", ["services.gesture"]),
             ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),
             ServiceSpec("fusion", ["services.fusion"]),
