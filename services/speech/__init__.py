@@ -1,0 +1,1 @@
+"""Speech service: audio -> voice activity -> offline recognition -> timed Transcripts."""

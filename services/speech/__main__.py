@@ -1,0 +1,262 @@
+"""Process shell of the speech service: audio -> VAD -> recogniser -> Transcript on <prefix>/speech/<mic>/transcript."""
+
+from __future__ import annotations
+
+import queue
+import sys
+import threading
+import time
+
+import numpy as np
+
+from common.runner import Delivery, Service, main_exit, service_parser
+from common.schema import AudioChunk
+from services.speech.audio import AudioError, pcm_to_mono, read_wav, wav_files
+from services.speech.grammar import normalise
+from services.speech.pipeline import Heard, MicStream
+from services.speech.recognizers import BackendError, PocketsphinxRecognizer, WhisperRecognizer
+from services.speech.vad import VadConfig, make_segmenter
+
+EPILOG = """\
+examples:
+  hri-speech --input wav --wav demo/audio --exit-when-done    # every .wav of a folder, name order, fast
+  hri-speech --input wav --wav a.wav b.wav --realtime --gap 2 --wait-for fusion,vision
+  hri-speech --input mic --device 2                            # a local microphone (sounddevice)
+  hri-speech --input zenoh                                     # AudioChunks from <prefix>/audio/*/pcm
+  hri-speech --backend text                                    # type commands, one per line
+  hri-speech --backend whisper --model models/whisper-base.en --input mic
+"""
+
+CHUNK_SECONDS = 0.02  # WAV and mic audio enter the pipeline in 20 ms chunks, like a live source
+IDLE_FLUSH_SECONDS = 1.0  # a zenoh mic silent this long has ended its utterance
+
+
+def build_parser():
+    parser = service_parser("speech", "Turn speech into Transcripts on <prefix>/speech/<mic>/transcript.", EPILOG)
+    parser.add_argument("--input", choices=("wav", "mic", "zenoh"), default=None,
+                        help="audio source (default wav if --wav is given, else mic); ignored by --backend text")
+    parser.add_argument("--wav", nargs="+", default=[], metavar="PATH", help="WAV files or folders (name order)")
+    parser.add_argument("--realtime", action="store_true", help="play WAVs at speed (default: as fast as possible)")
+    parser.add_argument("--gap", type=float, default=0.5, help="seconds of silence between WAV files (default 0.5)")
+    parser.add_argument("--wait-for", default="", metavar="SERVICE[,SERVICE...]",
+                        help="before playing, wait until these services' liveliness tokens are present")
+    parser.add_argument("--exit-when-done", action="store_true", help="exit after the last WAV or end of stdin")
+    parser.add_argument("--device", default=None, help="sounddevice input device (index or name)")
+    parser.add_argument("--mic", default="mic0", help="microphone id for keys with wav/mic/text input (default mic0)")
+    parser.add_argument("--backend", choices=("pocketsphinx", "whisper", "text"), default="pocketsphinx",
+                        help="recogniser (default pocketsphinx; text reads lines from stdin)")
+    parser.add_argument("--model", default=None,
+                        help="whisper: CTranslate2 model folder; pocketsphinx: acoustic model folder (optional)")
+    parser.add_argument("--min-confidence", type=float, default=0.5,
+                        help="publish nothing below this recogniser confidence (default 0.5)")
+    parser.add_argument("--min-silence", type=float, default=VadConfig.min_silence,
+                        help=f"seconds of silence that end an utterance (default {VadConfig.min_silence})")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.input is None:
+        args.input = "wav" if args.wav else "mic"
+    if args.backend != "text" and args.input == "wav" and not args.wav:
+        parser.error("--input wav needs --wav PATH [PATH ...]")
+    if not 0.0 <= args.min_confidence <= 1.0:
+        parser.error("--min-confidence must be within 0–1")
+
+    service = Service("speech", args)
+    if args.backend == "text":
+        main_exit(service.run(loop=lambda stop: read_stdin(service, args, stop)))
+
+    try:
+        recogniser = make_recogniser(args, service)
+    except BackendError as exc:
+        service.log.error("%s", exc)
+        main_exit(2)
+    vad = VadConfig(min_silence=args.min_silence, post_pad=min(VadConfig.post_pad, args.min_silence))
+
+    def count(name: str, detail: str) -> None:
+        if name in ("not_a_command", "low_confidence", "too_short", "utterance_cut", "clock_resync",
+                    "format_changed") and detail:
+            service.log.info("%s", detail)
+        service.counters.add(name)
+
+    def new_stream(mic: str) -> MicStream:
+        return MicStream(mic, service.source, recogniser, lambda: make_segmenter(vad), count)
+
+    def publish(heard: list[Heard]) -> None:
+        for h in heard:
+            t = h.transcript
+            service.publish(service.keys.transcript(t.mic), t, lossless=True)
+            service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
+
+    if args.input == "zenoh":
+        run_zenoh(service, new_stream, publish)
+    elif args.input == "wav":
+        main_exit(service.run(loop=lambda stop: play_wavs(service, args, new_stream(args.mic), publish, stop)))
+    else:
+        main_exit(service.run(loop=lambda stop: listen_mic(service, args, new_stream(args.mic), publish, stop)))
+
+
+def make_recogniser(args, service: Service):
+    if args.backend == "whisper":
+        return WhisperRecognizer(args.model, args.min_confidence)
+    started = time.monotonic()
+    rec = PocketsphinxRecognizer(args.min_confidence, args.model, log=service.log.warning)
+    for word, pron in rec.derived.items():
+        service.log.info("grammar: %r is not in the dictionary; pronounced as %s", word, pron)
+    service.log.info("pocketsphinx ready in %.1f s (%d words in the grammar)", time.monotonic() - started,
+                     len(rec.grammar.words()))
+    return rec
+
+
+def wait_for_services(service: Service, names: list[str], stop: threading.Event) -> bool:
+    """Block until every named service has a liveliness token. False if asked to stop first."""
+    assert service.session is not None
+    started = last_log = time.monotonic()
+    while not stop.is_set():
+        missing = []
+        for name in names:
+            replies = service.session.liveliness().get(service.keys.alive(name, "*"), timeout=1.0)
+            if not any(r.ok is not None for r in replies):
+                missing.append(name)
+        if not missing:
+            service.log.info("%s alive; starting", ", ".join(names))
+            return True
+        if time.monotonic() - last_log >= 5.0:
+            last_log = time.monotonic()
+            service.log.info("waiting for %s (%.0f s so far); are they running and connected to the same router?",
+                             ", ".join(missing), last_log - started)
+        stop.wait(0.2)
+    return False
+
+
+def play_wavs(service: Service, args, stream: MicStream, publish, stop: threading.Event) -> None:
+    names = [n.strip() for n in args.wait_for.split(",") if n.strip()]
+    if names and not wait_for_services(service, names, stop):
+        return
+    files = wav_files(args.wav)
+    if not files:
+        service.log.error("no .wav files in %s", " ".join(args.wav))
+    clock = time.time()  # source time of the next file's first sample
+    for i, path in enumerate(files):
+        if stop.is_set():
+            return
+        try:
+            wav = read_wav(path)
+        except AudioError as exc:
+            service.counters.reject(exc.reason, str(exc))
+            continue
+        service.log.info("playing %s (%d/%d, %.1f s, %d Hz, %d ch)", path.name, i + 1, len(files), wav.seconds,
+                         wav.rate, wav.channels)
+        if args.realtime:
+            clock = max(clock, time.time())
+        step = max(1, int(wav.rate * CHUNK_SECONDS))
+        wall0 = time.monotonic()
+        for offset in range(0, len(wav.samples), step):
+            if stop.is_set():
+                return
+            stamp = clock + offset / wav.rate
+            if args.realtime:
+                delay = wall0 + offset / wav.rate - time.monotonic()
+                if delay > 0 and stop.wait(delay):
+                    return
+            publish(stream.feed(wav.samples[offset:offset + step], wav.rate, stamp))
+        publish(stream.flush())
+        clock += wav.seconds + args.gap
+        if args.realtime and i + 1 < len(files) and stop.wait(args.gap):
+            return
+    service.log.info("played %d file(s)%s", len(files), "" if args.exit_when_done else "; idle until stopped")
+    if not args.exit_when_done:
+        stop.wait()
+
+
+def listen_mic(service: Service, args, stream: MicStream, publish, stop: threading.Event) -> None:
+    try:
+        import sounddevice as sd
+    except (ImportError, OSError) as exc:
+        service.fail(2, f"cannot use a microphone: {exc}. Install PortAudio (`sudo apt-get install "
+                        "libportaudio2`) and `pip install 'hri-fusion[mic]'`, or use --input wav/zenoh")
+        return
+    device = int(args.device) if args.device is not None and args.device.isdigit() else args.device
+    try:
+        info = sd.query_devices(device, "input")
+    except Exception as exc:
+        service.fail(2, f"no usable input device {args.device or '(default)'}: {exc}. "
+                        "List devices with `python -m sounddevice`")
+        return
+    rate = int(info["default_samplerate"])
+    chunks: queue.Queue[tuple[np.ndarray, float]] = queue.Queue()
+
+    def callback(indata, frames, time_info, status) -> None:
+        if status:
+            service.counters.add("mic_overflow")
+        # stamp of the first sample: now minus how long ago the ADC captured it
+        lag = max(0.0, time_info.currentTime - time_info.inputBufferAdcTime) if time_info.inputBufferAdcTime else 0.0
+        chunks.put((pcm_to_mono(bytes(indata), 1), time.time() - lag))
+
+    try:
+        with sd.RawInputStream(samplerate=rate, channels=1, dtype="int16", device=device,
+                               blocksize=int(rate * CHUNK_SECONDS), callback=callback):
+            service.log.info("listening on %s at %d Hz", info["name"], rate)
+            while not stop.is_set():
+                try:
+                    samples, stamp = chunks.get(timeout=0.2)
+                except queue.Empty:
+                    continue
+                publish(stream.feed(samples, rate, stamp))
+    except Exception as exc:
+        service.fail(2, f"microphone failed: {exc}")
+
+
+def run_zenoh(service: Service, new_stream, publish) -> None:
+    streams: dict[str, MicStream] = {}
+    last_seen: dict[str, float] = {}
+
+    def on_chunk(delivery: Delivery) -> None:
+        chunk: AudioChunk = delivery.sample
+        try:
+            samples = pcm_to_mono(chunk.data, chunk.channels)
+            stream = streams.get(chunk.mic)
+            if stream is None:
+                stream = streams[chunk.mic] = new_stream(chunk.mic)
+                service.log.info("audio from mic %r: %d Hz, %d channel(s)", chunk.mic, chunk.rate, chunk.channels)
+            last_seen[chunk.mic] = time.monotonic()
+            publish(stream.feed(samples, chunk.rate, chunk.stamp))
+        except AudioError as exc:
+            service.counters.reject(exc.reason, str(exc), delivery.key)
+
+    def tick() -> None:
+        now = time.monotonic()
+        for mic, seen in list(last_seen.items()):
+            if now - seen > IDLE_FLUSH_SECONDS:
+                del last_seen[mic]
+                publish(streams[mic].flush())
+
+    if not service.connect():
+        main_exit(0)
+    service.subscribe(service.keys.audio("*"), AudioChunk, on_chunk, latest=False, maxlen=2000, monotonic=True)
+    main_exit(service.run(tick=tick, tick_interval=0.1))
+
+
+def read_stdin(service: Service, args, stop: threading.Event) -> None:
+    """--backend text: each non-empty line of stdin becomes a final Transcript."""
+    from common.cli import make_transcript
+    key = service.keys.transcript(args.mic)
+    service.log.info("type commands, one per line (Ctrl-D ends)")
+    for line in sys.stdin:
+        if stop.is_set():
+            return
+        text = normalise(line)
+        if not text:
+            service.counters.add("empty_line")
+            continue
+        t = make_transcript(text, mic=args.mic, end=time.time(), confidence=1.0, source=service.source)
+        service.publish(key, t, lossless=True)
+        service.log.info("typed %r", text)
+    if not args.exit_when_done:
+        stop.wait()
+
+
+if __name__ == "__main__":
+    main()

