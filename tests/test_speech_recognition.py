@@ -94,3 +94,27 @@ def test_silence_only_gives_no_transcript(recogniser, tmp_path):
     concatenate([], silent, gap=3.0)
     transcripts, counted, _ = run_stream(recogniser, silent)
     assert transcripts == [] and "utterances" not in counted
+
+
+def test_a_closed_command_list_recognises_every_sentence_of_it(tmp_path):
+    """--commands: the demo's command list (data/demo/commands.txt), every sentence spoken in both voices.
+    Measured here: 29/29 in each voice (against 50-60 % WER with the open grammar)."""
+    commands_file = Path(__file__).resolve().parent.parent / "data" / "demo" / "commands.txt"
+    rec = PocketsphinxRecognizer(commands=commands_file.read_text().splitlines())
+    assert len(rec.commands) >= 25 and "pick up that one" in rec.commands
+    wrong = []
+    for voice in VOICES:
+        for i, text in enumerate(rec.commands):
+            heard, _, _ = run_stream(rec, synthesize(text, tmp_path / f"{voice}-{i}.wav", voice=voice))
+            if [t.text for t in heard] != [text]:
+                wrong.append((voice, text, [t.text for t in heard]))
+    assert len(wrong) <= 2, wrong  # at most one slip per voice
+
+
+def test_a_command_list_refuses_sentences_outside_the_language():
+    logged = []
+    rec = PocketsphinxRecognizer(commands=["pick up the red one", "launch the rockets", "# a comment", ""],
+                                 log=logged.append)
+    assert rec.commands == ["pick up the red one"]
+    assert any("launch the rockets" in line for line in logged)
+    assert rec.matches("pick up the red one") and not rec.matches("pick up the blue one")

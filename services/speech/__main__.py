@@ -6,6 +6,7 @@ import queue
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -49,6 +50,10 @@ def build_parser():
                         help="whisper: CTranslate2 model folder; pocketsphinx: acoustic model folder (optional)")
     parser.add_argument("--min-confidence", type=float, default=0.5,
                         help="publish nothing below this recogniser confidence (default 0.5)")
+    parser.add_argument("--commands", default=None, metavar="FILE",
+                        help="pocketsphinx: recognise only these sentences (one per line, in the command language) "
+                             "instead of the whole open grammar — much more robust when the robot's commands are "
+                             "known (docs/speech.md)")
     parser.add_argument("--min-silence", type=float, default=VadConfig.min_silence,
                         help=f"seconds of silence that end an utterance (default {VadConfig.min_silence})")
     return parser
@@ -102,7 +107,15 @@ def make_recogniser(args, service: Service):
     if args.backend == "whisper":
         return WhisperRecognizer(args.model, args.min_confidence)
     started = time.monotonic()
-    rec = PocketsphinxRecognizer(args.min_confidence, args.model, log=service.log.warning)
+    commands = None
+    if args.commands:
+        try:
+            commands = Path(args.commands).read_text().splitlines()
+        except OSError as exc:
+            raise BackendError(f"cannot read the command list {args.commands!r}: {exc}") from None
+    rec = PocketsphinxRecognizer(args.min_confidence, args.model, log=service.log.warning, commands=commands)
+    if rec.commands is not None:
+        service.log.info("closed command list: %d sentences from %s", len(rec.commands), args.commands)
     for word, pron in rec.derived.items():
         service.log.info("grammar: %r is not in the dictionary; pronounced as %s", word, pron)
     service.log.info("pocketsphinx ready in %.1f s (%d words in the grammar)", time.monotonic() - started,

@@ -61,7 +61,9 @@ class PocketsphinxRecognizer:
     name = "pocketsphinx"
 
     def __init__(self, min_confidence: float = 0.5, model_dir: str | None = None,
-                 log: Callable[[str], None] = lambda msg: None):
+                 log: Callable[[str], None] = lambda msg: None, commands: list[str] | None = None):
+        """`commands`: a closed list of sentences (each must be in the command language) to recognise
+        instead of the whole open grammar — far more robust when a deployment knows its commands."""
         try:
             import pocketsphinx
         except ImportError as exc:
@@ -88,16 +90,22 @@ class PocketsphinxRecognizer:
         self.grammar: Grammar = build_grammar(lambda w: self.decoder.lookup_word(w) is not None)
         for phrase, why in self.grammar.skipped.items():
             log(f"grammar: left out {phrase!r} ({why}); add it to the dictionary to recognise it")
-        with tempfile.NamedTemporaryFile("w", suffix=".fsg", delete=False) as f:
-            f.write(self.grammar.fsg().text())
-        try:
-            self.decoder.add_fsg("commands", self.decoder.read_fsg(f.name))
-        finally:
-            os.unlink(f.name)
-        self.decoder.activate_search("commands")
         self.logmath = self.decoder.get_logmath()
         self.min_confidence = min_confidence
         self.matches = self.grammar.matcher()
+        if commands is not None:
+            self.commands = closed_list(commands, self.matches, self.decoder.lookup_word, log)
+            self.decoder.add_jsgf_string("commands", closed_list_jsgf(self.commands))
+            self.matches = set(self.commands).__contains__
+        else:
+            self.commands = None
+            with tempfile.NamedTemporaryFile("w", suffix=".fsg", delete=False) as f:
+                f.write(self.grammar.fsg().text())
+            try:
+                self.decoder.add_fsg("commands", self.decoder.read_fsg(f.name))
+            finally:
+                os.unlink(f.name)
+        self.decoder.activate_search("commands")
 
     def _decode(self, decoder, pcm: bytes) -> list:
         decoder.start_utt()
@@ -128,6 +136,30 @@ class PocketsphinxRecognizer:
         """Logistic map of the per-frame fit: FIT_CENTRE -> 0.5. Measured on espeak-ng speech: commands
         mostly -3.4 to -6.0, forced non-commands -6.0 to -6.8 (docs/speech.md)."""
         return float(1.0 / (1.0 + math.exp(-(fit_per_frame - FIT_CENTRE) / FIT_SCALE)))
+
+
+def closed_list(sentences: list[str], in_language: Callable[[str], bool], lookup: Callable[[str], str | None],
+                log: Callable[[str], None]) -> list[str]:
+    """The sentences of a closed command list that the language and the dictionary can take, normalised."""
+    kept = []
+    for raw in sentences:
+        text = " ".join(raw.lower().replace(",", " ").replace(".", " ").split())
+        if not text or text.startswith("#"):
+            continue
+        if not in_language(text):
+            log(f"command list: {raw!r} is not a sentence of the command language (common/language.py); left out")
+        elif any(lookup(w) is None for w in text.split()):
+            log(f"command list: {raw!r} has a word the pronunciation dictionary lacks; left out")
+        elif text not in kept:
+            kept.append(text)
+    if not kept:
+        raise BackendError("the command list has no usable sentence: one command per line, in the command language")
+    return kept
+
+
+def closed_list_jsgf(sentences: list[str]) -> str:
+    alternatives = " | ".join(f"( {s} )" for s in sentences)
+    return f"#JSGF V1.0;\ngrammar closed;\npublic <command> = {alternatives};\n"
 
 
 FIT_CENTRE = -6.3
