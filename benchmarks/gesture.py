@@ -12,8 +12,6 @@ Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300]
 
 from __future__ import annotations
 
-import argparse
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -22,7 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import cv2  # noqa: E402
 
-from benchmarks.lag import frame_lag  # noqa: E402
+from benchmarks.lag import frame_benchmark_main, print_throughput  # noqa: E402
 from common.schema import Hands  # noqa: E402
 from services.gesture.landmarks import HandLandmarker  # noqa: E402
 from services.gesture.temporal import GestureTracker  # noqa: E402
@@ -52,20 +50,12 @@ def throughput(frames: list, n: int, repeats: int = 3) -> None:
             tracker.update(i / 30.0, landmarker.detect(sequence[i % len(sequence)]))
         service_fps.append(n / (time.perf_counter() - t0))
         landmarker.close()
-    b, s = statistics.median(bare_fps), statistics.median(service_fps)
-    print(f"throughput on {n} frames 640x480 of real hands (median of {repeats}):")
-    print(f"  bare MediaPipe Hands.process   {b:7.1f} frames/s")
-    print(f"  gesture service path           {s:7.1f} frames/s   ratio {s / b:.2f}x (target >= 0.90x)")
+    print_throughput(f"throughput on {n} frames 640x480 of real hands", "bare MediaPipe Hands.process", bare_fps,
+                     "gesture service path", service_fps)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
-    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
-    args = parser.parse_args()
-    frames = hand_frames()
-    throughput(frames, args.frames)
-    frame_lag("gesture", [], "hri/gesture/bench/hands", Hands, frames, args.seconds)
+    frame_benchmark_main(__doc__, "gesture", "hri/gesture/bench/hands", Hands, hand_frames, throughput)
 
 
 if __name__ == "__main__":

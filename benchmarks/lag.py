@@ -1,8 +1,12 @@
-"""End-to-end lag of a frame-consuming service: frames at a fixed rate in, its output's stamp vs receive time."""
+"""What the frame-consuming services' benchmarks share: the side-by-side throughput report, the command line,
+and the end-to-end lag of a real service process (frames at a fixed rate in, its output's stamp vs receive time)."""
 
 from __future__ import annotations
 
+import argparse
+import statistics
 import time
+from typing import Callable
 
 import cv2
 import numpy as np
@@ -64,3 +68,22 @@ def frame_lag(service: str, service_args: list[str], out_key: str, schema: type,
     if lags:
         p50, p99 = np.percentile([lag for _, lag in lags], [50, 99]) * 1000
         print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")
+
+
+def print_throughput(title: str, bare_label: str, bare_fps: list[float], service_label: str,
+                     service_fps: list[float]) -> None:
+    b, s = statistics.median(bare_fps), statistics.median(service_fps)
+    print(f"{title} (median of {len(bare_fps)}):")
+    print(f"  {bare_label:32s} {b:7.1f} frames/s")
+    print(f"  {service_label:32s} {s:7.1f} frames/s   ratio {s / b:.2f}x (target >= 0.90x)")
+
+
+def frame_benchmark_main(doc: str, service: str, out_key: str, schema: type, frames: Callable[[], list],
+                         throughput: Callable[[list, int], None]) -> None:
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
+    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
+    args = parser.parse_args()
+    images = frames()
+    throughput(images, args.frames)
+    frame_lag(service, [], out_key, schema, images, args.seconds)

@@ -12,7 +12,6 @@ published at real-time pace over a local router.
 from __future__ import annotations
 
 import argparse
-import statistics
 import sys
 import tempfile
 import time
@@ -67,7 +66,7 @@ def main() -> None:
             heard += stream.feed(wav.samples[off:off + 320], 16000, 1e9 + off / 16000)
         heard += stream.flush()
         core = time.perf_counter() - t
-        print(f"\nreal-time factor (compute seconds per audio second; lower is faster)")
+        print("\nreal-time factor (compute seconds per audio second; lower is faster)")
         print(f"  bare decoder, {len(files)} files, {audio_seconds:.1f} s of audio : RTF {bare / audio_seconds:.3f}")
         print(f"  service core, one {wav.seconds:.1f} s stream (VAD + decode)  : RTF {core / wav.seconds:.3f} "
               f"({len(heard)} transcripts)")

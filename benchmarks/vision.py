@@ -14,8 +14,6 @@ Usage: python benchmarks/vision.py [--seconds 60] [--frames 300]
 
 from __future__ import annotations
 
-import argparse
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -25,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks.lag import frame_lag  # noqa: E402
+from benchmarks.lag import frame_benchmark_main, print_throughput  # noqa: E402
 from common.schema import Detections  # noqa: E402
 from services.vision.color import CHROMATIC, HUE_RANGES  # noqa: E402
 from services.vision.core import VisionPipeline  # noqa: E402
@@ -75,20 +73,12 @@ def throughput(frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
         for i in range(n):
             pipeline.process("cam0", frames[i % len(frames)])
         service_fps.append(n / (time.perf_counter() - t0))
-    b, s = statistics.median(bare_fps), statistics.median(service_fps)
-    print(f"throughput on {n} frames 640x480 (median of {repeats}):")
-    print(f"  bare OpenCV segmentation  {b:7.1f} frames/s")
-    print(f"  vision service path       {s:7.1f} frames/s   ratio {s / b:.2f}x (target >= 0.90x)")
+    print_throughput(f"throughput on {n} frames 640x480", "bare OpenCV segmentation", bare_fps,
+                     "vision service path", service_fps)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
-    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
-    args = parser.parse_args()
-    frames = frames_640()
-    throughput(frames, args.frames)
-    frame_lag("vision", [], "hri/vision/bench/objects", Detections, frames, args.seconds)
+    frame_benchmark_main(__doc__, "vision", "hri/vision/bench/objects", Detections, frames_640, throughput)
 
 
 if __name__ == "__main__":
