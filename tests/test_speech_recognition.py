@@ -69,7 +69,10 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
         assert wer <= WER_BOUND[cond], f"WER {wer:.3f} for {cond} is above the measured bound {WER_BOUND[cond]}"
 
 
-def test_non_command_speech_is_mostly_not_published(recogniser, tmp_path):
+def test_non_command_speech_is_mostly_not_published(tmp_path):
+    # a recogniser of its own: pocketsphinx's live cepstral mean adapts to what it decoded before, so the
+    # outcome would otherwise depend on which tests ran first (docs/speech.md: rejection is weak)
+    recogniser = PocketsphinxRecognizer()
     files = [synthesize(text, tmp_path / f"non-{i}.wav", voice="en-us+f3") for i, text in enumerate(NON_COMMANDS)]
     transcripts, counted, _ = run_stream(recogniser, concatenate(files, tmp_path / "non.wav", gap=0.8))
     rejected = counted.count("not_a_command") + counted.count("low_confidence")

@@ -78,7 +78,9 @@ class PocketsphinxRecognizer:
         # dither: digital silence (exact zeros) otherwise turns into words
         # maxhmmpf: the grammar fans out to ~1,900 words per state; capping active HMMs per frame took
         # decoding from ~1x to ~0.07x real time here at no loss of accuracy (docs/speech.md)
-        common = dict(hmm=str(hmm), dict=dict_path, loglevel="FATAL", dither=True, samprate=RATE, maxhmmpf=2000)
+        # seed: dither is random noise; a fixed seed makes the same audio decode the same way every time
+        common = dict(hmm=str(hmm), dict=dict_path, loglevel="FATAL", dither=True, seed=1, samprate=RATE,
+                      maxhmmpf=2000)
         self.decoder = pocketsphinx.Decoder(lm=None, **common)
         self.derived: dict[str, str] = {}
         for word in sorted(_language_words()):
