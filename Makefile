@@ -15,8 +15,10 @@ test: setup
 test-fast: setup
 	@$(PY) -m pytest -q -m "not integration and not docker" $(PYTEST_ARGS)
 
+BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay
+
 bench: setup
-	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done
 
 clean:
 	rm -rf .venv .pytest_cache
