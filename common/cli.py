@@ -19,7 +19,9 @@ from common.codec import decode, encode, unpack
 from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
 from common.schema import InvalidSample, Stats, Transcript, Word
-from common.transport import add_zenoh_arguments, init_zenoh_logging, open_session, resolve, zenoh_config
+from common.transport import (
+    add_zenoh_arguments, init_zenoh_logging, live_tokens, open_session, resolve, zenoh_config,
+)
 
 EXAMPLES = """\
 examples:
@@ -203,12 +205,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     stop = threading.Event()
     session = _open(args, stop)
     keys = Keys(args.prefix)
-    found = []
-    for reply in session.liveliness().get(keys.alive("*", "*"), timeout=args.timeout):
-        if reply.ok is not None:
-            parsed = keys.parse_alive(str(reply.ok.key_expr))
-            if parsed:
-                found.append(parsed)
+    found = live_tokens(session, keys, timeout=args.timeout)
     session.close()
     for service, instance in sorted(found):
         print(f"{service:10s} {instance}")

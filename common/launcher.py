@@ -20,7 +20,7 @@ from typing import IO, Callable
 import zenoh
 
 from common.keys import Keys
-from common.transport import DEFAULT_ENDPOINT, open_client
+from common.transport import DEFAULT_ENDPOINT, live_tokens, open_client
 
 STOP_GRACE_S = 3.0
 
@@ -154,13 +154,7 @@ class Launcher:
 
     def live_services(self) -> set[str]:
         assert self.session is not None
-        live = set()
-        for reply in self.session.liveliness().get(self.keys.alive(), timeout=1.0):
-            if reply.ok is not None:
-                parsed = self.keys.parse_alive(str(reply.ok.key_expr))
-                if parsed:
-                    live.add(parsed[0])
-        return live
+        return {service for service, _ in live_tokens(self.session, self.keys)}
 
     def wait_live(self, names: list[str], timeout: float) -> None:
         deadline = time.monotonic() + timeout
@@ -239,10 +233,11 @@ def cmd_up(args: argparse.Namespace) -> int:
         launcher.start(specs, args.live_timeout)
         launcher.say(f"[hri up ] all up; watch with: hri echo '{prefix}/fusion/**' "
                      f"--connect {launcher.endpoint}   (Ctrl-C stops everything)")
+        reported: set[int] = set()
         while not stop.wait(0.5):
             for child in launcher.children:
-                if not child.alive() and not getattr(child, "reported", False):
-                    child.reported = True  # type: ignore[attr-defined]
+                if not child.alive() and child.popen.pid not in reported:
+                    reported.add(child.popen.pid)
                     launcher.say(f"[hri up ] {child.name} exited with code {child.popen.returncode}")
     except RuntimeError as exc:
         launcher.say(f"[hri up ] {exc}")

@@ -11,7 +11,7 @@ import time
 
 import zenoh
 
-from common.keys import DEFAULT_PREFIX
+from common.keys import DEFAULT_PREFIX, Keys
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
@@ -116,3 +116,15 @@ def client_config(endpoint: str) -> zenoh.Config:
 def open_client(endpoint: str) -> zenoh.Session:
     init_zenoh_logging()
     return zenoh.open(client_config(endpoint))
+
+
+def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*",
+                timeout: float = 1.0) -> list[tuple[str, str]]:
+    """(service, instance) of every liveliness token `hri/alive/{service}/*` present on the router."""
+    found = []
+    for reply in session.liveliness().get(keys.alive(service, "*"), timeout=timeout):
+        if reply.ok is not None:
+            parsed = keys.parse_alive(str(reply.ok.key_expr))
+            if parsed:
+                found.append(parsed)
+    return found

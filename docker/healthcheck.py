@@ -31,7 +31,7 @@ def service_alive(service: str, timeout: float) -> tuple[bool, str]:
     import zenoh
 
     from common.keys import Keys
-    from common.transport import resolve, zenoh_config
+    from common.transport import live_tokens, resolve, zenoh_config
 
     args = resolve(argparse.Namespace(connect=None, listen=None, mode=None, zenoh_config=None, prefix=None))
     keys = Keys(args.prefix)
@@ -45,12 +45,7 @@ def service_alive(service: str, timeout: float) -> tuple[bool, str]:
     wanted = os.environ.get("HRI_INSTANCE")
     host_prefix = socket.gethostname() + "-"
     try:
-        instances = []
-        for reply in session.liveliness().get(keys.alive(service, "*"), timeout=timeout):
-            if reply.ok is not None:
-                parsed = keys.parse_alive(str(reply.ok.key_expr))
-                if parsed:
-                    instances.append(parsed[1])
+        instances = [instance for _, instance in live_tokens(session, keys, service, timeout)]
     finally:
         session.close()
     mine = [i for i in instances if (i == wanted if wanted else i.startswith(host_prefix))]

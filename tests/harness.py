@@ -20,7 +20,7 @@ from common.codec import decode
 from common.keys import Keys
 from common.runner import SamplePublisher
 from common.schema import Sample
-from common.transport import open_client
+from common.transport import live_tokens, open_client
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "data"
@@ -180,11 +180,7 @@ class Client:
         raise AssertionError(f"service {service!r} did not answer a stats query")
 
     def alive(self, timeout: float = 1.0) -> list[tuple[str, str]]:
-        found = []
-        for reply in self.session.liveliness().get(self.keys.alive(), timeout=timeout):
-            if reply.ok is not None:
-                found.append(self.keys.parse_alive(str(reply.ok.key_expr)))
-        return found
+        return live_tokens(self.session, self.keys, timeout=timeout)
 
     def wait_alive(self, service: str, timeout: float = 30.0) -> None:
         deadline = time.monotonic() + timeout

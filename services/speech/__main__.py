@@ -12,6 +12,7 @@ import numpy as np
 
 from common.runner import Delivery, Service, main_exit, service_parser
 from common.schema import AudioChunk
+from common.transport import live_tokens
 from services.speech.audio import AudioError, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
 from services.speech.pipeline import Heard, MicStream
@@ -128,11 +129,8 @@ def wait_for_services(service: Service, names: list[str], stop: threading.Event)
     assert service.session is not None
     started = last_log = time.monotonic()
     while not stop.is_set():
-        missing = []
-        for name in names:
-            replies = service.session.liveliness().get(service.keys.alive(name, "*"), timeout=1.0)
-            if not any(r.ok is not None for r in replies):
-                missing.append(name)
+        live = {name for name, _ in live_tokens(service.session, service.keys)}
+        missing = [name for name in names if name not in live]
         if not missing:
             service.log.info("%s alive; starting", ", ".join(names))
             return True
