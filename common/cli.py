@@ -15,7 +15,7 @@ from typing import Any
 
 import zenoh
 
-from common.codec import decode, encode, unpack
+from common.codec import decode, unpack
 from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
 from common.schema import InvalidSample, Stats, Transcript, Word
@@ -142,15 +142,19 @@ def _from_json(value: Any) -> Any:
 
 
 def _publish_once(args: argparse.Namespace, key: str, sample: Any) -> int:
-    payload = encode(sample)
     stop = threading.Event()
     session = _open(args, stop)
     pub = SamplePublisher(session, key, lossless=True)
-    pub._pub.put(payload)
-    time.sleep(0.1)  # let the router forward it before the session goes away
-    pub.undeclare()
-    session.close()
-    return 0
+    try:
+        pub.put(sample)  # validates on the way out
+        time.sleep(0.1)  # let the router forward it before the session goes away
+        return 0
+    except InvalidSample as exc:
+        print(f"hri {args.command}: not a valid {type(sample).__name__}: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        pub.undeclare()
+        session.close()
 
 
 def cmd_pub(args: argparse.Namespace) -> int:
