@@ -102,7 +102,7 @@ def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
                                  data=samples[i:i + per_chunk].tobytes()))
 
 
-def describe(key: str, sample: FusedCommand | Clarification) -> str:
+def describe(sample: FusedCommand | Clarification) -> str:
     if isinstance(sample, Clarification):
         names = ", ".join(f"{c.color or ''} {c.label} {c.id} at ({c.center[0]:.0f},{c.center[1]:.0f})".strip()
                           for c in sample.candidates)
@@ -227,7 +227,7 @@ def main() -> int:
             except queue.Empty:
                 sample = None
             if sample is not None:
-                print(describe("", sample))
+                print(describe(sample))
             detections = next(iter(latest_detections.values()), None)
             problem = check(step, sample, detections)
             if problem:
