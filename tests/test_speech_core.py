@@ -41,9 +41,9 @@ def test_fsg_word_graph_accepts_exactly_what_the_matcher_accepts():
     grammar = build_grammar()
     graph = grammar.fsg()
     edges: dict[int, list[tuple[int, str | None]]] = {}
-    for a, b, w in graph.words:
+    for a, b, w, _ in graph.words:
         edges.setdefault(a, []).append((b, w))
-    for a, b in graph.nulls:
+    for a, b, _ in graph.nulls:
         edges.setdefault(a, []).append((b, None))
 
     def accepts(words: list[str]) -> bool:
@@ -64,6 +64,22 @@ def test_fsg_word_graph_accepts_exactly_what_the_matcher_accepts():
     for text in ("pick up the red cup", "stop", "put it there", "the weather is nice", "yes the red one",
                  "go to the kitchen please", "red the cup"):
         assert accepts(text.split()) == matches(text), text
+
+
+def test_fsg_word_graph_is_a_probability_model():
+    # every state but the final one passes on exactly all of its probability, so no sentence shape
+    # gets weight from nowhere (the decoder compares paths by these priors)
+    graph = build_grammar().fsg()
+    out: dict[int, float] = {}
+    for a, _, _, p in graph.words:
+        out[a] = out.get(a, 0.0) + p
+    for a, _, p in graph.nulls:
+        out[a] = out.get(a, 0.0) + p
+    assert graph.final not in out
+    assert set(out) == set(range(graph.n_states)) - {graph.final}
+    for state, total in out.items():
+        assert abs(total - 1.0) < 1e-9, (state, total)
+    assert all(0.0 < p <= 1.0 for *_, p in graph.words)
 
 
 def test_normalise_lowercases_and_drops_punctuation():

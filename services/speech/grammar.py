@@ -25,6 +25,9 @@ SELF_ROLE = ("me",)
 MODAL_ROLE = ("can", "could", "would")  # "can you ...", said as one politeness unit  # "bring it to me"
 NOUN_SUBSTITUTE_ROLE = ("ones",)  # "the red ones" ("one" is an object phrase of the language)
 MAX_PREMODIFIERS = 2  # "the small red cup"
+# Prior probability that an optional part of a sentence is left out. Tried on the espeak-ng test
+# commands, voice en-us+f3 (WER clean / 10 dB): 0.7 -> 0.34/0.51, 0.85 -> 0.33/0.49, 0.95 -> 0.34/0.53.
+SKIP_OPTIONAL = 0.85
 
 
 # -- grammar tree ------------------------------------------------------------
@@ -113,45 +116,48 @@ class Grammar:
             lines.append(f"{'public ' if i == 0 else ''}<{rule}> = {_jsgf(node, top=True)};")
         return "\n".join(lines) + "\n"
 
-    def fsg(self) -> "WordGraph":
-        """The same grammar as a word graph without weights, for pocketsphinx's FSG search.
+    def fsg(self, skip_optional: float = SKIP_OPTIONAL) -> "WordGraph":
+        """The same grammar as a weighted word graph for pocketsphinx's FSG search.
 
-        pocketsphinx's own JSGF compiler turns this grammar into ~4,000 states and ~110,000 null
-        transitions with a probability split at every choice; measured here it decoded 4-10x slower
-        than real time at ~79% WER. Compiled directly (alternatives share their end states, every
-        transition weighs 1) it is a few thousand transitions and the acoustics decide.
+        Every choice splits its probability evenly among its options and an optional part is skipped
+        with probability `skip_optional`, so a short, plain sentence is a priori likelier than one
+        padded with optional words (measured on clean espeak-ng commands: WER 0.42 -> 0.33 and
+        0.49 -> 0.36 in two voices against the same graph with all weights 1, and 5x faster). pocketsphinx's own JSGF compiler turns this grammar into
+        ~4,000 states and ~110,000 null transitions and decoded 4-10x slower than real time here;
+        compiled directly, alternatives share their end states: a few hundred states.
         """
         graph = WordGraph()
 
-        def build(node: Node, src: int, dst: int) -> None:
+        def build(node: Node, src: int, dst: int, p: float) -> None:
+            # p: the probability carried by the first transition out of src on this branch
             if isinstance(node, Phrase):
                 state = src
                 for i, word in enumerate(node.words):
                     nxt = dst if i == len(node.words) - 1 else graph.new_state()
-                    graph.words.append((state, nxt, word))
+                    graph.words.append((state, nxt, word, p if i == 0 else 1.0))
                     state = nxt
             elif isinstance(node, Ref):
-                build(self.rules[node.rule], src, dst)
+                build(self.rules[node.rule], src, dst, p)
             elif isinstance(node, Seq):
                 state = src
                 for i, item in enumerate(node.items):
                     nxt = dst if i == len(node.items) - 1 else graph.new_state()
-                    build(item, state, nxt)
+                    build(item, state, nxt, p if i == 0 else 1.0)
                     state = nxt
             elif isinstance(node, Alt):
                 for option in node.options:
-                    build(option, src, dst)
+                    build(option, src, dst, p / len(node.options))
             elif isinstance(node, Opt):
-                build(node.item, src, dst)
-                graph.nulls.append((src, dst))
+                build(node.item, src, dst, p * (1.0 - skip_optional))
+                graph.nulls.append((src, dst, p * skip_optional))
             elif isinstance(node, Plus):
                 a, b = graph.new_state(), graph.new_state()  # fresh states: the loop must not leak into siblings
-                graph.nulls += [(src, a), (b, dst), (b, a)]
-                build(node.item, a, b)
+                graph.nulls += [(src, a, p), (b, dst, skip_optional), (b, a, 1.0 - skip_optional)]  # repeats are rare
+                build(node.item, a, b, 1.0)
             else:
                 raise TypeError(node)
 
-        build(Ref(self.root), graph.start, graph.final)
+        build(Ref(self.root), graph.start, graph.final, 1.0)
         return graph
 
     def matcher(self) -> Callable[[str], bool]:
@@ -181,10 +187,10 @@ class Grammar:
 
 @dataclass
 class WordGraph:
-    """A finite-state word graph: state 0 starts, state 1 accepts."""
+    """A finite-state word graph: state 0 starts, state 1 accepts. Transitions carry probabilities."""
     n_states: int = 2
-    words: list[tuple[int, int, str]] = field(default_factory=list)
-    nulls: list[tuple[int, int]] = field(default_factory=list)
+    words: list[tuple[int, int, str, float]] = field(default_factory=list)  # (from, to, word, probability)
+    nulls: list[tuple[int, int, float]] = field(default_factory=list)  # (from, to, probability)
     start: int = 0
     final: int = 1
 
@@ -196,8 +202,8 @@ class WordGraph:
         """Sphinx FSG text format."""
         lines = [f"FSG_BEGIN {name}", f"NUM_STATES {self.n_states}", f"START_STATE {self.start}",
                  f"FINAL_STATE {self.final}"]
-        lines += [f"TRANSITION {a} {b} 1.0 {w}" for a, b, w in self.words]
-        lines += [f"TRANSITION {a} {b} 1.0" for a, b in self.nulls]
+        lines += [f"TRANSITION {a} {b} {p:.6g} {w}" for a, b, w, p in self.words]
+        lines += [f"TRANSITION {a} {b} {p:.6g}" for a, b, p in self.nulls]
         return "\n".join(lines + ["FSG_END"]) + "\n"
 
 
