@@ -81,7 +81,8 @@ def synthesize(text: str, wav_path: str | Path, voice: str = "en-us", speed: int
             argv += ["-p", str(int(pitch))]
         _run(argv + ["--", text])
         mono = Path(tmp) / "mono16k.wav"
-        _run([sox, str(raw), "-r", str(RATE), "-c", "1", "-b", "16", "-e", "signed-integer", str(mono),
+        # -R: sox dithers when it resamples; repeatable mode makes the same text give the same samples
+        _run([sox, "-R", str(raw), "-r", str(RATE), "-c", "1", "-b", "16", "-e", "signed-integer", str(mono),
               "pad", f"{lead_silence:.3f}", f"{trail_silence:.3f}"])
         samples = read_wav_int16(mono).astype(np.float64) / 32768.0
     if noise_snr_db is not None:
