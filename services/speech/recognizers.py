@@ -1,9 +1,10 @@
 """Recognition backends: one utterance of 16 kHz float audio in, words with times and confidences out.
 
-- `PocketsphinxRecognizer` (default): the command grammar compiled to a word graph, decoded with the
-  US-English model shipped in the pocketsphinx wheel. A grammar decoder forces any speech into
-  *some* command, so each result gets a confidence from how well its words fit the audio (per-frame
-  acoustic score relative to the best state of each frame); below the threshold it is rejected.
+- `PocketsphinxRecognizer` (default): the command grammar compiled to a weighted word graph, decoded
+  with the US-English model shipped in the pocketsphinx wheel, one whole utterance at a time. A
+  grammar decoder forces any speech into *some* command, so each result gets a confidence from how
+  much worse the grammar's words fit the audio than a free phone loop does; below the threshold it
+  is rejected.
 - `WhisperRecognizer`: faster-whisper with a local CTranslate2 model folder (optional extra).
 """
 
@@ -75,12 +76,11 @@ class PocketsphinxRecognizer:
             raise BackendError(f"{hmm} is not a pocketsphinx acoustic model folder (no mdef file); "
                                "leave --model unset to use the US-English model shipped in the wheel")
         dict_path = pocketsphinx.get_model_path("en-us/cmudict-en-us.dict")
-        # dither: digital silence (exact zeros) otherwise turns into words
-        # maxhmmpf: the grammar fans out to ~1,900 words per state; capping active HMMs per frame took
-        # decoding from ~1x to ~0.07x real time here at no loss of accuracy (docs/speech.md)
-        # seed: dither is random noise; a fixed seed makes the same audio decode the same way every time
-        common = dict(hmm=str(hmm), dict=dict_path, loglevel="FATAL", dither=True, seed=1, samprate=RATE,
-                      maxhmmpf=2000)
+        # maxhmmpf: the grammar fans out to ~1,900 words per state; capping active HMMs per frame keeps
+        # decoding well under real time at no loss of accuracy (docs/speech.md)
+        # bestpath off: the lattice rescoring pass cost 3-4x the decode and did not change accuracy here
+        common = dict(hmm=str(hmm), dict=dict_path, loglevel="FATAL", dither=False, samprate=RATE,
+                      maxhmmpf=2000, bestpath=False)
         self.decoder = pocketsphinx.Decoder(lm=None, **common)
         self.derived: dict[str, str] = {}
         for word in sorted(_language_words()):
@@ -107,37 +107,46 @@ class PocketsphinxRecognizer:
                 self.decoder.add_fsg("commands", self.decoder.read_fsg(f.name))
             finally:
                 os.unlink(f.name)
-        self.decoder.activate_search("commands")
+        # the reference for confidence: the best sequence of any phones, no grammar at all
+        self.decoder.add_allphone_file("phones", pocketsphinx.get_model_path("en-us/en-us-phone.lm.bin"))
 
-    def _decode(self, decoder, pcm: bytes) -> list:
-        decoder.start_utt()
-        for i in range(0, len(pcm), 4096):  # fed in pieces: one full_utt call decodes worse
-            decoder.process_raw(pcm[i:i + 4096], False, False)
-        decoder.end_utt()
-        return list(decoder.seg() or [])
+    def _decode(self, search: str, pcm: bytes) -> list:
+        """One whole utterance through one search. Whole, so the cepstral mean is this utterance's own
+        (batch CMN) and the first utterance of a stream is not decoded against a default mean (that cost
+        0.3-0.4 WER here); the features are reset first because the noise-floor tracker adapts across
+        utterances. So the result depends on this audio only, not on what was decoded before."""
+        self.decoder.reinit_feat()
+        self.decoder.activate_search(search)
+        self.decoder.start_utt()
+        self.decoder.process_raw(pcm, False, True)
+        self.decoder.end_utt()
+        return list(self.decoder.seg() or [])
 
     def recognise(self, audio: np.ndarray) -> Recognition | None:
-        pcm = (np.clip(audio, -1.0, 1.0) * 32767.0).astype("<i2").tobytes()
-        words = [s for s in self._decode(self.decoder, pcm) if not _is_filler(s.word)]
+        pcm = _dithered_pcm(audio)
+        words = [s for s in self._decode("commands", pcm) if not _is_filler(s.word)]
         if not words:
             return None  # no grammar path reached the end: certainly not a command
+        phones = [(s.start_frame, s.end_frame, _log_fit(s)) for s in self._decode("phones", pcm)]
 
-        def fit(seg_list: list) -> float:
-            # the words' acoustic likelihood relative to the best-scoring state of each frame
-            # (pocketsphinx normalises per frame), as mean log per frame: 0 is a perfect fit
-            frames = sum(s.end_frame - s.start_frame + 1 for s in seg_list)
-            return sum(math.log(max(s.ascore, 1e-300)) for s in seg_list) / max(frames, 1)
+        def gap(first: int, last: int, word_fit: float) -> float:
+            # how much worse per frame the words fit frames first..last than the free phone loop does
+            loop_fit = sum(fit * _overlap(a, b, first, last) / (b - a + 1) for a, b, fit in phones)
+            return (word_fit - loop_fit) / (last - first + 1)
 
-        utterance_fit = fit(words)
-        out = [RecognisedWord(_base_word(s.word), s.start_frame / FRAME_RATE, (s.end_frame + 1) / FRAME_RATE,
-                              self._confidence(fit([s]))) for s in words]
-        return Recognition(" ".join(w.word for w in out), self._confidence(utterance_fit), out,
-                           detail=f"acoustic fit {utterance_fit:.2f}/frame")
+        out, total_fit = [], 0.0
+        for s in words:
+            total_fit += _log_fit(s)
+            out.append(RecognisedWord(_base_word(s.word), s.start_frame / FRAME_RATE,
+                                      (s.end_frame + 1) / FRAME_RATE,
+                                      self._confidence(gap(s.start_frame, s.end_frame, _log_fit(s)))))
+        utterance_gap = gap(words[0].start_frame, words[-1].end_frame, total_fit)
+        return Recognition(" ".join(w.word for w in out), self._confidence(utterance_gap), out,
+                           detail=f"fit {GAP_UNIT * utterance_gap:.2f} vs the phone loop (centre {GAP_CENTRE})")
 
-    def _confidence(self, fit_per_frame: float) -> float:
-        """Logistic map of the per-frame fit: FIT_CENTRE -> 0.5. Measured on espeak-ng speech: commands
-        mostly -3.4 to -6.0, forced non-commands -6.0 to -6.8 (docs/speech.md)."""
-        return float(1.0 / (1.0 + math.exp(-(fit_per_frame - FIT_CENTRE) / FIT_SCALE)))
+    def _confidence(self, gap_per_frame: float) -> float:
+        """Logistic map of the fit gap: GAP_CENTRE -> 0.5 (docs/speech.md has the measured spread)."""
+        return float(1.0 / (1.0 + math.exp(-(GAP_UNIT * gap_per_frame - GAP_CENTRE) / GAP_SCALE)))
 
 
 def closed_list(sentences: list[str], in_language: Callable[[str], bool], lookup: Callable[[str], str | None],
@@ -164,12 +173,35 @@ def closed_list_jsgf(sentences: list[str]) -> str:
     return f"#JSGF V1.0;\ngrammar closed;\npublic <command> = {alternatives};\n"
 
 
-FIT_CENTRE = -6.3
-FIT_SCALE = 0.3
+# Confidence = logistic((GAP_UNIT * fit gap per frame - GAP_CENTRE) / GAP_SCALE). Measured on the
+# espeak-ng test sentences, two voices, clean and at 10 dB: correctly recognised commands -4.43 and
+# up, non-commands forced into the grammar -6.0 to -2.4 (six of ten below -4.4), misrecognised
+# commands spread over both (docs/speech.md). The centre keeps every correct command.
+GAP_UNIT = 1000.0
+GAP_CENTRE = -4.4
+GAP_SCALE = 0.25
+
+
+def _dithered_pcm(audio: np.ndarray) -> bytes:
+    """16-bit PCM with one bit of noise added. Digital silence (exact zeros) otherwise turns into words;
+    pocketsphinx's own dither draws from one random stream for the decoder's lifetime, so the same
+    utterance would decode differently depending on what came before. Seeded per utterance here."""
+    noise = np.random.default_rng(0).uniform(-1.0, 1.0, len(audio))
+    return np.clip(np.round(audio * 32767.0 + noise), -32768, 32767).astype("<i2").tobytes()
+
+
+def _log_fit(segment) -> float:
+    """A segment's acoustic log-likelihood relative to the best state of each frame (0 = the best)."""
+    return math.log(max(segment.ascore, 1e-300))
+
+
+def _overlap(a: int, b: int, first: int, last: int) -> int:
+    return max(0, min(b, last) - max(a, first) + 1)
 
 
 def _is_filler(word: str) -> bool:
-    return word.startswith(("<", "[", "+")) or word == "</s>"
+    """Silence, noise and the word graph's empty transitions ("(NULL)") are not words."""
+    return word.startswith(("<", "[", "+")) or word in ("</s>", "(NULL)")
 
 
 def _base_word(word: str) -> str:
