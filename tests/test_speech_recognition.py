@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from services.fusion.parse import parse
 from services.speech.audio import read_wav
 from services.speech.pipeline import MicStream
 from services.speech.recognizers import PocketsphinxRecognizer
@@ -17,8 +18,17 @@ EXPECTED = Path(__file__).parent / "data" / "speech"
 COMMANDS = [line.strip() for line in (EXPECTED / "commands.txt").read_text().splitlines() if line.strip()]
 NON_COMMANDS = [line.strip() for line in (EXPECTED / "non_commands.txt").read_text().splitlines() if line.strip()]
 VOICES = ("en-us+f3", "en-us")
-# measured WER (docs/speech.md) -> bound asserted here
-WER_BOUND = {("en-us+f3", None): 0.58, ("en-us+f3", 10): 0.80, ("en-us", None): 0.64, ("en-us", 10): 0.80}
+# measured (docs/speech.md) -> bound asserted here. WER counts a rejected command as deleted words; a
+# wrong command is one published whose meaning, as fusion's parser reads it, is not what was said
+# ("look at to the blue ball" for "look at the blue ball" is right; "look the cup" for "put the cup" is not).
+WER_BOUND = {("en-us+f3", None): 0.58, ("en-us+f3", 10): 0.72, ("en-us", None): 0.62, ("en-us", 10): 0.50}
+# measured WER 0.51 / 0.65 / 0.56 / 0.42; wrong of published 9/18, 12/17, 8/17, 14/22 (same order)
+WRONG_PUBLISHED_BOUND = {("en-us+f3", None): 0.6, ("en-us+f3", 10): 0.8, ("en-us", None): 0.6, ("en-us", 10): 0.75}
+
+
+def meaning(text: str) -> tuple:
+    u = parse(text)
+    return u.intent, u.answer, u.obj, u.place, u.deictic_place, u.dest_obj
 
 
 def word_errors(ref: list[str], hyp: list[str]) -> int:
@@ -48,7 +58,7 @@ def run_stream(recogniser, wav_path: Path, t0: float = 1_700_000_000.0):
 
 def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_path):
     assert len(COMMANDS) >= 20
-    results = {}
+    results, wrong = {}, {}
     for voice in VOICES:
         for snr in (None, 10):
             files = [synthesize(text, tmp_path / f"{voice}-{snr}-{i}.wav", voice=voice, noise_snr_db=snr,
@@ -59,27 +69,50 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
             ref = " ".join(COMMANDS).split()
             hyp = " ".join(t.text for t in transcripts).split()
             results[(voice, snr)] = word_errors(ref, hyp) / len(ref)
+            # which command each transcript was: the file whose span in the stream holds its middle
+            spans, at = [], t0
+            for path in files:
+                length = len(read_wav(path).samples) / 16000
+                spans.append((at, at + length))
+                at += length + 0.8
+            said = [next(i for i, (a, b) in enumerate(spans) if a - 0.4 <= (t.start + t.end) / 2 <= b + 0.4)
+                    for t in transcripts]
+            wrong[(voice, snr)] = (sum(meaning(t.text) != meaning(COMMANDS[i]) for t, i in zip(transcripts, said)),
+                                   len(transcripts))
             starts = [t.start for t in transcripts]
             assert starts == sorted(starts)
             for t in transcripts:
                 assert t0 <= t.start < t.end <= t0 + seconds
                 assert t.text == t.text.lower() and t.words and t.backend == "pocketsphinx"
     print("WER per (voice, SNR dB):", {k: round(v, 3) for k, v in results.items()})
+    print("wrong of published per (voice, SNR dB):", {k: f"{w}/{n}" for k, (w, n) in wrong.items()})
     for cond, wer in results.items():
         assert wer <= WER_BOUND[cond], f"WER {wer:.3f} for {cond} is above the measured bound {WER_BOUND[cond]}"
+        w, n = wrong[cond]
+        assert n >= len(COMMANDS) // 2, f"only {n} of {len(COMMANDS)} commands published for {cond}"
+        assert w <= WRONG_PUBLISHED_BOUND[cond] * n, f"{w} of {n} published commands were wrong for {cond}"
 
 
-def test_non_command_speech_is_mostly_not_published(tmp_path):
-    # a recogniser of its own: pocketsphinx's live cepstral mean adapts to what it decoded before, so the
-    # outcome would otherwise depend on which tests ran first (docs/speech.md: rejection is weak)
-    recogniser = PocketsphinxRecognizer()
+def test_non_command_speech_is_mostly_not_published(recogniser, tmp_path):
     files = [synthesize(text, tmp_path / f"non-{i}.wav", voice="en-us+f3") for i, text in enumerate(NON_COMMANDS)]
     transcripts, counted, _ = run_stream(recogniser, concatenate(files, tmp_path / "non.wav", gap=0.8))
     rejected = counted.count("not_a_command") + counted.count("low_confidence")
     print(f"non-commands: {len(transcripts)} published, {rejected} rejected of {len(NON_COMMANDS)}:",
           [t.text for t in transcripts])
-    assert rejected >= len(NON_COMMANDS) // 2
-    assert len(transcripts) <= len(NON_COMMANDS) - len(NON_COMMANDS) // 2
+    assert rejected >= 5 and len(transcripts) <= 1  # measured: 5 of 6 rejected (docs/speech.md)
+
+
+def test_an_utterance_decodes_the_same_whatever_was_decoded_before(recogniser, tmp_path):
+    # each utterance gets its own cepstral mean and fresh noise tracking, and its own seeded dither
+    first, other = (read_wav(synthesize(t, tmp_path / f"{i}.wav", voice="en-us")).samples
+                    for i, t in enumerate(["put the ball on the shelf", "the weather is really nice today"]))
+    before = recogniser.recognise(first)
+    recogniser.recognise(other)
+    recogniser.recognise(other[::-1].copy())
+    after = recogniser.recognise(first)
+    assert before is not None and after is not None
+    assert (after.text, after.confidence, [(w.start, w.end) for w in after.words]) == \
+        (before.text, before.confidence, [(w.start, w.end) for w in before.words])
 
 
 def test_a_stream_of_utterances_splits_into_one_transcript_each(recogniser, tmp_path):
