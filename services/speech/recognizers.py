@@ -134,13 +134,10 @@ class PocketsphinxRecognizer:
             loop_fit = sum(fit * _overlap(a, b, first, last) / (b - a + 1) for a, b, fit in phones)
             return (word_fit - loop_fit) / (last - first + 1)
 
-        out, total_fit = [], 0.0
-        for s in words:
-            total_fit += _log_fit(s)
-            out.append(RecognisedWord(_base_word(s.word), s.start_frame / FRAME_RATE,
-                                      (s.end_frame + 1) / FRAME_RATE,
-                                      self._confidence(gap(s.start_frame, s.end_frame, _log_fit(s)))))
-        utterance_gap = gap(words[0].start_frame, words[-1].end_frame, total_fit)
+        fits = [_log_fit(s) for s in words]
+        out = [RecognisedWord(_base_word(s.word), s.start_frame / FRAME_RATE, (s.end_frame + 1) / FRAME_RATE,
+                              self._confidence(gap(s.start_frame, s.end_frame, fit))) for s, fit in zip(words, fits)]
+        utterance_gap = gap(words[0].start_frame, words[-1].end_frame, sum(fits))
         return Recognition(" ".join(w.word for w in out), self._confidence(utterance_gap), out,
                            detail=f"fit {GAP_UNIT * utterance_gap:.2f} vs the phone loop (centre {GAP_CENTRE})")
 
