@@ -122,9 +122,10 @@ class Grammar:
         Every choice splits its probability evenly among its options and an optional part is skipped
         with probability `skip_optional`, so a short, plain sentence is a priori likelier than one
         padded with optional words (measured on clean espeak-ng commands: WER 0.42 -> 0.33 and
-        0.49 -> 0.36 in two voices against the same graph with all weights 1, and 5x faster). pocketsphinx's own JSGF compiler turns this grammar into
-        ~4,000 states and ~110,000 null transitions and decoded 4-10x slower than real time here;
-        compiled directly, alternatives share their end states: a few hundred states.
+        0.49 -> 0.36 in two voices against the same graph with all weights 1, and 5x faster).
+        pocketsphinx's own JSGF compiler turns this grammar into ~4,000 states and ~110,000 null
+        transitions and decoded 4-10x slower than real time here; compiled directly, alternatives
+        share their end states: a few hundred states.
         """
         graph = WordGraph()
 
