@@ -18,6 +18,7 @@ EXPECTED = Path(__file__).parent / "data" / "speech"
 COMMANDS = [line.strip() for line in (EXPECTED / "commands.txt").read_text().splitlines() if line.strip()]
 NON_COMMANDS = [line.strip() for line in (EXPECTED / "non_commands.txt").read_text().splitlines() if line.strip()]
 VOICES = ("en-us+f3", "en-us")
+GAP = 0.8  # seconds of silence between the sentences of a test stream
 # measured (docs/speech.md) -> bound asserted here. WER counts a rejected command as deleted words; a
 # wrong command is one published whose meaning, as fusion's parser reads it, is not what was said
 # ("look at to the blue ball" for "look at the blue ball" is right; "look the cup" for "put the cup" is not).
@@ -63,7 +64,7 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
         for snr in (None, 10):
             files = [synthesize(text, tmp_path / f"{voice}-{snr}-{i}.wav", voice=voice, noise_snr_db=snr,
                                 noise_seed=i) for i, text in enumerate(COMMANDS)]
-            stream = concatenate(files, tmp_path / f"{voice}-{snr}.wav", gap=0.8)
+            stream = concatenate(files, tmp_path / f"{voice}-{snr}.wav", gap=GAP)
             t0 = 1_700_000_000.0
             transcripts, _, seconds = run_stream(recogniser, stream, t0)
             ref = " ".join(COMMANDS).split()
@@ -72,9 +73,9 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
             # which command each transcript was: the file whose span in the stream holds its middle
             spans, at = [], t0
             for path in files:
-                length = len(read_wav(path).samples) / 16000
+                length = read_wav(path).seconds
                 spans.append((at, at + length))
-                at += length + 0.8
+                at += length + GAP
             said = [next(i for i, (a, b) in enumerate(spans) if a - 0.4 <= (t.start + t.end) / 2 <= b + 0.4)
                     for t in transcripts]
             wrong[(voice, snr)] = (sum(meaning(t.text) != meaning(COMMANDS[i]) for t, i in zip(transcripts, said)),
@@ -95,7 +96,7 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
 
 def test_non_command_speech_is_mostly_not_published(recogniser, tmp_path):
     files = [synthesize(text, tmp_path / f"non-{i}.wav", voice="en-us+f3") for i, text in enumerate(NON_COMMANDS)]
-    transcripts, counted, _ = run_stream(recogniser, concatenate(files, tmp_path / "non.wav", gap=0.8))
+    transcripts, counted, _ = run_stream(recogniser, concatenate(files, tmp_path / "non.wav", gap=GAP))
     rejected = counted.count("not_a_command") + counted.count("low_confidence")
     print(f"non-commands: {len(transcripts)} published, {rejected} rejected of {len(NON_COMMANDS)}:",
           [t.text for t in transcripts])
