@@ -9,10 +9,12 @@ setup:
 demo: setup
 	@$(PY) -m demo $(DEMO_ARGS)
 
-test: setup
+test:
+	@bash scripts/setup.sh --test
 	@$(PY) -m pytest -q $(PYTEST_ARGS)
 
-test-fast: setup
+test-fast:
+	@bash scripts/setup.sh --test
 	@$(PY) -m pytest -q -m "not integration and not docker" $(PYTEST_ARGS)
 
 BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay

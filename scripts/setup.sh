@@ -6,6 +6,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(espeak-ng sox)          # speech audio for the demo and the speech tests
+# `setup.sh --test` (make test) adds what only the tests need: a real browser for `hri view`'s page.
+if [ "${1:-}" = "--test" ]; then
+    APT_PACKAGES+=(chromium)
+fi
 PYTHON=${PYTHON:-python3}
 VENV=.venv
 
