@@ -37,6 +37,7 @@ examples:
   hri up --camera data/images/tabletop --speech-input text   # router + every service, type commands
   hri record -o session.mcap 'hri/**'          # everything to MCAP until Ctrl-C (--count N / --duration S)
   hri replay session.mcap --only 'hri/speech/**' --speed 2   # back onto the bus, original timing x2
+  hri view                                     # a web page of cameras, overlays and decisions; prints its URL
 """
 
 
@@ -300,6 +301,10 @@ def build_parser() -> argparse.ArgumentParser:
         recording.RECORD_EXAMPLES))
     recording.add_replay_arguments(command(
         "replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES))
+    from common.view import command as view  # aiohttp and OpenCV are imported only when `hri view` runs
+    view.add_view_arguments(command(
+        "view", "a live web page of cameras, overlays, decisions and services (or of a recording)",
+        view.VIEW_EXAMPLES))
     return parser
 
 

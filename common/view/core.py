@@ -1,0 +1,272 @@
+"""What `hri view` knows: cameras, a timeline in source time, services. Pure: fed decoded-or-not payloads.
+
+Every payload is validated against the contract here; one that does not decode is counted per key and
+reason and dropped, so a malformed sample never reaches the page. Frames are kept latest-only and released
+to the page at most `max_fps` per camera; a JPEG frame is passed through as is, other encodings are
+re-encoded to JPEG once per released frame.
+"""
+
+from __future__ import annotations
+
+import bisect
+import collections
+import itertools
+import threading
+from dataclasses import dataclass, field
+from typing import Any
+
+import cv2
+
+from common.codec import decode
+from common.image import UndecodableFrame, frame_image
+from common.keys import Keys
+from common.schema import (
+    Clarification, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats, Transcript,
+)
+
+from common.view.command import DEFAULT_MAX_FPS
+TIMELINE_MAX = 500  # entries kept; the oldest go first
+JPEG_QUALITY = 85
+
+
+@dataclass
+class ShownFrame:
+    """A frame as the page gets it: JPEG bytes and where it came from."""
+    seq: int
+    stamp: float
+    width: int
+    height: int
+    jpeg: bytes
+    n: int  # release counter of this camera: the page asks for "a frame newer than n"
+
+
+@dataclass
+class CameraState:
+    cam: str
+    pending: Frame | None = None  # newest frame not yet released (latest-only)
+    shown: ShownFrame | None = None
+    released_at: float = float("-inf")
+    received: int = 0
+    released: int = 0
+    detections: Detections | None = None
+    hands: Hands | None = None
+
+
+@dataclass
+class ServiceState:
+    service: str
+    instance: str
+    alive: bool | None = None  # None: unknown (recording mode, or only seen through samples)
+    stats: dict[str, Any] | None = None
+    last_sample: float | None = None  # stamp of the newest sample it published
+
+
+@dataclass
+class ViewState:
+    """The model behind the page. Thread-safe: zenoh callbacks ingest, web handlers read."""
+
+    keys: Keys = field(default_factory=Keys)
+    max_fps: float = DEFAULT_MAX_FPS
+    timeline_max: int = TIMELINE_MAX
+
+    def __post_init__(self) -> None:
+        self.lock = threading.RLock()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything seen (a recording seeks backwards); `epoch` tells the page to start over."""
+        with self.lock:
+            self.epoch = getattr(self, "epoch", 0) + 1
+            self.version = 0
+            self.cameras: dict[str, CameraState] = {}
+            self.timeline: list[tuple[float, int, dict[str, Any]]] = []  # (stamp, n, entry), sorted
+            self._entry_n = itertools.count(1)
+            self.command: FusedCommand | None = None
+            self.clarification: Clarification | None = None
+            self.services: dict[tuple[str, str], ServiceState] = {}
+            self.ignored: collections.Counter[tuple[str, str]] = collections.Counter()
+            self.last_stamp: float | None = None
+
+    # -- input ----------------------------------------------------------------
+    def ingest(self, key: str, payload: bytes, now: float) -> bool:
+        """Validate and take in one sample; False if it was ignored (and counted)."""
+        schema = self.keys.schema_for(key)
+        if schema is None:
+            return self._ignore(key, "not_in_contract")
+        try:
+            sample = decode(payload, schema)
+        except InvalidSample as exc:
+            return self._ignore(key, exc.reason)
+        with self.lock:
+            self._take(sample, now)
+            self.last_stamp = sample.stamp if self.last_stamp is None else max(self.last_stamp, sample.stamp)
+            self._seen(sample)
+            self.version += 1
+        return True
+
+    def _ignore(self, key: str, reason: str) -> bool:
+        with self.lock:
+            self.ignored[(key, reason)] += 1
+            self.version += 1
+        return False
+
+    def _camera(self, cam: str) -> CameraState:
+        state = self.cameras.get(cam)
+        if state is None:
+            state = self.cameras[cam] = CameraState(cam)
+        return state
+
+    def _seen(self, sample: Sample) -> None:
+        if isinstance(sample, Stats):
+            return
+        service, _, instance = sample.source.partition("/")
+        entry = self.services.get((service, instance or "-"))
+        if entry is None:
+            entry = self.services[(service, instance or "-")] = ServiceState(service, instance or "-")
+        entry.last_sample = sample.stamp if entry.last_sample is None else max(entry.last_sample, sample.stamp)
+
+    def _take(self, sample: Sample, now: float) -> None:
+        if isinstance(sample, Frame):
+            cam = self._camera(sample.cam)
+            cam.received += 1
+            cam.pending = sample
+            self._release(cam, now)
+        elif isinstance(sample, Detections):
+            self._camera(sample.cam).detections = sample
+        elif isinstance(sample, Hands):
+            self._camera(sample.cam).hands = sample
+        elif isinstance(sample, GestureEvent):
+            if sample.phase == "start":  # "hold" comes every 100 ms; the start is the event a person sees
+                self._add_entry(sample.stamp, {
+                    "kind": "gesture", "gesture": sample.gesture, "hand": sample.hand, "cam": sample.cam,
+                    "score": sample.score, "source": sample.source})
+        elif isinstance(sample, Transcript):
+            if sample.final:
+                self._add_entry(sample.stamp, {
+                    "kind": "transcript", "text": sample.text, "confidence": sample.confidence,
+                    "mic": sample.mic, "backend": sample.backend, "source": sample.source})
+        elif isinstance(sample, FusedCommand):
+            if self.command is None or sample.stamp >= self.command.stamp:
+                self.command = sample
+            self._add_entry(sample.stamp, {"kind": "command", **_plain(sample)})
+        elif isinstance(sample, Clarification):
+            if self.clarification is None or sample.stamp >= self.clarification.stamp:
+                self.clarification = sample
+            self._add_entry(sample.stamp, {"kind": "clarification", **_plain(sample)})
+        elif isinstance(sample, Stats):
+            self.set_stats(sample)
+
+    def _add_entry(self, stamp: float, entry: dict[str, Any]) -> None:
+        n = next(self._entry_n)
+        entry = {"n": n, "t": stamp, **entry}
+        bisect.insort(self.timeline, (stamp, n, entry), key=lambda e: (e[0], e[1]))
+        if len(self.timeline) > self.timeline_max:
+            del self.timeline[0]
+
+    # -- frames -----------------------------------------------------------------
+    def _release(self, cam: CameraState, now: float, force: bool = False) -> bool:
+        """Promote the pending frame to the shown one if the camera's frame budget allows."""
+        if cam.pending is None or (not force and now - cam.released_at < 1.0 / self.max_fps):
+            return False
+        frame, cam.pending = cam.pending, None
+        try:
+            jpeg = jpeg_of(frame)
+        except UndecodableFrame:
+            self.ignored[(self.keys.frame(frame.cam), "undecodable")] += 1
+            return False
+        cam.released += 1
+        cam.released_at = now
+        cam.shown = ShownFrame(frame.seq, frame.stamp, frame.width, frame.height, jpeg, cam.released)
+        return True
+
+    def tick(self, now: float, force: bool = False) -> list[str]:
+        """Release frames whose budget has come (the last frame of a burst must not wait for a next one)."""
+        with self.lock:
+            released = [c.cam for c in self.cameras.values() if self._release(c, now, force)]
+            if released:
+                self.version += 1
+            return released
+
+    def frame(self, cam: str) -> ShownFrame | None:
+        with self.lock:
+            state = self.cameras.get(cam)
+            return state.shown if state else None
+
+    # -- services ---------------------------------------------------------------
+    def set_alive(self, service: str, instance: str, alive: bool) -> None:
+        with self.lock:
+            entry = self.services.setdefault((service, instance), ServiceState(service, instance))
+            entry.alive = alive
+            self.version += 1
+
+    def set_stats(self, stats: Stats) -> None:
+        with self.lock:
+            entry = self.services.setdefault((stats.service, stats.instance),
+                                             ServiceState(stats.service, stats.instance))
+            entry.stats = {k: v for k, v in stats.to_dict().items() if k not in ("v", "source", "service",
+                                                                                 "instance")}
+            self.version += 1
+
+    # -- output -----------------------------------------------------------------
+    def overlay(self, cam: str) -> dict[str, Any]:
+        """What is drawn over a camera's frame: each layer is a plain map (same for page and snapshot)."""
+        with self.lock:
+            state = self.cameras.get(cam)
+            det = state.detections if state else None
+            hands = state.hands if state else None
+            layers: dict[str, Any] = {
+                "objects": [o.to_dict() for o in det.objects] if det else [],
+                "quality": det.quality.to_dict() if det else None,
+                "objects_seq": det.seq if det else None,
+                "hands": [h.to_dict() for h in hands.hands] if hands else [],
+                "target": None, "candidates": [],
+            }
+            # the newer of the latest command and clarification decides what is highlighted
+            command, question = self.command, self.clarification
+            if command is not None and (question is None or command.stamp >= question.stamp):
+                if command.target is not None and command.target.cam == cam:
+                    layers["target"] = {**command.target.to_dict(), "intent": command.intent}
+                if command.location is not None and command.location.cam == cam:
+                    layers["location"] = command.location.to_dict()
+            elif question is not None:
+                layers["candidates"] = [c.to_dict() for c in question.candidates if c.cam == cam]
+            return layers
+
+    def snapshot(self, after_n: int = 0) -> dict[str, Any]:
+        """The page's view of the state; timeline entries after `after_n` only (the page keeps the rest)."""
+        with self.lock:
+            cameras = {}
+            for cam, state in sorted(self.cameras.items()):
+                shown = state.shown
+                cameras[cam] = {
+                    "frame": None if shown is None else {"n": shown.n, "seq": shown.seq, "stamp": shown.stamp,
+                                                         "width": shown.width, "height": shown.height},
+                    "received": state.received, "released": state.released, **self.overlay(cam)}
+            ignored: dict[str, dict[str, int]] = {}
+            for (key, reason), count in sorted(self.ignored.items()):
+                ignored.setdefault(key, {})[reason] = count
+            return {
+                "epoch": self.epoch, "version": self.version, "last_stamp": self.last_stamp,
+                "cameras": cameras,
+                "timeline": [entry for _, n, entry in self.timeline if n > after_n],
+                "services": [{"service": s.service, "instance": s.instance, "alive": s.alive, "stats": s.stats,
+                              "last_sample": s.last_sample}
+                             for _, s in sorted(self.services.items())],
+                "ignored": ignored, "ignored_total": sum(self.ignored.values()),
+            }
+
+
+def _plain(sample: Sample) -> dict[str, Any]:
+    out = sample.to_dict()
+    out.pop("v", None)
+    return out
+
+
+def jpeg_of(frame: Frame) -> bytes:
+    """JPEG bytes of a frame: passed through when already JPEG, re-encoded otherwise."""
+    if frame.encoding == "jpeg":
+        return frame.data
+    ok, buf = cv2.imencode(".jpg", frame_image(frame), [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+    if not ok:
+        raise UndecodableFrame(f"OpenCV could not re-encode a {frame.encoding} frame as JPEG")
+    return buf.tobytes()

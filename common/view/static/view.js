@@ -1,0 +1,324 @@
+// hri view: polls the server (long polls, one request in flight per stream) and draws what it says.
+// The overlay layers and colours are the same as common/view/draw.py (the PNG snapshot).
+"use strict";
+
+const COLOURS = {
+  box: "rgb(0,220,80)", target: "rgb(255,0,255)", candidate: "rgb(255,165,0)",
+  hand: "rgb(0,255,255)", ray: "rgb(255,255,0)",
+};
+const HAND_CONNECTIONS = [[0, 1], [1, 2], [2, 3], [3, 4], [0, 5], [5, 6], [6, 7], [7, 8], [5, 9], [9, 10],
+  [10, 11], [11, 12], [9, 13], [13, 14], [14, 15], [15, 16], [13, 17], [17, 18], [18, 19], [19, 20], [0, 17]];
+
+// What tests and benchmarks read: frames drawn, frame delay (now - source stamp), page-side errors.
+const view = window.hriView = { epoch: 0, version: -1, after: 0, state: null, cams: {}, timeline: new Map(),
+  framesDrawn: 0, delays: [], pageErrors: 0, connected: false };
+
+const $ = (id) => document.getElementById(id);
+
+function el(tag, attrs, ...children) {
+  const node = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (k === "class") node.className = v; else node.setAttribute(k, v);
+  }
+  for (const c of children) node.append(c instanceof Node ? c : String(c ?? ""));
+  return node;
+}
+
+function num(x, digits = 2) { return typeof x === "number" && isFinite(x) ? x.toFixed(digits) : "?"; }
+
+function clock(stamp) {
+  if (typeof stamp !== "number") return "?";
+  const d = new Date(stamp * 1000);
+  return d.toLocaleTimeString([], { hour12: false }) + "." + String(d.getMilliseconds()).padStart(3, "0");
+}
+
+function objectName(o) { return [o.color, o.label].filter(Boolean).join(" "); }
+
+// -- layers (bottom to top), as in draw.py ------------------------------------------------------------
+function drawLabel(ctx, text, x, y, colour) {
+  ctx.font = "14px sans-serif";
+  const w = ctx.measureText(text).width + 6, h = 18;
+  const top = Math.max(y - h, 0);
+  x = Math.max(0, Math.min(x, ctx.canvas.width - w));  // keep labels of objects at the right edge readable
+  ctx.fillStyle = "black"; ctx.fillRect(x, top, w, h);
+  ctx.fillStyle = colour; ctx.fillText(text, x + 3, top + 14);
+}
+
+function drawBox(ctx, bbox, colour, width, dash) {
+  ctx.strokeStyle = colour; ctx.lineWidth = width; ctx.setLineDash(dash || []);
+  ctx.strokeRect(bbox[0], bbox[1], bbox[2], bbox[3]);
+  ctx.setLineDash([]);
+}
+
+function drawObjects(ctx, layers) {
+  const target = layers.target && layers.target.id;
+  for (const o of layers.objects || []) {
+    drawBox(ctx, o.bbox, COLOURS.box, 2);
+    if (o.id !== target) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}`, o.bbox[0], o.bbox[1], COLOURS.box);
+  }
+}
+
+function drawRay(ctx, ray, length) {
+  const [ox, oy] = ray.origin, [dx, dy] = ray.direction;
+  ctx.strokeStyle = COLOURS.ray; ctx.lineWidth = 2;
+  ctx.beginPath(); ctx.moveTo(ox, oy); ctx.lineTo(ox + dx * length, oy + dy * length); ctx.stroke();
+}
+
+function drawHands(ctx, layers) {
+  const length = ctx.canvas.width + ctx.canvas.height;
+  for (const hand of layers.hands || []) {
+    const p = hand.landmarks;
+    ctx.strokeStyle = COLOURS.hand; ctx.fillStyle = COLOURS.hand; ctx.lineWidth = 2;
+    for (const [a, b] of HAND_CONNECTIONS) {
+      ctx.beginPath(); ctx.moveTo(p[a][0], p[a][1]); ctx.lineTo(p[b][0], p[b][1]); ctx.stroke();
+    }
+    for (const q of p) { ctx.beginPath(); ctx.arc(q[0], q[1], 3, 0, 2 * Math.PI); ctx.fill(); }
+    if (hand.ray) drawRay(ctx, hand.ray, length);
+    if (hand.gesture) drawLabel(ctx, `${hand.hand} ${hand.gesture}`, p[0][0], p[0][1] + 20, COLOURS.hand);
+  }
+}
+
+// Body skeletons and arm rays come here once the gesture service publishes them (a new layer).
+
+function drawDecision(ctx, layers) {
+  for (const c of layers.candidates || []) {
+    drawBox(ctx, c.bbox, COLOURS.candidate, 3, [8, 4]);
+    drawLabel(ctx, `? ${objectName(c)} ${c.id}`, c.bbox[0], c.bbox[1], COLOURS.candidate);
+  }
+  const t = layers.target;
+  if (t) {
+    drawBox(ctx, t.bbox, COLOURS.target, 4);
+    ctx.strokeStyle = COLOURS.target; ctx.lineWidth = 3;
+    ctx.beginPath(); ctx.moveTo(t.center[0] - 9, t.center[1]); ctx.lineTo(t.center[0] + 9, t.center[1]);
+    ctx.moveTo(t.center[0], t.center[1] - 9); ctx.lineTo(t.center[0], t.center[1] + 9); ctx.stroke();
+    drawLabel(ctx, `${t.intent || "target"}: ${objectName(t)} ${t.id}`, t.bbox[0], t.bbox[1], COLOURS.target);
+  }
+  if (layers.location) {
+    const { x, y } = layers.location;
+    ctx.strokeStyle = COLOURS.target; ctx.lineWidth = 3;
+    ctx.beginPath(); ctx.moveTo(x - 12, y - 12); ctx.lineTo(x + 12, y + 12); ctx.moveTo(x + 12, y - 12);
+    ctx.lineTo(x - 12, y + 12); ctx.stroke();
+  }
+}
+
+const LAYERS = [drawObjects, drawHands, drawDecision];
+
+function drawCamera(name) {
+  const cam = view.cams[name];
+  if (!cam || !cam.bitmap) return;
+  const ctx = cam.canvas.getContext("2d");
+  if (cam.canvas.width !== cam.bitmap.width) cam.canvas.width = cam.bitmap.width;
+  if (cam.canvas.height !== cam.bitmap.height) cam.canvas.height = cam.bitmap.height;
+  ctx.drawImage(cam.bitmap, 0, 0);
+  const layers = (view.state && view.state.cameras[name]) || {};
+  for (const layer of LAYERS) {
+    try { layer(ctx, layers); } catch (err) { view.pageErrors++; console.warn("overlay", layer.name, err); }
+  }
+}
+
+// -- cameras ------------------------------------------------------------------------------------------
+function cameraPanel(name) {
+  let cam = view.cams[name];
+  if (cam) return cam;
+  const canvas = el("canvas", { width: 640, height: 480, "data-cam": name });
+  const meta = el("div", { class: "meta" });
+  const panel = el("section", { class: "camera", id: `cam-${name}` }, el("h2", {}, name), canvas, meta);
+  const empty = $("cameras").querySelector(".empty");
+  if (empty) empty.remove();
+  $("cameras").append(panel);
+  cam = view.cams[name] = { canvas, meta, panel, n: -1, bitmap: null, frames: 0 };
+  frameLoop(name);
+  return cam;
+}
+
+async function frameLoop(name) {
+  const cam = view.cams[name];
+  for (;;) {
+    try {
+      const res = await fetch(`/api/frame/${encodeURIComponent(name)}?after=${cam.n}`, { cache: "no-store" });
+      if (res.status === 200) {
+        const stamp = parseFloat(res.headers.get("X-Stamp"));
+        cam.n = parseInt(res.headers.get("X-Frame-N"), 10);
+        const blob = await res.blob();
+        try {
+          const bitmap = await createImageBitmap(blob);
+          if (cam.bitmap) cam.bitmap.close();
+          cam.bitmap = bitmap;
+          cam.frames++;
+          drawCamera(name);
+          view.framesDrawn++;
+          view.delays.push(Date.now() / 1000 - stamp);
+          if (view.delays.length > 300) view.delays.shift();
+        } catch (err) {  // a JPEG that does not decode: skip it, keep the last good frame
+          view.pageErrors++;
+        }
+      } else if (res.status !== 204) {
+        await sleep(1000);
+      }
+    } catch (err) {
+      await sleep(1000);
+    }
+  }
+}
+
+function updateCameraMeta(name, info) {
+  const cam = cameraPanel(name);
+  const q = info.quality;
+  const quality = q ? `brightness ${num(q.brightness)} · contrast ${num(q.contrast)} · sharpness ${num(q.sharpness)}`
+    : "no detections yet";
+  const frame = info.frame ? `${info.frame.width}×${info.frame.height}, seq ${info.frame.seq}` : "no frame";
+  cam.meta.textContent = `${frame} · ${info.received} received, ${info.released} shown · ${quality}`;
+  drawCamera(name);  // overlays move even when the frame does not
+}
+
+// -- timeline -----------------------------------------------------------------------------------------
+function weightBars(weights) {
+  const box = el("div", { class: "weights" });
+  for (const [name, w] of Object.entries(weights || {})) {
+    const pct = Math.max(0, Math.min(1, Number(w) || 0)) * 100;
+    box.append(el("div", { class: "bar" }, el("span", {}, name),
+      el("span", { class: "fill", style: `width:${pct.toFixed(0)}px` }), el("span", {}, num(w))));
+  }
+  return box;
+}
+
+function entryNode(e) {
+  const time = el("time", {}, clock(e.t));
+  const li = el("li", { class: e.kind, "data-n": e.n, "data-t": e.t });
+  if (e.kind === "transcript") {
+    li.append(time, el("span", { class: "kind" }, "heard"), `“${e.text}” `,
+      el("small", {}, `confidence ${num(e.confidence)} · ${e.backend}`));
+  } else if (e.kind === "gesture") {
+    li.append(time, el("span", { class: "kind" }, "gesture"), `${e.gesture} (${e.hand} hand, ${e.cam}) `,
+      el("small", {}, `score ${num(e.score)}`));
+  } else if (e.kind === "command") {
+    const t = e.target;
+    const what = t ? ` → ${objectName(t)} ${t.id}` : (e.place ? ` → ${e.place}` : "");
+    const summary = el("summary", {}, time, el("span", { class: "kind" }, "command"),
+      `${e.intent}${what} `, el("small", {}, `confidence ${num(e.confidence)}`));
+    const missing = Object.entries(e.inputs || {}).filter(([, s]) => s === null).map(([m]) => m);
+    li.append(el("details", {}, summary,
+      el("p", { class: "explanation" }, e.explanation),
+      e.text ? el("p", {}, `said: “${e.text}”`) : "",
+      e.motion ? el("p", {}, `motion: ${JSON.stringify(e.motion)}`) : "",
+      weightBars(e.weights),
+      missing.length ? el("p", { class: "dim" }, `missing: ${missing.join(", ")}`) : "",
+      el("pre", { class: "prompt" }, e.prompt)));
+  } else if (e.kind === "clarification") {
+    const names = (e.candidates || []).map((c) => `${objectName(c)} ${c.id}`).join(", ");
+    li.append(el("details", {}, el("summary", {}, time, el("span", { class: "kind" }, "question"),
+      `${e.question} `, el("small", {}, e.reason)),
+      el("p", {}, `candidates: ${names || "none"}`), e.text ? el("p", {}, `said: “${e.text}”`) : ""));
+  } else {
+    li.append(time, el("span", { class: "kind" }, e.kind));
+  }
+  return li;
+}
+
+function addTimeline(entries) {
+  const list = $("timeline");
+  for (const e of entries) {
+    if (view.timeline.has(e.n)) continue;
+    let node;
+    try { node = entryNode(e); } catch (err) { view.pageErrors++; continue; }
+    view.timeline.set(e.n, node);
+    // keep source-time order: entries may arrive late (a transcript ends after the gesture it names)
+    const later = [...list.children].find((c) => Number(c.dataset.t) > e.t);
+    list.insertBefore(node, later || null);
+  }
+  while (list.children.length > 500) { view.timeline.delete(Number(list.firstChild.dataset.n)); list.firstChild.remove(); }
+  const last = list.lastElementChild;
+  if (last && entries.length) last.scrollIntoView({ block: "nearest" });
+}
+
+// -- services -------------------------------------------------------------------------------------------
+function updateServices(services) {
+  const body = $("services").querySelector("tbody");
+  body.replaceChildren(...services.map((s) => {
+    const st = s.stats || {};
+    const rejected = Object.values(st.rejected || {}).reduce((a, b) => a + b, 0);
+    const live = s.alive === true ? el("span", { class: "good" }, "live")
+      : s.alive === false ? el("span", { class: "bad" }, "gone") : el("span", { class: "dim" }, "seen");
+    return el("tr", { "data-service": s.service }, el("td", {}, s.service), el("td", {}, s.instance),
+      el("td", {}, live), el("td", {}, st.received ?? ""), el("td", {}, st.published ?? ""),
+      el("td", {}, st.skipped ?? ""), el("td", { title: JSON.stringify(st.rejected || {}) }, s.stats ? rejected : ""));
+  }));
+}
+
+function updateIgnored(state) {
+  $("ignored").textContent = `ignored: ${state.ignored_total}` + (view.pageErrors ? ` (+${view.pageErrors} in page)` : "");
+  $("ignored").className = state.ignored_total ? "bad" : "";
+  $("ignored-list").replaceChildren(...Object.entries(state.ignored).map(([key, reasons]) =>
+    el("li", { class: "bad" }, `${key}: ${Object.entries(reasons).map(([r, n]) => `${r} ×${n}`).join(", ")}`)));
+}
+
+// -- recording player -----------------------------------------------------------------------------------
+let dragging = false;
+
+async function player(action, position) {
+  try {
+    await fetch("/api/player", { method: "POST", headers: { "Content-Type": "application/json" },
+      body: JSON.stringify({ action, position }) });
+  } catch (err) { view.pageErrors++; }
+}
+
+function setupPlayer() {
+  $("play").addEventListener("click", () => player(view.state && view.state.player.playing ? "pause" : "play"));
+  $("slider").addEventListener("input", () => { dragging = true; });
+  $("slider").addEventListener("change", async () => { await player("seek", Number($("slider").value)); dragging = false; });
+}
+
+function updatePlayer(p) {
+  $("player").hidden = false;
+  $("play").textContent = p.playing ? "❚❚ pause" : "▶ play";
+  $("slider").max = String(p.duration);
+  if (!dragging) $("slider").value = String(p.position);
+  $("position").textContent = `${num(p.position, 1)} / ${num(p.duration, 1)} s`;
+}
+
+// -- the state loop -------------------------------------------------------------------------------------
+function sleep(ms) { return new Promise((r) => setTimeout(r, ms)); }
+
+function apply(state) {
+  if (state.epoch !== view.epoch) {  // a recording jumped back: start over
+    view.timeline.clear(); $("timeline").replaceChildren();
+    view.epoch = state.epoch;
+  }
+  view.version = state.version;
+  view.state = state;
+  $("mode").textContent = state.mode.label;
+  const steps = [
+    () => addTimeline(state.timeline),
+    () => { for (const [name, info] of Object.entries(state.cameras)) updateCameraMeta(name, info); },
+    () => updateServices(state.services),
+    () => updateIgnored(state),
+    () => { if (state.player) updatePlayer(state.player); },
+  ];
+  for (const step of steps) {
+    try { step(); } catch (err) { view.pageErrors++; console.warn(err); }
+  }
+  for (const e of state.timeline) view.after = Math.max(view.after, e.n);
+}
+
+async function stateLoop() {
+  for (;;) {
+    const started = Date.now();
+    try {
+      const res = await fetch(`/api/state?epoch=${view.epoch}&version=${view.version}&after=${view.after}`,
+        { cache: "no-store" });
+      const state = await res.json();
+      if (state.epoch !== view.epoch) view.after = 0;
+      apply(state);
+      view.connected = true;
+      $("connection").textContent = "connected"; $("connection").className = "good";
+    } catch (err) {
+      view.connected = false;
+      $("connection").textContent = "not connected (is hri view still running?)"; $("connection").className = "bad";
+      await sleep(1000);
+    }
+    await sleep(Math.max(0, 100 - (Date.now() - started)));  // at most 10 state updates a second
+  }
+}
+
+setupPlayer();
+stateLoop();
