@@ -282,7 +282,7 @@ def _write_snapshot(state: ViewState, args: argparse.Namespace, where: str) -> i
               file=sys.stderr)
         return 1
     cam, image = got
-    if not cv2.imwrite(args.snapshot, image):
+    if not cv2.imwrite(args.snapshot, image, [cv2.IMWRITE_PNG_COMPRESSION, 9]):  # small enough for a bug report
         print(f"hri view: cannot write {args.snapshot} (does the folder exist? is the extension .png?)",
               file=sys.stderr)
         return 2
