@@ -120,6 +120,19 @@ def test_bad_input_on_every_key_is_counted_by_key_and_reason_and_changes_nothing
     assert after["cameras"] == before["cameras"] and after["timeline"] == []
 
 
+def test_a_flood_of_odd_keys_and_cameras_is_remembered_within_fixed_bounds():
+    state = ViewState(KEYS)
+    for i in range(1000):
+        state.ingest(f"hri/junk/{i}", b"x", now=0)
+        state.ingest(KEYS.frame(f"cam{i}"), encode(Frame(stamp=T0, source=f"camera/{i}", seq=0, cam=f"cam{i}",
+                                                         width=2, height=1, encoding="bgr8", data=bytes(6))), now=0)
+    snap = state.snapshot()
+    # 100 (key, reason) pairs, then "(other keys)" once per reason
+    assert len(state.ignored) <= 100 + 2 and len(state.cameras) == 32 and len(state.services) <= 256
+    assert snap["ignored_total"] == 1000 + 1000 - 32
+    assert snap["ignored"]["(other keys)"]["not_in_contract"] > 900
+
+
 def test_timeline_is_in_source_time_skips_holds_and_partials_and_sends_only_what_is_new(objects):
     state = ViewState(KEYS, timeline_max=5)
     said = make_transcript("pick up the red one", mic="kbd", end=T0 + 2.0, confidence=0.8, source="speech/t")

@@ -26,6 +26,11 @@ from common.schema import (
 
 from common.view.command import DEFAULT_MAX_FPS
 TIMELINE_MAX = 500  # entries kept; the oldest go first
+# Caps on what a stream of odd keys could make the server remember (memory stays bounded whatever arrives).
+MAX_CAMERAS = 32
+MAX_SERVICES = 256
+MAX_IGNORED_KEYS = 100
+OTHER_KEYS = "(other keys)"
 JPEG_QUALITY = 85
 
 
@@ -92,20 +97,25 @@ class ViewState:
         """Validate and take in one sample; False if it was ignored (and counted)."""
         schema = self.keys.schema_for(key)
         if schema is None:
-            return self._ignore(key, "not_in_contract")
+            return self.ignore(key, "not_in_contract")
         try:
             sample = decode(payload, schema)
         except InvalidSample as exc:
-            return self._ignore(key, exc.reason)
+            return self.ignore(key, exc.reason)
         with self.lock:
+            cam = getattr(sample, "cam", None)
+            if cam is not None and cam not in self.cameras and len(self.cameras) >= MAX_CAMERAS:
+                return self.ignore(key, "too_many_cameras")
             self._take(sample, now)
             self.last_stamp = sample.stamp if self.last_stamp is None else max(self.last_stamp, sample.stamp)
             self._seen(sample)
             self.version += 1
         return True
 
-    def _ignore(self, key: str, reason: str) -> bool:
+    def ignore(self, key: str, reason: str) -> bool:
         with self.lock:
+            if (key, reason) not in self.ignored and len(self.ignored) >= MAX_IGNORED_KEYS:
+                key = OTHER_KEYS
             self.ignored[(key, reason)] += 1
             self.version += 1
         return False
@@ -122,6 +132,8 @@ class ViewState:
         service, _, instance = sample.source.partition("/")
         entry = self.services.get((service, instance or "-"))
         if entry is None:
+            if len(self.services) >= MAX_SERVICES:
+                return
             entry = self.services[(service, instance or "-")] = ServiceState(service, instance or "-")
         entry.last_sample = sample.stamp if entry.last_sample is None else max(entry.last_sample, sample.stamp)
 
@@ -172,7 +184,7 @@ class ViewState:
         try:
             jpeg = jpeg_of(frame)
         except UndecodableFrame:
-            self.ignored[(self.keys.frame(frame.cam), "undecodable")] += 1
+            self.ignore(self.keys.frame(frame.cam), "undecodable")
             return False
         cam.released += 1
         cam.released_at = now

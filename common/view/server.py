@@ -179,22 +179,21 @@ class LiveInput:
     def _poll_stats(self) -> None:
         from common.codec import decode
         from common.schema import InvalidSample, Stats
-        while not self.stop.wait(0.0 if not self.state.services else STATS_EVERY_S):
+        while not self.stop.is_set():
             try:
                 for reply in self.session.get(self.state.keys.stats("*", "*"), timeout=1.0):
                     if reply.ok is None:
                         continue
                     try:
                         self.state.set_stats(decode(reply.ok.payload.to_bytes(), Stats))
-                    except InvalidSample:
-                        self.state.ignored[(str(reply.ok.key_expr), "bad_stats")] += 1
+                    except InvalidSample as exc:
+                        self.state.ignore(str(reply.ok.key_expr), exc.reason)
                 self.on_change()
             except Exception as exc:  # the session is closing, or the router went away for a while
                 if self.stop.is_set():
                     return
                 self.log.debug("stats query failed: %s", exc)
-            if not self.state.services:
-                self.stop.wait(STATS_EVERY_S)
+            self.stop.wait(STATS_EVERY_S)
 
     def close(self) -> None:
         self.stop.set()
