@@ -17,7 +17,7 @@ test-fast:
 	@bash scripts/setup.sh --test
 	@$(PY) -m pytest -q -m "not integration and not docker" $(PYTEST_ARGS)
 
-BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay
+BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view
 
 bench: setup
 	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done
