@@ -10,7 +10,9 @@ import asyncio
 import base64
 import itertools
 import json
+import os
 import re
+import signal
 import shutil
 import subprocess
 import tempfile
@@ -35,7 +37,7 @@ class Browser:
     def __init__(self, window: tuple[int, int] = (1400, 900), timeout: float = 60.0):
         if CHROMIUM is None:
             raise RuntimeError("chromium is not installed")
-        self.profile = tempfile.TemporaryDirectory(prefix="hri-chromium-")
+        self.profile = tempfile.TemporaryDirectory(prefix="hri-chromium-", ignore_cleanup_errors=True)
         self.proc = subprocess.Popen([CHROMIUM, *FLAGS, f"--user-data-dir={self.profile.name}",
                                       f"--window-size={window[0]},{window[1]}", "about:blank"],
                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
@@ -82,13 +84,17 @@ class Browser:
             except Exception:
                 pass
         self.tabs.clear()
-        if self.proc.poll() is None:
-            self.proc.terminate()
+        # chromium's renderer and zygote processes are in its session: stop them all, then remove the profile
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            try:
+                os.killpg(self.proc.pid, sig)
+            except ProcessLookupError:
+                break
             try:
                 self.proc.wait(10)
+                time.sleep(0.2)
             except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(5)
+                continue
         if not self.loop.is_closed():
             self.loop.close()
         self.profile.cleanup()
@@ -121,7 +127,12 @@ class Tab:
     def wait_for(self, expression: str, timeout: float = 30.0, what: str = "") -> Any:
         deadline = time.monotonic() + timeout
         while True:
-            value = self.js(expression)
+            try:
+                value = self.js(expression)
+            except RuntimeError as exc:
+                if "is not defined" not in str(exc) and "of null" not in str(exc):
+                    raise
+                value = None  # the page has not loaded its script (or that element) yet
             if value:
                 return value
             if time.monotonic() > deadline:

@@ -48,10 +48,11 @@ def object_name(obj: dict[str, Any]) -> str:
 
 
 def draw_objects(img: np.ndarray, layers: dict[str, Any]) -> None:
-    target = (layers.get("target") or {}).get("id")
+    # the decision layer labels its own objects (target, candidates): no second label under theirs
+    decided = {o["id"] for o in [layers.get("target"), *layers.get("candidates", [])] if o}
     for obj in layers.get("objects", []):
         _box(img, obj["bbox"], BOX, 2)
-        if obj["id"] != target:  # the target's own label says more
+        if obj["id"] not in decided:
             _label(img, f"{object_name(obj)} {obj['id']} {obj['score']:.2f}", obj["bbox"][0], obj["bbox"][1],
                    BOX)
 

@@ -51,10 +51,11 @@ function drawBox(ctx, bbox, colour, width, dash) {
 }
 
 function drawObjects(ctx, layers) {
-  const target = layers.target && layers.target.id;
+  // the decision layer labels its own objects (target, candidates): no second label under theirs
+  const decided = new Set([layers.target, ...(layers.candidates || [])].filter(Boolean).map((o) => o.id));
   for (const o of layers.objects || []) {
     drawBox(ctx, o.bbox, COLOURS.box, 2);
-    if (o.id !== target) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}`, o.bbox[0], o.bbox[1], COLOURS.box);
+    if (!decided.has(o.id)) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}`, o.bbox[0], o.bbox[1], COLOURS.box);
   }
 }
 
@@ -177,7 +178,8 @@ function weightBars(weights) {
   for (const [name, w] of Object.entries(weights || {})) {
     const pct = Math.max(0, Math.min(1, Number(w) || 0)) * 100;
     box.append(el("div", { class: "bar" }, el("span", {}, name),
-      el("span", { class: "fill", style: `width:${pct.toFixed(0)}px` }), el("span", {}, num(w))));
+      el("span", { class: "track" }, el("span", { class: "fill", style: `width:${pct.toFixed(0)}%` })),
+      el("span", {}, num(w))));
   }
   return box;
 }
