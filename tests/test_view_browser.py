@@ -199,6 +199,22 @@ def test_many_tabs_and_a_tab_that_never_reads_do_not_grow_the_server(live):
     assert live["view"].alive()
 
 
+def test_snapshot_of_the_live_bus_writes_the_annotated_camera_frame(live, tmp_path):
+    out = tmp_path / "live.png"
+    res = live["group"].hri("view", "--snapshot", str(out), "--cam", "table", "--wait", "1", "--timeout", "30",
+                            timeout=60)
+    assert res.returncode == 0, res.stderr
+    img = cv2.imread(str(out))
+    table = cv2.imread(str(TABLE))
+    assert img.shape == table.shape and img.std() > 20
+    def box_green(image):  # draw.py BOX; the photo's green candies come close, so count only what was drawn
+        return np.abs(image.astype(int) - np.array((80, 220, 0))).sum(axis=2) < 40
+    drawn = box_green(img) & ~box_green(table)
+    assert drawn.sum() > 2000, f"no detection boxes drawn ({drawn.sum()} box-coloured pixels added)"
+    res = live["group"].hri("view", "--snapshot", str(out), "--at", "5")
+    assert res.returncode == 2 and "--at needs" in res.stderr
+
+
 def test_recording_opens_with_a_slider_and_shows_the_same_command(live):
     time.sleep(1.0)
     code, _ = live["recorder"].terminate(timeout=15)
