@@ -45,6 +45,12 @@ class Changes:
         self.loop = loop
         self._event = asyncio.Event()
         self._scheduled = threading.Event()
+        self.closed = False
+
+    def close(self) -> None:
+        """Answer every waiting request now (the server is stopping)."""
+        self.closed = True
+        self._event.set()
 
     def notify(self) -> None:
         if not self._scheduled.is_set():  # coalesce bursts: one wake-up per loop turn
@@ -81,7 +87,8 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
         changes: Changes = request.app["changes"]
         epoch, version = _int(request, "epoch"), _int(request, "version", -1)
         deadline = time.monotonic() + LONG_POLL_S
-        while state.epoch == epoch and state.version == version and time.monotonic() < deadline:
+        while (state.epoch == epoch and state.version == version and time.monotonic() < deadline
+               and not changes.closed):
             await changes.wait(deadline - time.monotonic())
         after = _int(request, "after") if state.epoch == epoch else 0
         body = state.snapshot(after)
@@ -101,7 +108,7 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
                 return web.Response(body=shown.jpeg, content_type="image/jpeg", headers={
                     "Cache-Control": "no-store", "X-Frame-N": str(shown.n), "X-Seq": str(shown.seq),
                     "X-Stamp": repr(shown.stamp)})
-            if time.monotonic() >= deadline:
+            if time.monotonic() >= deadline or changes.closed:
                 return web.Response(status=204, headers={"Cache-Control": "no-store"})
             await changes.wait(deadline - time.monotonic())
 
@@ -249,6 +256,7 @@ async def serve(args: argparse.Namespace, state: ViewState, mode: dict[str, Any]
     try:
         await stop.wait()
     finally:
+        changes.close()  # waiting long polls answer at once, so stopping takes no LONG_POLL_S
         clock.cancel()
         if feed is not None:
             feed()
