@@ -263,3 +263,43 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
     res = subprocess.run([sys.executable, "-m", "common.cli", "view", str(tmp_path / "none.mcap"), "--snapshot",
                           str(out)], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "cannot open" in res.stderr
+
+
+def test_http_api_long_polls_serves_the_jpeg_and_controls_the_player(tmp_path, objects, monkeypatch):
+    import asyncio
+
+    from aiohttp.test_utils import TestClient, TestServer
+
+    from common.view import server
+
+    monkeypatch.setattr(server, "LONG_POLL_S", 0.5)
+    path = tmp_path / "s.mcap"
+    write_session(path, objects)
+    state = ViewState(KEYS)
+    player = Player.open(str(path), state)
+    player.seek(0.0)
+
+    async def go() -> None:
+        app = server.make_app(state, {"live": False, "label": "recording"}, player)
+        app["changes"] = server.Changes(asyncio.get_running_loop())
+        async with TestClient(TestServer(app)) as http:
+            first = await (await http.get("/api/state")).json()
+            assert first["player"]["duration"] > 3 and first["timeline"] == []
+            n = first["cameras"]["table"]["frame"]["n"]
+            res = await http.get(f"/api/frame/table?after={n - 1}")
+            assert res.status == 200 and await res.read() == JPEG and res.headers["X-Seq"] == "0"
+            assert (await http.get(f"/api/frame/table?after={n}")).status == 204  # nothing newer: waits, then 204
+            # a seek wakes a waiting state request with the new state
+            waiting = asyncio.ensure_future(http.get(f"/api/state?epoch={first['epoch']}&version={first['version']}"))
+            await asyncio.sleep(0.1)
+            assert not waiting.done()
+            assert (await http.post("/api/player", json={"action": "seek", "position": 3.0})).status == 200
+            later = await (await waiting).json()
+            assert [e["kind"] for e in later["timeline"]] == ["transcript", "command"]
+            assert (await http.post("/api/player", json={"action": "jump"})).status == 400
+            assert (await http.post("/api/player", data=b"not json")).status == 400
+            page = await http.get("/")
+            assert page.status == 200 and "view.js" in await page.text()
+            assert (await http.get("/static/view.js")).status == 200
+
+    asyncio.run(go())
