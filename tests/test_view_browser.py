@@ -184,17 +184,26 @@ def test_many_tabs_and_a_tab_that_never_reads_do_not_grow_the_server(live):
         return await asyncio.gather(*tasks)
 
     loop = asyncio.new_event_loop()
+    browser = live["browser"]
+    pages = []
     try:
         loop.run_until_complete(run(3.0))  # warm up: buffers, caches, first allocations
         before = rss_kib(pid)
+        pages = [browser.tab(url) for _ in range(3)]  # real pages too, beside the 20 scripted ones
         sockets = [stalled() for _ in range(5)]
         frames = loop.run_until_complete(run(15.0))
         after = rss_kib(pid)
+        for page in pages:
+            assert page.js("hriView.framesDrawn") > 30
         for s in sockets:
             s.close()
     finally:
         loop.close()
+        for page in pages:
+            page.close()
+            browser.tabs.remove(page)
     assert min(frames) > 30, f"some tabs got too few frames: {frames}"  # ~10 fps each, despite the stalled ones
+    print(f"hri view RSS: {before} KiB before the tabs, {after} KiB after 15 s of them; frames per tab {frames}")
     assert after - before < 20_000, f"server RSS grew {before} -> {after} KiB"
     assert live["view"].alive()
 
