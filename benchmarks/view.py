@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import statistics
 import sys
 import threading
 import time

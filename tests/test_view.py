@@ -16,7 +16,7 @@ from common.codec import encode
 from common.keys import Keys
 from common.recording import NS, SessionWriter
 from common.schema import (
-    Clarification, Detections, Frame, FusedCommand, GestureEvent, Hand, Hands, Ray, Stats, Target, Weights,
+    Clarification, Detections, Frame, FusedCommand, GestureEvent, Hand, Ray, Stats, Target, Weights,
 )
 from common.view.core import ViewState
 from common.view.draw import CANDIDATE, TARGET, render
@@ -76,7 +76,6 @@ def red(objects):
 
 def test_frames_are_released_latest_only_within_the_budget_and_jpeg_passes_through():
     state = ViewState(KEYS, max_fps=10)
-    released = 0
     for i in range(30):  # one second at 30 fps
         state.ingest(KEYS.frame("table"), frame(i, T0 + i / 30), now=i / 30)
     cam = state.cameras["table"]
