@@ -42,35 +42,86 @@ COLOR_PHRASES: dict[str, tuple[str, ...]] = {
     "grey": ("grey", "gray", "silver"),
 }
 
-# Object classes. Keys are canonical labels; detector labels are mapped onto them by LABEL_ALIASES.
-OBJECT_PHRASES: dict[str, tuple[str, ...]] = {
-    "cup": ("cup", "mug", "glass", "beaker", "coffee"),
-    "bottle": ("bottle", "flask"),
-    "ball": ("ball",),
-    "box": ("box", "package", "carton", "cube", "block", "brick"),
-    "book": ("book", "notebook"),
-    "candy": ("candy", "sweet", "sweets", "smartie", "smarties", "candies"),
-    "fruit": ("fruit", "apple", "banana", "pear", "lemon fruit"),
-    "bowl": ("bowl", "dish"),
-    "toy": ("toy", "teddy", "duck"),
-    "phone": ("phone", "mobile"),
-    "object": ("object", "thing", "item", "one", "stuff"),
+# The detector's label set: the 80 COCO classes, in the model's class-index order (YOLOX, SSD, YOLOv5 …
+# all use it). Vision backends that run a COCO model import this list; everything here names them.
+COCO_LABELS: tuple[str, ...] = (
+    "person", "bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat", "traffic light",
+    "fire hydrant", "stop sign", "parking meter", "bench", "bird", "cat", "dog", "horse", "sheep", "cow",
+    "elephant", "bear", "zebra", "giraffe", "backpack", "umbrella", "handbag", "tie", "suitcase", "frisbee",
+    "skis", "snowboard", "sports ball", "kite", "baseball bat", "baseball glove", "skateboard", "surfboard",
+    "tennis racket", "bottle", "wine glass", "cup", "fork", "knife", "spoon", "bowl", "banana", "apple",
+    "sandwich", "orange", "broccoli", "carrot", "hot dog", "pizza", "donut", "cake", "chair", "couch",
+    "potted plant", "bed", "dining table", "toilet", "tv", "laptop", "mouse", "remote", "keyboard", "cell phone",
+    "microwave", "oven", "toaster", "sink", "refrigerator", "book", "clock", "vase", "scissors", "teddy bear",
+    "hair drier", "toothbrush",
+)
+
+# Labels of the colour backend and of the demo scenes that are not COCO classes.
+EXTRA_LABELS: tuple[str, ...] = ("candy", "box", "block")
+
+# Other words people use for a label: word -> the label it names (one label; a word that may mean
+# several labels is a category below). "glass" is a category (wine glass or cup), "mug" is a cup.
+OBJECT_SYNONYMS: dict[str, str] = {
+    "mug": "cup", "beaker": "cup", "coffee": "cup", "tea": "cup", "coffee cup": "cup", "coffee mug": "cup",
+    "flask": "bottle", "water bottle": "bottle",
+    "ball": "sports ball", "football": "sports ball", "soccer ball": "sports ball", "tennis ball": "sports ball",
+    "phone": "cell phone", "mobile": "cell phone", "mobile phone": "cell phone", "smartphone": "cell phone",
+    "cellphone": "cell phone",
+    "teddy": "teddy bear", "stuffed animal": "teddy bear", "plush": "teddy bear",
+    "television": "tv", "tv set": "tv", "monitor": "tv", "screen": "tv",
+    "computer": "laptop", "notebook computer": "laptop",
+    "sofa": "couch", "plant": "potted plant", "flower pot": "potted plant",
+    "fridge": "refrigerator", "doughnut": "donut", "remote control": "remote", "controller": "remote",
+    "hairdryer": "hair drier", "hair dryer": "hair drier", "bike": "bicycle", "motorbike": "motorcycle",
+    "plane": "airplane", "puppy": "dog", "kitten": "cat", "bag": "handbag", "purse": "handbag",
+    "rucksack": "backpack", "racket": "tennis racket", "bat": "baseball bat", "glove": "baseball glove",
+    "dish": "bowl",
+    "package": "box", "carton": "box", "cube": "box", "brick": "box", "parcel": "box",
+    "sweet": "candy", "smartie": "candy", "smarties": "candy", "candies": "candy", "sweets": "candy",
+    "human": "person", "man": "person", "woman": "person", "guy": "person", "lady": "person", "boy": "person",
+    "girl": "person", "child": "person", "kid": "person", "someone": "person", "somebody": "person",
+    "people": "person", "men": "person", "women": "person", "children": "person", "kids": "person",
 }
 
-# Detector label -> canonical class (COCO names and the colour backend's labels).
-LABEL_ALIASES: dict[str, str] = {
-    "cup": "cup", "wine glass": "cup", "mug": "cup",
-    "bottle": "bottle",
-    "sports ball": "ball", "ball": "ball",
-    "box": "box", "suitcase": "box", "block": "box",
-    "book": "book",
-    "candy": "candy",
-    "apple": "fruit", "banana": "fruit", "orange": "fruit", "fruit": "fruit",
-    "bowl": "bowl",
-    "teddy bear": "toy", "toy": "toy",
-    "cell phone": "phone", "phone": "phone",
-    "object": "object",
+# Words for a kind of thing: word -> the labels it covers. A label itself is always more specific than
+# a category that contains it: "the banana" is the banana even with an apple beside it.
+OBJECT_CATEGORIES: dict[str, tuple[str, ...]] = {
+    "fruit": ("apple", "banana", "orange", "fruit"),
+    "drink": ("bottle", "cup", "wine glass"),
+    "glass": ("wine glass", "cup"),
+    "food": ("banana", "apple", "sandwich", "orange", "broccoli", "carrot", "hot dog", "pizza", "donut", "cake",
+             "candy", "fruit"),
+    "snack": ("banana", "apple", "orange", "sandwich", "donut", "cake", "candy"),
+    "vegetable": ("broccoli", "carrot"),
+    "cutlery": ("fork", "knife", "spoon"),
+    "utensil": ("fork", "knife", "spoon"),
+    "container": ("bottle", "cup", "bowl", "vase", "box", "wine glass"),
+    "toy": ("teddy bear", "sports ball", "kite", "frisbee", "toy", "block"),
+    "animal": ("bird", "cat", "dog", "horse", "sheep", "cow", "elephant", "bear", "zebra", "giraffe"),
+    "pet": ("cat", "dog", "bird"),
+    "vehicle": ("bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat"),
+    "furniture": ("chair", "couch", "bed", "dining table", "bench"),
+    "seat": ("chair", "couch", "bench"),
+    "electronics": ("tv", "laptop", "mouse", "remote", "keyboard", "cell phone"),
+    "device": ("tv", "laptop", "mouse", "remote", "keyboard", "cell phone"),
+    "bag": ("handbag", "backpack", "suitcase"),
+    "luggage": ("suitcase", "backpack", "handbag"),
 }
+ANY_OBJECT = "object"  # the category of "thing", "object", "one": anything
+ANY_OBJECT_WORDS: tuple[str, ...] = ("object", "thing", "item", "one", "stuff", "something")
+
+# Object classes: label -> the phrases that name it (the label first), then the categories (-> their word),
+# then "object" (anything). Built from the tables above; the parser adds plurals ("cups", "wine glasses").
+OBJECT_PHRASES: dict[str, tuple[str, ...]] = {
+    label: (label, *[w for w, lab in OBJECT_SYNONYMS.items() if lab == label and w not in OBJECT_CATEGORIES])
+    for label in (*COCO_LABELS, *EXTRA_LABELS) if label not in OBJECT_CATEGORIES
+}
+OBJECT_PHRASES.update({category: (category,) for category in OBJECT_CATEGORIES})
+OBJECT_PHRASES[ANY_OBJECT] = ANY_OBJECT_WORDS
+
+# Detector label -> the language's label: other spellings and synonyms a detector or a user's label file
+# may use ("mug" -> cup, "phone" -> cell phone). Labels not listed are their own name.
+LABEL_ALIASES: dict[str, str] = {w: lab for w, lab in OBJECT_SYNONYMS.items() if w not in OBJECT_CATEGORIES}
 
 # Spatial and ordinal selectors: canonical name -> phrases.
 SPATIAL_PHRASES: dict[str, tuple[str, ...]] = {
@@ -106,6 +157,99 @@ FILLER_WORDS: tuple[str, ...] = (
 )
 
 
+# -- motions ----------------------------------------------------------------------------------
+# Verbs that move the robot itself ("go forward", "back up") and turn it ("turn left"). A motion verb
+# with a direction or an amount and no object or place is a motion, not a `go_to`.
+MOTION_PHRASES: dict[str, tuple[str, ...]] = {
+    "move": ("move", "go", "drive", "walk", "step", "roll", "back up", "head", "come"),
+    "turn": ("turn", "rotate", "spin", "turn yourself"),
+}
+DIRECTION_PHRASES: dict[str, tuple[str, ...]] = {
+    "forward": ("forward", "forwards", "ahead", "straight", "straight ahead", "onward", "onwards"),
+    "back": ("back", "backward", "backwards", "reverse", "back up"),
+    "left": ("left", "to the left", "leftwards"),
+    "right": ("right", "to the right", "rightwards"),
+    "around": ("around", "round", "about"),
+}
+# Units of an amount -> (quantity, factor to metres or degrees).
+UNIT_PHRASES: dict[str, tuple[str, ...]] = {
+    "metre": ("meter", "meters", "metre", "metres", "m"),
+    "centimetre": ("centimeter", "centimeters", "centimetre", "centimetres", "cm"),
+    "millimetre": ("millimeter", "millimeters", "millimetre", "millimetres", "mm"),
+    "foot": ("foot", "feet", "ft"),
+    "inch": ("inch", "inches"),
+    "step": ("step", "steps", "pace", "paces"),
+    "degree": ("degree", "degrees", "deg"),
+}
+STEP_M = 0.5  # one of the robot's "steps", in metres (documented in docs/fusion.md)
+UNIT_SCALE: dict[str, tuple[str, float]] = {
+    "metre": ("distance", 1.0), "centimetre": ("distance", 0.01), "millimetre": ("distance", 0.001),
+    "foot": ("distance", 0.3048), "inch": ("distance", 0.0254), "step": ("distance", STEP_M),
+    "degree": ("angle", 1.0),
+}
+# Amounts without a number: (distance in metres, angle in degrees).
+VAGUE_AMOUNTS: dict[str, tuple[float, float]] = {
+    "a bit": (0.25, 15.0), "a little": (0.25, 15.0), "a little bit": (0.25, 15.0), "slightly": (0.25, 15.0),
+    "a tiny bit": (0.1, 5.0), "a lot": (2.0, 90.0),
+}
+TURN_DEFAULT_DEG = 90.0  # "turn left" without an amount
+TURN_AROUND_DEG = 180.0
+NUMBER_WORDS: dict[str, float] = {
+    "zero": 0, "one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8,
+    "nine": 9, "ten": 10, "eleven": 11, "twelve": 12, "thirteen": 13, "fourteen": 14, "fifteen": 15,
+    "sixteen": 16, "seventeen": 17, "eighteen": 18, "nineteen": 19, "twenty": 20, "thirty": 30, "forty": 40,
+    "fifty": 50, "sixty": 60, "seventy": 70, "eighty": 80, "ninety": 90, "hundred": 100, "half": 0.5,
+    "couple": 2, "few": 3, "a": 1, "an": 1, "single": 1, "quarter": 0.25,
+}
+
+# -- dialogue -----------------------------------------------------------------------------------
+# "The other one": the candidate that was not chosen (or not proposed).
+OTHER_PHRASES: tuple[str, ...] = ("other", "the other", "the other one", "another", "another one", "a different one",
+                                  "different one", "the other way", "not that one", "not this one", "not that",
+                                  "not this", "wrong one", "the wrong one")
+# Words that take back what was just said: "the red, no, the blue cup". Only after something was said.
+CORRECTION_PHRASES: tuple[str, ...] = ("no", "sorry", "i mean", "i meant", "actually", "rather", "or rather",
+                                       "make that", "no wait", "wait no", "oops", "i mean the", "correction")
+
+# Speech that carries no meaning: hesitations, politeness and softeners real people add ("uh, could you
+# please hand me the cup for me, thanks"). Kept apart from FILLER_WORDS, which the speech grammar gives roles.
+DISFLUENCY_WORDS: tuple[str, ...] = (
+    "uh", "um", "umm", "uhm", "uhh", "er", "erm", "ah", "hmm", "hm", "mm", "mhm", "oh", "well", "so", "like",
+    "just", "maybe", "thanks", "thank", "cheers", "will", "should", "go ahead and", "quickly", "right now",
+    "very", "really", "mind", "kindly", "pretty", "i", "id", "d", "ll", "s", "want", "need", "would like",
+    "let", "lets", "us", "my", "your", "some", "also", "again", "yourself",
+)
+POLITENESS_PHRASES: tuple[str, ...] = ("could you please", "can you please", "would you please", "please could you",
+                                       "would you mind", "if you could", "for me please", "for me", "thank you",
+                                       "i want you to", "i would like you to", "i d like you to")
+DETERMINERS: tuple[str, ...] = ("the", "a", "an", "this", "that", "these", "those", "my", "your", "some", "his",
+                                "her", "our", "their", "any")
+
+
+def plural(word: str) -> str:
+    """English plural of a label's last word ("cup" -> "cups", "wine glass" -> "wine glasses")."""
+    head, _, last = word.rpartition(" ")
+    irregular = {"person": "people", "mouse": "mice", "knife": "knives", "man": "men", "woman": "women",
+                 "child": "children", "foot": "feet", "skis": "skis", "scissors": "scissors", "sheep": "sheep",
+                 "candy": "candies", "stuff": "stuff", "tv": "tvs", "couch": "couches"}
+    if last in irregular:
+        out = irregular[last]
+    elif last.endswith(("s", "x", "z", "ch", "sh")):
+        out = last + "es"
+    elif last.endswith("y") and last[-2:-1] not in "aeiou":
+        out = last[:-1] + "ies"
+    else:
+        out = last + "s"
+    return f"{head} {out}" if head else out
+
+
+def label_matches(said: str | None, label: str) -> bool:
+    """Does the language's word `said` (a label, a category or "object") name an object labelled `label`?"""
+    if not said or said == ANY_OBJECT:
+        return True
+    return label == said or label in OBJECT_CATEGORIES.get(said, ())
+
+
 def phrases(table: dict[str, tuple[str, ...]]) -> dict[str, str]:
     """Flatten a table into phrase -> canonical name."""
     return {p: canonical for canonical, ps in table.items() for p in ps}
@@ -114,13 +258,18 @@ def phrases(table: dict[str, tuple[str, ...]]) -> dict[str, str]:
 def vocabulary() -> set[str]:
     """Every single word the language uses (for grammars and ASR prompts)."""
     words: set[str] = set(FILLER_WORDS) | set(DEICTIC_OBJECT_WORDS) | set(DEICTIC_PLACE_WORDS)
-    for table in (INTENT_PHRASES, ANSWER_PHRASES, COLOR_PHRASES, OBJECT_PHRASES, SPATIAL_PHRASES, PLACE_PHRASES):
+    for table in (INTENT_PHRASES, ANSWER_PHRASES, COLOR_PHRASES, OBJECT_PHRASES, SPATIAL_PHRASES, PLACE_PHRASES,
+                  MOTION_PHRASES, DIRECTION_PHRASES, UNIT_PHRASES):
         for ps in table.values():
             for p in ps:
                 words.update(p.split())
+    words.update(w for w in NUMBER_WORDS if w.isalpha())
+    words.update(w for p in OTHER_PHRASES for w in p.split())
     return words
 
 
 def canonical_label(detector_label: str) -> str:
-    """Map a detector's label to the language's class name (unknown labels map to themselves)."""
-    return LABEL_ALIASES.get(detector_label.lower().strip(), detector_label.lower().strip())
+    """A detector's label in the language's spelling: lower case, single spaces ("Cell_Phone" -> "cell phone"),
+    synonyms to their label ("mug" -> "cup"). Labels the language does not know map to themselves."""
+    label = " ".join(detector_label.lower().replace("_", " ").split())
+    return LABEL_ALIASES.get(label, label)

@@ -407,6 +407,20 @@ class Location(Struct):
 
 
 @wire
+class Motion(Struct):
+    """The robot moving itself ("go forward ten meters", "turn left"): FusedCommand intents `move` and `turn`."""
+    direction: Optional[Literal["forward", "back", "left", "right", "around"]] = None
+    distance: Optional[float] = None  # metres (>= 0); nil: not said, a small move
+    angle: Optional[float] = None  # degrees (>= 0), for turns
+
+    def _check_invariants(self) -> None:
+        for name in ("distance", "angle"):
+            value = getattr(self, name)
+            if value is not None and value < 0:
+                raise _Bad("out_of_range", f"{value} is negative", name)
+
+
+@wire
 class Weights(Struct):
     speech: float = unit()
     vision: float = unit()
@@ -542,6 +556,7 @@ class FusedCommand(Sample):
     inputs: dict[str, Optional[float]]
     explanation: str
     prompt: str
+    motion: Optional[Motion] = None  # v1 extension: intents move / turn (docs/wire.md)
 
 
 @_envelope

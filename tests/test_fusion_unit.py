@@ -44,7 +44,7 @@ def test_parser_every_intent_phrase_of_the_language_is_understood():
     ("pick up the crimson mug", "red", "cup", ()),
     ("bring me the navy bottle", "blue", "bottle", ()),
     ("take the blue one on the left", "blue", "object", ("left",)),
-    ("the leftmost ball", None, "ball", ("left",)),
+    ("the leftmost ball", None, "sports ball", ("left",)),
     ("grab the biggest box", None, "box", ("biggest",)),
     ("pick up the candy in the middle", None, "candy", ("middle",)),
     ("pick the nearest cup", None, "cup", ("nearest",)),

@@ -11,12 +11,13 @@ from __future__ import annotations
 import collections
 import hashlib
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
-from common.language import DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS
+from common.language import ANY_OBJECT, DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS, label_matches
 from common.schema import (
-    Clarification, Detections, FusedCommand, GestureEvent, Hands, Location, Sample, Transcript, Weights,
+    Clarification, Detections, FusedCommand, GestureEvent, Hands, Location, Motion as WireMotion, Sample, Transcript,
+    Weights,
 )
 from services.fusion import describe
 from services.fusion.evidence import (
@@ -27,7 +28,7 @@ from services.fusion.ground import (
     DEFAULT_MARGIN, MAX_CANDIDATES, Choice, SceneObject, Scored, choose, ray_point, scene_objects, score,
 )
 from services.fusion.join import Liveness, Streams, WAITED_MODALITIES, ready
-from services.fusion.parse import ObjectPhrase, Utterance, parse
+from services.fusion.parse import Motion, ObjectPhrase, Utterance, parse
 
 TARGET_INTENTS = ("pick_up", "bring")  # must name an object
 ON_RAY = 0.7  # gesture score from which "there" means the object on the ray
@@ -75,6 +76,18 @@ class Draft:
     target: SceneObject | None = None
     location: tuple[float, float, str] | None = None
     place: str | None = None
+    motion: Motion | None = None
+
+
+@dataclass
+class LastCommand:
+    """The latest command that acted on an object: "no, the other one" corrects it."""
+    intent: str
+    text: str
+    target: SceneObject
+    phrase: ObjectPhrase
+    place: str | None
+    expires: float  # source time
 
 
 @dataclass
@@ -123,6 +136,7 @@ class FusionCore:
         self.liveness = Liveness(config.live_recent_s)
         self.pending: list[PendingTranscript] = []
         self.dialogue: Dialogue | None = None
+        self.last: LastCommand | None = None
         self.seen_transcripts: collections.OrderedDict[tuple[str, float], float] = collections.OrderedDict()
         self.gesture_stops: collections.deque[float] = collections.deque(maxlen=64)
         self.gesture_waves: collections.deque[float] = collections.deque(maxlen=64)
@@ -287,16 +301,23 @@ class FusionCore:
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
             return []
         ctx = self.context(p, how)
+        if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
+            u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         if self.dialogue is not None and t.start > self.dialogue.expires:
             self.count("dialogue_expired")
             self.dialogue = None
+        if self.last is not None and t.start > self.last.expires:
+            self.last = None
         if u.intent is None:
             if self.dialogue is not None and (u.has_content or ctx.pointing is not None):
                 return self.answer(t, u, ctx)
+            if self.last is not None and (u.other or (u.answer == "deny" and u.obj.specific)):
+                return self.correct_last(t, u, ctx)
             self.count("ignored_no_intent")
             self.log.info("'%s' is not a command I know; ignored", t.text)
             return []
         self.dialogue = None  # a new command supersedes an open question
+        self.last = None
         if u.intent == "come_here" and any(p.lo <= s <= p.hi for s in self.gesture_waves):
             self.count("duplicate_of_gesture")
             return []
@@ -306,14 +327,21 @@ class FusionCore:
         intent = u.intent
         assert intent is not None
         speech_rel = ctx.reliabilities["speech"] or 0.0
+        named = u.obj.specific or u.obj.noun is not None
         wants_object = intent in TARGET_INTENTS or (intent in ("look_at", "follow") and (
-            u.obj.specific or u.obj.deictic)) or (intent == "go_to" and u.obj.specific)
+            named or u.obj.deictic)) or (intent == "go_to" and named)
         wants_location = (intent == "go_to" and not wants_object and not u.place) or (
             intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj))
         target: Scored | None = None
         runner_up: Scored | None = None
         overruled = None
-        if wants_object:
+        if wants_object and u.obj.noun is not None:  # a word I don't know: only a clear point can say which
+            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
+            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
+                self.count("unknown_noun")
+                return [self._clarify(t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place))]
+            target, runner_up = choice.winner, choice.runner_up
+        elif wants_object:
             choice = self._choose(u.obj, ctx)
             if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
                 best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
@@ -339,18 +367,25 @@ class FusionCore:
         gesture_carried = target is not None and (target.gesture or 0.0) >= 0.5 and \
             ctx.weights.gesture >= ctx.weights.speech
         if speech_rel < self.cfg.low_speech_confidence and not gesture_carried:
-            draft = Draft(intent, t.text, target=target.obj if target else None, location=location, place=u.place)
+            draft = Draft(intent, t.text, target=target.obj if target else None, location=location, place=u.place,
+                          motion=u.motion)
             choice = Choice("low_confidence", target, (target,) if target else ())
             return [self._clarify(t, u, ctx, choice, draft, heard=True)]
         if target is not None:
             expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
+            if u.obj.noun is not None:
+                expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
+            self.last = LastCommand(intent, t.text, target.obj, u.obj, u.place, t.end + self.cfg.dialogue_timeout)
             return [self._target_command(t, intent, target, location, ctx, expl, place=u.place)]
         expl = f"'{t.text}' -> {intent}" + (f" to the {u.place}" if u.place else "") + (
-            f"; location from the pointing ray at ({location[0]:.0f}, {location[1]:.0f})" if location else "")
+            f"; location from the pointing ray at ({location[0]:.0f}, {location[1]:.0f})" if location else "") + (
+            f": {describe.motion_words(u.motion)}" if u.motion else "")
         return [Output(self._command(t, intent, weights=ctx.weights, inputs=ctx.inputs, location=location,
                                      confidence=speech_rel, explanation=expl,
                                      gesture="point" if location and ctx.pointing else None, place=u.place,
-                                     prompt=self._prompt(t.text, intent, None, location, u.place, ctx, expl)))]
+                                     motion=u.motion,
+                                     prompt=self._prompt(t.text, intent, None, location, u.place, ctx, expl,
+                                                         motion=u.motion)))]
 
     def _scored(self, phrase: ObjectPhrase, ctx: Context) -> list[Scored]:
         return score(phrase, ctx.objects, ctx.pointing, ctx.weights, adaptive=self.cfg.weights == "adaptive",
@@ -380,6 +415,8 @@ class FusionCore:
     def answer(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         d = self.dialogue
         assert d is not None
+        if u.other:
+            return self._other_answer(t, u, ctx, d)
         pointing_answer = u.obj.deictic or (ctx.pointing is not None and not u.obj.specific)
         if u.answer == "deny" and not u.obj.specific and not pointing_answer:
             self.dialogue = None
@@ -391,7 +428,8 @@ class FusionCore:
                 draft = d.draft
                 if draft.target is None and d.candidates:
                     draft.target = d.candidates[0]
-                return [self._from_draft(t, draft, ctx, f"confirmed by '{t.text}' (question {d.clarification_id})")]
+                return [self._from_draft(t, draft, ctx, f"confirmed by '{t.text}' (question {d.clarification_id})",
+                                         phrase=d.phrase)]
             self.count("dialogue_unresolved")
             return [self._reask(t, d, d.candidates)]
         pool = d.candidates if d.candidates and d.reason != "not_found" else ctx.objects or d.candidates
@@ -401,10 +439,54 @@ class FusionCore:
             d.draft.target = choice.winner.obj
             why = f"'{t.text}' answered question {d.clarification_id}: " + describe.explain_target(
                 choice.winner, choice.runner_up, ctx.weights.to_dict(), u.obj, None)
-            return [self._from_draft(t, d.draft, ctx, why, confidence=choice.winner.total)]
+            return [self._from_draft(t, d.draft, ctx, why, confidence=choice.winner.total, phrase=d.phrase)]
         self.count("dialogue_unresolved")
         narrowed = [c.obj for c in choice.candidates] or d.candidates
         return [self._reask(t, d, narrowed)]
+
+    def _other_answer(self, t: Transcript, u: Utterance, ctx: Context, d: Dialogue) -> list[Output]:
+        """"The other one" / "not that one": every candidate but the one proposed, pointed at or acted on."""
+        excluded: SceneObject | None = d.draft.target
+        if excluded is None and u.obj.deictic and ctx.pointing is not None and d.candidates:
+            pointed = score(ObjectPhrase(), d.candidates, ctx.pointing, Weights(speech=0.0, vision=0.0, gesture=1.0))
+            if pointed and (pointed[0].gesture or 0.0) >= 0.5:
+                excluded = pointed[0].obj
+        if excluded is None and self.last is not None:
+            excluded = self.last.target
+        remaining = [o for o in d.candidates if excluded is None or o.key != excluded.key]
+        if u.obj.specific:
+            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False) if s.match >= 0.5]
+            remaining = fit or remaining
+        if excluded is not None and len(remaining) == 1:
+            d.draft.target = remaining[0]
+            why = (f"'{t.text}' answered question {d.clarification_id}: not {excluded.id} ({excluded.name()}), "
+                   f"so the other candidate {remaining[0].id} ({remaining[0].name()})")
+            return [self._from_draft(t, d.draft, ctx, why, phrase=d.phrase)]
+        self.count("dialogue_unresolved")
+        d.draft.target = None
+        return [self._reask(t, d, remaining if excluded is not None and remaining else d.candidates)]
+
+    def correct_last(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
+        """"No, the other one" / "not that one" / "no, the blue one" just after a command: the same command on
+        another object — of the same kind as the one acted on, unless the correction names another kind."""
+        last = self.last
+        assert last is not None
+        self.last = None
+        self.count("corrected_by_speech")
+        kind = last.phrase.label if last.phrase.label not in (None, ANY_OBJECT) else last.target.label
+        phrase = u.obj if u.obj.label not in (None, ANY_OBJECT) else replace(u.obj, label=kind, deictic=False)
+        pool = [o for o in ctx.objects if o.key != last.target.key and label_matches(phrase.label, o.label)]
+        draft = Draft(last.intent, f"{last.text} / {t.text}", place=last.place)
+        scored = score(phrase, pool, None, ctx.weights, adaptive=self.cfg.weights == "adaptive", ref=ctx.ref)
+        choice = choose(phrase, scored, margin=self.cfg.margin, check_evidence=False)
+        if choice.kind == "target" and choice.winner is not None:
+            draft.target = choice.winner.obj
+            why = (f"'{t.text}' corrected '{last.text}': not {last.target.id} ({last.target.name()}); "
+                   + describe.explain_target(choice.winner, choice.runner_up, ctx.weights.to_dict(), phrase, None))
+            return [self._from_draft(t, draft, ctx, why, confidence=choice.winner.total, phrase=phrase)]
+        if choice.kind != "ambiguous":
+            choice = Choice("not_found", None, ())
+        return [self._clarify(t, replace(u, obj=phrase), ctx, choice, draft)]
 
     def _reask(self, t: Transcript, d: Dialogue, candidates: list[SceneObject]) -> Output:
         scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
@@ -416,17 +498,21 @@ class FusionCore:
                                  question)
         return Output(clr)
 
-    def _from_draft(self, t: Transcript, draft: Draft, ctx: Context, why: str, confidence: float | None = None
-                    ) -> Output:
+    def _from_draft(self, t: Transcript, draft: Draft, ctx: Context, why: str, confidence: float | None = None,
+                    phrase: ObjectPhrase | None = None) -> Output:
         self.dialogue = None
         target = draft.target
+        if target is not None:  # "no, the other one" may follow
+            self.last = LastCommand(draft.intent, draft.text, target, phrase or ObjectPhrase(), draft.place,
+                                    t.end + self.cfg.dialogue_timeout)
         conf = confidence if confidence is not None else (ctx.reliabilities["speech"] or 0.0)
         text = f"{draft.text} / {t.text}"
         return Output(self._command(
             t, draft.intent, text=text, target=target.to_target() if target else None, location=draft.location,
             weights=ctx.weights, inputs=ctx.inputs, confidence=max(0.0, min(1.0, conf)), explanation=why,
-            gesture="point" if ctx.pointing else None, place=draft.place,
-            prompt=self._prompt(text, draft.intent, target, draft.location, draft.place, ctx, why)))
+            gesture="point" if ctx.pointing else None, place=draft.place, motion=draft.motion,
+            prompt=self._prompt(text, draft.intent, target, draft.location, draft.place, ctx, why,
+                                motion=draft.motion)))
 
     def _clarify(self, t: Transcript, u: Utterance, ctx: Context, choice: Choice, draft: Draft,
                  heard: bool = False) -> Output:
@@ -463,10 +549,10 @@ class FusionCore:
 
     # -- building samples -----------------------------------------------------
     def _prompt(self, text: str | None, intent: str, target: SceneObject | None, location: tuple | None,
-                place: str | None, ctx: Context, why: str) -> str:
+                place: str | None, ctx: Context, why: str, motion: Motion | None = None) -> str:
         return describe.planner_prompt(text=text, intent=intent, target=target, location=location, place=place,
                                        pointing=ctx.pointing, gesture=None, objects=ctx.objects,
-                                       missing=ctx.missing, explanation=why)
+                                       missing=ctx.missing, explanation=why, motion=motion)
 
     def _target_command(self, t: Transcript, intent: str, target: Scored, location: tuple | None, ctx: Context,
                         explanation: str, place: str | None = None) -> Output:
@@ -480,12 +566,14 @@ class FusionCore:
 
     def _command(self, t: Transcript, intent: str, *, weights: Weights, inputs: dict, confidence: float,
                  explanation: str, prompt: str, text: str | None = None, target=None, location=None,
-                 gesture: str | None = None, place: str | None = None) -> FusedCommand:
+                 gesture: str | None = None, place: str | None = None, motion: Motion | None = None) -> FusedCommand:
         loc = Location(x=float(location[0]), y=float(location[1]), cam=location[2]) if location else None
+        wire_motion = WireMotion(direction=motion.direction, distance=motion.distance, angle=motion.angle) \
+            if motion is not None else None
         return FusedCommand(stamp=t.stamp, source=self.source, id=stable_id("cmd", t.source, t.stamp, t.mic),
                             intent=intent, text=text if text is not None else t.text, target=target, location=loc,
                             place=place, gesture=gesture, confidence=round(max(0.0, min(1.0, confidence)), 4), weights=weights,
-                            inputs=inputs, explanation=explanation, prompt=prompt)
+                            inputs=inputs, explanation=explanation, prompt=prompt, motion=wire_motion)
 
     def _gesture_command(self, ev: GestureEvent, intent: str, realtime: bool, why: str) -> Output:
         prompt = describe.planner_prompt(text=None, intent=intent, target=None, location=None, place=None,

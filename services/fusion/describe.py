@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from common.language import OBJECT_CATEGORIES, plural
 from services.fusion.evidence import Pointing
 from services.fusion.ground import Scored, SceneObject
-from services.fusion.parse import ObjectPhrase
+from services.fusion.parse import Motion, ObjectPhrase
 
 PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
 
@@ -51,6 +52,15 @@ def candidate_phrases(objs: list[SceneObject]) -> list[str]:
     return out
 
 
+def a(noun: str) -> str:
+    """'a cup', 'an orange'."""
+    return ("an " if noun[:1] in "aeiou" else "a ") + noun
+
+
+def and_list(items: list[str]) -> str:
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
 def or_list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
@@ -58,9 +68,9 @@ def or_list(items: list[str]) -> str:
 def ambiguous_question(phrase: ObjectPhrase, candidates: list[Scored]) -> str:
     objs = [c.obj for c in candidates]
     labels = {o.label for o in objs}
-    what = next(iter(labels)) if len(labels) == 1 else "one"
+    what = next(iter(labels)) if len(labels) == 1 else phrase.label if phrase.label in OBJECT_CATEGORIES else "one"
     if len(objs) > 3 and len({o.color for o in objs}) == 1 and len(set(relative_positions(objs))) < len(objs):
-        return (f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{what}s that fit. "
+        return (f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{plural(what)} that fit. "
                 f"Which one? Point at it, or say where it is (left, right, top, bottom).")
     return f"Which {what}: {or_list(candidate_phrases(objs))}?"
 
@@ -72,13 +82,24 @@ def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> st
 
 
 def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
-    what = f"the {phrase.describe()}" if phrase.specific else "what you mean"
+    """What I could not find, what I can see instead, and the question. An unknown noun is said as such:
+    "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?"."""
+    if phrase.noun:
+        lead = f"I don't know what {a(phrase.noun)} is."
+        what = f"the {phrase.describe()}"
+    else:
+        what = f"the {phrase.describe()}" if phrase.specific else "what you mean"
+        lead = f"I can't see {what}."
     if vision_missing:
-        return f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
+        return f"{lead} I can't see anything right now (no camera input). Can you show me?" if phrase.noun else \
+            f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
     if not visible:
-        return f"I can't see {what}: I don't see any objects. Can you show me?"
-    names = [f"a {o.name()} {region(o)}" for o in visible[:4]]
-    return f"I can't see {what}. I can see {or_list(names).replace(' or ', ' and ')}. Which one do you mean?"
+        return f"{lead} I don't see any objects. Can you show me?"
+    shown = visible[:4]
+    names = [o.name() for o in shown]
+    if len(set(names)) < len(names):  # two of a kind: say where each is
+        names = [f"{o.name()} {region(o)}" for o in shown]
+    return f"{lead} I can see {and_list([a(n) for n in names])}. Which one do you mean?"
 
 
 def confirm_question(text: str, candidate: Scored | None) -> str:
@@ -114,11 +135,23 @@ def explain_target(choice_winner: Scored, runner_up: Scored | None, weights: dic
     return text
 
 
+def motion_words(m: Motion) -> str:
+    """'move forward 10 m', 'turn left 90 degrees', 'move back (distance not said)'."""
+    if m.kind == "turn":
+        return f"turn {m.direction or '(direction not said)'} {m.angle:g} degrees"
+    amount = f"{m.distance:g} m" if m.distance is not None else "(distance not said: a short move)"
+    return f"move {m.direction} {amount}"
+
+
 def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None, location: tuple | None,
                    place: str | None, pointing: Pointing | None, gesture: str | None,
-                   objects: list[SceneObject], missing: list[str], explanation: str) -> str:
+                   objects: list[SceneObject], missing: list[str], explanation: str,
+                   motion: Motion | None = None) -> str:
     """Everything a planner needs, in plain text, from the same data the decision used."""
     lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
+    if motion is not None:
+        lines.append(f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces; "
+                     f"left/right = its own left/right)")
     if target is not None:
         lines.append(f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
                      f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}")

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from common.language import canonical_label
+from common.language import canonical_label, label_matches
 from common.schema import Detections, Target, Weights
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase
@@ -35,7 +35,7 @@ MAX_CANDIDATES = 5
 class SceneObject:
     """A detected object with the context of the sample it came from."""
     id: str
-    label: str  # canonical class
+    label: str  # the detector's label in the language's spelling (common.language.canonical_label)
     raw_label: str
     color: str | None
     bbox: tuple[float, float, float, float]
@@ -88,7 +88,7 @@ class Scored:
 
 def _attribute_match(phrase: ObjectPhrase, o: SceneObject) -> float:
     m = 1.0
-    if phrase.label and phrase.label != "object" and o.label != phrase.label:
+    if not label_matches(phrase.label, o.label):  # "fruit" names the banana; "the banana" only the banana
         m = 0.0
     if phrase.color:
         m *= 0.5 if o.color is None else (1.0 if o.color == phrase.color else 0.0)

@@ -1,19 +1,23 @@
 """Reading an utterance with the one command language (common.language). Pure: no I/O, no zenoh.
 
-The parser tags phrases greedily (longest phrase first) and then reads the tags:
-the first intent is the command, colour/class/spatial/deictic words before a
-destination marker describe the object, and what follows a destination marker
-("on", "in", "there", a named place) describes where it goes. Words the language
-does not know are matched fuzzily against its vocabulary (ASR slips such as
-"pik up the rad cup"); every correction is recorded because it lowers the speech
-reliability.
+Text arrives as Whisper prints it ("Could you, uh, hand me the blue pitcher, please?"): lower-cased,
+punctuation dropped, numbers kept as digits. The parser tags phrases greedily (longest phrase
+first) and then reads the tags: the first intent is the command (a greeting only when nothing else
+is asked), colour/class/spatial/deictic words before a destination marker describe the object, and
+what follows a destination marker ("on", "in", "there", a named place) describes where it goes.
+A motion verb with a direction or an amount and no object is a motion ("go forward ten meters").
+A correction word after something was said ("the red, no, the blue cup") replaces what came before
+it. An unknown word in a noun's place ("the blue pitcher") is kept as the noun, so the robot can say
+it does not know it. Words the language does not know are matched fuzzily against its vocabulary
+(ASR slips such as "pik up the rad cup"); every correction is recorded because it lowers the speech
+reliability. Hesitations and politeness are tagged as filler and never change the meaning.
 """
 
 from __future__ import annotations
 
 import difflib
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from common import language as L
 
@@ -22,18 +26,29 @@ SAFETY_STOP_WORDS = ("stop", "halt", "freeze")
 # Prepositions that start the destination of put_down ("put the cup ON the table").
 DESTINATION_MARKERS = ("on", "in", "into", "onto", "next to", "near to", "inside", "at", "to")
 FUZZY_MIN_LEN = 4  # shorter words are too easy to mis-correct ("a" -> "at")
-FUZZY_CUTOFF = 0.75
+FUZZY_CUTOFF = 0.8  # "bottel" -> bottle (0.83), not "nice" -> mice (0.75)
 
 _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
+    ("other", {p: "other" for p in L.OTHER_PHRASES}),
     ("intent", L.phrases(L.INTENT_PHRASES)),
     ("answer", L.phrases(L.ANSWER_PHRASES)),
+    ("correction", {p: "correction" for p in L.CORRECTION_PHRASES if p != "no"}),
+    ("filler", {p: "filler" for p in (*L.POLITENESS_PHRASES, *L.DISFLUENCY_WORDS)}),
+    ("amount", {p: p for p in L.VAGUE_AMOUNTS}),
+    ("motion", L.phrases(L.MOTION_PHRASES)),
     ("spatial", L.phrases(L.SPATIAL_PHRASES)),
     ("place", L.phrases(L.PLACE_PHRASES)),
-    ("object", L.phrases(L.OBJECT_PHRASES)),
+    ("object", {**L.phrases(L.OBJECT_PHRASES), **{p: lab for p, lab in L.OBJECT_SYNONYMS.items()
+                                                  if p not in L.OBJECT_CATEGORIES}}),
     ("color", L.phrases(L.COLOR_PHRASES)),
+    ("direction", L.phrases(L.DIRECTION_PHRASES)),
+    ("unit", L.phrases(L.UNIT_PHRASES)),
+    ("number", {w: w for w in L.NUMBER_WORDS if w not in ("a", "an")}),
 )
 _DEICTIC = {**{w: "object" for w in L.DEICTIC_OBJECT_WORDS}, **{w: "place" for w in L.DEICTIC_PLACE_WORDS}}
 _FILLER = set(L.FILLER_WORDS)
+CONTENT_KINDS = ("intent", "object", "color", "spatial", "motion", "direction", "deictic_object", "place", "unit",
+                 "number", "amount")
 
 
 def _phrase_index() -> dict[tuple[str, ...], tuple[str, str]]:
@@ -42,6 +57,11 @@ def _phrase_index() -> dict[tuple[str, ...], tuple[str, str]]:
     for kind, table in _TABLES:
         for phrase, canonical in table.items():
             index.setdefault(tuple(phrase.split()), (kind, canonical))
+    for kind, table in _TABLES:  # plurals of object words: "cups", "wine glasses", "teddy bears"
+        if kind == "object":
+            for phrase, canonical in table.items():
+                if canonical != L.ANY_OBJECT or phrase == "one":
+                    index.setdefault(tuple(L.plural(phrase).split()), (kind, canonical))
     for word, kind in _DEICTIC.items():
         index.setdefault((word,), ("deictic_" + kind, word))
     for marker in DESTINATION_MARKERS:
@@ -54,18 +74,19 @@ PHRASES = _phrase_index()
 MAX_PHRASE = max(len(p) for p in PHRASES)
 # Content words the fuzzy matcher may correct to. Intent words need a closer match so that
 # "want" does not become "wait" (= stop) while "grabb" still becomes "grab".
-FUZZY_TARGETS = sorted({p[0] for p, (kind, _) in PHRASES.items() if len(p) == 1 and p[0] not in _FILLER
-                        and kind in ("color", "object", "spatial", "place") and len(p[0]) >= 3})
+FUZZY_TARGETS = sorted({p for kind, table in _TABLES if kind in ("color", "object", "spatial", "place")
+                        for p in table if " " not in p and p not in _FILLER and len(p) >= 3})
 FUZZY_INTENT_TARGETS = sorted({p[0] for p, (kind, _) in PHRASES.items() if len(p) == 1 and kind == "intent"
                                and len(p[0]) >= 4})
 FUZZY_INTENT_CUTOFF = 0.85
 # ASR sometimes glues a phrase into one word ("pickup", "putdown").
 GLUED = {"".join(p): p for p in PHRASES if len(p) > 1}
+_NUMBER = re.compile(r"^\d+(\.\d+)?$")
 
 
 @dataclass(frozen=True)
 class Tag:
-    kind: str  # intent, answer, spatial, place, object, color, deictic_object, deictic_place, dest
+    kind: str  # intent, answer, spatial, place, object, color, deictic_object, deictic_place, dest, motion …
     value: str  # canonical name (or the deictic word itself)
     index: int  # position of the first token
     words: tuple[str, ...]  # the tokens as heard
@@ -74,18 +95,36 @@ class Tag:
 @dataclass(frozen=True)
 class ObjectPhrase:
     color: str | None = None
-    label: str | None = None  # canonical class; None or "object" = any
+    label: str | None = None  # a label, a category of common.language, or "object" (= any); None = not said
     spatial: tuple[str, ...] = ()
     deictic: bool = False  # "this", "that", "it": a gesture (or the dialogue) should say which
+    noun: str | None = None  # a noun the language does not know ("pitcher"), singular
 
     @property
     def specific(self) -> bool:
         """True if the words constrain which object (not just "it"/"that one")."""
-        return bool(self.color or (self.label and self.label != "object") or self.spatial)
+        return bool(self.color or (self.label and self.label != L.ANY_OBJECT) or self.spatial)
 
     def describe(self) -> str:
-        words = [*self.spatial, self.color or "", self.label if self.label and self.label != "object" else "one"]
-        return " ".join(w for w in words if w) if self.specific else ("that one" if self.deictic else "it")
+        noun = self.noun or (self.label if self.label and self.label != L.ANY_OBJECT else "one")
+        words = [*self.spatial, self.color or "", noun]
+        return " ".join(w for w in words if w) if self.specific or self.noun else (
+            "that one" if self.deictic else "it")
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The robot moving itself: kind "move" (direction, distance in metres) or "turn" (direction, angle)."""
+    kind: str
+    direction: str | None = None  # forward, back, left, right, around
+    distance: float | None = None  # metres; None: as far as the robot deems a small move
+    angle: float | None = None  # degrees
+    amount: str = ""  # the amount as said ("ten meters", "a bit")
+
+    def describe(self) -> str:
+        amount = f" {self.distance:g} m" if self.distance is not None else ""
+        amount += f" {self.angle:g} degrees" if self.angle is not None else ""
+        return f"{self.kind} {self.direction or ''}{amount}".replace("  ", " ").strip()
 
 
 @dataclass(frozen=True)
@@ -100,11 +139,14 @@ class Utterance:
     dest_obj: ObjectPhrase | None = None  # "put it on the red box"
     corrections: tuple[tuple[str, str], ...] = ()  # (heard, understood) fuzzy matches
     unknown: tuple[str, ...] = ()  # content words nothing matched
+    motion: Motion | None = None  # intent "move" / "turn"
+    other: bool = False  # "the other one", "not that one"
+    self_corrected: bool = False  # "the red, no, the blue cup"
 
     @property
     def has_content(self) -> bool:
         return bool(self.intent or self.answer or self.obj.specific or self.obj.deictic or self.place
-                    or self.deictic_place)
+                    or self.deictic_place or self.other)
 
     @property
     def deictic(self) -> bool:
@@ -112,11 +154,22 @@ class Utterance:
 
 
 def tokenize(text: str) -> list[str]:
-    text = text.lower().replace("'", " ").replace("-", " ")
+    text = text.lower().replace("°", " degrees ").replace("’", "'").replace("'", " ").replace("-", " ")
+    text = re.sub(r"(\d),(\d{3})", r"\1\2", text)  # "1,000"
     tokens: list[str] = []
-    for word in re.findall(r"[a-z]+", text):
+    for word in re.findall(r"\d+(?:\.\d+)?|[a-z]+", text):
         tokens.extend(GLUED.get(word, (word,)) if (word,) not in PHRASES else (word,))
     return tokens
+
+
+def singular(word: str) -> str:
+    if word.endswith("ies") and len(word) > 4:
+        return word[:-3] + "y"
+    if word.endswith(("ses", "xes", "ches", "shes")):
+        return word[:-2]
+    if word.endswith("s") and not word.endswith("ss") and len(word) > 3:
+        return word[:-1]
+    return word
 
 
 def _fuzzy(token: str) -> str | None:
@@ -127,24 +180,42 @@ def _fuzzy(token: str) -> str | None:
     return match[0] if match else None
 
 
-def tag(tokens: list[str]) -> tuple[list[Tag], list[tuple[str, str]], list[str]]:
-    """Greedy longest-phrase tagging with a fuzzy fallback for unknown single words."""
+def _label_index(labels: tuple[str, ...]) -> dict[tuple[str, ...], tuple[str, str]]:
+    """Labels of the objects in view that the language does not know (a user's label file): they are nouns too."""
+    index: dict[tuple[str, ...], tuple[str, str]] = {}
+    for label in labels:
+        label = L.canonical_label(label)
+        for phrase in (label, L.plural(label)):
+            key = tuple(phrase.split())
+            if key and key not in PHRASES:
+                index[key] = ("object", label)
+    return index
+
+
+def tag(tokens: list[str], labels: tuple[str, ...] = ()) -> tuple[list[Tag], list[tuple[str, str]], list[str]]:
+    """Greedy longest-phrase tagging with a fuzzy fallback for unknown single words. Unknown words are
+    tagged `unknown` (and listed) so the reader can tell a noun it does not know."""
     tags: list[Tag] = []
     corrections: list[tuple[str, str]] = []
     unknown: list[str] = []
+    extra = _label_index(labels)
+    longest = max([MAX_PHRASE, *map(len, extra)])
     toks = list(tokens)
     i = 0
     while i < len(toks):
-        for n in range(min(MAX_PHRASE, len(toks) - i), 0, -1):
-            hit = PHRASES.get(tuple(toks[i:i + n]))
+        for n in range(min(longest, len(toks) - i), 0, -1):
+            key = tuple(toks[i:i + n])
+            hit = PHRASES.get(key) or extra.get(key)
             if hit is not None:
-                tags.append(Tag(hit[0], hit[1], i, tuple(toks[i:i + n])))
+                tags.append(Tag(hit[0], hit[1], i, key))
                 i += n
                 break
         else:
             word = toks[i]
             if word in DESTINATION_MARKERS:
                 tags.append(Tag("dest", word, i, (word,)))
+            elif _NUMBER.match(word):
+                tags.append(Tag("number", word, i, (word,)))
             elif word not in _FILLER:
                 fixed = _fuzzy(word)
                 if fixed is not None:
@@ -152,37 +223,177 @@ def tag(tokens: list[str]) -> tuple[list[Tag], list[tuple[str, str]], list[str]]
                     toks[i] = fixed
                     continue  # re-read with the correction (it may start a longer phrase)
                 unknown.append(word)
+                tags.append(Tag("unknown", word, i, (word,)))
             i += 1
     return tags, corrections, unknown
 
 
-def _object_phrase(tags: list[Tag]) -> ObjectPhrase:
+def _unknown_noun(tags: list[Tag], tokens: tuple[str, ...]) -> tuple[str | None, bool]:
+    """The last unknown word in a noun's place: after a determiner, a colour, a size/position word or a known
+    object word ("the coffee pot": the head noun is the last word). Returns (noun, replaces_label)."""
+    for k in range(len(tags) - 1, -1, -1):
+        t = tags[k]
+        if t.kind != "unknown":
+            continue
+        before = tokens[t.index - 1] if t.index > 0 else ""
+        prev = tags[k - 1] if k > 0 and tags[k - 1].index + len(tags[k - 1].words) == t.index else None
+        if before in L.DETERMINERS or (prev is not None and prev.kind in ("color", "spatial", "deictic_object")):
+            return singular(t.value), False
+        if prev is not None and prev.kind == "object" and prev.value != L.ANY_OBJECT:
+            return " ".join((*prev.words, singular(t.value))), True
+    return None, False
+
+
+def _object_phrase(tags: list[Tag], tokens: tuple[str, ...] = ()) -> ObjectPhrase:
     color = next((t.value for t in tags if t.kind == "color"), None)
     label = next((t.value for t in tags if t.kind == "object"), None)
     spatial = tuple(dict.fromkeys(t.value for t in tags if t.kind == "spatial"))
     deictic = any(t.kind == "deictic_object" for t in tags)
-    if label == "object" and any(t.kind == "deictic_object" for t in tags):
+    if label == L.ANY_OBJECT and any(t.kind == "deictic_object" for t in tags):
         label = None  # "that one": "one" is not a class
-    return ObjectPhrase(color=color, label=label, spatial=spatial, deictic=deictic)
+    noun, replaces = _unknown_noun(tags, tokens) if tokens else (None, False)
+    if noun is not None and (replaces or label is None or label == L.ANY_OBJECT):
+        label = None
+    else:
+        noun = None
+    return ObjectPhrase(color=color, label=label, spatial=spatial, deictic=deictic, noun=noun)
 
 
-def parse(text: str) -> Utterance:
-    tokens = tokenize(text)
-    tags, corrections, unknown = tag(tokens)
+def _merge(before: ObjectPhrase, after: ObjectPhrase) -> ObjectPhrase:
+    """A self-correction: what is said after "no" replaces what was said before; what it leaves out
+    ("the red cup, no, the blue one") is kept when the correction names no other kind of thing."""
+    names_kind = (after.label not in (None, L.ANY_OBJECT)) or after.noun is not None
+    if names_kind:
+        return after
+    return ObjectPhrase(color=after.color or (before.color if not after.spatial else None),
+                        label=before.label, spatial=after.spatial or before.spatial,
+                        deictic=after.deictic or before.deictic, noun=before.noun)
+
+
+def _is_number(t: Tag) -> bool:
+    return t.kind == "number" or (t.kind == "object" and t.words == ("one",))
+
+
+def _number(tags: list[Tag], k: int, tokens: tuple[str, ...]) -> tuple[float | None, int]:
+    """The number starting at tags[k] ("ten", "2.5", "twenty five", "one and a half", "half a", "a couple of"),
+    and the index of the tag after it."""
+    value: float | None = None
+    j = k
+    while j < len(tags) and _is_number(tags[j]):
+        if j > k and not set(tokens[tags[j - 1].index + 1:tags[j].index]) <= {"and", "a", "an"}:
+            break
+        word = tags[j].value if tags[j].kind == "number" else "one"
+        if _NUMBER.match(word):
+            value = (value or 0.0) + float(word)
+        elif word == "hundred":
+            value = (value or 1.0) * 100
+        else:
+            value = (value or 0.0) + L.NUMBER_WORDS[word]
+        j += 1
+    return value, j
+
+
+def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> Motion | None:
+    """Direction and amount after a motion verb; the last one said wins ("forward, no, back")."""
+    kind = "turn" if verb.kind == "motion" and verb.value == "turn" else "move"
+    direction = None
+    if verb.kind == "motion" and verb.words == ("back", "up"):
+        direction = "back"
+    distance = angle = None
+    amount = ""
+    after = [t for t in tags if t.index > verb.index]
+    k = 0
+    while k < len(after):
+        t = after[k]
+        if t.kind in ("direction", "spatial") and t.value in L.DIRECTION_PHRASES:
+            direction = t.value
+        elif t.kind == "direction":
+            direction = t.value
+        elif t.kind == "amount":
+            distance, angle = (None, L.VAGUE_AMOUNTS[t.value][1]) if kind == "turn" else (
+                L.VAGUE_AMOUNTS[t.value][0], None)
+            amount = t.value
+        elif _is_number(t):
+            value, j = _number(after, k, tokens)
+            unit = after[j] if j < len(after) and after[j].kind == "unit" else None
+            if value is not None:
+                quantity, scale = L.UNIT_SCALE[unit.value] if unit else (
+                    ("angle", 1.0) if kind == "turn" else ("distance", 1.0))
+                if quantity == "angle":
+                    angle, kind = value * scale, "turn"
+                else:
+                    distance = value * scale
+                amount = " ".join(w for x in after[k:j + (1 if unit else 0)] for w in x.words)
+                k = j + (1 if unit else 0)
+                continue
+        elif t.kind == "unit":  # "a meter", "a step": the article is the number
+            quantity, scale = L.UNIT_SCALE[t.value]
+            if quantity == "angle":
+                angle, kind = scale, "turn"
+            else:
+                distance = scale
+            amount = " ".join(t.words)
+        k += 1
+    if kind == "turn":
+        if direction == "back":
+            direction = "around"
+        if angle is None:
+            angle = L.TURN_AROUND_DEG if direction == "around" else L.TURN_DEFAULT_DEG
+        if direction is None and abs(angle - 180.0) < 1e-6:
+            direction = "around"
+        return Motion("turn", direction, None, round(angle, 3), amount)
+    if direction is None and distance is None:
+        return None
+    if direction == "around":  # "go around" is a turn, not a distance
+        return Motion("turn", "around", None, L.TURN_AROUND_DEG, amount)
+    return Motion("move", direction or "forward", None if distance is None else round(distance, 4), None, amount)
+
+
+def _split_correction(tags: list[Tag]) -> int | None:
+    """The position of the last correction word that follows something said and precedes something else."""
+    split = None
+    for k, t in enumerate(tags):
+        is_marker = t.kind == "correction" or (t.kind == "answer" and t.value == "deny" and t.words == ("no",))
+        if not is_marker:
+            continue
+        said_before = any(x.kind in CONTENT_KINDS for x in tags[:k])
+        said_after = any(x.kind in CONTENT_KINDS or x.kind == "unknown" for x in tags[k + 1:])
+        if said_before and said_after:
+            split = k
+    return split
+
+
+def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
+    """Read `text`. `labels`: labels of the objects in view, so a user's own label ("widget") is a noun."""
+    tokens = tuple(tokenize(text))
+    tags, corrections, unknown = tag(list(tokens), labels)
+    split = _split_correction(tags)
+    before: list[Tag] = []
+    if split is not None:
+        before, tags = tags[:split], tags[split + 1:]
+        if not any(t.kind in ("intent", "motion") for t in tags):  # "pick up the red, no, the blue cup"
+            tags = [t for t in before if t.kind in ("intent", "motion")] + tags
+            before = [t for t in before if t.kind not in ("intent", "motion")]
+        else:
+            before = []
     intents = [t for t in tags if t.kind == "intent"]
-    intent = intents[0].value if intents else None
+    chosen = next((t for t in intents if t.value != "greet"), intents[0] if intents else None)
+    intent = chosen.value if chosen else None
     if any(t.kind == "intent" and t.value == "stop" and t.words[0] in SAFETY_STOP_WORDS for t in tags):
-        intent = "stop"
+        intent, chosen = "stop", next(t for t in tags if t.kind == "intent" and t.value == "stop")
     answer_tag = next((t for t in tags if t.kind == "answer"), None)
+    other = any(t.kind == "other" for t in tags)
     # Everything after the intent phrase; split object vs destination at the first marker.
-    start = intents[0].index + len(intents[0].words) if intents else 0
+    start = chosen.index + len(chosen.words) if chosen else 0
     rest = [t for t in tags if t.index >= start and t.kind not in ("intent", "answer")]
     if intent == "put_down":  # "put <object> on|in|there <destination>"
-        split = next((k for k, t in enumerate(rest) if t.kind in ("dest", "deictic_place", "place")), len(rest))
-        obj_tags, dest_tags = rest[:split], rest[split:]
+        split_at = next((k for k, t in enumerate(rest) if t.kind in ("dest", "deictic_place", "place")), len(rest))
+        obj_tags, dest_tags = rest[:split_at], rest[split_at:]
     else:  # the object phrase *is* the destination of go_to / look_at
         obj_tags, dest_tags = [t for t in rest if t.kind not in ("dest", "place", "deictic_place")], rest
-    obj = _object_phrase(obj_tags)
+    obj = _object_phrase(obj_tags, tokens)
+    if before:
+        obj = _merge(_object_phrase([t for t in before if t.index >= start], tokens), obj)
     place = next((t.value for t in dest_tags if t.kind == "place"), None)
     deictic_place = next((t.value for t in dest_tags if t.kind == "deictic_place"), None)
     dest_obj = None
@@ -191,7 +402,17 @@ def parse(text: str) -> Utterance:
         candidate = _object_phrase(after_marker)
         if candidate.specific:
             dest_obj = candidate
-    return Utterance(text=text, tokens=tuple(tokens), intent=intent,
+    motion = None
+    verb = next((t for t in tags if t.kind == "motion"), None)
+    if verb is None and chosen is not None and chosen.value == "go_to":
+        verb = chosen
+    if verb is not None and intent in (None, "go_to") and not (
+            obj.label not in (None, L.ANY_OBJECT) or obj.color or obj.deictic or obj.noun or place or deictic_place):
+        motion = _motion(before + tags if before else tags, tokens, verb)
+        if motion is not None:
+            intent = motion.kind
+            obj = ObjectPhrase()
+    return Utterance(text=text, tokens=tokens, intent=intent,
                      answer=answer_tag.value if answer_tag else None, obj=obj, place=place,
                      deictic_place=deictic_place, dest_obj=dest_obj, corrections=tuple(corrections),
-                     unknown=tuple(unknown))
+                     unknown=tuple(unknown), motion=motion, other=other, self_corrected=split is not None)
