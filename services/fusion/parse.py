@@ -47,6 +47,7 @@ _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
 )
 _DEICTIC = {**{w: "object" for w in L.DEICTIC_OBJECT_WORDS}, **{w: "place" for w in L.DEICTIC_PLACE_WORDS}}
 _FILLER = set(L.FILLER_WORDS)
+COLOR_WORDS = L.phrases(L.COLOR_PHRASES)
 CONTENT_KINDS = ("intent", "object", "color", "spatial", "motion", "direction", "deictic_object", "place", "unit",
                  "number", "amount")
 
@@ -158,8 +159,21 @@ def tokenize(text: str) -> list[str]:
     text = re.sub(r"(\d),(\d{3})", r"\1\2", text)  # "1,000"
     tokens: list[str] = []
     for word in re.findall(r"\d+(?:\.\d+)?|[a-z]+", text):
+        word = _verb_stem(word)
         tokens.extend(GLUED.get(word, (word,)) if (word,) not in PHRASES else (word,))
     return tokens
+
+
+def _verb_stem(word: str) -> str:
+    """'picking' -> 'pick', 'moving' -> 'move', 'putting' -> 'put' when the stem is a verb of the language
+    ("would you mind picking up the cup")."""
+    if not word.endswith("ing") or (word,) in PHRASES:
+        return word
+    for stem in (word[:-3], word[:-3] + "e", word[:-4]):
+        hit = PHRASES.get((stem,))
+        if hit is not None and hit[0] in ("intent", "motion"):
+            return stem
+    return word
 
 
 def singular(word: str) -> str:
@@ -167,7 +181,7 @@ def singular(word: str) -> str:
         return word[:-3] + "y"
     if word.endswith(("ses", "xes", "ches", "shes")):
         return word[:-2]
-    if word.endswith("s") and not word.endswith("ss") and len(word) > 3:
+    if word.endswith("s") and not word.endswith(("ss", "us", "is", "os")) and len(word) > 3:
         return word[:-1]
     return word
 
@@ -246,7 +260,13 @@ def _unknown_noun(tags: list[Tag], tokens: tuple[str, ...]) -> tuple[str | None,
 
 def _object_phrase(tags: list[Tag], tokens: tuple[str, ...] = ()) -> ObjectPhrase:
     color = next((t.value for t in tags if t.kind == "color"), None)
-    label = next((t.value for t in tags if t.kind == "object"), None)
+    objects = [t for t in tags if t.kind == "object"]
+    # The head noun is the last object word ("the computer mouse", "something to eat, some food"); an object
+    # word before it that is also a colour is the colour ("the orange cup").
+    named = [t for t in objects if t.value != L.ANY_OBJECT]
+    label = named[-1].value if named else (objects[0].value if objects else None)
+    if color is None:
+        color = next((COLOR_WORDS[" ".join(t.words)] for t in named[:-1] if " ".join(t.words) in COLOR_WORDS), None)
     spatial = tuple(dict.fromkeys(t.value for t in tags if t.kind == "spatial"))
     deictic = any(t.kind == "deictic_object" for t in tags)
     if label == L.ANY_OBJECT and any(t.kind == "deictic_object" for t in tags):
