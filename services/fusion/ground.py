@@ -209,13 +209,18 @@ def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAUL
     runner_up = scored[1] if len(scored) > 1 else None
     disagree = (speech_best is not None and gesture_best is not None and pointed
                 and speech_best is not gesture_best and speech_best.match >= 0.5)
-    if runner_up is not None and winner.total - runner_up.total < margin:
+    # Without pointing, two objects the words fit equally well ("the fruit": an apple and an orange) are a
+    # question, whatever their detection scores: a more confident detector is not what the person meant.
+    tie_in_words = (runner_up is not None and not pointing and winner.match >= 0.5
+                    and abs(winner.match - runner_up.match) < 1e-6)
+    if runner_up is not None and (winner.total - runner_up.total < margin or tie_in_words):
         if disagree and {id(winner), id(runner_up)} == {id(speech_best), id(gesture_best)}:
             return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best,
                           runner_up=runner_up)
         close = []
         for c in scored:  # ranked: stop at the first that is clearly behind
-            if winner.total - c.total >= margin or len(close) == MAX_CANDIDATES:
+            if (winner.total - c.total >= margin and not (tie_in_words and abs(c.match - winner.match) < 1e-6)) \
+                    or len(close) == MAX_CANDIDATES:
                 break
             close.append(c)
         return Choice("ambiguous", None, tuple(close), speech_best, gesture_best, runner_up=runner_up)
