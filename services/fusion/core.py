@@ -453,7 +453,11 @@ class FusionCore:
                 excluded = pointed[0].obj
         if excluded is None and self.last is not None:
             excluded = self.last.target
-        remaining = [o for o in d.candidates if excluded is None or o.key != excluded.key]
+        pool = d.candidates
+        if len(pool) < 2 and excluded is not None:  # a yes/no question about one object: the others of its kind
+            kind = d.phrase.label if d.phrase.label not in (None, ANY_OBJECT) else excluded.label
+            pool = [o for o in ctx.objects if label_matches(kind, o.label)]
+        remaining = [o for o in pool if excluded is None or o.key != excluded.key]
         if u.obj.specific:
             fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False) if s.match >= 0.5]
             remaining = fit or remaining
@@ -464,7 +468,7 @@ class FusionCore:
             return [self._from_draft(t, d.draft, ctx, why, phrase=d.phrase)]
         self.count("dialogue_unresolved")
         d.draft.target = None
-        return [self._reask(t, d, remaining if excluded is not None and remaining else d.candidates)]
+        return [self._reask(t, d, remaining if excluded is not None and remaining else pool)]
 
     def correct_last(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         """"No, the other one" / "not that one" / "no, the blue one" just after a command: the same command on

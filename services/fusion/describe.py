@@ -95,7 +95,7 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
             f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
     if not visible:
         return f"{lead} I don't see any objects. Can you show me?"
-    shown = visible[:4]
+    shown = sorted(visible[:4], key=lambda o: (o.cam, o.center[0], o.id))  # read left to right, like the scene
     names = [o.name() for o in shown]
     if len(set(names)) < len(names):  # two of a kind: say where each is
         names = [f"{o.name()} {region(o)}" for o in shown]

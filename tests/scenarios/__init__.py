@@ -60,6 +60,8 @@ class Expect:
     reason: str | None = None  # clarification reason
     location: bool = False  # a Location is expected
     candidates: tuple[str, ...] | None = None  # clarification candidate ids (as a set)
+    motion: tuple[str | None, float | None, float | None] | None = None  # (direction, metres, degrees) if given
+    question: str | None = None  # a clarification's question must contain this
 
     def matches(self, sample: Any) -> bool:
         return not self.mismatch(sample)
@@ -75,6 +77,11 @@ class Expect:
                 return f"target {got} != {self.target}"
             if self.location != (sample.location is not None):
                 return f"location {sample.location} (expected {'one' if self.location else 'none'})"
+            if self.motion is not None:
+                m = sample.motion
+                got_motion = (m.direction, m.distance, m.angle) if m is not None else None
+                if got_motion != self.motion:
+                    return f"motion {got_motion} != {self.motion}"
             return ""
         if not isinstance(sample, Clarification):
             return f"expected a clarification ({self.reason}), got {describe(sample)}"
@@ -82,6 +89,8 @@ class Expect:
             return f"reason {sample.reason} != {self.reason}"
         if self.candidates is not None and {c.id for c in sample.candidates} != set(self.candidates):
             return f"candidates {[c.id for c in sample.candidates]} != {list(self.candidates)}"
+        if self.question is not None and self.question not in sample.question:
+            return f"question {sample.question!r} does not say {self.question!r}"
         return ""
 
 

@@ -22,6 +22,12 @@ GLASS = Obj("glass_1", "wine glass", None, (230, 250), (40, 90))
 BIG_BOX = Obj("box_big", "box", "grey", (160, 260), (180, 140))
 SMALL_BOX = Obj("box_small", "box", "grey", (480, 260), (60, 50))
 TWO_CUPS = [RED_CUP, BLUE_CUP]
+# Open language: objects named by their detector label (COCO-80), as Whisper prints what people say.
+BANANA = Obj("banana_1", "banana", "yellow", (200, 300), (110, 50))
+APPLE = Obj("apple_1", "apple", "red", (440, 300), (60, 60))
+LAPTOP = Obj("laptop_1", "laptop", "grey", (330, 220), (200, 130))
+BOWL = Obj("bowl_1", "bowl", "white", (180, 320), (90, 50))
+FRUIT = [BANANA, APPLE]
 # A Smarties-like spread of candies (the demo's real photo): several per colour.
 CANDIES = [
     Obj("candy_01", "candy", "red", (80, 120), (40, 40)), Obj("candy_02", "candy", "red", (330, 260), (40, 40)),
@@ -46,12 +52,13 @@ def answer(objects: list[Obj], text: str, point_at=None, at: float = ANSWER_AT, 
     return by_time(steps + [say(at, at + 1.0, text, conf=conf)])
 
 
-def cmd(intent, target=None, location=False) -> Expect:
-    return Expect("command", intent=intent, target=target, location=location)
+def cmd(intent, target=None, location=False, motion=None) -> Expect:
+    return Expect("command", intent=intent, target=target, location=location, motion=motion)
 
 
-def ask(reason, candidates=None) -> Expect:
-    return Expect("clarification", reason=reason, candidates=tuple(candidates) if candidates is not None else None)
+def ask(reason, candidates=None, question=None) -> Expect:
+    return Expect("clarification", reason=reason, candidates=tuple(candidates) if candidates is not None else None,
+                  question=question)
 
 
 def shuffled(steps: list[Step], seed: int) -> list[Step]:
@@ -197,4 +204,46 @@ SCENARIOS: list[Scenario] = [
     S("speech: hello", normal(TWO_CUPS, "hello robot"), [cmd("greet")], ("speech",)),
     S("speech: follow me", normal(TWO_CUPS, "follow me"), [cmd("follow")], ("speech",)),
     S("speech: not a command", normal(TWO_CUPS, "what a nice day"), [], ("speech",)),
+    # -- open language (Whisper text: capitals, punctuation, digits) ---------------------------------
+    S("language: the banana beside an apple", normal(FRUIT, "Bring me the banana."), [cmd("bring", "banana_1")],
+      ("language",)),
+    S("language: the fruit is a question", normal(FRUIT, "Bring me the fruit."),
+      [ask("ambiguous", ["banana_1", "apple_1"])], ("language", "dialogue")),
+    S("language: the fruit, then the apple", normal(FRUIT, "Bring me the fruit.") + answer(FRUIT, "The apple."),
+      [ask("ambiguous"), cmd("bring", "apple_1")], ("language", "dialogue")),
+    S("language: a COCO label, the laptop", normal([LAPTOP, RED_CUP], "Pick up the laptop."),
+      [cmd("pick_up", "laptop_1")], ("language",)),
+    S("language: plural and politeness", normal([RED_CUP, BALL], "Um, could you grab the cups for me, please?"),
+      [cmd("pick_up", "cup_red")], ("language",)),
+    S("language: an unknown noun is said in the question", normal([BLUE_CUP, BOWL], "Hand me the blue pitcher, please."),
+      [ask("not_found", question="I don't know what a pitcher is. I can see a white bowl and a blue cup. Which one")],
+      ("language", "not_found")),
+    S("language: unknown noun, then the cup", normal([BLUE_CUP, BOWL], "Hand me the blue pitcher, please.") +
+      answer([BLUE_CUP, BOWL], "The cup."), [ask("not_found"), cmd("bring", "cup_blue")], ("language", "dialogue")),
+    S("language: unknown noun and a clear point", normal([BLUE_CUP, BOWL], "Give me that pitcher.", BOWL.center),
+      [cmd("bring", "bowl_1")], ("language", "pointing")),
+    S("language: self-correction", normal(TWO_CUPS, "Pick up the red, no, the blue cup."),
+      [cmd("pick_up", "cup_blue")], ("language",)),
+    S("language: disfluent and polite", normal(TWO_CUPS, "Uh, could you, um, please bring me the red cup for me? "
+                                                         "Thanks."), [cmd("bring", "cup_red")], ("language",)),
+    S("motion: go forward ten meters", normal(TWO_CUPS, "Go forward ten meters."),
+      [cmd("move", motion=("forward", 10.0, None))], ("motion",)),
+    S("motion: turn right", normal(TWO_CUPS, "Turn right."), [cmd("turn", motion=("right", None, 90.0))],
+      ("motion",)),
+    S("motion: go left 2 steps", normal(TWO_CUPS, "Go left 2 steps."), [cmd("move", motion=("left", 1.0, None))],
+      ("motion",)),
+    S("motion: move back a bit", normal([], "Move back a bit."), [cmd("move", motion=("back", 0.25, None))],
+      ("motion",)),
+    S("dialogue: no, the other one after a command", normal(TWO_CUPS, "Pick up the red cup.") +
+      answer(TWO_CUPS, "No, the other one."), [cmd("pick_up", "cup_red"), cmd("pick_up", "cup_blue")],
+      ("dialogue", "language")),
+    S("dialogue: no, the blue one after a command", normal(TWO_CUPS, "Bring me the red cup.") +
+      answer(TWO_CUPS, "No, the blue one."), [cmd("bring", "cup_red"), cmd("bring", "cup_blue")],
+      ("dialogue", "language")),
+    S("dialogue: not that one, to a confirmation", normal(TWO_CUPS, "Pick up the red cup.", conf=0.2) +
+      answer(TWO_CUPS, "Not that one."), [ask("low_confidence"), cmd("pick_up", "cup_blue")],
+      ("dialogue", "language")),
+    S("dialogue: yes to a confirmation, Whisper style", normal(TWO_CUPS, "Pick up the red cup.", conf=0.2) +
+      answer(TWO_CUPS, "Yes, please."), [ask("low_confidence"), cmd("pick_up", "cup_red")],
+      ("dialogue", "language")),
 ]
