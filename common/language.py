@@ -268,6 +268,23 @@ def vocabulary() -> set[str]:
     return words
 
 
+def prompt_words(limit: int = 120) -> list[str]:
+    """The words most worth priming a recogniser with (Whisper's prompt holds ~220 tokens, so not all of
+    `vocabulary()`): the first phrase of each intent, motion, direction and unit, the colours, the labels a
+    table-top robot meets (COCO household labels, then the rest), the categories and the dialogue words."""
+    household = ("cup", "bottle", "bowl", "banana", "apple", "orange", "book", "cell phone", "laptop", "remote",
+                 "scissors", "teddy bear", "sports ball", "wine glass", "fork", "knife", "spoon", "keyboard", "mouse",
+                 "person", "chair", "vase", "clock", "toothbrush", "candy", "box")
+    ordered: list[str] = []
+    for group in ([ps[0] for ps in INTENT_PHRASES.values()], [ps[0] for ps in MOTION_PHRASES.values()],
+                  [ps[0] for ps in DIRECTION_PHRASES.values()], list(COLOR_PHRASES), list(household),
+                  list(OBJECT_CATEGORIES), ["the other one", "not that one", "yes", "no", "meters", "degrees",
+                                           "steps", "centimeters"],
+                  list(PLACE_PHRASES), [label for label in COCO_LABELS if label not in household]):
+        ordered.extend(p for p in group if p not in ordered)
+    return ordered[:limit]
+
+
 def canonical_label(detector_label: str) -> str:
     """A detector's label in the language's spelling: lower case, single spaces ("Cell_Phone" -> "cell phone"),
     synonyms to their label ("mug" -> "cup"). Labels the language does not know map to themselves."""

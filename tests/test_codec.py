@@ -10,7 +10,7 @@ from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import (
     ALL_SAMPLES, AudioChunk, Clarification, DetectedObject, Detections, Frame, FusedCommand, GestureEvent, Hand,
-    Hands, ImageQuality, InvalidSample, Location, Ray, Stats, Target, Transcript, Weights, Word,
+    Hands, ImageQuality, InvalidSample, Location, Motion, Ray, Stats, Target, Transcript, Weights, Word,
 )
 
 T = 1_790_000_000.0
@@ -38,7 +38,8 @@ def examples():
                      location=Location(x=10, y=20, cam="cam0"), gesture="point", confidence=0.7,
                      weights=Weights(speech=0.4, vision=0.3, gesture=0.3),
                      inputs={"speech": T, "vision": T - 0.1, "gesture": None},
-                     explanation="red cup, pointed at", prompt="Command: pick up ..."),
+                     explanation="red cup, pointed at", prompt="Command: pick up ...",
+                     motion=Motion(direction="forward", distance=0.5, angle=0.0)),
         Clarification(stamp=T, source="fusion/a", id="q1", text="pick up the cup", reason="ambiguous",
                       question="Which cup: the red one on the left or the blue one on the right?",
                       candidates=[TARGET, TARGET]),

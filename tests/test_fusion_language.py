@@ -179,3 +179,30 @@ def test_the_speech_vocabulary_and_the_parser_read_the_same_tables():
     for word in ("backward", "centimeters", "giraffe"):  # a word added to a table is understood at once
         assert parse(f"go {word}").tokens  # tokenised
     assert parse("turn left").motion is not None and parse("Look at the giraffe.").obj.label == "giraffe"
+
+
+def test_motion_on_the_wire_is_optional_and_checked():
+    import msgpack
+
+    from common.codec import decode, encode
+    from common.schema import FusedCommand, InvalidSample, Motion, Weights
+    cmd = FusedCommand(stamp=1.0, source="fusion/a", id="c", intent="move", text="Go forward ten meters.",
+                       confidence=0.9, weights=Weights(speech=1.0, vision=0.0, gesture=0.0), inputs={},
+                       explanation="", prompt="", motion=Motion(direction="forward", distance=10.0))
+    assert decode(encode(cmd), FusedCommand).motion == Motion(direction="forward", distance=10.0)
+    data = cmd.to_dict()
+    old_style = {k: v for k, v in data.items() if k != "motion"}  # a v1 producer from before the extension
+    assert decode(msgpack.packb(old_style), FusedCommand).motion is None
+    with pytest.raises(InvalidSample) as err:
+        decode(msgpack.packb({**data, "motion": {"direction": "forward", "distance": -1.0}}), FusedCommand)
+    assert err.value.reason == "out_of_range"
+    with pytest.raises(InvalidSample) as err:
+        decode(msgpack.packb({**data, "motion": {"direction": "up"}}), FusedCommand)
+    assert err.value.reason == "bad_value"
+
+
+def test_every_word_the_recogniser_is_primed_with_is_understood():
+    words = L.prompt_words()
+    assert 50 <= len(words) <= 120 and "banana" in words and "forward" in words
+    for phrase in words:
+        assert not parse(phrase).unknown, phrase
