@@ -206,3 +206,13 @@ def test_every_word_the_recogniser_is_primed_with_is_understood():
     assert 50 <= len(words) <= 120 and "banana" in words and "forward" in words
     for phrase in words:
         assert not parse(phrase).unknown, phrase
+
+
+def test_whisper_words_with_spaces_and_punctuation_count_for_speech_reliability():
+    from common.schema import Transcript, Word
+    from services.fusion.evidence import speech_reliability
+    words = [Word(word=w, start=i * 0.2, end=i * 0.2 + 0.2, confidence=0.2 if w.strip(" .") == "cup" else 0.9)
+             for i, w in enumerate([" Pick", " up", " the", " cup."])]
+    t = Transcript(stamp=1.0, source="speech/m", mic="m", start=0.0, end=0.8, text="Pick up the cup.",
+                   confidence=0.9, words=words, final=True, backend="whisper")
+    assert speech_reliability(t, parse(t.text)) < 0.6  # the weak " cup." limits it: it was read as "cup"

@@ -28,7 +28,7 @@ from services.fusion.ground import (
     DEFAULT_MARGIN, MAX_CANDIDATES, Choice, SceneObject, Scored, choose, ray_point, scene_objects, score,
 )
 from services.fusion.join import Liveness, Streams, WAITED_MODALITIES, ready
-from services.fusion.parse import Motion, ObjectPhrase, Utterance, parse
+from services.fusion.parse import Motion, ObjectPhrase, Utterance, parse, word_key
 
 TARGET_INTENTS = ("pick_up", "bring")  # must name an object
 ON_RAY = 0.7  # gesture score from which "there" means the object on the ray
@@ -262,7 +262,7 @@ class FusionCore:
         if u.deictic:
             words = DEICTIC_OBJECT_WORDS + DEICTIC_PLACE_WORDS
             for w in t.words:
-                if w.word.lower().strip(".,!?") in words:
+                if word_key(w.word) in words:
                     offset = t.start if w.start < 1e6 <= t.start else 0.0  # relative word times
                     return offset + (w.start + w.end) / 2
         return (t.start + t.end) / 2

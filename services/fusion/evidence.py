@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 
 from common.schema import Detections, GestureEvent, Hands, ImageQuality, Transcript, Weights
-from services.fusion.parse import Utterance
+from services.fusion.parse import Utterance, word_key
 
 # Fixed weights used by `--weights fixed`: the comparison baseline that ignores evidence quality.
 FIXED_WEIGHTS = {"speech": 0.4, "vision": 0.2, "gesture": 0.4}
@@ -25,7 +25,7 @@ FUZZY_PENALTY = 0.15  # per corrected word
 
 def speech_reliability(transcript: Transcript, utterance: Utterance) -> float:
     content = {t for t in utterance.tokens}
-    word_conf = [w.confidence for w in transcript.words if w.word.lower() in content]
+    word_conf = [w.confidence for w in transcript.words if word_key(w.word) in content]
     rel = transcript.confidence
     if word_conf:
         rel = 0.5 * rel + 0.5 * min(word_conf)  # the weakest content word limits what we know

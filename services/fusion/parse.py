@@ -176,6 +176,11 @@ def _verb_stem(word: str) -> str:
     return word
 
 
+def word_key(word: str) -> str:
+    """A recogniser's word as the parser reads it: Whisper gives ' Cup.' or ' that,'."""
+    return word.strip().lower().strip(".,!?;:\"'()")
+
+
 def singular(word: str) -> str:
     if word.endswith("ies") and len(word) > 4:
         return word[:-3] + "y"
