@@ -40,6 +40,7 @@ CASES: list[tuple[str, dict]] = [
     ("Pick up the apple.", dict(intent="pick_up", label="apple")),
     ("Give me the orange.", dict(intent="bring", label="orange")),
     ("Pick up the orange cup.", dict(intent="pick_up", label="cup", color="orange")),
+    ("Pick up the orange one.", dict(intent="pick_up", label="object", color="orange")),
     ("Get me a hot dog.", dict(intent="pick_up", label="hot dog")),
     ("Bring me the potted plant.", dict(intent="bring", label="potted plant")),
     ("Pick up the plant.", dict(intent="pick_up", label="potted plant")),

@@ -268,10 +268,14 @@ def _object_phrase(tags: list[Tag], tokens: tuple[str, ...] = ()) -> ObjectPhras
     objects = [t for t in tags if t.kind == "object"]
     # The head noun is the last object word ("the computer mouse", "something to eat, some food"); an object
     # word before it that is also a colour is the colour ("the orange cup").
-    named = [t for t in objects if t.value != L.ANY_OBJECT]
-    label = named[-1].value if named else (objects[0].value if objects else None)
-    if color is None:
-        color = next((COLOR_WORDS[" ".join(t.words)] for t in named[:-1] if " ".join(t.words) in COLOR_WORDS), None)
+    # A word that is a colour and a label ("orange") followed by a noun ("the orange one", "the orange cup") is
+    # the colour.
+    as_color = [t for t in objects if " ".join(t.words) in COLOR_WORDS and t.value != L.ANY_OBJECT
+                and any(x.index > t.index and x.kind in ("object", "unknown") for x in tags)]
+    named = [t for t in objects if t.value != L.ANY_OBJECT and t not in as_color]
+    label = named[-1].value if named else next((t.value for t in objects if t not in as_color), None)
+    if color is None and as_color:
+        color = COLOR_WORDS[" ".join(as_color[0].words)]
     spatial = tuple(dict.fromkeys(t.value for t in tags if t.kind == "spatial"))
     deictic = any(t.kind == "deictic_object" for t in tags)
     if label == L.ANY_OBJECT and any(t.kind == "deictic_object" for t in tags):
