@@ -38,8 +38,9 @@ _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
     ("motion", L.phrases(L.MOTION_PHRASES)),
     ("spatial", L.phrases(L.SPATIAL_PHRASES)),
     ("place", L.phrases(L.PLACE_PHRASES)),
-    ("object", {**L.phrases(L.OBJECT_PHRASES), **{p: lab for p, lab in L.OBJECT_SYNONYMS.items()
-                                                  if p not in L.OBJECT_CATEGORIES}}),
+    ("object", {**{p: L.canonical_label(key) for p, key in L.phrases(L.OBJECT_PHRASES).items()},
+                **L.phrases(L.LABEL_PHRASES), **{p: lab for p, lab in L.OBJECT_SYNONYMS.items()
+                                                 if p not in L.OBJECT_CATEGORIES}}),
     ("color", L.phrases(L.COLOR_PHRASES)),
     ("direction", L.phrases(L.DIRECTION_PHRASES)),
     ("unit", L.phrases(L.UNIT_PHRASES)),
