@@ -217,3 +217,14 @@ def test_whisper_words_with_spaces_and_punctuation_count_for_speech_reliability(
     t = Transcript(stamp=1.0, source="speech/m", mic="m", start=0.0, end=0.8, text="Pick up the cup.",
                    confidence=0.9, words=words, final=True, backend="whisper")
     assert speech_reliability(t, parse(t.text)) < 0.6  # the weak " cup." limits it: it was read as "cup"
+
+
+def test_a_motion_reaches_the_planner_prompt_and_the_command():
+    from tests.scenarios import check, run_in_process
+    from tests.scenarios.suite import SCENARIOS
+    scenario = next(s for s in SCENARIOS if s.name == "motion: go left 2 steps")
+    (cmd,) = run_in_process(scenario)
+    assert not check(scenario, [cmd])
+    assert cmd.intent == "move" and cmd.target is None and cmd.location is None
+    assert 'Motion: move left 1 m (robot frame: forward = the way it faces, left/right = its own left/right, ' \
+           'said as "2 steps")' in cmd.prompt, cmd.prompt

@@ -150,8 +150,9 @@ def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None,
     """Everything a planner needs, in plain text, from the same data the decision used."""
     lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
     if motion is not None:
-        lines.append(f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces; "
-                     f"left/right = its own left/right)")
+        said = f', said as "{motion.amount}"' if motion.amount else ""
+        lines.append(f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces, "
+                     f"left/right = its own left/right{said})")
     if target is not None:
         lines.append(f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
                      f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}")

@@ -353,7 +353,8 @@ def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> Motion | Non
                     angle, kind = value * scale, "turn"
                 else:
                     distance = value * scale
-                amount = " ".join(w for x in after[k:j + (1 if unit else 0)] for w in x.words)
+                last = after[j] if unit else after[j - 1]
+                amount = " ".join(tokens[t.index:last.index + len(last.words)])  # as said: "one and a half meters"
                 k = j + (1 if unit else 0)
                 continue
         elif t.kind == "unit":  # "a meter", "a step": the article is the number
