@@ -70,7 +70,8 @@ def test_parser_corrects_asr_slips_but_not_into_a_stop():
     u = parse("grabb the bluue bottel")
     assert (u.intent, u.obj.color, u.obj.label) == ("pick_up", "blue", "bottle")
     assert len(u.corrections) == 3
-    assert parse("I want the red cup").intent is None  # "want" is not "wait"
+    assert parse("I want the red cup").intent == "bring"  # a request, and "want" is not "wait" (= stop)
+    assert parse("I want you to pick up the cup").intent == "pick_up"
 
 
 # -- evidence --------------------------------------------------------------------------------

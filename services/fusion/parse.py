@@ -31,6 +31,7 @@ FUZZY_CUTOFF = 0.8  # "bottel" -> bottle (0.83), not "nice" -> mice (0.75)
 _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
     ("other", {p: "other" for p in L.OTHER_PHRASES}),
     ("intent", L.phrases(L.INTENT_PHRASES)),
+    ("intent", L.phrases(L.REQUEST_PHRASES)),
     ("answer", L.phrases(L.ANSWER_PHRASES)),
     ("correction", {p: "correction" for p in L.CORRECTION_PHRASES if p != "no"}),
     ("filler", {p: "filler" for p in (*L.POLITENESS_PHRASES, *L.DISFLUENCY_WORDS)}),
