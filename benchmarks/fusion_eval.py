@@ -10,6 +10,8 @@ degraded trials, once with `--weights adaptive` and once with `--weights fixed`:
   -> expected: the named object;
 - clear gesture: "that cup" + a steady point -> the pointed object;
 - clear both, disagreeing: says one, points at the other -> expected: a conflict question.
+With ../shared/ present it also scores the scenes made from the real YOLOX-Nano detections on real photos
+(tests/scenarios/real.py: "the cup", "the person", "the fruit" -> question, "the banana" -> not found …).
 An outcome counts as correct only if it is exactly the expected command or question.
 
 Run: .venv/bin/python benchmarks/fusion_eval.py [--trials N]
@@ -23,7 +25,8 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
 
 from services.fusion.core import Config  # noqa: E402
 from tests.scenarios import DARK, Expect, Obj, Scenario, by_time, check, pointing, run_in_process, say, scene  # noqa
@@ -88,6 +91,24 @@ def evaluate(scenarios: list[Scenario], mode: str) -> dict[str, list[bool]]:
     return results
 
 
+def real_photo_scenarios() -> list[Scenario]:
+    """The scenes of tests/scenarios/real.py, when ../shared/ (the YOLOX-Nano model, photos) and onnxruntime are
+    there; else none, said on stderr."""
+    import os
+    shared = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
+    model = Path(os.environ.get("HRI_YOLOX_MODEL") or shared / "models" / "yolox_nano.onnx")
+    if not model.is_file():
+        print(f"real photos: skipped, no model at {model} (set HRI_SHARED or HRI_YOLOX_MODEL)", file=sys.stderr)
+        return []
+    try:
+        from tests.scenarios.real import real_scenarios, yolox_detector
+        return real_scenarios(yolox_detector(model),
+                              lambda name: ROOT / name[5:] if name.startswith("repo:") else shared / name)
+    except (ImportError, FileNotFoundError) as exc:
+        print(f"real photos: skipped ({exc})", file=sys.stderr)
+        return []
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=40, help="degraded trials per kind (default 40)")
@@ -97,7 +118,11 @@ def main() -> None:
     sweep = [trial(kind, rng) for kind in KINDS for _ in range(args.trials)]
     print(f"scenario suite: {len(SCENARIOS)} scenarios; degraded sweep: {len(sweep)} trials "
           f"({args.trials} per kind, seed {args.seed})\n")
-    for title, scenarios in (("scenario suite (by first tag)", SCENARIOS), ("degraded sweep", sweep)):
+    sets = [("scenario suite (by first tag)", SCENARIOS), ("degraded sweep", sweep)]
+    real = real_photo_scenarios()
+    if real:
+        sets.append(("real photos (YOLOX-Nano detections)", real))
+    for title, scenarios in sets:
         adaptive, fixed = evaluate(scenarios, "adaptive"), evaluate(scenarios, "fixed")
         print(f"{title:34s} {'n':>4s} {'adaptive':>9s} {'fixed':>9s}")
         for group in sorted(adaptive, key=lambda g: (g == "ALL", g)):

@@ -181,3 +181,22 @@ def test_fusion_stops_cleanly_on_sigterm():
         assert took < 2.5
     finally:
         r.close()
+
+
+def test_real_photo_scenes_over_zenoh(rig):
+    """Scenes from the real YOLOX-Nano detections on real photos (tests/scenarios/real.py), published to the
+    real process: the same outcomes as in process. Skipped without ../shared/."""
+    pytest.importorskip("onnxruntime")
+    from tests.scenarios.real import real_scenarios, yolox_detector
+    from tests.shared import ROOT, shared_path, yolox_model
+    scenarios = real_scenarios(yolox_detector(yolox_model()),
+                               lambda name: ROOT / name[5:] if name.startswith("repo:") else shared_path(name))
+    problems = []
+    for i, sc in enumerate(scenarios):
+        base = _scenario_base(len(SCENARIOS) + 30 + i)
+        outputs = rig.run(sc, base)
+        problem = check(sc, outputs)
+        in_process = run_in_process(sc, base=base)
+        if problem or [o.id for o in outputs] != [o.id for o in in_process]:
+            problems.append(f"{sc.name}: {problem or 'differs from in process'} {[describe(o) for o in outputs]}")
+    assert not problems, problems

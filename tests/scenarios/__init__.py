@@ -62,6 +62,7 @@ class Expect:
     candidates: tuple[str, ...] | None = None  # clarification candidate ids (as a set)
     motion: tuple[str | None, float | None, float | None] | None = None  # (direction, metres, degrees) if given
     question: str | None = None  # a clarification's question must contain this
+    among: tuple[str, ...] | None = None  # clarification candidates: at least two, all of these ids
 
     def matches(self, sample: Any) -> bool:
         return not self.mismatch(sample)
@@ -89,6 +90,9 @@ class Expect:
             return f"reason {sample.reason} != {self.reason}"
         if self.candidates is not None and {c.id for c in sample.candidates} != set(self.candidates):
             return f"candidates {[c.id for c in sample.candidates]} != {list(self.candidates)}"
+        got_ids = {c.id for c in sample.candidates}
+        if self.among is not None and (len(got_ids) < 2 or not got_ids <= set(self.among)):
+            return f"candidates {sorted(got_ids)} are not two or more of {list(self.among)}"
         if self.question is not None and self.question not in sample.question:
             return f"question {sample.question!r} does not say {self.question!r}"
         return ""

@@ -1,0 +1,126 @@
+"""Scenes made from the real YOLOX-Nano detector's output on real photos (../shared/models/yolox_nano.onnx).
+
+The detections are computed here with onnxruntime and the decoding of shared/models/MODEL.md (a small local
+decode; the vision service's own ONNX backend is tested in its own suite). `real_scenarios()` turns them into
+scenarios of the suite: the tests run them in process and over Zenoh, benchmarks/fusion_eval.py scores them.
+Nothing of shared/ is copied: photos are read where they are.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from common.language import COCO_LABELS
+from common.schema import DetectedObject, Detections, ImageQuality
+from tests.scenarios import KEYS, Expect, Scenario, Step, by_time, pointing, say
+
+SIZE = 416
+# The nano model's scores are moderate (a real cup at 0.30-0.32 in these photos); 0.25 keeps them with margin.
+MIN_SCORE = 0.25
+NMS_IOU = 0.45
+Found = list[tuple[str, float, list[float]]]  # (COCO label, score, [x, y, w, h] px)
+
+
+def yolox_detector(model: Path) -> Callable[[Path], tuple[Found, int, int]]:
+    """A function photo -> (detections, width, height) running the YOLOX-Nano ONNX model on the CPU."""
+    import cv2
+    import onnxruntime as ort
+    session = ort.InferenceSession(str(model), providers=["CPUExecutionProvider"])
+
+    def detect(path: Path) -> tuple[Found, int, int]:
+        img = cv2.imread(str(path))
+        if img is None:
+            raise FileNotFoundError(f"cannot read the photo {path}")
+        h, w = img.shape[:2]
+        r = min(SIZE / h, SIZE / w)
+        canvas = np.full((SIZE, SIZE, 3), 114, np.uint8)  # BGR, 0..255, top-left letterbox (MODEL.md)
+        canvas[:int(h * r), :int(w * r)] = cv2.resize(img, (int(w * r), int(h * r)), interpolation=cv2.INTER_LINEAR)
+        out = session.run(None, {"images": canvas.transpose(2, 0, 1)[None].astype(np.float32)})[0][0]
+        grids = []
+        for s in (8, 16, 32):
+            gy, gx = np.mgrid[0:SIZE // s, 0:SIZE // s]
+            grids.append(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, s)], 1))
+        g = np.concatenate(grids).astype(np.float32)
+        cx, cy = (out[:, 0] + g[:, 0]) * g[:, 2], (out[:, 1] + g[:, 1]) * g[:, 2]
+        bw, bh = np.exp(out[:, 2]) * g[:, 2], np.exp(out[:, 3]) * g[:, 2]
+        scores = out[:, 4:5] * out[:, 5:]
+        cls, conf = scores.argmax(1), scores.max(1)
+        keep = conf > MIN_SCORE
+        x0, y0 = np.clip((cx - bw / 2) / r, 0, w - 1), np.clip((cy - bh / 2) / r, 0, h - 1)
+        x1, y1 = np.clip((cx + bw / 2) / r, 0, w - 1), np.clip((cy + bh / 2) / r, 0, h - 1)
+        boxes = np.stack([x0, y0, x1 - x0, y1 - y0], 1)[keep]
+        idx = cv2.dnn.NMSBoxes(boxes.tolist(), conf[keep].tolist(), MIN_SCORE, NMS_IOU)
+        found = [(COCO_LABELS[int(cls[keep][i])], float(conf[keep][i]), [float(v) for v in boxes[i]])
+                 for i in np.array(idx).ravel()]
+        return found, w, h
+    return detect
+
+
+def object_id(found: Found, i: int) -> str:
+    return f"{found[i][0].replace(' ', '_')}_{i}"
+
+
+def scene_steps(found: Found, w: int, h: int, t0: float = -1.5, t1: float = 2.5, every: float = 0.2) -> list[Step]:
+    """Detections samples of one real frame (the scene does not change) every `every` s over [t0, t1]."""
+    objects = [DetectedObject(id=object_id(found, i), label=label, color=None, score=round(score, 3), bbox=box,
+                              center=[box[0] + box[2] / 2, box[1] + box[3] / 2])
+               for i, (label, score, box) in enumerate(found)]
+
+    def see(t: float) -> Step:
+        def build(base: float):
+            return KEYS.objects("cam0"), Detections(
+                stamp=base + t, source="vision/cam0", seq=int(t * 10) + 1000, cam="cam0", width=w, height=h,
+                objects=objects, quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5))
+        return Step(t, build, f"see {len(objects)} real detections")
+    n = int(round((t1 - t0) / every))
+    return [see(round(t0 + i * every, 6)) for i in range(n + 1)]
+
+
+def real_scene(found: Found, w: int, h: int, text: str) -> list[Step]:
+    return by_time(scene_steps(found, w, h) + pointing(None) + [say(0.0, 1.5, text)])
+
+
+# (photo under shared/ or "repo:" + a path in the repository, what is said, expected outcome):
+# ("command", label, intent) acts on the one detection with that label; ("ambiguous", labels) asks among the detections
+# with those labels; ("not_found", question start) asks, saying what it cannot see or does not know.
+CUP_PHOTO = "data/people/none_0a272153-56c7-42d5-a17d-cd307a1cd6d4.jpg"  # a person, a clock, a bottle, a cup
+CUP_PHOTO_2 = "data/people/call_17b3aa02-dc4d-448d-8601-e2b67193d436.jpg"  # a person holding a cup
+FRUIT_PHOTO = "repo:data/images/tabletop/smarties.png"  # candies the model takes for oranges, apples, frisbees
+PERSON_PHOTO = "data/pointing/lowcam_man_image3_left_arm_to_image_left.jpeg"
+CASES: list[tuple[str, str, tuple]] = [
+    (CUP_PHOTO, "Pick up the cup.", ("command", "cup", "pick_up")),
+    (CUP_PHOTO, "Bring me the mug, please.", ("command", "cup", "bring")),
+    (CUP_PHOTO, "Look at the person.", ("command", "person", "look_at")),
+    (CUP_PHOTO, "Could you, uh, fetch the bottle?", ("command", "bottle", "bring")),
+    (CUP_PHOTO, "Give me a drink.", ("ambiguous", ("bottle", "cup"))),
+    (CUP_PHOTO, "Hand me the pitcher, please.", ("not_found", "I don't know what a pitcher is. I can see ")),
+    (CUP_PHOTO_2, "Hand me the cup.", ("command", "cup", "bring")),
+    (PERSON_PHOTO, "Follow the person.", ("command", "person", "follow")),
+    (FRUIT_PHOTO, "Bring me the fruit.", ("ambiguous", ("apple", "orange", "banana"))),
+    (FRUIT_PHOTO, "Bring me the banana.", ("not_found", "I can't see the banana. I can see an ")),
+]
+
+
+def real_scenarios(detect: Callable[[Path], tuple[Found, int, int]], photo: Callable[[str], Path]) -> list[Scenario]:
+    """The CASES as scenarios, with expectations in the detections' ids."""
+    cache: dict[str, tuple[Found, int, int]] = {}
+    out = []
+    for image, text, (kind, what, *intent) in CASES:
+        if image not in cache:
+            cache[image] = detect(photo(image))
+        found, w, h = cache[image]
+        if kind == "command":
+            ids = [object_id(found, i) for i, f in enumerate(found) if f[0] == what]
+            expect = Expect("command", intent=intent[0],
+                            target=ids[0] if len(ids) == 1 else f"<{len(ids)} {what} detections: not one>")
+        elif kind == "ambiguous":
+            expect = Expect("clarification", reason="ambiguous",  # up to 5 of them are listed
+                            among=tuple(object_id(found, i) for i, f in enumerate(found) if f[0] in what))
+        else:
+            expect = Expect("clarification", reason="not_found", question=what)
+        out.append(Scenario(f"real photo {Path(image).name}: {text}", real_scene(found, w, h, text), [expect],
+                            ("real photos",)))
+    return out
