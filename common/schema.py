@@ -21,6 +21,7 @@ GESTURE_PHASES = ("start", "hold", "end")
 CLARIFICATION_REASONS = ("ambiguous", "conflict", "not_found", "low_confidence")
 INTENTS = (
     "pick_up", "bring", "put_down", "go_to", "come_here", "stop", "look_at", "follow", "greet",
+    "move", "turn",  # v1 extension: with FusedCommand.motion
 )
 MODALITIES = ("speech", "vision", "gesture")
 
