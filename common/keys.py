@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from common.schema import (
-    AudioChunk, Clarification, Detections, Frame, FusedCommand, GestureEvent, Hands, Sample, Stats, Transcript,
+    AudioChunk, Bodies, Clarification, Detections, Frame, FusedCommand, GestureEvent, Hands, Sample, Stats, Transcript,
 )
 
 DEFAULT_PREFIX = "hri"
@@ -15,6 +15,7 @@ KEY_TABLE: tuple[tuple[str, type[Sample]], ...] = (
     ("vision/{cam}/objects", Detections),
     ("gesture/{cam}/hands", Hands),
     ("gesture/{cam}/event", GestureEvent),
+    ("gesture/{cam}/bodies", Bodies),
     ("speech/{mic}/transcript", Transcript),
     ("fusion/command", FusedCommand),
     ("fusion/clarification", Clarification),
@@ -49,6 +50,9 @@ class Keys:
 
     def hands(self, cam: str = "*") -> str:
         return self._k("gesture", check_chunk(cam, "camera id"), "hands")
+
+    def bodies(self, cam: str = "*") -> str:
+        return self._k("gesture", check_chunk(cam, "camera id"), "bodies")
 
     def gesture_event(self, cam: str = "*") -> str:
         return self._k("gesture", check_chunk(cam, "camera id"), "event")

@@ -364,6 +364,7 @@ class Ray(Struct):
     origin: list[float] = vec(2)  # pixels
     direction: list[float] = vec(2)  # unit vector, image axes (x right, y down)
     confidence: float = unit(default=1.0)
+    source: Optional[Literal["hand", "body"]] = None  # v1 extension: index finger or arm (None: hand, older senders)
 
     def _check_invariants(self) -> None:
         norm = math.hypot(*self.direction)
@@ -379,6 +380,18 @@ class Hand(Struct):
     gesture: Optional[Literal["point", "open_palm", "wave", "fist", "thumbs_up"]] = None
     ray: Optional[Ray] = None
 
+
+@wire
+class Body(Struct):
+    """One person's MediaPipe Pose skeleton (v1 extension, `Bodies`)."""
+    landmarks: list[list[float]] = vec(33)  # [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists)
+    visibility: list[float] = vec(33)  # each in [0, 1]
+    left_ray: Optional[Ray] = None  # the person's own left arm points: its steadied ray
+    right_ray: Optional[Ray] = None
+
+    def _check_invariants(self) -> None:
+        if any(not 0.0 <= v <= 1.0 for v in self.visibility):
+            raise _Bad("out_of_range", "visibility must be in [0, 1]", "visibility")
 
 
 @wire
@@ -507,6 +520,16 @@ class Hands(Sample):
     width: int
     height: int
     hands: list[Hand]
+
+
+@_envelope
+class Bodies(Sample):
+    """v1 extension: the body stage's skeletons for one frame (an empty list when nobody is seen)."""
+    seq: int
+    cam: str = name()
+    width: int
+    height: int
+    bodies: list[Body]
 
 
 @_envelope

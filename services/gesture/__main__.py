@@ -1,13 +1,14 @@
-"""Process shell of the gesture service: Frame -> Hands (every frame) and GestureEvents."""
+"""Process shell of the gesture service: Frame -> Hands and Bodies (every frame) and GestureEvents."""
 
 from __future__ import annotations
 
+import argparse
 import time
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Frame, GestureEvent, Hand, Hands, Ray
-from services.gesture.landmarks import HandLandmarker, LandmarkError
+from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
+from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
 from services.gesture.temporal import GestureTracker
 
 EPILOG = """\
@@ -15,13 +16,23 @@ examples:
   hri-gesture                          # lite hand model, every camera, robot (non-mirrored) camera
   hri-gesture --model full --max-hands 1
   hri-gesture --mirrored               # selfie-style camera image: `hand` stays the person's own hand
+  hri-gesture --no-body                # hands only (saves the body stage's cost; no pointing at room distance)
 """
 
 
 def to_ray(ray) -> Ray | None:
     if ray is None:
         return None
-    return Ray(origin=[round(v, 2) for v in ray.origin], direction=list(ray.direction), confidence=ray.confidence)
+    return Ray(origin=[round(v, 2) for v in ray.origin], direction=list(ray.direction), confidence=ray.confidence,
+               source=ray.source)
+
+
+def to_body(landmarks, arms) -> Body:
+    """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body`."""
+    rays = {arm.side: to_ray(ray) for arm, ray in arms}
+    return Body(landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
+                visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
+                left_ray=rays.get("left"), right_ray=rays.get("right"))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -37,6 +48,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--end-frames", type=int, default=3, help="frames it must be absent to end (3)")
     parser.add_argument("--idle-end", type=float, default=1.0,
                         help="seconds without frames from a camera after which its gestures end (default 1)")
+    parser.add_argument("--body", action=argparse.BooleanOptionalAction, default=True,
+                        help="run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs "
+                             "resting palms; publishes Bodies (default on; --no-body for hands only)")
+    parser.add_argument("--body-model", choices=("lite", "full"), default="lite",
+                        help="pose landmark model (default lite)")
+    parser.add_argument("--ray", choices=("eyes", "forearm"), default="eyes",
+                        help="body ray: eyes -> fingertip (forearm when the eyes are out of view; default) or "
+                             "forearm (elbow -> fingertip)")
     parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
     args = parser.parse_args(argv)
     for flag in ("max_hands", "start_frames", "end_frames"):
@@ -48,13 +67,16 @@ def main(argv: list[str] | None = None) -> None:
     service = Service("gesture", args)
     try:
         HandLandmarker(args.model, args.max_hands, args.mirrored).close()  # fail now, with the reason
+        if args.body:
+            PoseLandmarker(args.body_model).close()
     except LandmarkError as exc:
         service.log.error("%s", exc)
         main_exit(2)
     landmarkers: dict[str, HandLandmarker] = {}
+    posers: dict[str, PoseLandmarker] = {}
     trackers: dict[str, GestureTracker] = {}
     last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
-    service.on_close(lambda: [lm.close() for lm in landmarkers.values()])
+    service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values()]])
     if not service.connect():
         main_exit(0)
 
@@ -62,15 +84,23 @@ def main(argv: list[str] | None = None) -> None:
         if frame.cam not in landmarkers:  # one graph per stream: MediaPipe tracks between frames
             landmarkers[frame.cam] = HandLandmarker(args.model, args.max_hands, args.mirrored)
             trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames,
-                                                 start_time=args.start_ms / 1000.0)
+                                                 start_time=args.start_ms / 1000.0, ray_from=args.ray)
+            if args.body:
+                posers[frame.cam] = PoseLandmarker(args.body_model)
         observations = landmarkers[frame.cam].detect(img)
-        tracked, events = trackers[frame.cam].update(frame.stamp, observations)
+        skeleton = posers[frame.cam].detect(img) if args.body else None
+        tracker = trackers[frame.cam]
+        tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
         hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
                                                                        o.landmarks.tolist()],
                       gesture=t.gesture, ray=to_ray(t.ray)) for o, t in zip(observations, tracked)]
         service.publish(service.keys.hands(frame.cam), Hands(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, hands=hands))
+        if args.body:
+            service.publish(service.keys.bodies(frame.cam), Bodies(
+                stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
+                height=frame.height, bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms)]))
         publish_events(frame, events)
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
         last_frame[frame.cam] = (time.monotonic(), frame)

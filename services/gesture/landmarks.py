@@ -52,3 +52,33 @@ class HandLandmarker:
 
     def close(self) -> None:
         self._hands.close()
+
+
+POSE_MODELS = {"lite": 0, "full": 1}  # the heavy model is not in the wheel (MediaPipe would download it)
+
+
+class PoseLandmarker:
+    """One MediaPipe Pose graph for one video stream: the 33 body landmarks of the most prominent person."""
+
+    def __init__(self, model: str = "lite", video: bool = True, min_detection: float = 0.5,
+                 min_tracking: float = 0.5):
+        try:
+            from mediapipe.python.solutions import pose as mp_pose
+        except ImportError as exc:
+            raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
+                                f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)") from None
+        if model not in POSE_MODELS:
+            raise LandmarkError(f"unknown body model {model!r}: use one of {', '.join(POSE_MODELS)}")
+        self._pose = mp_pose.Pose(static_image_mode=not video, model_complexity=POSE_MODELS[model],
+                                  min_detection_confidence=min_detection, min_tracking_confidence=min_tracking)
+
+    def detect(self, bgr: np.ndarray) -> np.ndarray | None:
+        """33x3 [x px, y px, visibility], or None when no person is seen."""
+        h, w = bgr.shape[:2]
+        result = self._pose.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        if not result.pose_landmarks:
+            return None
+        return np.array([[lm.x * w, lm.y * h, lm.visibility] for lm in result.pose_landmarks.landmark], dtype=float)
+
+    def close(self) -> None:
+        self._pose.close()

@@ -22,7 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from services.gesture.body import Arm, arm, arm_judged, raised_palm
 from services.gesture.rules import classify, palm_size, pointing_ray
+
+HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
 
 
 @dataclass
@@ -38,6 +41,59 @@ class Ray:
     origin: tuple[float, float]
     direction: tuple[float, float]
     confidence: float
+    source: str = "hand"  # "hand" (index finger) or "body" (arm)
+
+
+@dataclass
+class Cue:
+    """One hand-or-arm in one frame, after fusing the hand stage with the body stage."""
+    hand: str
+    score: float
+    wrist: np.ndarray
+    size: float  # px: the palm size, or half the forearm for an arm seen only by pose
+    raw: str | None  # this frame's gesture class
+    ray: tuple | None  # (origin, direction) when pointing
+    source: str  # "hand" / "body": where the ray comes from
+    ray_confidence: float = 1.0  # the body ray's visibility x extension (1 for a hand ray)
+    observation: int | None = None  # index of the hand observation, None for an arm seen only by pose
+    arm: Arm | None = None
+
+
+def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray | None,
+              hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> list[Cue]:
+    """Hands and arms of one frame -> cues. A hand whose wrist is at the arm's wrist is that arm's hand: its class
+    decides (a fist on an extended arm is not pointing; an unclear hand on a pointing arm points), an open palm
+    that is not raised is resting (no stop), and the more reliable ray wins (the finger's when the palm is at
+    least `hand_ray_min_palm` px, else the arm's). A pointing arm without a hand still points."""
+    free = [a for a in arms]
+    cues = []
+    for k, obs in enumerate(observations):
+        palm = palm_size(obs.landmarks)
+        raw = classify(obs.landmarks)
+        near = [a for a in free if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0])))
+                <= max(1.5 * palm, 0.5 * a.forearm)]
+        match = min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
+        if match is None:
+            ray = pointing_ray(obs.landmarks) if raw == "point" else None
+            cues.append(Cue(obs.hand, obs.score, obs.landmarks[0].copy(), palm, raw, ray, "hand", observation=k))
+            continue
+        free.remove(match)
+        if raw == "open_palm" and arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
+            raw = None  # resting on a hip, a leg or a table
+        if raw is None and match.pointing:
+            raw = "point"
+        ray, source, conf = None, "hand", 1.0
+        if raw == "point":
+            if classify(obs.landmarks) == "point" and (palm >= hand_ray_min_palm or match.ray is None):
+                ray = pointing_ray(obs.landmarks)
+            else:
+                ray, source, conf = match.ray, "body", match.confidence
+        cues.append(Cue(match.side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, source, conf, k, match))
+    for a in free:
+        if a.pointing:
+            cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "point", a.ray,
+                            "body", a.confidence, None, a))
+    return cues
 
 
 @dataclass
@@ -77,6 +133,7 @@ class _Track:
     scores: deque = field(default_factory=lambda: deque(maxlen=15))
     wrist_x: deque = field(default_factory=lambda: deque(maxlen=90))  # (stamp, x / palm)
     rays: deque = field(default_factory=lambda: deque(maxlen=5))  # (origin, direction)
+    ray_source: str = "hand"
 
 
 @dataclass
@@ -91,49 +148,72 @@ class GestureTracker:
     match_palms: float = 1.5
     forget_after: float = 2.0
     ray_frames: int = 5
+    hand_ray_min_palm: float = HAND_RAY_MIN_PALM
+    ray_from: str = "eyes"  # body ray: "eyes" (eyes -> fingertip, forearm when the eyes are unseen) or "forearm"
     tracks: list[_Track] = field(default_factory=list)
+    last_arms: list = field(default_factory=list)  # [(Arm, steadied Ray | None)] of the last frame's body
+    _arm_pointing: dict = field(default_factory=dict)
     _next_id: int = 1
 
-    def update(self, stamp: float, observations: list[Observation]) -> tuple[list[TrackedHand], list[Event]]:
+    def update(self, stamp: float, observations: list[Observation], body: np.ndarray | None = None,
+               size: tuple[int, int] = (0, 0)) -> tuple[list[TrackedHand], list[Event]]:
+        """One frame: the hands seen and, if the body stage runs, the person's 33x3 pose landmarks (None: no
+        body seen) in an image of `size` (width, height). Hand and arm of one side become one cue (fuse_arms)."""
+        arms = self._judge_arms(body, size)
+        cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm)
+        self.last_arms = [(a, None) for a in arms]
         events: list[Event] = []
-        assigned = self._associate(observations)
-        tracked: list[TrackedHand] = []
+        assigned = self._associate(cues)
+        tracked: list[TrackedHand | None] = [None] * len(observations)
         seen_ids = set()
-        for obs, track in zip(observations, assigned):
+        for cue, track in zip(cues, assigned):
             seen_ids.add(track.id)
-            track.wrist, track.palm, track.last_seen = obs.landmarks[0].copy(), palm_size(obs.landmarks), stamp
-            track.scores.append(obs.score)
-            track.wrist_x.append((stamp, float(obs.landmarks[0, 0]) / track.palm))
-            raw = classify(obs.landmarks)
-            ray = None
-            if raw == "point":
-                track.rays.append(pointing_ray(obs.landmarks))
-                ray = self._steady_ray(track)
+            track.hand, track.wrist, track.palm, track.last_seen = cue.hand, cue.wrist, cue.size, stamp
+            track.scores.append(cue.score)
+            track.wrist_x.append((stamp, float(cue.wrist[0]) / track.palm))
+            raw, ray = cue.raw, None
+            if raw == "point" and cue.ray is not None:
+                if track.rays and track.ray_source != cue.source:
+                    track.rays.clear()  # a hand ray and a body ray are not averaged together
+                track.ray_source = cue.source
+                track.rays.append(cue.ray)
+                ray = self._steady_ray(track, cue.source, cue.ray_confidence)
             else:
                 track.rays.clear()
             if raw == "open_palm" and self._waving(track, stamp):
                 raw = "wave"
             events += self._step(track, stamp, raw, ray)
-            tracked.append(TrackedHand(track.id, "wave" if raw == "wave" else raw, ray))
+            if cue.observation is not None:
+                tracked[cue.observation] = TrackedHand(track.id, raw, ray)
+            if cue.arm is not None and ray is not None and ray.source == "body":
+                self.last_arms = [(a, ray if a is cue.arm else r) for a, r in self.last_arms]
         for track in self.tracks:
             if track.id not in seen_ids:
                 events += self._step(track, stamp, None, None)
         self.tracks = [t for t in self.tracks if stamp - t.last_seen <= self.forget_after or t.active]
         return tracked, events
 
-    def _associate(self, observations: list[Observation]) -> list[_Track]:
+    def _judge_arms(self, body: np.ndarray | None, size: tuple[int, int]) -> list[Arm]:
+        if body is None:
+            self._arm_pointing = {}
+            return []
+        arms = [arm(body, side, size[0], size[1], self._arm_pointing.get(side, False), self.ray_from)
+                for side in ("left", "right")]
+        self._arm_pointing = {a.side: a.pointing for a in arms}
+        return arms
+
+    def _associate(self, cues: list[Cue]) -> list[_Track]:
         free = list(self.tracks)
         out = []
-        for obs in observations:
-            palm = palm_size(obs.landmarks)
+        for cue in cues:
             best, best_d = None, float("inf")
             for t in free:
-                d = float(np.linalg.norm(t.wrist - obs.landmarks[0])) / max(palm, t.palm)
-                d += 0.0 if t.hand == obs.hand else 0.5  # prefer the same hand, do not insist (labels flicker)
+                d = float(np.linalg.norm(t.wrist - cue.wrist)) / max(cue.size, t.palm)
+                d += 0.0 if t.hand == cue.hand else 0.5  # prefer the same hand, do not insist (labels flicker)
                 if d < best_d and d <= self.match_palms:
                     best, best_d = t, d
             if best is None:
-                best = _Track(self._next_id, obs.hand, obs.landmarks[0].copy(), palm, 0.0)
+                best = _Track(self._next_id, cue.hand, cue.wrist.copy(), cue.size, 0.0)
                 self._next_id += 1
                 self.tracks.append(best)
             else:
@@ -141,7 +221,7 @@ class GestureTracker:
             out.append(best)
         return out
 
-    def _steady_ray(self, track: _Track) -> Ray:
+    def _steady_ray(self, track: _Track, source: str = "hand", weight: float = 1.0) -> Ray:
         origins = np.array([o for o, _ in track.rays])
         dirs = np.array([d for _, d in track.rays])
         mean = dirs.mean(axis=0)
@@ -149,9 +229,10 @@ class GestureTracker:
         direction = mean / (resultant or 1.0)
         frames = len(track.rays) / self.ray_frames  # a ray seen for one frame is less sure than one held
         # steadiness only: consumers weigh the hand's own landmark score separately
-        confidence = max(0.0, min(1.0, resultant ** 8 * (0.5 + 0.5 * frames)))
+        confidence = max(0.0, min(1.0, weight * resultant ** 8 * (0.5 + 0.5 * frames)))
         o = origins.mean(axis=0)
-        return Ray((float(o[0]), float(o[1])), (float(direction[0]), float(direction[1])), round(confidence, 4))
+        return Ray((float(o[0]), float(o[1])), (float(direction[0]), float(direction[1])), round(confidence, 4),
+                   source)
 
     def _waving(self, track: _Track, stamp: float) -> bool:
         xs = [x for t, x in track.wrist_x if stamp - t <= self.wave_window]

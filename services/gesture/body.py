@@ -1,0 +1,135 @@
+"""Arm pointing and raised palms from MediaPipe Pose's 33 body landmarks — pure, ratios of distances only.
+
+An arm **points** when it is extended away from the body: the elbow is straight (shoulder–elbow–wrist angle at
+least `EXTENDED_DEG`, kept down to `RELEASE_DEG` once pointing: hysteresis) and the wrist lies at least
+`AWAY` torso lengths from the torso line (shoulder → hip of the same side; `RELEASE_AWAY` to keep it). An arm whose
+shoulder, elbow or wrist is not visible (MediaPipe visibility < `MIN_VISIBILITY`) cannot be judged: not pointing.
+
+The **ray** goes from the eyes through the index fingertip when both eyes are inside the image and visible (the
+eye, fingertip and target are on one line in 3-D, so their images are on one line too, whatever the depth), else
+along the forearm (elbow → index fingertip). On the shared real pointing photos the eye line is the more accurate
+(docs/gesture.md, `python benchmarks/gesture.py --rays`).
+
+Pose landmarks are the person's own left/right (11/13/15/19 left shoulder/elbow/wrist/index), not mirrored.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+LEFT_EYE, RIGHT_EYE = 2, 5
+ARMS = {"left": (11, 13, 15, 19, 23), "right": (12, 14, 16, 20, 24)}  # shoulder, elbow, wrist, index, hip
+MIDDLE_MCP = 9  # hand landmark
+
+MIN_VISIBILITY = 0.5
+EXTENDED_DEG = 150.0     # elbow at least this straight to start pointing...
+RELEASE_DEG = 135.0      # ...and to keep pointing
+AWAY = 0.35              # wrist distance from the torso line / torso length to start...
+RELEASE_AWAY = 0.25      # ...and to keep
+TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are out of frame
+FINGERS_UP_DEG = 60.0    # a raised palm: wrist -> middle knuckle within this of image-up
+
+
+@dataclass(frozen=True)
+class Arm:
+    side: str  # the person's own "left" / "right"
+    pointing: bool
+    visibility: float  # weakest of shoulder, elbow, wrist
+    elbow_deg: float | None
+    away: float | None  # wrist distance from the torso line / torso length
+    wrist: tuple[float, float]
+    forearm: float  # elbow -> wrist, px
+    ray: tuple[tuple[float, float], tuple[float, float]] | None  # (origin = fingertip, unit direction)
+    ray_from: str | None  # "eyes" or "forearm"
+    confidence: float  # visibility x extension (steadiness is added over time)
+
+
+def _angle(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> float:
+    """Angle at b, degrees."""
+    u, v = a - b, c - b
+    nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+    if nu == 0 or nv == 0:
+        return 0.0
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(u @ v) / (nu * nv)))))
+
+
+def _unit(v: np.ndarray) -> tuple[float, float] | None:
+    n = float(np.linalg.norm(v))
+    return None if n < 1e-6 else (float(v[0] / n), float(v[1] / n))
+
+
+def torso(p: np.ndarray, side: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """(shoulder, hip, torso length) of one side; the hip is estimated below the shoulder when out of sight."""
+    s, _, _, _, hip = ARMS[side]
+    shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2]))
+    if p[hip, 2] >= MIN_VISIBILITY:
+        return p[s, :2], p[hip, :2], float(np.linalg.norm(p[hip, :2] - p[s, :2])) or 1.0
+    length = TORSO_PER_SHOULDERS * shoulders or 1.0
+    return p[s, :2], p[s, :2] + np.array([0.0, length]), length
+
+
+def eyes_in_view(p: np.ndarray, width: int, height: int) -> np.ndarray | None:
+    eyes = p[[LEFT_EYE, RIGHT_EYE]]
+    if (eyes[:, 2] < MIN_VISIBILITY).any():
+        return None
+    if not ((0 <= eyes[:, 0]) & (eyes[:, 0] < width) & (0 <= eyes[:, 1]) & (eyes[:, 1] < height)).all():
+        return None  # MediaPipe guesses a head out of frame with high "visibility": not a real eye
+    return eyes[:, :2].mean(axis=0)
+
+
+def arm(landmarks: np.ndarray | list, side: str, width: int, height: int, was_pointing: bool = False,
+        ray_from: str = "eyes") -> Arm:
+    """One arm of a 33x3 [x px, y px, visibility] skeleton. `was_pointing`: the hysteresis state of this arm."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    s, e, w, i, _ = ARMS[side]
+    vis = float(min(p[s, 2], p[e, 2], p[w, 2]))
+    wrist = (float(p[w, 0]), float(p[w, 1]))
+    forearm = float(np.linalg.norm(p[w, :2] - p[e, :2]))
+    if vis < MIN_VISIBILITY:
+        return Arm(side, False, vis, None, None, wrist, forearm, None, None, 0.0)
+    elbow = _angle(p[s, :2], p[e, :2], p[w, :2])
+    shoulder, hip, length = torso(p, side)
+    axis = hip - shoulder
+    rel = p[w, :2] - shoulder
+    cross = abs(float(axis[0] * rel[1] - axis[1] * rel[0])) / (float(np.linalg.norm(axis)) or 1.0)
+    away = cross / length
+    min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY) if was_pointing else (EXTENDED_DEG, AWAY)
+    pointing = elbow >= min_deg and away >= min_away
+    tip = p[i, :2] if p[i, 2] >= MIN_VISIBILITY else p[w, :2]
+    ray, source = None, None
+    if pointing:
+        eyes = eyes_in_view(p, width, height) if ray_from == "eyes" else None
+        direction = _unit(tip - eyes) if eyes is not None else None
+        source = "eyes" if direction is not None else "forearm"
+        direction = direction or _unit(tip - p[e, :2])
+        if direction is None:
+            pointing = False
+        else:
+            ray = ((float(tip[0]), float(tip[1])), direction)
+    extension = max(0.0, min(1.0, (elbow - RELEASE_DEG) / (180.0 - RELEASE_DEG)))
+    confidence = round(vis * (0.5 + 0.5 * extension), 4) if pointing else 0.0
+    return Arm(side, pointing, vis, elbow, away, wrist, forearm, ray, source if pointing else None, confidence)
+
+
+def raised_palm(landmarks: np.ndarray | list, side: str, hand: np.ndarray | list) -> bool:
+    """Is this open hand raised (a stop), not resting on a hip, a leg or a table? The wrist above the middle of
+    the torso and the fingers up (wrist -> middle knuckle within 60° of image-up)."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    q = np.asarray(hand, dtype=float).reshape(21, 2)
+    shoulder, hip, _ = torso(p, side)
+    mid_y = (shoulder[1] + hip[1]) / 2
+    up = _unit(q[MIDDLE_MCP] - q[0])
+    if up is None:
+        return False
+    fingers_up = math.degrees(math.acos(max(-1.0, min(1.0, -up[1])))) <= FINGERS_UP_DEG
+    return bool(q[0, 1] < mid_y and fingers_up)
+
+
+def arm_judged(landmarks: np.ndarray | list, side: str) -> bool:
+    """Are the shoulder and elbow of this arm seen well enough to say where the hand is on the body?"""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    s, e, _, _, _ = ARMS[side]
+    return bool(p[s, 2] >= MIN_VISIBILITY and p[e, 2] >= MIN_VISIBILITY)
