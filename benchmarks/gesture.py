@@ -1,17 +1,25 @@
-"""Gesture: the service's per-frame path vs bare MediaPipe `Hands.process` on the same frames, one run.
+"""Gesture: the service's per-frame path vs bare MediaPipe calls on the same frames, one run; and the body ray's
+accuracy on real pointing photos.
 
-1. Throughput on the same 640x480 real hand photos (decoded once, before timing):
-   - bare: `mediapipe.solutions.hands.Hands(...).process(rgb)` in a loop (video mode, lite model, 2 hands);
-   - service path: HandLandmarker.detect (the same call plus landmark conversion and handedness) followed by
-     GestureTracker.update (rules, hysteresis, wave, ray).
-   Target: service >= 0.9x the bare loop's frames/s.
-2. End-to-end lag at 30 fps input into a real gesture process: p50/p99 per slice (it must not grow).
+1. Throughput on the same 640x480 real frames (hand photos from data/, plus the people photos of
+   ../shared/data/people when present; decoded once, before timing), in three set-ups:
+   - hands only: bare `Hands.process` vs HandLandmarker.detect + GestureTracker.update;
+   - body only: bare `Pose.process` vs PoseLandmarker.detect + GestureTracker.update (arm rules, fusion);
+   - both: bare `Hands.process` + `Pose.process` vs the service's whole per-frame path.
+   Lite hand model, full pose model (the only one in the wheel), video mode. Target: service >= 0.9x the bare loop's frames/s in each.
+2. End-to-end lag at 30 fps input into a real gesture process (body stage on): p50/p99 per slice (flat).
+3. `--rays`: angular error of the two body rays (eyes -> fingertip vs forearm elbow -> fingertip) to the target
+   pixels of ../shared/data/pointing (README there), on the arm that points.
 
-Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300]
+Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300] [--rays]
 """
 
 from __future__ import annotations
 
+import argparse
+import math
+import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -19,43 +27,150 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import cv2  # noqa: E402
+import numpy as np  # noqa: E402
 
-from benchmarks.lag import frame_benchmark_main, print_throughput  # noqa: E402
+from benchmarks.lag import frame_lag, print_throughput  # noqa: E402
 from common.schema import Hands  # noqa: E402
-from services.gesture.landmarks import HandLandmarker  # noqa: E402
+from services.gesture.body import arm, arm_ray  # noqa: E402
+from services.gesture.landmarks import HandLandmarker, PoseLandmarker  # noqa: E402
 from services.gesture.temporal import GestureTracker  # noqa: E402
-from tests.harness import DATA  # noqa: E402
+from tests.harness import DATA, ROOT  # noqa: E402
+
+SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
+
+# ../shared/data/pointing: file -> (pointing arm, candidate targets it indicates). From its README; where the exact
+# target is not labelled ("the cups to the image right") every candidate on that side is listed and the nearest in
+# angle counts, for both rays alike.
+POINTING_TARGETS = {
+    "nico_table_f01_red_cube.jpg": ("right", [(195, 535)]),
+    "nico_table_f05_yellow_cube.jpg": ("right", [(345, 523)]),
+    "nico_table_f06_row_middle_yellow.jpg": ("right", [(426, 539)]),
+    "nico_table_f07_green_cube.jpg": ("right", [(470, 528)]),
+    "nico_table_f10_row_right_green.jpg": ("right", [(505, 538)]),
+    "room_woman_0126_t2_right_arm_to_image_right.png": ("right", [(761, 478), (933, 518)]),
+    "room_woman_0126_t3_right_arm_to_image_left.png": ("right", [(592, 485), (424, 521)]),
+    "room_woman_0219_t6_left_arm_to_image_right.png": ("left", [(853, 474)]),
+}
 
 
-def hand_frames() -> list:
+def frames() -> list:
     paths = [DATA / "demo" / "pointing.png", DATA / "demo" / "stop.png", *sorted((DATA / "images" / "hands").glob("*.jpg"))]
+    paths += sorted((SHARED / "data" / "people").glob("*.jpg"))[:12]
     return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
 
 
-def throughput(frames: list, n: int, repeats: int = 3) -> None:
+def _loop(n: int, step) -> float:
+    t0 = time.perf_counter()
+    for i in range(n):
+        step(i)
+    return n / (time.perf_counter() - t0)
+
+
+def throughput(images: list, n: int, repeats: int = 3) -> None:
     from mediapipe.python.solutions import hands as mp_hands
-    bare_fps, service_fps = [], []
+    from mediapipe.python.solutions import pose as mp_pose
     # each photo is shown for 10 frames in a row, as a camera would: MediaPipe tracks between frames
-    sequence = [f for f in frames for _ in range(10)]
+    sequence = [f for f in images for _ in range(10)]
+    size = (sequence[0].shape[1], sequence[0].shape[0])
+    rgb = lambda i: cv2.cvtColor(sequence[i % len(sequence)], cv2.COLOR_BGR2RGB)  # noqa: E731
+    bgr = lambda i: sequence[i % len(sequence)]  # noqa: E731
+    results: dict[str, tuple[list, list]] = {"hands only": ([], []), "body only": ([], []), "both": ([], [])}
     for _ in range(repeats):  # alternate so drift hits both alike
-        bare = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0)
-        t0 = time.perf_counter()
-        for i in range(n):
-            bare.process(cv2.cvtColor(sequence[i % len(sequence)], cv2.COLOR_BGR2RGB))
-        bare_fps.append(n / (time.perf_counter() - t0))
-        bare.close()
+        hands = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0)
+        results["hands only"][0].append(_loop(n, lambda i: hands.process(rgb(i))))
+        hands.close()
         landmarker, tracker = HandLandmarker("lite", 2), GestureTracker()
-        t0 = time.perf_counter()
-        for i in range(n):
-            tracker.update(i / 30.0, landmarker.detect(sequence[i % len(sequence)]))
-        service_fps.append(n / (time.perf_counter() - t0))
+        results["hands only"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, landmarker.detect(bgr(i)))))
         landmarker.close()
-    print_throughput(f"throughput on {n} frames 640x480 of real hands", "bare MediaPipe Hands.process", bare_fps,
-                     "gesture service path", service_fps)
+
+        pose = mp_pose.Pose(static_image_mode=False, model_complexity=1)
+        results["body only"][0].append(_loop(n, lambda i: pose.process(rgb(i))))
+        pose.close()
+        poser, tracker = PoseLandmarker(), GestureTracker()
+        results["body only"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, [], poser.detect(bgr(i)), size)))
+        poser.close()
+
+        hands, pose = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0), \
+            mp_pose.Pose(static_image_mode=False, model_complexity=1)
+
+        def bare_both(i: int) -> None:
+            image = rgb(i)
+            hands.process(image)
+            pose.process(image)
+        results["both"][0].append(_loop(n, bare_both))
+        hands.close()
+        pose.close()
+        landmarker, poser, tracker = HandLandmarker("lite", 2), PoseLandmarker(), GestureTracker()
+        results["both"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, landmarker.detect(bgr(i)),
+                                                                     poser.detect(bgr(i)), size)))
+        landmarker.close()
+        poser.close()
+    for name, (bare, service) in results.items():
+        print_throughput(f"{name}: {n} frames 640x480 of real people and hands", "bare MediaPipe", bare,
+                         "gesture service path", service)
+
+
+def angle_to(origin, direction, target) -> float:
+    v = np.array(target, float) - np.array(origin, float)
+    cos = float(v @ np.array(direction)) / (float(np.linalg.norm(v)) or 1.0)
+    return math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+
+
+def ray_errors() -> dict[str, dict[str, float | None]]:
+    """file -> {"eyes": error in degrees or None, "forearm": ..., "eyes_used": bool} on the pointing arm."""
+    poser = PoseLandmarker(video=False)
+    out = {}
+    try:
+        for name, (side, targets) in POINTING_TARGETS.items():
+            img = cv2.imread(str(SHARED / "data" / "pointing" / name))
+            if img is None:
+                continue
+            skeleton = poser.detect(img)
+            row: dict[str, float | None] = {"eyes": None, "forearm": None, "eyes_used": False, "pointing": False}
+            if skeleton is not None:
+                row["pointing"] = arm(skeleton, side, img.shape[1], img.shape[0]).pointing
+                for how in ("eyes", "forearm"):  # the ray of the pointing arm, whatever the rules say
+                    ray, used = arm_ray(skeleton, side, img.shape[1], img.shape[0], how)
+                    if ray is not None:
+                        row[how] = min(angle_to(ray[0], ray[1], t) for t in targets)
+                        row["eyes_used"] = row["eyes_used"] or used == "eyes"
+            out[name] = row
+    finally:
+        poser.close()
+    return out
+
+
+def print_rays() -> None:
+    for _ in (1,):
+        errors = ray_errors()
+        if not errors:
+            print(f"no pointing photos under {SHARED / 'data' / 'pointing'}: set HRI_SHARED")
+            return
+        print(f"body ray error to the target, pose model full (degrees; '-' = no skeleton)")
+        for name, row in errors.items():
+            fmt = lambda v: "   -" if v is None else f"{v:5.1f}"  # noqa: E731
+            print(f"  {name:50s} eyes->tip {fmt(row['eyes'])} ({'eyes' if row['eyes_used'] else 'forearm fallback'})"
+                  f"  forearm {fmt(row['forearm'])}  arm rules: {'pointing' if row['pointing'] else 'not pointing'}")
+        both = [r for r in errors.values() if r["eyes"] is not None and r["forearm"] is not None]
+        if both:
+            for how in ("eyes", "forearm"):
+                vals = [r[how] for r in both]
+                print(f"  {how:8s} mean {statistics.mean(vals):5.1f}  median {statistics.median(vals):5.1f}  "
+                      f"over {len(vals)} photos")
 
 
 def main() -> None:
-    frame_benchmark_main(__doc__, "gesture", "hri/gesture/bench/hands", Hands, hand_frames, throughput)
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
+    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
+    parser.add_argument("--rays", action="store_true", help="only the body-ray accuracy on the pointing photos")
+    args = parser.parse_args()
+    if args.rays:
+        print_rays()
+        return
+    images = frames()
+    throughput(images, args.frames)
+    frame_lag("gesture", [], "hri/gesture/bench/hands", Hands, images, args.seconds)
 
 
 if __name__ == "__main__":

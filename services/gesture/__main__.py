@@ -51,8 +51,6 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--body", action=argparse.BooleanOptionalAction, default=True,
                         help="run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs "
                              "resting palms; publishes Bodies (default on; --no-body for hands only)")
-    parser.add_argument("--body-model", choices=("lite", "full"), default="lite",
-                        help="pose landmark model (default lite)")
     parser.add_argument("--ray", choices=("eyes", "forearm"), default="eyes",
                         help="body ray: eyes -> fingertip (forearm when the eyes are out of view; default) or "
                              "forearm (elbow -> fingertip)")
@@ -68,7 +66,7 @@ def main(argv: list[str] | None = None) -> None:
     try:
         HandLandmarker(args.model, args.max_hands, args.mirrored).close()  # fail now, with the reason
         if args.body:
-            PoseLandmarker(args.body_model).close()
+            PoseLandmarker().close()
     except LandmarkError as exc:
         service.log.error("%s", exc)
         main_exit(2)
@@ -86,7 +84,7 @@ def main(argv: list[str] | None = None) -> None:
             trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames,
                                                  start_time=args.start_ms / 1000.0, ray_from=args.ray)
             if args.body:
-                posers[frame.cam] = PoseLandmarker(args.body_model)
+                posers[frame.cam] = PoseLandmarker()
         observations = landmarkers[frame.cam].detect(img)
         skeleton = posers[frame.cam].detect(img) if args.body else None
         tracker = trackers[frame.cam]

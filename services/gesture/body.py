@@ -1,8 +1,9 @@
 """Arm pointing and raised palms from MediaPipe Pose's 33 body landmarks — pure, ratios of distances only.
 
 An arm **points** when it is extended away from the body: the elbow is straight (shoulder–elbow–wrist angle at
-least `EXTENDED_DEG`, kept down to `RELEASE_DEG` once pointing: hysteresis) and the wrist lies at least
-`AWAY` torso lengths from the torso line (shoulder → hip of the same side; `RELEASE_AWAY` to keep it). An arm whose
+least `EXTENDED_DEG`, kept down to `RELEASE_DEG` once pointing: hysteresis) and the arm is raised away from the
+torso line: the angle between shoulder → wrist and shoulder → hip (same side) at least `AWAY_DEG` (`RELEASE_AWAY_DEG`
+to keep it). A relaxed arm hangs within about 25° of the torso line on the people photos, however straight. An arm whose
 shoulder, elbow or wrist is not visible (MediaPipe visibility < `MIN_VISIBILITY`) cannot be judged: not pointing.
 
 The **ray** goes from the eyes through the index fingertip when both eyes are inside the image and visible (the
@@ -27,8 +28,8 @@ MIDDLE_MCP = 9  # hand landmark
 MIN_VISIBILITY = 0.5
 EXTENDED_DEG = 150.0     # elbow at least this straight to start pointing...
 RELEASE_DEG = 135.0      # ...and to keep pointing
-AWAY = 0.35              # wrist distance from the torso line / torso length to start...
-RELEASE_AWAY = 0.25      # ...and to keep
+AWAY_DEG = 35.0          # arm (shoulder -> wrist) away from the torso line (shoulder -> hip) to start...
+RELEASE_AWAY_DEG = 25.0  # ...and to keep
 TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are out of frame
 FINGERS_UP_DEG = 60.0    # a raised palm: wrist -> middle knuckle within this of image-up
 
@@ -39,7 +40,7 @@ class Arm:
     pointing: bool
     visibility: float  # weakest of shoulder, elbow, wrist
     elbow_deg: float | None
-    away: float | None  # wrist distance from the torso line / torso length
+    away_deg: float | None  # angle between shoulder -> wrist and shoulder -> hip
     wrist: tuple[float, float]
     forearm: float  # elbow -> wrist, px
     ray: tuple[tuple[float, float], tuple[float, float]] | None  # (origin = fingertip, unit direction)
@@ -91,27 +92,31 @@ def arm(landmarks: np.ndarray | list, side: str, width: int, height: int, was_po
     if vis < MIN_VISIBILITY:
         return Arm(side, False, vis, None, None, wrist, forearm, None, None, 0.0)
     elbow = _angle(p[s, :2], p[e, :2], p[w, :2])
-    shoulder, hip, length = torso(p, side)
-    axis = hip - shoulder
-    rel = p[w, :2] - shoulder
-    cross = abs(float(axis[0] * rel[1] - axis[1] * rel[0])) / (float(np.linalg.norm(axis)) or 1.0)
-    away = cross / length
-    min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY) if was_pointing else (EXTENDED_DEG, AWAY)
+    shoulder, hip, _ = torso(p, side)
+    away = _angle(hip, shoulder, p[w, :2])
+    min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_DEG, AWAY_DEG)
     pointing = elbow >= min_deg and away >= min_away
-    tip = p[i, :2] if p[i, 2] >= MIN_VISIBILITY else p[w, :2]
-    ray, source = None, None
-    if pointing:
-        eyes = eyes_in_view(p, width, height) if ray_from == "eyes" else None
-        direction = _unit(tip - eyes) if eyes is not None else None
-        source = "eyes" if direction is not None else "forearm"
-        direction = direction or _unit(tip - p[e, :2])
-        if direction is None:
-            pointing = False
-        else:
-            ray = ((float(tip[0]), float(tip[1])), direction)
+    ray, source = arm_ray(p, side, width, height, ray_from) if pointing else (None, None)
+    pointing = pointing and ray is not None
     extension = max(0.0, min(1.0, (elbow - RELEASE_DEG) / (180.0 - RELEASE_DEG)))
     confidence = round(vis * (0.5 + 0.5 * extension), 4) if pointing else 0.0
     return Arm(side, pointing, vis, elbow, away, wrist, forearm, ray, source if pointing else None, confidence)
+
+
+def arm_ray(landmarks: np.ndarray | list, side: str, width: int, height: int, ray_from: str = "eyes"
+            ) -> tuple[tuple[tuple[float, float], tuple[float, float]] | None, str | None]:
+    """((origin = index fingertip, or the wrist when the fingertip is unseen; unit direction), "eyes"/"forearm"):
+    eyes -> fingertip when `ray_from` is "eyes" and both eyes are in view, else elbow -> fingertip."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    _, e, w, i, _ = ARMS[side]
+    tip = p[i, :2] if p[i, 2] >= MIN_VISIBILITY else p[w, :2]
+    eyes = eyes_in_view(p, width, height) if ray_from == "eyes" else None
+    direction = _unit(tip - eyes) if eyes is not None else None
+    source = "eyes" if direction is not None else "forearm"
+    direction = direction or _unit(tip - p[e, :2])
+    if direction is None:
+        return None, None
+    return ((float(tip[0]), float(tip[1])), direction), source
 
 
 def raised_palm(landmarks: np.ndarray | list, side: str, hand: np.ndarray | list) -> bool:

@@ -54,22 +54,20 @@ class HandLandmarker:
         self._hands.close()
 
 
-POSE_MODELS = {"lite": 0, "full": 1}  # the heavy model is not in the wheel (MediaPipe would download it)
+POSE_FULL = 1  # model_complexity of pose_landmark_full.tflite, the one pose model in the 0.10.21 wheel (lite and
+# heavy are downloaded by MediaPipe on first use: not possible offline, and nothing is downloaded here)
 
 
 class PoseLandmarker:
     """One MediaPipe Pose graph for one video stream: the 33 body landmarks of the most prominent person."""
 
-    def __init__(self, model: str = "lite", video: bool = True, min_detection: float = 0.5,
-                 min_tracking: float = 0.5):
+    def __init__(self, video: bool = True, min_detection: float = 0.5, min_tracking: float = 0.5):
         try:
             from mediapipe.python.solutions import pose as mp_pose
         except ImportError as exc:
             raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
                                 f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)") from None
-        if model not in POSE_MODELS:
-            raise LandmarkError(f"unknown body model {model!r}: use one of {', '.join(POSE_MODELS)}")
-        self._pose = mp_pose.Pose(static_image_mode=not video, model_complexity=POSE_MODELS[model],
+        self._pose = mp_pose.Pose(static_image_mode=not video, model_complexity=POSE_FULL,
                                   min_detection_confidence=min_detection, min_tracking_confidence=min_tracking)
 
     def detect(self, bgr: np.ndarray) -> np.ndarray | None:

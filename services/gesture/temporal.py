@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from services.gesture.body import Arm, arm, arm_judged, raised_palm
+from services.gesture.body import MIN_VISIBILITY, Arm, arm, arm_judged, raised_palm
 from services.gesture.rules import classify, palm_size, pointing_ray
 
 HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
@@ -65,7 +65,7 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
     decides (a fist on an extended arm is not pointing; an unclear hand on a pointing arm points), an open palm
     that is not raised is resting (no stop), and the more reliable ray wins (the finger's when the palm is at
     least `hand_ray_min_palm` px, else the arm's). A pointing arm without a hand still points."""
-    free = [a for a in arms]
+    free = [a for a in arms if a.visibility >= MIN_VISIBILITY]  # an arm pose cannot see has no wrist to match
     cues = []
     for k, obs in enumerate(observations):
         palm = palm_size(obs.landmarks)
