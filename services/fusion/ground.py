@@ -7,6 +7,10 @@ Every candidate gets two pieces of evidence:
   "red" says little about which object is red.
 - gesture G in [0, 1]: agreement with the pointing ray (angle between the ray and the direction
   from the ray origin to the object, less the angle the object itself covers; 0 behind the hand).
+  The ray is the hand's (index finger) or the body's (eyes or forearm through the fingertip): both alike.
+  An object *under the fingertip* (the ray enters its box within half its diagonal of the fingertip, as when
+  someone points down at a cube on a table) gets G = 1, and every other object's G is halved: what the finger
+  nearly touches wins over what lies further along the same ray.
 The total is their weighted mean with the normalised modality weights. The winner must lead the
 runner-up by `margin`, otherwise the caller asks (ambiguous, or conflict when speech and gesture
 each back a different object).
@@ -29,6 +33,8 @@ DEFAULT_MARGIN = 0.1
 MIN_EVIDENCE = 0.15  # below this the winner is a guess: confirm first
 LOCATION_REACH = 0.35  # fraction of the image diagonal along the ray when no object is on it
 MAX_CANDIDATES = 5
+UNDER_TIP_GAP = 0.5  # an object is under the fingertip when the ray enters its box within this x its diagonal
+FARTHER_ALONG = 0.5  # the gesture evidence of the other objects when one is under the fingertip
 
 
 @dataclass(frozen=True)
@@ -151,6 +157,45 @@ def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
     return math.exp(-0.5 * (effective / sigma) ** 2), angle
 
 
+def ray_gap(p: Pointing, o: SceneObject) -> float | None:
+    """Distance (px) along the ray from its origin to where it enters the object's box (0 when the origin is
+    inside it), None when the ray misses the box."""
+    x, y, w, h = o.bbox
+    t_near, t_far = 0.0, math.inf
+    for origin, d, lo, hi in ((p.origin[0], p.direction[0], x, x + w), (p.origin[1], p.direction[1], y, y + h)):
+        if abs(d) < 1e-9:
+            if not lo <= origin <= hi:
+                return None
+            continue
+        t0, t1 = sorted(((lo - origin) / d, (hi - origin) / d))
+        t_near, t_far = max(t_near, t0), min(t_far, t1)
+    return t_near if t_near <= t_far else None
+
+
+def under_fingertip(p: Pointing, o: SceneObject) -> bool:
+    """Does the finger (nearly) touch this object? The ray enters its box within half its diagonal of the
+    fingertip; for a hand ray (origin at the index knuckle) the finger's own length is added (half the hand box)."""
+    if o.cam != p.cam:
+        return False
+    gap = ray_gap(p, o)
+    if gap is None:
+        return False
+    reach = UNDER_TIP_GAP * math.hypot(o.bbox[2], o.bbox[3])
+    if p.hand_box is not None:
+        reach += 0.5 * math.hypot(p.hand_box[2] - p.hand_box[0], p.hand_box[3] - p.hand_box[1])
+    return gap <= reach
+
+
+def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], tuple[float, float | None]]:
+    """(G, angle) per object: `pointing_score`, then what lies under the fingertip wins over what lies further
+    along the ray."""
+    out = {o.key: pointing_score(p, o) for o in objects}
+    under = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
+    if under:
+        out = {k: ((1.0, a) if k in under else (g * FARTHER_ALONG, a)) for k, (g, a) in out.items()}
+    return out
+
+
 def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, weights: Weights,
           *, adaptive: bool = True, ref: float | None = None) -> list[Scored]:
     """All objects scored and ranked (best first; ties broken by camera and id for determinism)."""
@@ -166,6 +211,7 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
     ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
     if ws + wg <= 0:
         ws = 1.0
+    deictic = deictic_scores(pointing, objects) if use_gesture else {}
     scored = []
     for o in objects:
         m = match[o.key]
@@ -175,7 +221,7 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
         else:
             trust = 1.0
         s = 0.5 + (m - 0.5) * trust
-        g, angle = pointing_score(pointing, o) if use_gesture else (None, None)
+        g, angle = deictic[o.key] if use_gesture else (None, None)
         total = (ws * s + wg * (g or 0.0)) / (ws + wg)
         scored.append(Scored(o, m, trust, s, g, angle, total))
     scored.sort(key=lambda c: (-round(c.total, 9), c.obj.cam, c.obj.id))
