@@ -1,0 +1,44 @@
+"""camera (a real photo of a person pointing down at a cube) -> vision + gesture (hands and body) -> fusion, with
+"pick up that one" said: the command's target is the cube under the pointing finger. Real processes over Zenoh."""
+
+import time
+
+import pytest
+
+from common.cli import make_transcript
+from common.schema import Bodies, FusedCommand
+from tests.harness import Client, requires_services
+from tests.shared import shared_path
+
+pytestmark = pytest.mark.integration
+
+
+@requires_services("vision", "gesture", "fusion")
+def test_pointing_down_at_a_cube_picks_the_cube_under_the_finger(group):
+    # a person behind a table points down at the GREEN cube, seen from a robot's head camera; the red and yellow
+    # cubes, and the cube's dark shadow further along the same line, are the other candidates
+    photo = shared_path("data/pointing/nico_table_f07_green_cube.jpg")
+    group.router()
+    for name in ("vision", "gesture", "fusion"):
+        group.service(name)
+    client = Client(group.endpoint)
+    try:
+        for name in ("vision", "gesture", "fusion"):
+            client.wait_alive(name, timeout=90)
+        events = client.collect("hri/gesture/*/event")
+        bodies = client.collect("hri/gesture/*/bodies")
+        results = client.collect("hri/fusion/**")
+        group.service("camera", "--source", str(photo), "--fps", "10", "--loop")
+        (_, start), = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.phase == "start")
+        assert start.hand == "right" and start.ray is not None and start.ray.source in ("hand", "body")
+        (_, body), = bodies.wait(1, timeout=30, where=lambda k, b: bool(b.bodies))
+        assert isinstance(body, Bodies) and len(body.bodies[0].landmarks) == 33
+        time.sleep(0.5)  # the point is held: hands and events of the utterance's time are in
+        client.publish("hri/speech/kbd/transcript", make_transcript(
+            "pick up that one", mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"))
+        (_, result), = results.wait(1, timeout=30)
+        assert isinstance(result, FusedCommand), result
+        assert result.intent == "pick_up" and result.target is not None, result
+        assert result.target.color == "green", (result.target, result.explanation)
+    finally:
+        client.close()
