@@ -1,1 +1,2 @@
-"""Gesture service: MediaPipe hand landmarks -> point / wave / open palm / fist / thumbs-up, with a pointing ray."""
+"""Gesture service: MediaPipe hand and body landmarks -> point / wave / open palm / fist / thumbs-up, with a pointing
+ray from the finger or the arm."""

@@ -36,8 +36,9 @@ def to_body(landmarks, arms) -> Body:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = service_parser("gesture", "Find hands (MediaPipe), classify gestures over time, publish Hands for "
-                            "every frame and GestureEvents (start/hold/end) with a pointing ray.", EPILOG)
+    parser = service_parser("gesture", "Find hands and the body (MediaPipe), classify gestures over time, "
+                            "publish Hands and Bodies for every frame and GestureEvents (start/hold/end) with a "
+                            "pointing ray from the finger or the arm.", EPILOG)
     parser.add_argument("--model", choices=("lite", "full"), default="lite", help="hand landmark model (default lite)")
     parser.add_argument("--max-hands", type=int, default=2, help="hands to track per camera (default 2)")
     parser.add_argument("--mirrored", action="store_true",
