@@ -1,6 +1,8 @@
 """Gestures over time: per-hand tracks, hysteresis, wave detection, a steadied pointing ray — pure.
 
-Feed `GestureTracker.update(stamp, observations)` once per processed frame (stamps increasing). It returns
+Feed `GestureTracker.update(stamp, observations[, body, size])` once per processed frame (stamps increasing);
+with the body stage, `body` is the person's 33x3 pose landmarks (None: nobody seen) and each hand is first fused
+with its arm (`fuse_arms`: the hand's class decides, the more reliable ray wins, an arm can point alone). It returns
 each observation's track (with the steadied ray when the hand points) and the GestureEvents to publish:
 - a gesture **starts** once the per-frame class has held for `start_frames` frames in a row, or (if
   `start_time` > 0) for `start_time` seconds over at least 2 frames, whichever comes first;
