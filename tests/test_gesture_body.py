@@ -248,3 +248,29 @@ def test_real_raised_palms_stay_a_stop_with_the_body(poser):
     finally:
         hands.close()
     assert palms >= 4
+
+
+# -- the wire contract's v1 extension -----------------------------------------------------------------------
+def test_bodies_round_trip_and_an_old_ray_without_source_still_decodes():
+    from common.codec import decode, encode
+    from common.keys import Keys
+    from common.schema import Bodies, Body, InvalidSample, Ray
+    skeleton = person(right_arm=RIGHT_OUT)
+    body = Body(landmarks=skeleton[:, :2].tolist(), visibility=skeleton[:, 2].tolist(),
+                right_ray=Ray(origin=[115.0, 191.0], direction=[-1.0, 0.0], confidence=0.8, source="body"))
+    sample = Bodies(stamp=100.0, source="gesture/test", seq=1, cam="cam0", width=W, height=H, bodies=[body])
+    back = decode(encode(sample), Bodies)
+    assert back.bodies[0].right_ray.source == "body" and back.bodies[0].left_ray is None
+    assert Keys().schema_for("hri/gesture/cam0/bodies") is Bodies
+    assert Ray.from_dict({"origin": [1, 2], "direction": [0, 1], "confidence": 0.5}).source is None
+    with pytest.raises(InvalidSample):
+        Body.from_dict({**body.to_dict(), "visibility": [1.5] * 33})
+    with pytest.raises(InvalidSample):
+        Ray.from_dict({"origin": [1, 2], "direction": [0, 1], "source": "elbow"})
+
+
+def test_a_stopped_stream_ends_a_pose_only_point():
+    tracker = GestureTracker()
+    run(tracker, [([], person(right_arm=RIGHT_OUT))] * 5)
+    assert [(e.gesture, e.phase) for e in tracker.flush()] == [("point", "end")]
+    assert tracker.last_arms == [] and tracker.active() == []

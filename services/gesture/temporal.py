@@ -71,7 +71,7 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
     cues = []
     for k, obs in enumerate(observations):
         palm = palm_size(obs.landmarks)
-        raw = classify(obs.landmarks)
+        raw = hand_class = classify(obs.landmarks)
         near = [a for a in free if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0])))
                 <= max(1.5 * palm, 0.5 * a.forearm)]
         match = min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
@@ -86,7 +86,7 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
             raw = "point"
         ray, source, conf = None, "hand", 1.0
         if raw == "point":
-            if classify(obs.landmarks) == "point" and (palm >= hand_ray_min_palm or match.ray is None):
+            if hand_class == "point" and (palm >= hand_ray_min_palm or match.ray is None):
                 ray = pointing_ray(obs.landmarks)
             else:
                 ray, source, conf = match.ray, "body", match.confidence
@@ -294,7 +294,7 @@ class GestureTracker:
         events = [Event(t.active, "end", t.active_start, t.active_last,
                         round(float(np.mean(t.scores)) if t.scores else 0.0, 4), t.hand, None)
                   for t in self.tracks if t.active is not None]
-        self.tracks = []
+        self.tracks, self.last_arms, self._arm_pointing = [], [], {}
         return events
 
 
