@@ -170,7 +170,8 @@ class GestureTracker:
         seen_ids = set()
         for cue, track in zip(cues, assigned):
             seen_ids.add(track.id)
-            track.hand, track.wrist, track.palm, track.last_seen = cue.hand, cue.wrist, cue.size, stamp
+            # the track keeps the hand it was created with: one stream carries one `hand` from start to end
+            track.wrist, track.palm, track.last_seen = cue.wrist, cue.size, stamp
             track.scores.append(cue.score)
             track.wrist_x.append((stamp, float(cue.wrist[0]) / track.palm))
             raw, ray = cue.raw, None
