@@ -42,3 +42,24 @@ def test_pointing_down_at_a_cube_picks_the_cube_under_the_finger(group):
         assert result.target.color == "green", (result.target, result.explanation)
     finally:
         client.close()
+
+
+@requires_services("gesture")
+def test_a_person_pointing_across_a_room_gives_a_body_ray_point_stream(group):
+    # 4-5 m away, the hand is too small for the hand stage (it finds none): the arm alone points, to the image left
+    photo = shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")
+    group.router()
+    group.service("gesture")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("gesture", timeout=90)
+        events = client.collect("hri/gesture/*/event")
+        bodies = client.collect("hri/gesture/*/bodies")
+        group.service("camera", "--source", str(photo), "--fps", "10", "--loop")
+        (_, start), = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.phase == "start")
+        assert start.hand == "right" and start.ray.source == "body", start
+        assert start.ray.direction[0] < 0 and start.ray.direction[1] > 0 and 0 < start.ray.confidence <= 1
+        (_, body), = bodies.wait(1, timeout=30, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray is not None)
+        assert body.bodies[0].left_ray is None and body.bodies[0].visibility[12] > 0.9  # the right shoulder
+    finally:
+        client.close()
