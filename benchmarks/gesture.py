@@ -17,7 +17,6 @@ Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300] [--rays]
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import statistics
 import sys
@@ -33,7 +32,7 @@ from benchmarks.lag import frame_lag, print_throughput  # noqa: E402
 from common.schema import Hands  # noqa: E402
 from services.gesture.body import arm, arm_ray  # noqa: E402
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker  # noqa: E402
-from services.gesture.temporal import GestureTracker  # noqa: E402
+from services.gesture.temporal import GestureTracker, angle_between  # noqa: E402
 from tests.harness import DATA, ROOT  # noqa: E402
 
 SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
@@ -111,9 +110,9 @@ def throughput(images: list, n: int, repeats: int = 3) -> None:
 
 
 def angle_to(origin, direction, target) -> float:
-    v = np.array(target, float) - np.array(origin, float)
-    cos = float(v @ np.array(direction)) / (float(np.linalg.norm(v)) or 1.0)
-    return math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+    """Degrees between a ray and the direction from its origin to `target`."""
+    v = np.subtract(target, origin)
+    return angle_between(direction, tuple(v / (float(np.linalg.norm(v)) or 1.0)))
 
 
 def ray_errors() -> dict[str, dict[str, float | None]]:

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from services.gesture.body import arm, arm_ray, raised_palm
-from services.gesture.temporal import GestureTracker, Observation, angle_between
+from services.gesture.rules import classify, palm_size
+from services.gesture.temporal import GestureTracker, Observation, angle_between, fuse_arms
 from tests.shared import shared_dir, shared_path
 from tests.test_gesture import fold_index, real, rotate
 
@@ -111,7 +112,6 @@ def run(tracker, frames, t0=100.0, dt=1 / 30):
 
 def hand_at(p: np.ndarray, wrist, palm_px: float, hand="left") -> Observation:
     """A real hand moved to `wrist` and scaled so that its palm is about `palm_px` pixels."""
-    from services.gesture.rules import palm_size
     q = (p - p[0]) * (palm_px / palm_size(p)) + wrist
     return Observation(hand, 0.9, q)
 
@@ -228,7 +228,6 @@ def test_real_people_with_relaxed_arms_point_with_neither_arm(poser):
 def test_real_raised_palms_stay_a_stop_with_the_body(poser):
     """HaGRID `four_*`: a raised open hand; with the body stage on it is still an open palm (a stop)."""
     from services.gesture.landmarks import HandLandmarker
-    from services.gesture.temporal import fuse_arms
     photos = sorted((shared_dir() / "data" / "people").glob("four_*.jpg")) or [shared_path("data/people/four_")]
     hands = HandLandmarker("full", 2, video=False)
     palms = 0
@@ -240,11 +239,10 @@ def test_real_raised_palms_stay_a_stop_with_the_body(poser):
                 else []
             fused = fuse_arms(seen, arms, skeleton)
             for cue in fused:
-                if cue.observation is not None and cue.arm is not None:
-                    from services.gesture.rules import classify
-                    if classify(seen[cue.observation].landmarks) == "open_palm":
-                        palms += 1
-                        assert cue.raw == "open_palm", photo.name
+                if cue.observation is not None and cue.arm is not None \
+                        and classify(seen[cue.observation].landmarks) == "open_palm":
+                    palms += 1
+                    assert cue.raw == "open_palm", photo.name
     finally:
         hands.close()
     assert palms >= 4
