@@ -31,7 +31,9 @@ import zenoh
 
 from common.codec import ENCODING, decode, encode
 from common.keys import Keys, check_chunk
-from common.schema import InvalidSample, Sample, Stats
+from common.image import DEFAULT_MAX_PIXELS, check_frame_header
+from common.schema import Frame, InvalidSample, Sample, Stats
+from common.stamps import DEFAULT_MAX_SKEW_S, DEFAULT_RESET_RUN, FUTURE, OUT_OF_ORDER, RESET, StampGuard
 from common.transport import add_zenoh_arguments, open_session, resolve
 
 LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
@@ -51,19 +53,65 @@ def service_parser(name: str, description: str, epilog: str = "") -> argparse.Ar
     parser.add_argument("--instance", default=os.environ.get("HRI_INSTANCE"),
                         help="this instance's id in liveliness/stats keys and `source` (default host-pid)")
     parser.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
+    g = parser.add_argument_group("input checks (docs/foundation.md)")
+    g.add_argument("--max-skew", type=float, default=DEFAULT_MAX_SKEW_S, metavar="S",
+                   help=f"reject samples stamped more than S seconds ahead of this machine's clock "
+                        f"(default {DEFAULT_MAX_SKEW_S:g})")
+    g.add_argument("--timeline-run", type=int, default=DEFAULT_RESET_RUN, metavar="N",
+                   help=f"follow a stream that went back in time after N consistent samples "
+                        f"(default {DEFAULT_RESET_RUN})")
+    g.add_argument("--max-pixels", type=int, default=DEFAULT_MAX_PIXELS, metavar="N",
+                   help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: "
+                        f"4096x2160)")
     add_zenoh_arguments(parser)
     return parser
 
 
+class RateLimitedLog:
+    """One log line per reason per interval: the first at once, then a summary with the count.
+
+    A flood of bad samples costs one line per reason every `interval` seconds, not one per sample."""
+
+    def __init__(self, log: logging.Logger, interval: float = 10.0, clock: Callable[[], float] = time.monotonic):
+        self._log = log
+        self._interval = interval
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._last: dict[str, float] = {}
+        self._pending: dict[str, tuple[int, str]] = {}  # reason -> (suppressed count, latest message)
+
+    def warn(self, reason: str, message: str, level: int = logging.WARNING, exc_info: bool = False) -> None:
+        now = self._clock()
+        with self._lock:
+            last = self._last.get(reason)
+            if last is not None and now - last < self._interval:
+                n, _ = self._pending.get(reason, (0, ""))
+                self._pending[reason] = (n + 1, message)
+                return
+            self._last[reason] = now
+            n, _ = self._pending.pop(reason, (0, ""))
+        self._log.log(level, "%s%s", message, f" (and {n} more like it in the last {self._interval:g} s)" if n
+                      else "", exc_info=exc_info)
+
+    def flush(self) -> None:
+        """Write the summaries whose interval is over (called periodically, so a flood that stops is reported)."""
+        now = self._clock()
+        with self._lock:
+            due = [(r, n, m) for r, (n, m) in self._pending.items() if now - self._last[r] >= self._interval]
+            for r, _, _ in due:
+                del self._pending[r]
+                self._last[r] = now
+        for reason, n, message in due:
+            self._log.warning("%d more %s in the last %g s, the latest: %s", n, reason, self._interval, message)
+
+
 class Counters:
-    """Thread-safe counters, exposed through the stats queryable."""
+    """Thread-safe counters, exposed through the stats queryable; rejections are logged at a rate limit."""
 
-    LOG_FIRST = 5
-    LOG_EVERY = 100
-
-    def __init__(self, log: logging.Logger):
+    def __init__(self, log: logging.Logger, log_interval: float = 10.0):
         self._lock = threading.Lock()
         self._log = log
+        self.ratelog = RateLimitedLog(log, log_interval)
         self.received = 0
         self.published = 0
         self.skipped = 0
@@ -81,8 +129,7 @@ class Counters:
         with self._lock:
             self.rejected[reason] += 1
             n = self.rejected[reason]
-        if n <= self.LOG_FIRST or n % self.LOG_EVERY == 0:
-            self._log.warning("dropped invalid sample%s (%s, #%d): %s", f" on {key}" if key else "", reason, n, detail)
+        self.ratelog.warn(reason, f"dropped invalid sample{f' on {key}' if key else ''} ({reason}, #{n}): {detail}")
 
     def snapshot(self) -> dict[str, Any]:
         with self._lock:
@@ -95,6 +142,7 @@ class Delivery:
     key: str
     sample: Any
     received_at: float  # wall time the callback ran (for lag measurement, never for joins)
+    timeline_reset: bool = False  # the first sample of a stream's new timeline: per-stream state may restart
 
 
 class Inbox:
@@ -196,28 +244,50 @@ class Service:
                   latest: bool = False, maxlen: int = 1000, monotonic: bool = False) -> None:
         """Validate samples on `keyexpr` as `schema` and hand valid ones to `handler` on the worker thread.
 
-        `monotonic`: per key, a sample older than the last one accepted is rejected as out_of_order.
+        Every sample stamped more than --max-skew ahead of this machine's clock is rejected as future_stamp.
+        `monotonic`: per key, a sample older than the newest accepted is rejected as out_of_order, until
+        --timeline-run consistent older samples show the stream restarted on a new timeline (counted as
+        timeline_reset; common/stamps.py). Frames are checked against their encoded header first (common/image.py).
         """
         assert self.session is not None, "connect() first"
         channel = self._channels
         self._channels += 1
-        last_stamp: dict[str, float] = {}
+        guard = StampGuard(max_skew=getattr(self.args, "max_skew", DEFAULT_MAX_SKEW_S),
+                           reset_run=getattr(self.args, "timeline_run", DEFAULT_RESET_RUN))
+        guard_lock = threading.Lock()  # zenoh may call back from several threads
+        max_pixels = getattr(self.args, "max_pixels", None)
 
         def on_sample(zsample: zenoh.Sample) -> None:
             key = str(zsample.key_expr)
             self.counters.add("received")
             try:
                 sample = decode(zsample.payload.to_bytes(), schema)
+                if schema is Frame:
+                    check_frame_header(sample, max_pixels)
             except InvalidSample as exc:
                 self.counters.reject(exc.reason, exc.detail, key)
                 return
+            now = time.time()
             if monotonic:
-                if sample.stamp < last_stamp.get(key, 0.0):
-                    self.counters.reject("out_of_order", f"stamp {sample.stamp:.6f} is older than "
-                                         f"{last_stamp[key]:.6f} already seen", key)
-                    return
-                last_stamp[key] = sample.stamp
-            delivery = Delivery(key, sample, time.time())
+                with guard_lock:
+                    verdict = guard.check(key, sample.stamp, now)
+                    high = guard.high(key)
+            else:
+                verdict = FUTURE if guard.is_future(sample.stamp, now) else "accepted"
+            if verdict == FUTURE:
+                self.counters.reject(FUTURE, f"stamp {sample.stamp:.6f} is {sample.stamp - now:.3g} s ahead of "
+                                     f"this machine's clock (more than --max-skew {guard.max_skew:g} s): is the "
+                                     f"sender's clock synchronised (NTP)?", key)
+                return
+            if verdict == OUT_OF_ORDER:
+                self.counters.reject(OUT_OF_ORDER, f"stamp {sample.stamp:.6f} is older than {high:.6f} already "
+                                     f"seen ({guard.reset_run} consistent older samples start a new timeline)", key)
+                return
+            if verdict == RESET:
+                self.counters.add(RESET)
+                self.counters.ratelog.warn(RESET, f"{key} went back in time: following its new timeline from "
+                                           f"stamp {sample.stamp:.6f} (a clock step or a restarted replay?)")
+            delivery = Delivery(key, sample, time.time(), verdict == RESET)
             if latest:
                 self._inbox.put_latest(handler, delivery)
             else:
@@ -259,6 +329,7 @@ class Service:
         worker.start()
         self.log.info("%s %s running (prefix %s)", self.name, self.instance, self.keys.prefix)
         while not self.stop_event.wait(0.2):
+            self.counters.ratelog.flush()
             if not worker.is_alive():
                 break
         return self.shutdown(worker)
@@ -276,8 +347,9 @@ class Service:
                         handler(delivery)
                     except Exception:
                         self.counters.add("handler_error")
-                        self.log.exception("error while handling a sample on %s; it is dropped, the "
-                                           "service goes on", delivery.key)
+                        self.counters.ratelog.warn("handler_error", f"error while handling a sample on "
+                                                   f"{delivery.key}; it is dropped, the service goes on",
+                                                   logging.ERROR, exc_info=True)
                 if tick is not None:
                     tick()
         except Exception:

@@ -182,7 +182,10 @@ def test_stream_buffer_orders_dedupes_and_stays_bounded():
         buf.add(1000.0 + i * 0.1, i)
     assert buf.stamps[0] >= buf.watermark - 5.0 and len(buf) <= 51
     assert buf.add(buf.watermark - 6.0, "old") == "late"
-    assert buf.add(buf.watermark - 500.0, "replay restarted") == "reset" and len(buf) == 1
+    restart = buf.watermark - 500.0
+    verdicts = [buf.add(restart + 0.1 * i, "replay restarted") for i in range(buf.reset_run)]
+    assert verdicts == ["late"] * (buf.reset_run - 1) + ["reset"] and len(buf) == 1
+    assert buf.add(restart + 1.0, "new timeline") == "added" and buf.watermark == restart + 1.0
 
 
 def test_stream_buffer_keeps_what_a_pending_window_needs():

@@ -157,8 +157,9 @@ class FusionCore:
             return False
         if status == "reset":
             self.count("timeline_reset")
-            self.log.info("%s jumped back in time by more than a minute (a replay restarted?): "
-                          "buffer for %s cleared", key, modality)
+            self.log.info("%s went back in time (consistent samples older than the %.0f s horizon: a replay "
+                          "restarted or a clock stepped back): buffer for %s restarted", key, self.cfg.horizon,
+                          modality)
         return True
 
     def on_detections(self, key: str, det: Detections, wall: float) -> list[Output]:

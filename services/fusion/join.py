@@ -1,7 +1,9 @@
 """Time-windowed join on source stamps. Pure: the caller passes wall time in where it is needed.
 
 - `StreamBuffer`: one per key, ordered by stamp, duplicates (same stamp) dropped, bounded by a
-  time horizon behind its own watermark and by a hard item cap, so memory stays flat.
+  time horizon behind its own watermark and by a hard item cap, so memory stays flat. What is late and
+  when a stream that went back in time is followed again are the common stamp rules (`common/stamps.py`,
+  with the horizon as the reordering tolerance); future stamps never get here (the runner rejects them).
 - `Watermarks`: the latest stamp seen per modality, and which modalities count as live
   (liveliness token present, or a sample arrived within `recent_s` of wall time).
 - `ready()`: a transcript's window can be decided once every live modality's watermark has
@@ -14,6 +16,8 @@ import bisect
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
+from common.stamps import DEFAULT_RESET_RUN, OUT_OF_ORDER, RESET, StampGuard
+
 WAITED_MODALITIES = ("vision", "gesture")
 
 
@@ -21,27 +25,34 @@ WAITED_MODALITIES = ("vision", "gesture")
 class StreamBuffer:
     horizon: float
     max_items: int = 4096
-    reset_gap: float = 60.0  # a stamp this far behind the watermark: the timeline restarted (replay)
+    reset_run: int = DEFAULT_RESET_RUN  # consistent samples behind the horizon that start a new timeline
     stamps: list[float] = field(default_factory=list)
     items: list[Any] = field(default_factory=list)
     idents: list[Any] = field(default_factory=list)
     watermark: float = 0.0
+    guard: StampGuard = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.guard = StampGuard(reset_run=self.reset_run, tolerance=self.horizon)
 
     def add(self, stamp: float, item: Any, ident: Any = None, keep_from: float | None = None) -> str:
-        """Insert in stamp order. Returns "added", "duplicate", "late" (older than the horizon) or "reset".
+        """Insert in stamp order. Returns "added", "duplicate", "late" (older than the horizon) or "reset"
+        (the last of `reset_run` consistent late samples: the stream restarted on a new timeline; the buffer
+        starts again from it).
 
         A duplicate has the same stamp and the same `ident` (default: any item at that stamp).
         `keep_from`: keep samples from this stamp on even beyond the horizon (a transcript still needs them);
         the item cap still applies."""
         status = "added"
-        if self.stamps and stamp < self.watermark - self.reset_gap:
+        verdict = self.guard.check("", stamp, None)
+        if verdict == OUT_OF_ORDER:
+            return "late"
+        if verdict == RESET:
             self.stamps.clear()
             self.items.clear()
             self.idents.clear()
             self.watermark = stamp
             status = "reset"
-        elif stamp < self.watermark - self.horizon:
-            return "late"
         i = bisect.bisect_left(self.stamps, stamp)
         j = bisect.bisect_right(self.stamps, stamp)
         if any(ident is None or self.idents[k] == ident for k in range(i, j)):

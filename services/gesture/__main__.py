@@ -82,6 +82,9 @@ def main(argv: list[str] | None = None) -> None:
     def on_image(frame: Frame, img) -> None:
         if frame.cam not in landmarkers:  # one graph per stream: MediaPipe tracks between frames
             landmarkers[frame.cam] = HandLandmarker(args.model, args.max_hands, args.mirrored)
+        went_back = frame.cam in last_frame and frame.stamp < last_frame[frame.cam][1].stamp
+        if frame.cam not in trackers or went_back:
+            # new stream, or the runner accepted a new timeline (common/stamps.py): gestures start afresh
             trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames,
                                                  start_time=args.start_ms / 1000.0, ray_from=args.ray)
             if args.body:
