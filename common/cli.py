@@ -82,6 +82,14 @@ def cmd_router(args: argparse.Namespace) -> int:
     stop = threading.Event()
     _install_stop(stop)
     log.info("zenoh router listening on %s (zid %s)", ", ".join(args.listen), session.zid())
+    if args.secure:
+        from common.security import read_secrets
+        sec = read_secrets(args.secure)
+        log.info("secured: %d users must log in (%s), access rules from %s/users.json; everything else is denied",
+                 len(sec.users), ", ".join(sorted(sec.users)), args.secure)
+    else:
+        log.warning("not secured: any client that reaches %s may publish anything, commands included "
+                    "(see `hri secure init --help`)", ", ".join(args.listen))
     stop.wait()
     session.close()
     log.info("router stopped")
@@ -143,6 +151,20 @@ def _from_json(value: Any) -> Any:
 
 
 def _publish_once(args: argparse.Namespace, key: str, sample: Any) -> int:
+    if args.secure:  # the router would drop it without a word: say so here
+        from common.security import SecurityError, may_publish, read_secrets
+        user = args.user or "cli"
+        try:
+            sec = read_secrets(args.secure)
+        except SecurityError as exc:
+            print(f"hri {args.command}: {exc}", file=sys.stderr)
+            return 2
+        if not may_publish(sec, user, key, args.prefix):
+            print(f"hri {args.command}: user {user!r} (roles: {', '.join(sec.users.get(user, [])) or 'none'}) may not "
+                  f"publish on {key}; the router would drop it. Use --user with a role that may (e.g. a user with "
+                  f"the keyboard role for hri say: `hri secure init {args.secure} --user operator:reader,keyboard`)",
+                  file=sys.stderr)
+            return 2
     stop = threading.Event()
     session = _open(args, stop)
     pub = SamplePublisher(session, key, lossless=True)
@@ -239,6 +261,29 @@ def cmd_stats(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- secure --------------------------------------------------------------------
+def cmd_secure_init(args: argparse.Namespace) -> int:
+    from common.security import SecurityError, init_secrets
+    extra: dict[str, list[str]] = {}
+    for spec in args.user or []:
+        name, sep, roles = spec.partition(":")
+        if not sep or not name or not roles:
+            print(f"hri secure init: --user takes NAME:ROLE[,ROLE...], got {spec!r}", file=sys.stderr)
+            return 2
+        extra[name] = [r for r in roles.split(",") if r]
+    try:
+        sec = init_secrets(args.folder, extra)
+    except SecurityError as exc:
+        print(f"hri secure init: {exc}", file=sys.stderr)
+        return 2
+    for user, roles in sorted(sec.users.items()):
+        print(f"{user:10s} {', '.join(roles)}")
+    print(f"secrets in {sec.folder} (passwords: {sec.passwords_file}, mode 0600). Now:\n"
+          f"  hri router --secure {sec.folder}\n  hri up --secure {sec.folder} ...\n"
+          f"  hri echo 'hri/**' --secure {sec.folder}           # as user cli, read-only")
+    return 0
+
+
 # -- entry point ---------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -289,6 +334,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--service", default=None, help="only this service")
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
     p.set_defaults(func=cmd_stats)
+
+    p = sub.add_parser("secure", help="secured robots: create the users, passwords and access rules",
+                       description="Create or extend a secrets folder: a random password per user, and which "
+                                   "roles each user has (docs/security.md).")
+    secure_sub = p.add_subparsers(dest="secure_command", required=True, metavar="ACTION")
+    p = secure_sub.add_parser("init", help="create DIR/passwords and DIR/users.json (existing passwords kept)",
+                              epilog="examples:\n  hri secure init ~/.hri/robot1\n"
+                                     "  hri secure init ~/.hri/robot1 --user operator:reader,keyboard\n"
+                                     "roles: camera mic vision gesture speech fusion reader keyboard replay",
+                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("folder", help="the secrets folder (created mode 0700)")
+    p.add_argument("--user", action="append", metavar="NAME:ROLE[,ROLE]",
+                   help="add a user with these roles, repeatable (the services and a read-only cli user are "
+                        "always there)")
+    p.set_defaults(func=cmd_secure_init)
 
     from common import launcher
     p = command("up", "start the router and every service as one group; Ctrl-C stops them all",

@@ -30,6 +30,7 @@ examples:
   hri up --camera data/images/tabletop --speech-input text    # type commands on stdin
   hri up --camera clip.mp4 --speech-input wav --wav commands/
   hri up --no-gesture --vision-backend onnx --model yolov8n.onnx
+  hri up --secure ~/.hri/robot1 ...                  # secured: every service logs in (hri secure init)
   hri echo 'hri/fusion/**'                            # in another terminal
 """
 
@@ -118,7 +119,9 @@ class Child:
 class Launcher:
     """Runs a set of services (and the router) as one group."""
 
-    def __init__(self, endpoint: str, prefix: str, start_router: bool, out: Callable[[str], None] = print):
+    def __init__(self, endpoint: str, prefix: str, start_router: bool, out: Callable[[str], None] = print,
+                 secure: str | None = None):
+        self.secure = secure  # a secrets folder: the router enforces it, each service logs in as itself
         self.endpoint = endpoint
         self.prefix = prefix
         self.start_router = start_router
@@ -134,7 +137,7 @@ class Launcher:
 
     def _start(self, name: str, module_args: list[str], stdin: int | IO | None = subprocess.DEVNULL,
                env: dict[str, str] | None = None) -> Child:
-        argv = [sys.executable, "-m", *module_args]
+        argv = [sys.executable, "-m", *module_args, *(["--secure", self.secure] if self.secure else [])]
         child = Child(name, argv, self.say, stdin, {"HRI_PREFIX": self.prefix, **(env or {})})
         self.children.append(child)
         return child
@@ -142,7 +145,7 @@ class Launcher:
     def start(self, specs: list[ServiceSpec], live_timeout: float = 60.0) -> None:
         if self.start_router:
             self._start("router", ["common.cli", "router", "--listen", self.endpoint])
-        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0)
+        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure)
         for spec in specs:
             self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)
         self.wait_live([s.name for s in specs], live_timeout)
@@ -183,11 +186,12 @@ class Launcher:
         self.children.clear()
 
 
-def _client_session(endpoint: str, router_starting: bool, timeout: float) -> zenoh.Session:
+def _client_session(endpoint: str, router_starting: bool, timeout: float,
+                    secure: str | None = None) -> zenoh.Session:
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return open_client(endpoint)
+            return open_client(endpoint, secure)
         except zenoh.ZError:
             if time.monotonic() > deadline:
                 hint = "the router did not start" if router_starting else "is `hri router` running there?"
@@ -224,7 +228,8 @@ def cmd_up(args: argparse.Namespace) -> int:
     # --connect: use a router that already runs; else start one on --listen (default tcp/127.0.0.1:7447)
     endpoint = (args.connect or args.listen or [DEFAULT_ENDPOINT])[0]
     prefix = args.prefix or os.environ.get("HRI_PREFIX") or "hri"
-    launcher = Launcher(endpoint, prefix, start_router=not args.connect)
+    secure = args.secure or os.environ.get("HRI_SECURE") or None
+    launcher = Launcher(endpoint, prefix, start_router=not args.connect, secure=secure)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

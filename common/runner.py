@@ -206,6 +206,7 @@ class Service:
 
     def __init__(self, name: str, args: argparse.Namespace, log: logging.Logger | None = None):
         resolve(args)
+        args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
         self.name = check_chunk(name, "service name")
         self.instance = check_chunk(args.instance or f"{socket.gethostname()}-{os.getpid()}", "instance")
         self.source = f"{self.name}/{self.instance}"

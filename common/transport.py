@@ -32,6 +32,11 @@ def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
                    help="a zenoh json5 config file; the flags above override it (env HRI_ZENOH_CONFIG)")
     g.add_argument("--prefix", default=None,
                    help=f"key expression prefix (env HRI_PREFIX; default {DEFAULT_PREFIX})")
+    g.add_argument("--secure", default=None, metavar="DIR",
+                   help="secrets folder of a secured robot (`hri secure init DIR`): log in with --user and its "
+                        "password from DIR/passwords; a router enforces DIR's access rules (env HRI_SECURE)")
+    g.add_argument("--user", default=None,
+                   help="user to log in as with --secure (env HRI_USER; default: the service's name, cli for hri)")
 
 
 def _env_list(name: str) -> list[str] | None:
@@ -46,6 +51,8 @@ def resolve(args: argparse.Namespace) -> argparse.Namespace:
     args.mode = args.mode or os.environ.get("HRI_MODE") or "client"
     args.zenoh_config = args.zenoh_config or os.environ.get("HRI_ZENOH_CONFIG") or None
     args.prefix = args.prefix or os.environ.get("HRI_PREFIX") or DEFAULT_PREFIX
+    args.secure = getattr(args, "secure", None) or os.environ.get("HRI_SECURE") or None
+    args.user = getattr(args, "user", None) or os.environ.get("HRI_USER") or None
     if args.mode == "client" and not args.connect:
         args.connect = [DEFAULT_ENDPOINT]
     return args
@@ -67,7 +74,25 @@ def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
         conf.insert_json5("connect/endpoints", json.dumps(args.connect))
     if args.listen:
         conf.insert_json5("listen/endpoints", json.dumps(args.listen))
+    if args.secure:
+        add_security(conf, args)
     return conf
+
+
+def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
+    """A router: users/passwords and the access rules of the secrets folder. Anything else: log in as --user."""
+    from common.security import SecurityError, access_control, password_for, read_secrets
+    try:
+        if args.mode == "router":
+            sec = read_secrets(args.secure)
+            conf.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(str(sec.passwords_file)))
+            conf.insert_json5("access_control", json.dumps(access_control(sec, args.prefix)))
+        else:
+            user = args.user or "cli"
+            conf.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
+            conf.insert_json5("transport/auth/usrpwd/password", json.dumps(password_for(args.secure, user)))
+    except SecurityError as exc:
+        raise SystemExit(f"hri: {exc}") from None
 
 
 def init_zenoh_logging() -> None:
@@ -85,7 +110,7 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
     """
     init_zenoh_logging()
     conf = zenoh_config(args)
-    delay, attempt, started = 0.1, 0, time.monotonic()
+    delay, attempt, refusals, started = 0.1, 0, 0, time.monotonic()
     while True:
         try:
             session = zenoh.open(conf)
@@ -94,6 +119,13 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
             return session
         except zenoh.ZError as exc:
             attempt += 1
+            refused = args.secure and _router_listening(args.connect or [])
+            refusals = refusals + 1 if refused else 0
+            if refusals >= 2:  # the router is there and turned us away twice: credentials, not a slow start
+                raise SystemExit(
+                    f"hri: the router at {', '.join(args.connect or [])} refused user {args.user or 'cli'!r}: wrong "
+                    f"password or unknown user. Check that {args.secure}/passwords has this user's line as the "
+                    f"router has it (same secrets folder), or pass --user NAME")
             if attempt == 1 or attempt % 10 == 0:
                 log.warning("waiting for the zenoh router at %s (%s); start it with `hri router` "
                             "or pass --connect ENDPOINT", ", ".join(args.connect or ["?"]), str(exc).split(" at ")[0])
@@ -104,18 +136,36 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
             delay = min(delay * 2, max_delay)
 
 
-def client_config(endpoint: str) -> zenoh.Config:
-    """A client of the router at `endpoint`, no multicast scouting: what tools and tests open."""
+def _router_listening(endpoints: list[str]) -> bool:
+    """Whether a TCP/TLS endpoint accepts connections (then a failed open is a refusal, not an absent router)."""
+    import socket
+    for ep in endpoints:
+        proto, _, addr = ep.partition("/")
+        host, _, port = addr.split("#")[0].rpartition(":")
+        if proto in ("tcp", "tls") and port.isdigit():
+            try:
+                socket.create_connection((host.strip("[]"), int(port)), 0.5).close()
+                return True
+            except OSError:
+                continue
+    return False
+
+
+def client_config(endpoint: str, secure: str | None = None, user: str = "cli") -> zenoh.Config:
+    """A client of the router at `endpoint`, no multicast scouting: what tools and tests open.
+    `secure`: a secrets folder; log in as `user`."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    if secure:
+        add_security(conf, argparse.Namespace(mode="client", secure=secure, user=user, prefix=DEFAULT_PREFIX))
     return conf
 
 
-def open_client(endpoint: str) -> zenoh.Session:
+def open_client(endpoint: str, secure: str | None = None, user: str = "cli") -> zenoh.Session:
     init_zenoh_logging()
-    return zenoh.open(client_config(endpoint))
+    return zenoh.open(client_config(endpoint, secure, user))
 
 
 def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*",

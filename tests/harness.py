@@ -151,8 +151,8 @@ class ProcessGroup:
 class Client:
     """An in-test zenoh client: publish contract samples and collect decoded ones."""
 
-    def __init__(self, endpoint: str, prefix: str = "hri"):
-        self.session = open_client(endpoint)
+    def __init__(self, endpoint: str, prefix: str = "hri", secure: str | None = None, user: str = "cli"):
+        self.session = open_client(endpoint, secure, user)
         self.keys = Keys(prefix)
         self._pubs: dict[str, SamplePublisher] = {}
         self._subs: list[Any] = []

@@ -1,0 +1,204 @@
+"""Who may publish what: one description, turned into Zenoh's own authentication and access control.
+
+A secured robot has a *secrets folder* (`hri secure init DIR`):
+- `DIR/passwords`: `user:password` lines, the router's Zenoh user/password dictionary (mode 0600);
+- `DIR/users.json`: `{"users": {user: [role, ...]}, "roles": {...optional extra roles...}}`.
+
+The router (`hri router --secure DIR`) authenticates every session with Zenoh's `usrpwd` and enforces the
+access-control rules generated here from ROLES: camera -> camera/**, vision -> vision/**, … fusion ->
+fusion/**; the `reader` role (the `cli` user: hri echo/list/stats/record, a planner) only reads. Everything not
+allowed is denied. A process opens its session as `--user NAME` (default: the service's own name, `cli` for
+the hri command) with the password it finds for that user in `DIR/passwords` — a machine can be given only its
+own line. Pure: nothing here opens a session.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+PASSWORDS = "passwords"
+USERS = "users.json"
+
+
+@dataclass(frozen=True)
+class Role:
+    publish: tuple[str, ...] = ()  # key expressions under the prefix this role may put on
+    subscribe: tuple[str, ...] = ()  # ... may receive
+    service: str | None = None  # declares hri/alive/{service}/* and answers hri/stats/{service}/*
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> "Role":
+        unknown = set(d) - {"publish", "subscribe", "service"}
+        if unknown:
+            raise SecurityError(f"unknown role field(s) {sorted(unknown)}; a role has publish, subscribe, service")
+        return cls(tuple(d.get("publish", ())), tuple(d.get("subscribe", ())), d.get("service"))
+
+
+# The one description of who publishes what (key expressions under the prefix).
+ROLES: dict[str, Role] = {
+    "camera": Role(publish=("camera/**",), service="camera"),
+    "mic": Role(publish=("audio/**",)),  # a microphone elsewhere sending AudioChunks
+    "vision": Role(publish=("vision/**",), subscribe=("camera/*/frame",), service="vision"),
+    "gesture": Role(publish=("gesture/**",), subscribe=("camera/*/frame",), service="gesture"),
+    "speech": Role(publish=("speech/**",), subscribe=("audio/*/pcm",), service="speech"),
+    "fusion": Role(publish=("fusion/**",), subscribe=("speech/**", "vision/**", "gesture/**"), service="fusion"),
+    "reader": Role(subscribe=("**",)),  # hri echo / list / stats / record, a planner listening to commands
+    "keyboard": Role(publish=("speech/kbd/transcript",)),  # hri say (typed commands)
+    "replay": Role(publish=("camera/**", "audio/**", "vision/**", "gesture/**", "speech/**")),  # hri replay
+}
+SERVICE_USERS = ("camera", "vision", "gesture", "speech", "fusion")
+DEFAULT_USERS: dict[str, list[str]] = {**{s: [s] for s in SERVICE_USERS}, "mic": ["mic"], "cli": ["reader"]}
+
+
+class SecurityError(ValueError):
+    pass
+
+
+@dataclass
+class Secrets:
+    folder: Path
+    users: dict[str, list[str]]
+    roles: dict[str, Role] = field(default_factory=lambda: dict(ROLES))
+
+    @property
+    def passwords_file(self) -> Path:
+        return self.folder / PASSWORDS
+
+
+def read_passwords(path: Path) -> dict[str, str]:
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as exc:
+        raise SecurityError(f"cannot read the password file {path}: {exc.strerror}; create the secrets folder "
+                            f"with `hri secure init {path.parent}`") from None
+    out = {}
+    for line in lines:
+        if line.strip() and not line.startswith("#"):
+            user, sep, password = line.partition(":")
+            if not sep or not user or not password:
+                raise SecurityError(f"{path}: every line must be user:password")
+            out[user.strip()] = password.strip()
+    return out
+
+
+def password_for(folder: str | Path, user: str) -> str:
+    path = Path(folder) / PASSWORDS
+    passwords = read_passwords(path)
+    if user not in passwords:
+        raise SecurityError(f"no password for user {user!r} in {path} (users there: {', '.join(sorted(passwords))}); "
+                            f"give --user NAME, or add the user with `hri secure init {folder} --user {user}:ROLE`")
+    return passwords[user]
+
+
+def read_secrets(folder: str | Path) -> Secrets:
+    folder = Path(folder)
+    try:
+        doc = json.loads((folder / USERS).read_text())
+    except OSError as exc:
+        raise SecurityError(f"cannot read {folder / USERS}: {exc.strerror}; create the secrets folder with "
+                            f"`hri secure init {folder}`") from None
+    except json.JSONDecodeError as exc:
+        raise SecurityError(f"{folder / USERS} is not valid JSON: {exc}") from None
+    roles = dict(ROLES)
+    for name, role in doc.get("roles", {}).items():
+        roles[name] = Role.from_dict(role)
+    users = {u: list(r) for u, r in doc.get("users", {}).items()}
+    for user, their_roles in users.items():
+        unknown = [r for r in their_roles if r not in roles]
+        if unknown:
+            raise SecurityError(f"{folder / USERS}: user {user!r} has unknown role(s) {unknown}; roles: "
+                                f"{', '.join(sorted(roles))}")
+    return Secrets(folder, users, roles)
+
+
+def init_secrets(folder: str | Path, extra_users: dict[str, list[str]] | None = None) -> Secrets:
+    """Create (or extend) a secrets folder: a random password for every user that has none yet."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    os.chmod(folder, 0o700)
+    users = dict(DEFAULT_USERS)
+    if (folder / USERS).exists():
+        users.update(read_secrets(folder).users)
+    users.update(extra_users or {})
+    for user, their_roles in users.items():
+        unknown = [r for r in their_roles if r not in ROLES]
+        if unknown:
+            raise SecurityError(f"user {user!r}: unknown role(s) {unknown}; roles: {', '.join(sorted(ROLES))}")
+    passwords = read_passwords(folder / PASSWORDS) if (folder / PASSWORDS).exists() else {}
+    for user in users:
+        passwords.setdefault(user, secrets.token_urlsafe(24))
+    _write_private(folder / PASSWORDS, "".join(f"{u}:{p}\n" for u, p in passwords.items()))
+    _write_private(folder / USERS, json.dumps({"users": users}, indent=2) + "\n")
+    return read_secrets(folder)
+
+
+def _write_private(path: Path, text: str) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.chmod(path, 0o600)
+
+
+def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
+    """Zenoh's `access_control` section: deny by default, allow what each user's roles describe."""
+    def keys(exprs: tuple[str, ...]) -> list[str]:
+        return [f"{prefix}/{e}" for e in exprs]
+
+    rules: list[dict[str, Any]] = [
+        # every authenticated user may see who is alive and ask for stats
+        {"id": "observe", "permission": "allow", "flows": ["ingress"],
+         "messages": ["liveliness_query", "declare_liveliness_subscriber", "query"],
+         "key_exprs": keys(("alive/**", "stats/**"))},
+        {"id": "observe-answers", "permission": "allow", "flows": ["egress"],
+         "messages": ["liveliness_token", "reply"], "key_exprs": keys(("alive/**", "stats/**"))},
+    ]
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    all_users = sorted(sec.users)
+    if all_users:
+        subjects.append({"id": "everyone", "usernames": all_users})
+        policies.append({"rules": ["observe", "observe-answers"], "subjects": ["everyone"]})
+    for name, role in sorted(sec.roles.items()):
+        members = sorted(u for u, r in sec.users.items() if name in r)
+        if not members:
+            continue
+        ids = []
+        if role.publish:
+            ids.append(f"{name}-publish")
+            rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"], "messages": ["put", "delete"],
+                          "key_exprs": keys(role.publish)})
+        if role.subscribe:
+            ids.append(f"{name}-subscribe")
+            rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"],
+                          "messages": ["declare_subscriber"], "key_exprs": keys(role.subscribe)})
+            ids.append(f"{name}-receive")
+            rules.append({"id": ids[-1], "permission": "allow", "flows": ["egress"], "messages": ["put", "delete"],
+                          "key_exprs": keys(role.subscribe)})
+        if role.service:
+            ids.append(f"{name}-service")
+            rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"],
+                          "messages": ["liveliness_token", "declare_queryable", "reply"],
+                          "key_exprs": keys((f"alive/{role.service}/*", f"stats/{role.service}/*"))})
+            ids.append(f"{name}-stats")  # queries arrive as asked, e.g. on stats/** (hri stats)
+            rules.append({"id": ids[-1], "permission": "allow", "flows": ["egress"], "messages": ["query"],
+                          "key_exprs": keys(("stats/**",))})
+        subjects.append({"id": f"role-{name}", "usernames": members})
+        policies.append({"rules": ids, "subjects": [f"role-{name}"]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
+
+
+def may_publish(sec: Secrets, user: str, key: str, prefix: str) -> bool:
+    """Whether the rules let `user` put on the concrete `key` (for a clear message before a silent drop)."""
+    import zenoh
+    target = zenoh.KeyExpr(key)
+    for role_name in sec.users.get(user, []):
+        for expr in sec.roles[role_name].publish:
+            if zenoh.KeyExpr(f"{prefix}/{expr}").includes(target):
+                return True
+    return False
