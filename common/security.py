@@ -155,7 +155,7 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
          "messages": ["liveliness_query", "declare_liveliness_subscriber", "query"],
          "key_exprs": keys(("alive/**", "stats/**"))},
         {"id": "observe-answers", "permission": "allow", "flows": ["egress"],
-         "messages": ["liveliness_token", "reply"], "key_exprs": keys(("alive/**", "stats/**"))},
+         "messages": ["liveliness_token", "reply", "declare_queryable"], "key_exprs": keys(("alive/**", "stats/**"))},
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
@@ -171,6 +171,10 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
         if role.publish:
             ids.append(f"{name}-publish")
             rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"], "messages": ["put", "delete"],
+                          "key_exprs": keys(role.publish)})
+            # a client sends only where it knows of a subscriber: it must be told of those on its keys
+            ids.append(f"{name}-publish-matching")
+            rules.append({"id": ids[-1], "permission": "allow", "flows": ["egress"], "messages": ["declare_subscriber"],
                           "key_exprs": keys(role.publish)})
         if role.subscribe:
             ids.append(f"{name}-subscribe")
