@@ -156,13 +156,19 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
          "key_exprs": keys(("alive/**", "stats/**"))},
         {"id": "observe-answers", "permission": "allow", "flows": ["egress"],
          "messages": ["liveliness_token", "reply", "declare_queryable"], "key_exprs": keys(("alive/**", "stats/**"))},
+        # A zenoh client sends a sample only where it knows of a subscriber, so publishers must be told of them.
+        # A declaration is let through only if a rule's key *includes* it, and subscriptions are often wider
+        # than one publisher's keys (hri/speech/*/transcript vs speech/kbd/transcript, hri/** vs fusion/**):
+        # everyone may learn of every subscription under the prefix. Samples themselves stay filtered above.
+        {"id": "learn-subscribers", "permission": "allow", "flows": ["egress"], "messages": ["declare_subscriber"],
+         "key_exprs": keys(("**",))},
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
     all_users = sorted(sec.users)
     if all_users:
         subjects.append({"id": "everyone", "usernames": all_users})
-        policies.append({"rules": ["observe", "observe-answers"], "subjects": ["everyone"]})
+        policies.append({"rules": ["observe", "observe-answers", "learn-subscribers"], "subjects": ["everyone"]})
     for name, role in sorted(sec.roles.items()):
         members = sorted(u for u, r in sec.users.items() if name in r)
         if not members:
@@ -171,10 +177,6 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
         if role.publish:
             ids.append(f"{name}-publish")
             rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"], "messages": ["put", "delete"],
-                          "key_exprs": keys(role.publish)})
-            # a client sends only where it knows of a subscriber: it must be told of those on its keys
-            ids.append(f"{name}-publish-matching")
-            rules.append({"id": ids[-1], "permission": "allow", "flows": ["egress"], "messages": ["declare_subscriber"],
                           "key_exprs": keys(role.publish)})
         if role.subscribe:
             ids.append(f"{name}-subscribe")

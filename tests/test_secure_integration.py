@@ -27,7 +27,7 @@ def secured_router(group: ProcessGroup, secrets: str):
 
 def test_only_authorised_services_command_the_robot(group, tmp_path):
     from common.schema import Frame
-    secrets = str(init_secrets(tmp_path / "secrets").folder)
+    secrets = str(init_secrets(tmp_path / "secrets", {"operator": ["reader", "keyboard"]}).folder)
     secured_router(group, secrets)
     vision = group.service("vision", "--labels", str(DATA / "demo" / "labels.json"), "--secure", secrets)
     fusion = group.service("fusion", "--secure", secrets)
@@ -55,14 +55,19 @@ def test_only_authorised_services_command_the_robot(group, tmp_path):
         hasty = Client(group.endpoint, secure=secrets, user="gesture")
         hasty.put_raw("hri/fusion/command", encode(forged))
         hasty.close()
-        said = make_transcript("pick up the red candy", mic="kbd", end=time.time(), confidence=1.0,
+        said = make_transcript("pick up the red candy", mic="desk", end=time.time(), confidence=1.0,
                                source="speech/test")
-        speech.publish("hri/speech/kbd/transcript", said)
+        speech.publish("hri/speech/desk/transcript", said)
         (_, cmd), = commands.wait(1, timeout=30)
         assert cmd.intent == "pick_up" and cmd.target is not None and cmd.target.color == "red", cmd
         assert cmd.source.startswith("fusion/")
         time.sleep(0.5)
         assert [c.id for _, c in commands.drain()] == [cmd.id]  # the forged command never arrived
+        # a person given the keyboard role commands by typing
+        res = group.hri("say", "stop", "--secure", secrets, "--user", "operator")
+        assert res.returncode == 0, res
+        commands.wait(2, timeout=30)
+        assert commands.seen[1][1].intent == "stop" and commands.seen[1][1].source.startswith("fusion/")
         assert reader.stats("fusion")["received"] >= 1  # stats queries work for a read-only user
         # the read-only cli user cannot command either, and hri says so instead of a silent drop
         res = group.hri("say", "stop", "--secure", secrets)
