@@ -80,6 +80,19 @@ def wait_received(client: Client, service: str, n: int, timeout: float) -> dict:
         time.sleep(0.2)
 
 
+def say_and_time(client: Client, transcripts, samples) -> float:
+    """Send an utterance as 20 ms AudioChunks stamped now; seconds from its last chunk to its transcript."""
+    t_audio = time.time()
+    for off in range(0, len(samples), 320):
+        client.publish("hri/audio/mic0/pcm", AudioChunk(
+            stamp=t_audio + off / 16000, source="test/mic", mic="mic0", rate=16000, channels=1, format="s16le",
+            data=samples[off:off + 320].astype("<i2").tobytes()))
+    t0 = time.monotonic()
+    transcripts.wait(1, timeout=30, where=lambda k, t: t.start >= t_audio - 0.1)
+    transcripts.seen.clear()
+    return time.monotonic() - t0
+
+
 def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
     from services.speech.synth import read_wav_int16, synthesize
     group.router()
@@ -99,6 +112,9 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
         client.publish("hri/speech/kbd/transcript", make_transcript("stop", mic="kbd", end=time.time(),
                                                                     confidence=1.0, source="test/kbd"))
         commands.wait(1, timeout=30)
+        utterance = read_wav_int16(synthesize("bring me the yellow book", tmp_path / "cmd.wav", voice="en-us+f3",
+                                              trail_silence=0.8))
+        normal_speech_s = say_and_time(client, transcripts, utterance)  # what recognition takes unflooded
         baseline = {name: rss_mb(procs[name].pid)[0] for name in SERVICES}
         received0 = {name: client.stats(name)["received"] for name in SERVICES}
 
@@ -139,15 +155,7 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
         client.publish("hri/speech/kbd/transcript", stop)
         commands.wait(1, timeout=30, where=lambda k, c: c.inputs.get("speech") == stop.stamp)
         fresh["fusion"] = time.monotonic() - t0
-        samples = read_wav_int16(synthesize("bring me the yellow book", tmp_path / "cmd.wav", voice="en-us+f3", trail_silence=0.8))
-        t_audio = time.time()
-        for off in range(0, len(samples), 320):
-            client.publish("hri/audio/mic0/pcm", AudioChunk(
-                stamp=t_audio + off / 16000, source="test/mic", mic="mic0", rate=16000, channels=1, format="s16le",
-                data=samples[off:off + 320].astype("<i2").tobytes()))
-        t0 = time.monotonic()
-        transcripts.wait(1, timeout=30, where=lambda k, t: t.start >= t_audio - 0.1)
-        fresh["speech"] = time.monotonic() - t0
+        fresh["speech"] = say_and_time(client, transcripts, utterance)
 
         for name in SERVICES:
             st = client.stats(name)
@@ -155,6 +163,7 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
             figures[name] = {"received": st["received"] - received0[name], "rejected": st["rejected"],
                              "other": st["other"], "fresh_s": round(fresh[name], 3),
                              "rss_after_warmup_mb": round(baseline[name], 1), "peak_rss_mb": round(peak, 1)}
+        figures["speech"]["unflooded_s"] = round(normal_speech_s, 3)
         print(f"\nthrown {sum(thrown.values())} malformed samples in {throw_s:.1f} s: {dict(thrown)}")
         print(json.dumps(figures, indent=1))
 
@@ -162,7 +171,8 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
             assert procs[name].alive(), group.logs()
             f = figures[name]
             assert sum(f["rejected"].values()) >= 0.6 * expected[name], (name, f)
-            assert f["fresh_s"] <= FRESH_WITHIN_S, (name, f)
+            # speech: a second beyond what recognising the utterance takes when nothing floods it
+            assert f["fresh_s"] <= FRESH_WITHIN_S + (normal_speech_s if name == "speech" else 0.0), (name, f)
             assert f["peak_rss_mb"] - f["rss_after_warmup_mb"] <= MAX_GROWTH_MB, (name, f)
         for name in ("vision", "gesture"):
             rejected = figures[name]["rejected"]
