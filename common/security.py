@@ -149,50 +149,43 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
     def keys(exprs: tuple[str, ...]) -> list[str]:
         return [f"{prefix}/{e}" for e in exprs]
 
-    rules: list[dict[str, Any]] = [
-        # every authenticated user may see who is alive and ask for stats
-        {"id": "observe", "permission": "allow", "flows": ["ingress"],
-         "messages": ["liveliness_query", "declare_liveliness_subscriber", "query"],
-         "key_exprs": keys(("alive/**", "stats/**"))},
-        {"id": "observe-answers", "permission": "allow", "flows": ["egress"],
-         "messages": ["liveliness_token", "reply", "declare_queryable"], "key_exprs": keys(("alive/**", "stats/**"))},
-        # A zenoh client sends a sample only where it knows of a subscriber, so publishers must be told of them.
-        # A declaration is let through only if a rule's key *includes* it, and subscriptions are often wider
-        # than one publisher's keys (hri/speech/*/transcript vs speech/kbd/transcript, hri/** vs fusion/**):
-        # everyone may learn of every subscription under the prefix. Samples themselves stay filtered above.
-        {"id": "learn-subscribers", "permission": "allow", "flows": ["egress"], "messages": ["declare_subscriber"],
-         "key_exprs": keys(("**",))},
-    ]
+    rules: list[dict[str, Any]] = []
+
+    def allow(rule_id: str, flow: str, messages: list[str], exprs: tuple[str, ...]) -> str:
+        rules.append({"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages,
+                      "key_exprs": keys(exprs)})
+        return rule_id
+
+    # every authenticated user may see who is alive and ask for stats
+    common = [allow("observe", "ingress", ["liveliness_query", "declare_liveliness_subscriber", "query"],
+                    ("alive/**", "stats/**")),
+              allow("observe-answers", "egress", ["liveliness_token", "reply", "declare_queryable"],
+                    ("alive/**", "stats/**")),
+              # A zenoh client sends a sample only where it knows of a subscriber, so publishers must be told of
+              # them. A declaration passes only if a rule's key *includes* it, and subscriptions are often wider
+              # than one publisher's keys (hri/speech/*/transcript vs speech/kbd/transcript, hri/** vs
+              # fusion/**): everyone may learn of every subscription under the prefix. Samples stay filtered.
+              allow("learn-subscribers", "egress", ["declare_subscriber"], ("**",))]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
-    all_users = sorted(sec.users)
-    if all_users:
-        subjects.append({"id": "everyone", "usernames": all_users})
-        policies.append({"rules": ["observe", "observe-answers", "learn-subscribers"], "subjects": ["everyone"]})
+    if sec.users:
+        subjects.append({"id": "everyone", "usernames": sorted(sec.users)})
+        policies.append({"rules": common, "subjects": ["everyone"]})
     for name, role in sorted(sec.roles.items()):
         members = sorted(u for u, r in sec.users.items() if name in r)
         if not members:
             continue
         ids = []
         if role.publish:
-            ids.append(f"{name}-publish")
-            rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"], "messages": ["put", "delete"],
-                          "key_exprs": keys(role.publish)})
+            ids.append(allow(f"{name}-publish", "ingress", ["put", "delete"], role.publish))
         if role.subscribe:
-            ids.append(f"{name}-subscribe")
-            rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"],
-                          "messages": ["declare_subscriber"], "key_exprs": keys(role.subscribe)})
-            ids.append(f"{name}-receive")
-            rules.append({"id": ids[-1], "permission": "allow", "flows": ["egress"], "messages": ["put", "delete"],
-                          "key_exprs": keys(role.subscribe)})
+            ids.append(allow(f"{name}-subscribe", "ingress", ["declare_subscriber"], role.subscribe))
+            ids.append(allow(f"{name}-receive", "egress", ["put", "delete"], role.subscribe))
         if role.service:
-            ids.append(f"{name}-service")
-            rules.append({"id": ids[-1], "permission": "allow", "flows": ["ingress"],
-                          "messages": ["liveliness_token", "declare_queryable", "reply"],
-                          "key_exprs": keys((f"alive/{role.service}/*", f"stats/{role.service}/*"))})
-            ids.append(f"{name}-stats")  # queries arrive as asked, e.g. on stats/** (hri stats)
-            rules.append({"id": ids[-1], "permission": "allow", "flows": ["egress"], "messages": ["query"],
-                          "key_exprs": keys(("stats/**",))})
+            ids.append(allow(f"{name}-service", "ingress", ["liveliness_token", "declare_queryable", "reply"],
+                             (f"alive/{role.service}/*", f"stats/{role.service}/*")))
+            # queries arrive as asked, e.g. on stats/** (hri stats)
+            ids.append(allow(f"{name}-stats", "egress", ["query"], ("stats/**",)))
         subjects.append({"id": f"role-{name}", "usernames": members})
         policies.append({"rules": ids, "subjects": [f"role-{name}"]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
