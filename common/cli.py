@@ -263,7 +263,7 @@ def cmd_stats(args: argparse.Namespace) -> int:
 
 # -- secure --------------------------------------------------------------------
 def cmd_secure_init(args: argparse.Namespace) -> int:
-    from common.security import SecurityError, init_secrets
+    from common.security import SecurityError, init_secrets, make_tls
     extra: dict[str, list[str]] = {}
     for spec in args.user or []:
         name, sep, roles = spec.partition(":")
@@ -273,11 +273,16 @@ def cmd_secure_init(args: argparse.Namespace) -> int:
         extra[name] = [r for r in roles.split(",") if r]
     try:
         sec = init_secrets(args.folder, extra)
+        certs = make_tls(sec.folder, args.host) if args.tls else []
     except SecurityError as exc:
         print(f"hri secure init: {exc}", file=sys.stderr)
         return 2
     for user, roles in sorted(sec.users.items()):
         print(f"{user:10s} {', '.join(roles)}")
+    for cert in certs:
+        print(f"wrote {cert}")
+    if certs:
+        print("TLS: listen and connect on tls/HOST:PORT endpoints (e.g. --listen tls/0.0.0.0:7447)")
     print(f"secrets in {sec.folder} (passwords: {sec.passwords_file}, mode 0600). Now:\n"
           f"  hri router --secure {sec.folder}\n  hri up --secure {sec.folder} ...\n"
           f"  hri echo 'hri/**' --secure {sec.folder}           # as user cli, read-only")
@@ -342,12 +347,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = secure_sub.add_parser("init", help="create DIR/passwords and DIR/users.json (existing passwords kept)",
                               epilog="examples:\n  hri secure init ~/.hri/robot1\n"
                                      "  hri secure init ~/.hri/robot1 --user operator:reader,keyboard\n"
+                                     "  hri secure init ~/.hri/robot1 --tls --host robot1.local   # + TLS\n"
                                      "roles: camera mic vision gesture speech fusion reader keyboard replay",
                               formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("folder", help="the secrets folder (created mode 0700)")
     p.add_argument("--user", action="append", metavar="NAME:ROLE[,ROLE]",
                    help="add a user with these roles, repeatable (the services and a read-only cli user are "
                         "always there)")
+    p.add_argument("--tls", action="store_true",
+                   help="also make a private CA and a router certificate (openssl) in DIR/tls/; then use tls/ "
+                        "endpoints")
+    p.add_argument("--host", action="append", default=[], metavar="NAME_OR_IP",
+                   help="with --tls: a name or address the router is reached at, repeatable (default localhost, "
+                        "127.0.0.1 and this machine's name)")
     p.set_defaults(func=cmd_secure_init)
 
     from common import launcher

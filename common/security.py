@@ -17,12 +17,16 @@ from __future__ import annotations
 import json
 import os
 import secrets
+import shutil
+import socket
+import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 PASSWORDS = "passwords"
 USERS = "users.json"
+TLS = "tls"  # DIR/tls/: ca.pem (every process trusts it), router.pem + router-key.pem (the router's identity)
 
 
 @dataclass(frozen=True)
@@ -135,6 +139,54 @@ def init_secrets(folder: str | Path, extra_users: dict[str, list[str]] | None = 
     _write_private(folder / PASSWORDS, "".join(f"{u}:{p}\n" for u, p in passwords.items()))
     _write_private(folder / USERS, json.dumps({"users": users}, indent=2) + "\n")
     return read_secrets(folder)
+
+
+def tls_files(folder: str | Path) -> dict[str, Path]:
+    """The TLS files of a secrets folder that exist: ca, cert, key."""
+    d = Path(folder) / TLS
+    files = {"ca": d / "ca.pem", "cert": d / "router.pem", "key": d / "router-key.pem"}
+    return {k: p for k, p in files.items() if p.exists()}
+
+
+def make_tls(folder: str | Path, hosts: list[str]) -> list[Path]:
+    """A private CA and a router certificate for `hosts` (names or IPs) with the openssl command, ECDSA P-256,
+    10 years. The CA key stays in the folder, to issue a new router certificate later."""
+    if shutil.which("openssl") is None:
+        raise SecurityError("making TLS certificates needs the openssl command (apt-get install openssl), or "
+                            "put your own ca.pem, router.pem and router-key.pem in the folder's tls/")
+    d = Path(folder) / TLS
+    d.mkdir(exist_ok=True)
+    os.chmod(d, 0o700)
+    hosts = hosts or ["localhost", "127.0.0.1", socket.gethostname()]
+    san = ",".join(f"IP:{h}" if _is_ip(h) else f"DNS:{h}" for h in dict.fromkeys(hosts))
+    ext = d / "router.ext"
+    ext.write_text(f"subjectAltName={san}\nbasicConstraints=CA:FALSE\nkeyUsage=digitalSignature\n"
+                   f"extendedKeyUsage=serverAuth\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    steps = []
+    if not (d / "ca.pem").exists():
+        steps.append(["req", "-x509", *ec, "-keyout", "ca-key.pem", "-out", "ca.pem", "-days", "3650",
+                      "-subj", "/CN=hri-fusion robot CA"])
+    steps += [["req", *ec, "-keyout", "router-key.pem", "-out", "router.csr", "-subj", "/CN=hri-router"],
+              ["x509", "-req", "-in", "router.csr", "-CA", "ca.pem", "-CAkey", "ca-key.pem", "-CAcreateserial",
+               "-out", "router.pem", "-days", "3650", "-extfile", "router.ext"]]
+    for step in steps:
+        res = subprocess.run(["openssl", *step], cwd=d, capture_output=True, text=True)
+        if res.returncode != 0:
+            raise SecurityError(f"openssl {step[0]} failed: {res.stderr.strip()[-300:]}")
+    for key in ("ca-key.pem", "router-key.pem"):
+        os.chmod(d / key, 0o600)
+    (d / "router.csr").unlink()
+    return [d / "ca.pem", d / "router.pem"]
+
+
+def _is_ip(host: str) -> bool:
+    import ipaddress
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return False
 
 
 def _write_private(path: Path, text: str) -> None:

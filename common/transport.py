@@ -81,7 +81,13 @@ def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
 
 def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
     """A router: users/passwords and the access rules of the secrets folder. Anything else: log in as --user."""
-    from common.security import SecurityError, access_control, password_for, read_secrets
+    from common.security import SecurityError, access_control, password_for, read_secrets, tls_files
+    tls = tls_files(args.secure)  # used on tls/ endpoints only
+    if "ca" in tls:
+        conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(str(tls["ca"])))
+    if args.mode == "router" and "cert" in tls and "key" in tls:
+        conf.insert_json5("transport/link/tls/listen_certificate", json.dumps(str(tls["cert"])))
+        conf.insert_json5("transport/link/tls/listen_private_key", json.dumps(str(tls["key"])))
     try:
         if args.mode == "router":
             sec = read_secrets(args.secure)

@@ -10,7 +10,7 @@ import zenoh
 
 from common.cli import make_transcript
 from common.schema import FusedCommand, Weights
-from common.security import init_secrets, read_passwords
+from common.security import init_secrets, make_tls, read_passwords
 from tests.harness import DATA, Client, ProcessGroup, wait_for_port
 
 pytestmark = pytest.mark.integration
@@ -95,3 +95,27 @@ def test_a_wrong_password_fails_with_a_clear_error(group, tmp_path):
     proc = group.service("fusion", "--secure", str(wrong))
     proc.popen.wait(30)
     assert proc.popen.returncode != 0 and "refused user 'fusion'" in proc.output(), proc.output()
+
+
+def test_a_tls_secured_stack_commands_and_refuses_a_client_without_the_ca(group, tmp_path):
+    secrets = init_secrets(tmp_path / "secrets").folder
+    make_tls(secrets, ["127.0.0.1"])
+    group.endpoint = f"tls/127.0.0.1:{group.port}"
+    secured_router(group, str(secrets))
+    fusion = group.service("fusion", "--secure", str(secrets))
+    reader = Client(group.endpoint, secure=str(secrets))
+    speech = Client(group.endpoint, secure=str(secrets), user="speech")
+    try:
+        reader.wait_alive("fusion", timeout=120)
+        commands = reader.collect("hri/fusion/command")
+        speech.publish("hri/speech/mic0/transcript", make_transcript("stop", mic="mic0", end=time.time(),
+                                                                     confidence=1.0, source="speech/test"))
+        (_, cmd), = commands.wait(1, timeout=30)
+        assert cmd.intent == "stop"
+        (secrets / "tls" / "ca.pem").rename(tmp_path / "ca.pem")  # a client that does not trust the robot's CA
+        with pytest.raises(zenoh.ZError):
+            Client(group.endpoint, secure=str(secrets))
+    finally:
+        reader.close()
+        speech.close()
+    assert fusion.alive(), group.logs()
