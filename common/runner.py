@@ -54,17 +54,27 @@ def service_parser(name: str, description: str, epilog: str = "") -> argparse.Ar
                         help="this instance's id in liveliness/stats keys and `source` (default host-pid)")
     parser.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
     g = parser.add_argument_group("input checks (docs/foundation.md)")
-    g.add_argument("--max-skew", type=float, default=DEFAULT_MAX_SKEW_S, metavar="S",
+    g.add_argument("--max-skew", type=_at_least(0.0, float), default=DEFAULT_MAX_SKEW_S, metavar="S",
                    help=f"reject samples stamped more than S seconds ahead of this machine's clock "
                         f"(default {DEFAULT_MAX_SKEW_S:g})")
-    g.add_argument("--timeline-run", type=int, default=DEFAULT_RESET_RUN, metavar="N",
+    g.add_argument("--timeline-run", type=_at_least(1, int), default=DEFAULT_RESET_RUN, metavar="N",
                    help=f"follow a stream that went back in time after N consistent samples "
                         f"(default {DEFAULT_RESET_RUN})")
-    g.add_argument("--max-pixels", type=int, default=DEFAULT_MAX_PIXELS, metavar="N",
+    g.add_argument("--max-pixels", type=_at_least(1, int), default=DEFAULT_MAX_PIXELS, metavar="N",
                    help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: "
                         f"4096x2160)")
     add_zenoh_arguments(parser)
     return parser
+
+
+def _at_least(lowest: float, kind: Callable[[str], Any]) -> Callable[[str], Any]:
+    def parse(text: str) -> Any:
+        value = kind(text)
+        if value < lowest:
+            raise argparse.ArgumentTypeError(f"must be at least {lowest}, got {text}")
+        return value
+    parse.__name__ = kind.__name__  # argparse names the type in its errors
+    return parse
 
 
 class RateLimitedLog:
@@ -256,7 +266,7 @@ class Service:
         guard = StampGuard(max_skew=getattr(self.args, "max_skew", DEFAULT_MAX_SKEW_S),
                            reset_run=getattr(self.args, "timeline_run", DEFAULT_RESET_RUN))
         guard_lock = threading.Lock()  # zenoh may call back from several threads
-        max_pixels = getattr(self.args, "max_pixels", None)
+        max_pixels = getattr(self.args, "max_pixels", DEFAULT_MAX_PIXELS)
 
         def on_sample(zsample: zenoh.Sample) -> None:
             key = str(zsample.key_expr)
