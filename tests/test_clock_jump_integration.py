@@ -17,7 +17,7 @@ pytestmark = pytest.mark.integration
 
 TABLE = DATA / "demo" / "table.png"
 JUMP_S = 600.0
-PERIOD_S = 0.2  # slow enough that no frame is skipped: every frame counts toward the run
+PERIOD_S = 0.2  # the camera timeline: 5 fps
 
 
 def test_services_follow_a_camera_clock_that_jumps_back_ten_minutes(group):
@@ -37,22 +37,29 @@ def test_services_follow_a_camera_clock_that_jumps_back_ten_minutes(group):
             return Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=img.shape[1],
                          height=img.shape[0], encoding="jpeg", data=data)
 
+        def publish_and_wait(seq: int, stamp: float, served: bool) -> None:
+            """Lockstep (no frame is skipped for a newer one however slow the machine): publish, and if the
+            frame should be served, wait for vision's and gesture's output for it."""
+            client.publish("hri/camera/cam0/frame", frame(seq, stamp))
+            if served:
+                detections.wait(1, timeout=60, where=lambda k, s: s.seq == seq)
+                hands.wait(1, timeout=60, where=lambda k, s: s.seq == seq)
+            else:
+                time.sleep(PERIOD_S)
+
         t0 = time.time()
         for i in range(5):  # the normal timeline
-            client.publish("hri/camera/cam0/frame", frame(i, t0 + i * PERIOD_S))
-            time.sleep(PERIOD_S)
-        detections.wait(5, timeout=60)
-        hands.wait(5, timeout=60)
+            publish_and_wait(i, t0 + i * PERIOD_S, served=True)
         back = time.time() - JUMP_S  # the camera's clock steps back 10 minutes
         jumped = 2 * DEFAULT_RESET_RUN
         for i in range(jumped):
-            client.publish("hri/camera/cam0/frame", frame(100 + i, back + i * PERIOD_S))
-            time.sleep(PERIOD_S)
+            publish_and_wait(100 + i, back + i * PERIOD_S, served=i >= DEFAULT_RESET_RUN - 1)
+        time.sleep(0.5)
         for name, col in (("vision", detections), ("gesture", hands)):
-            new = col.wait(jumped - DEFAULT_RESET_RUN + 1, timeout=30, where=lambda k, s: s.seq >= 100)
+            new = [s for _, s in col.drain() if s.seq >= 100]
             # the first frame served on the new timeline is the last of the run, and every one after it
-            assert [s.seq - 100 for _, s in new] == list(range(DEFAULT_RESET_RUN - 1, jumped)), (name, new)
-            assert all(s.stamp < back + JUMP_S / 2 for _, s in new)
+            assert [s.seq - 100 for s in new] == list(range(DEFAULT_RESET_RUN - 1, jumped)), (name, new)
+            assert all(s.stamp < back + JUMP_S / 2 for s in new)
             stats = client.stats(name)
             assert stats["other"].get("timeline_reset") == 1, stats
             assert stats["rejected"].get("out_of_order") == DEFAULT_RESET_RUN - 1, stats
