@@ -1,9 +1,10 @@
 """`hri record` / `hri replay`: sessions on disk as MCAP, and back onto the bus.
 
 File layout (what a reader of the .mcap can count on):
-- one channel per concrete key; topic = the key, message_encoding = "msgpack", no schema record
-  (schema_id 0); channel metadata names the contract type ("schema": "Transcript", or "" for keys
-  outside the contract) and the zenoh encoding the first sample arrived with;
+- one channel per concrete key; topic = the key, message_encoding = "msgpack"; a key of the contract has
+  a schema record (name = the contract type, encoding "jsonschema", data = its JSON Schema, generated from
+  common/schema.py), a key outside it none (schema_id 0); channel metadata names the contract type
+  ("schema": "Transcript", or "") and the zenoh encoding the first sample arrived with;
 - message data = the payload bytes exactly as received;
 - log_time = receive time (ns since the UNIX epoch, the recorder's clock);
 - publish_time = the sample's own `stamp` when the payload decodes under the contract, else the
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import queue
 import signal
@@ -113,10 +115,22 @@ class SessionWriter:
         if metadata:
             self._writer.add_metadata(METADATA_NAME, metadata)
         self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
         self.tally: dict[str, KeyTally] = collections.defaultdict(KeyTally)
         self.samples = 0
         self.bytes = 0
         self.finished = False
+
+    def _schema_id(self, schema: type | None) -> int:
+        """The id of the schema record of a contract type (written once per file), 0 for none."""
+        if schema is None:
+            return 0
+        if schema.__name__ not in self._schemas:
+            from common.wiredoc import json_schema
+            self._schemas[schema.__name__] = self._writer.register_schema(
+                name=schema.__name__, encoding="jsonschema",
+                data=json.dumps(json_schema(schema), separators=(",", ":")).encode())
+        return self._schemas[schema.__name__]
 
     def add(self, key: str, payload: bytes, receive_ns: int, zenoh_encoding: str = ENCODING) -> int:
         """Write one sample; returns the publish time written (stamp, or receive time)."""
@@ -124,7 +138,7 @@ class SessionWriter:
         if channel is None:
             schema = self.keys.schema_for(key)
             channel = self._channels[key] = self._writer.register_channel(
-                topic=key, message_encoding=MESSAGE_ENCODING, schema_id=0,
+                topic=key, message_encoding=MESSAGE_ENCODING, schema_id=self._schema_id(schema),
                 metadata={"schema": schema.__name__ if schema else "", "zenoh_encoding": zenoh_encoding})
         stamp = stamp_ns(key, payload, self.keys)
         tally = self.tally[key]

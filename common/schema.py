@@ -1,32 +1,58 @@
 """Wire contract v1: the typed samples every service publishes and consumes.
 
-Each schema is a keyword-only dataclass. Its type hints *are* the contract: a
-validator is compiled from them once per class, and `common.codec` runs it on
-every encode and decode. Field metadata adds ranges (`rng`), fixed lengths
-(`length`) and non-empty strings (`nonempty`). docs/wire.md is the prose twin of
-this file; change both together.
+Each schema is a `msgspec.Struct`: its type hints, with `Annotated[..., Meta(...)]` constraints, *are* the
+contract, and msgspec checks them in C while decoding MessagePack. Cross-field rules live in
+`__post_init__`, which msgspec runs on construction and on every decode. The field tables of docs/wire.md
+are generated from the descriptions here (`python -m common.wiredoc`; a test fails when they drift).
+
+msgspec's errors are mapped onto the contract's documented rejection reasons by `rejection()` (one table),
+so `InvalidSample.reason` is the same counter key whichever check failed.
 """
 
 from __future__ import annotations
 
 import math
-import types
-from dataclasses import MISSING, dataclass, field, fields
-from typing import Any, Callable, ClassVar, Literal, Optional, Union, get_args, get_origin, get_type_hints
+import re
+from typing import Annotated, Any, ClassVar, Literal, Optional, get_args
+
+import msgspec
+from msgspec import Meta
 
 SCHEMA_VERSION = 1
 
-GESTURES = ("point", "open_palm", "wave", "fist", "thumbs_up")
-GESTURE_PHASES = ("start", "hold", "end")
-CLARIFICATION_REASONS = ("ambiguous", "conflict", "not_found", "low_confidence")
+KIB = 1024
+MIB = 1024 * KIB
+
+# Enumerations, each written once; the tuples are the same values for code that iterates over them.
+GestureName = Literal["point", "open_palm", "wave", "fist", "thumbs_up"]
+GesturePhase = Literal["start", "hold", "end"]
+Handedness = Literal["left", "right"]
+ClarificationReason = Literal["ambiguous", "conflict", "not_found", "low_confidence"]
+ImageEncoding = Literal["jpeg", "png", "bgr8"]
+RaySource = Literal["hand", "body"]
+MotionDirection = Literal["forward", "back", "left", "right", "around"]
+GESTURES: tuple[str, ...] = get_args(GestureName)
+GESTURE_PHASES: tuple[str, ...] = get_args(GesturePhase)
+CLARIFICATION_REASONS: tuple[str, ...] = get_args(ClarificationReason)
 INTENTS = (
     "pick_up", "bring", "put_down", "go_to", "come_here", "stop", "look_at", "follow", "greet",
     "move", "turn",  # v1 extension: with FusedCommand.motion
 )
-MODALITIES = ("speech", "vision", "gesture")
 
-KIB = 1024
-MIB = 1024 * KIB
+# Number and string types of the contract. Every float is finite: a plain `float` would let NaN through,
+# so even "any float" is bounded by the largest finite double.
+_MAX_FLOAT = 1.7976931348623157e308
+Finite = Annotated[float, Meta(ge=-_MAX_FLOAT, le=_MAX_FLOAT)]
+UnitFloat = Annotated[float, Meta(ge=0.0, le=1.0)]
+UnixTime = Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)]
+NonEmpty = Annotated[str, Meta(min_length=1)]
+Point = Annotated[list[Finite], Meta(min_length=2, max_length=2)]
+Box = Annotated[list[Finite], Meta(min_length=4, max_length=4)]
+
+
+def described(tp: Any, description: str, **constraints: Any) -> Any:
+    """`tp` with a description for docs/wire.md and the JSON Schemas (and optional extra constraints)."""
+    return Annotated[tp, Meta(description=description, **constraints)]
 
 
 class InvalidSample(ValueError):
@@ -38,573 +64,358 @@ class InvalidSample(ValueError):
         self.detail = detail
 
 
-def _meta(rng: tuple[float, float] | None = None, length: int | None = None,
-          nonempty: bool = False, default: Any = MISSING, default_factory: Any = MISSING) -> Any:
-    metadata = {"rng": rng, "length": length, "nonempty": nonempty}
-    if default_factory is not MISSING:
-        return field(default_factory=default_factory, metadata=metadata)
-    return field(default=default, metadata=metadata)
+# The documented reasons (docs/wire.md). A cross-field rule raises InvalidSample with one of them; msgspec
+# keeps its message, so the reason comes back out of the decode error unchanged.
+REASONS = ("oversized", "not_msgpack", "not_a_map", "missing_field", "wrong_type", "not_finite",
+           "out_of_range", "bad_value", "bad_version")
+
+# msgspec's message -> reason, first match wins. `range` is resolved against the offending value:
+# a bound broken by NaN or ±inf is `not_finite`, any other number `out_of_range`.
+_ERROR_TABLE: tuple[tuple[re.Pattern[str], str], ...] = (
+    (re.compile(r"^(%s): " % "|".join(REASONS)), "own"),
+    (re.compile(r"^Object missing required field"), "missing_field"),
+    (re.compile(r"^Expected `object`, got `\w+`$"), "not_a_map"),     # the top level only (no path)
+    (re.compile(r"^Expected `[^`]+`, got `"), "wrong_type"),
+    (re.compile(r"^Invalid enum value"), "bad_value"),
+    (re.compile(r"^Expected `\w+` of length"), "bad_value"),
+    (re.compile(r"^Expected `(float|int)` [<>]=?"), "range"),
+)
+_PATH = re.compile(r" - at `(.*)`$")
 
 
-def unit(**kw: Any) -> Any:
-    """A float in [0, 1]."""
-    return _meta(rng=(0.0, 1.0), **kw)
+def _path_parts(path: str) -> list[str | int]:
+    """`$.objects[0].bbox[2]` -> ["objects", 0, "bbox", 2]."""
+    parts: list[str | int] = []
+    for name, index in re.findall(r"\.([^.\[]+)|\[(\d+)\]", path.removeprefix("$")):
+        parts.append(name if name else int(index))
+    return parts
 
 
-def vec(n: int, **kw: Any) -> Any:
-    """A fixed-length list of finite numbers."""
-    return _meta(length=n, **kw)
+def _value_at(data: Any, parts: list[str | int]) -> Any:
+    """The raw value at a path of a map that failed validation."""
+    try:
+        for part in parts:
+            data = data[part]
+        return data
+    except (LookupError, TypeError):
+        return None
 
 
-def name(**kw: Any) -> Any:
-    """A non-empty string."""
-    return _meta(nonempty=True, **kw)
-
-
-# ---------------------------------------------------------------------------
-# Validator generation. For each class, Python source is generated from the type
-# hints and compiled once: one function that validates a decoded map and builds
-# the object, one that validates an object while turning it into a map. The
-# success path builds no strings; a failing check raises _Bad, and each enclosing
-# level adds its piece of the path on the way out.
-# ---------------------------------------------------------------------------
-class _Bad(Exception):
-    def __init__(self, reason: str, message: str, *path: str):
-        self.reason, self.message, self.path = reason, message, list(path)
-
-    def under(self, *prefix: str) -> "_Bad":
-        self.path[:0] = prefix
-        return self
-
-    def as_invalid(self, root: str) -> InvalidSample:
-        where = root
-        for part in self.path:
-            where = f"{where}{part}" if part.startswith("[") else (f"{where}.{part}" if where else part)
-        return InvalidSample(self.reason, f"{where}: {self.message}" if where else self.message)
-
-
-def _type_name(value: Any) -> str:
-    return type(value).__name__
-
-
-def _bad_type(expected: str, value: Any, *path: str) -> _Bad:
-    return _Bad("wrong_type", f"expected {expected}, got {_type_name(value)}", *path)
-
-
-def _float(x: Any) -> float:
-    t = type(x)
-    if t is float:
-        if x - x != 0.0:  # NaN and ±inf are the only floats for which x - x is not 0
-            raise _Bad("not_finite", f"{x!r} is not a finite number")
-        return x
-    if t is int:
-        return float(x)
-    raise _bad_type("number", x)
-
-
-def _floats(x: Any, length: int | None) -> list[float]:
-    if type(x) is not list:
-        if type(x) is not tuple:
-            raise _bad_type("list", x)
-        x = list(x)
-    if length is not None and len(x) != length:
-        raise _Bad("bad_value", f"expected {length} items, got {len(x)}")
-    for v in x:  # fast path: all finite floats, nothing to convert
-        if type(v) is not float or v - v != 0.0:
-            break
-    else:
-        return x
-    out = list(x)
-    for i, v in enumerate(out):
-        if type(v) is not float or v - v != 0.0:
-            try:
-                out[i] = _float(v)
-            except _Bad as bad:
-                raise bad.under(f"[{i}]") from None
-    return out
-
-
-def _points(x: Any, length: int | None) -> list[list[float]]:
-    """A list of [x, y] pairs (landmarks): the hot loop of Hands, kept flat."""
-    if type(x) is not list and type(x) is not tuple:
-        raise _bad_type("list", x)
-    if length is not None and len(x) != length:
-        raise _Bad("bad_value", f"expected {length} items, got {len(x)}")
-    out = []
-    append = out.append
-    for i, p in enumerate(x):
-        if type(p) is list and len(p) == 2:
-            a, b = p
-            if type(a) is float and type(b) is float and a - a == 0.0 and b - b == 0.0:
-                append(p)
-                continue
+def rejection(error: Exception, payload: bytes | None = None, data: Any = None) -> InvalidSample:
+    """Map a msgspec error onto the contract's rejection reasons (the one table, tested). `payload` (what
+    was decoded) or `data` (what was converted) lets a broken bound be told apart: NaN/inf vs out of range."""
+    if isinstance(error, InvalidSample):
+        return error
+    if isinstance(error, RecursionError):
+        return InvalidSample("not_msgpack", "nested too deeply")
+    if not isinstance(error, msgspec.ValidationError):  # DecodeError: truncated, garbage, trailing bytes
+        return InvalidSample("not_msgpack", str(error))
+    if payload is not None:
+        # msgspec validates while it parses: a map that is cut short or followed by garbage can fail a field
+        # check first. Malformed MessagePack is reported as such, whatever else is wrong with it.
+        import msgpack
         try:
-            append(_floats(p, 2))
-        except _Bad as bad:
-            raise bad.under(f"[{i}]") from None
-    return out
+            data = msgpack.unpackb(payload, raw=False, strict_map_key=False)
+        except Exception as exc:
+            return InvalidSample("not_msgpack", f"{type(exc).__name__}: {exc}")
+    text = str(error)
+    match = _PATH.search(text)
+    path = match.group(1) if match else "$"
+    message = text[:match.start()] if match else text
+    where = path.removeprefix("$").removeprefix(".")
+    for pattern, reason in _ERROR_TABLE:
+        found = pattern.search(message)
+        if not found:
+            continue
+        if reason == "own":
+            reason, message = found.group(1), message[found.end():]
+        elif reason == "not_a_map" and where:
+            reason = "wrong_type"
+        elif reason == "range":
+            value = _value_at(data, _path_parts(path))
+            reason = "not_finite" if isinstance(value, float) and not math.isfinite(value) else "out_of_range"
+        return InvalidSample(reason, f"{where}: {message}" if where else message)
+    return InvalidSample("invalid", text)
 
 
-def _items(x: Any, convert: Callable[[Any], Any], length: int | None) -> list:
-    if type(x) is not list and type(x) is not tuple:
-        raise _bad_type("list", x)
-    if length is not None and len(x) != length:
-        raise _Bad("bad_value", f"expected {length} items, got {len(x)}")
-    out = []
-    for i, v in enumerate(x):
-        try:
-            out.append(convert(v))
-        except _Bad as bad:
-            raise bad.under(f"[{i}]") from None
-    return out
-
-
-def _mapping(x: Any, key: Callable[[Any], Any], val: Callable[[Any], Any]) -> dict:
-    if type(x) is not dict:
-        raise _bad_type("map", x)
-    out = {}
-    for k, v in x.items():
-        try:
-            out[key(k)] = val(v)
-        except _Bad as bad:
-            raise bad.under(str(k)) from None
-    return out
-
-
-class _Gen:
-    """Emits the check of one value `x` (already bound) for a type, for the decode or encode direction."""
-
-    def __init__(self, encode: bool):
-        self.encode = encode
-        self.env: dict[str, Any] = {
-            "_Bad": _Bad, "_bad_type": _bad_type, "_float": _float, "_floats": _floats, "_points": _points,
-            "_items": _items, "_mapping": _mapping, "bytearray": bytearray, "memoryview": memoryview,
-        }
-        self.n = 0
-
-    def const(self, value: Any) -> str:
-        self.n += 1
-        name = f"_c{self.n}"
-        self.env[name] = value
-        return name
-
-    def converter(self, tp: Any) -> str:
-        """A name bound to a function converting one value of type `tp`."""
-        lines = self.check(tp, {}, "x", "    ")
-        self.n += 1
-        fname = f"_conv{self.n}"
-        src = f"def {fname}(x):\n" + "".join(lines) + "    return x\n"
-        exec(src, self.env)
-        return fname
-
-    def check(self, tp: Any, meta: dict[str, Any], x: str, ind: str) -> list[str]:
-        origin = get_origin(tp)
-        if origin in (Union, types.UnionType):
-            args = [a for a in get_args(tp) if a is not type(None)]
-            inner = self.check(args[0], meta, x, ind + "    ")
-            return [f"{ind}if {x} is not None:\n", *inner] if inner else []
-        if origin is Literal:
-            choices = self.const(frozenset(get_args(tp)))
-            listed = self.const(sorted(get_args(tp)))
-            return [f"{ind}if type({x}) is not str: raise _bad_type('str', {x})\n",
-                    f"{ind}if {x} not in {choices}: raise _Bad('bad_value', f'{{{x}!r}} is not one of {{{listed}}}')\n"]
-        length = meta.get("length")
-        if origin is list:
-            (item,) = get_args(tp)
-            if item is float:
-                return [f"{ind}{x} = _floats({x}, {length!r})\n"]
-            if get_origin(item) is list and get_args(item) == (float,):
-                return [f"{ind}{x} = _points({x}, {length!r})\n"]
-            return [f"{ind}{x} = _items({x}, {self.converter(item)}, {length!r})\n"]
-        if origin is dict:
-            key_tp, val_tp = get_args(tp)
-            return [f"{ind}{x} = _mapping({x}, {self.converter(key_tp)}, {self.converter(val_tp)})\n"]
-        if isinstance(tp, type) and issubclass(tp, Struct):
-            cls = self.const(tp)
-            if self.encode:
-                return [f"{ind}if type({x}) is not {cls}: raise _bad_type({tp.__name__!r}, {x})\n",
-                        f"{ind}{x} = {x}._encode_map()\n"]
-            return [f"{ind}{x} = {cls}._decode_map({x})\n"]
-        lines: list[str]
-        if tp is float:
-            lines = [f"{ind}if type({x}) is not float or {x} - {x} != 0.0: {x} = _float({x})\n"]
-        elif tp is int:
-            lines = [f"{ind}if type({x}) is not int: raise _bad_type('int', {x})\n"]
-        elif tp is str:
-            lines = [f"{ind}if type({x}) is not str: raise _bad_type('str', {x})\n"]
-        elif tp is bool:
-            lines = [f"{ind}if type({x}) is not bool: raise _bad_type('bool', {x})\n"]
-        elif tp is bytes:
-            lines = [f"{ind}if type({x}) is not bytes:\n",
-                     f"{ind}    if isinstance({x}, (bytearray, memoryview)): {x} = bytes({x})\n",
-                     f"{ind}    else: raise _bad_type('bin', {x})\n"]
-        else:
-            raise TypeError(f"no wire validator for type {tp!r}")
-        rng = meta.get("rng")
-        if rng is not None:
-            lo, hi = rng
-            lines.append(f"{ind}if not {lo!r} <= {x} <= {hi!r}: "
-                         f"raise _Bad('out_of_range', f'{{{x}}} is outside [{lo}, {hi}]')\n")
-        if meta.get("nonempty"):
-            lines.append(f"{ind}if not {x}: raise _Bad('bad_value', 'must not be empty')\n")
-        return lines
-
-
-def _generate(cls: type) -> None:
-    hints = get_type_hints(cls)
-    specs = []
-    for f in fields(cls):  # type: ignore[arg-type]
-        required = f.default is MISSING and f.default_factory is MISSING
-        specs.append((f.name, hints[f.name], dict(f.metadata), required, f))
-    cls._names = tuple(s[0] for s in specs)
-    cls._required = tuple(s[0] for s in specs if s[3])
-
-    dec = _Gen(encode=False)
-    dec.env.update({"_cls": cls, "_new": object.__new__})
-    body = ["def _decode_map(data):\n",
-            "    if type(data) is not dict: raise _bad_type('map', data)\n",
-            "    obj = _new(_cls)\n", "    d = obj.__dict__\n"]
-    for fname, tp, meta, required, f in specs:
-        body.append(f"    x = data.get({fname!r}, _MISSING)\n")
-        body.append("    if x is _MISSING:\n")
-        if required:
-            body.append(f"        raise _Bad('missing_field', 'required field is missing', {fname!r})\n")
-        elif f.default_factory is not MISSING:
-            body.append(f"        x = {dec.const(f.default_factory)}()\n")
-        else:
-            body.append(f"        x = {dec.const(f.default)}\n")
-        body.append("    else:\n        try:\n")
-        body += dec.check(tp, meta, "x", "            ") or ["            pass\n"]
-        body.append(f"        except _Bad as bad: raise bad.under({fname!r}) from None\n")
-        body.append(f"    d[{fname!r}] = x\n")
-    body.append("    obj._check_invariants()\n    return obj\n")
-    dec.env["_MISSING"] = MISSING
-    exec("".join(body), dec.env)
-    cls._decode_map = staticmethod(dec.env["_decode_map"])
-
-    enc = _Gen(encode=True)
-    body = ["def _encode_map(self):\n", "    self._check_invariants()\n", "    d = self.__dict__\n", "    out = {}\n"]
-    for fname, tp, meta, _, _ in specs:
-        body.append(f"    x = d[{fname!r}]\n    try:\n")
-        body += enc.check(tp, meta, "x", "        ") or ["        pass\n"]
-        body.append(f"    except _Bad as bad: raise bad.under({fname!r}) from None\n")
-        body.append(f"    out[{fname!r}] = x\n")
-    body.append("    return out\n")
-    exec("".join(body), enc.env)
-    cls._encode_map = enc.env["_encode_map"]
-
-
-class Struct:
-    """Base of every wire map. Subclasses are made with `@wire` (keyword-only dataclasses)."""
-
-    _names: ClassVar[tuple[str, ...]]
-    _required: ClassVar[tuple[str, ...]]
+class Struct(msgspec.Struct, kw_only=True):
+    """Base of every wire map: keyword-only, compared by value, extra keys on the wire ignored."""
 
     @classmethod
     def from_dict(cls, data: Any) -> Any:
         """Validate a decoded msgpack map and build the typed object. Unknown keys are ignored."""
         if type(data) is not dict:
-            raise InvalidSample("not_a_map", f"{cls.__name__}: expected a map, got {_type_name(data)}")
+            raise InvalidSample("not_a_map", f"{cls.__name__}: expected a map, got {type(data).__name__}")
         try:
-            return cls._decode_map(data)
-        except _Bad as bad:
-            raise bad.as_invalid("") from None
+            return msgspec.convert(data, cls)
+        except (msgspec.ValidationError, InvalidSample) as exc:
+            raise rejection(exc, data=data) from None
 
     def to_dict(self) -> dict[str, Any]:
-        """Validate this object and return it as a plain map (what goes on the wire)."""
-        try:
-            return self._encode_map()
-        except _Bad as bad:
-            raise bad.as_invalid("") from None
+        """This object as a plain map (what goes on the wire); validated like a received sample."""
+        from common.codec import validate  # the codec owns the one validation path
+        return msgspec.to_builtins(validate(self), builtin_types=(bytes, bytearray, memoryview))
 
     @classmethod
     def required_fields(cls) -> tuple[str, ...]:
-        return cls._required
-
-    def _check_invariants(self) -> None:
-        """Cross-field rules; subclasses override and raise _Bad."""
-
-    @staticmethod
-    def _decode_map(data: dict) -> Any:  # replaced per class by _generate
-        raise NotImplementedError
-
-    def _encode_map(self) -> dict:  # replaced per class by _generate
-        raise NotImplementedError
+        return tuple(f.name for f in msgspec.structs.fields(cls) if f.required)
 
 
-def wire(cls: type) -> type:
-    """Class decorator: make a keyword-only dataclass and generate its validators."""
-    cls = dataclass(kw_only=True)(cls)
-    _generate(cls)
-    return cls
+def _check(ok: bool, reason: str, detail: str) -> None:
+    if not ok:
+        raise InvalidSample(reason, detail)
 
 
 # ---------------------------------------------------------------------------
 # Nested maps
 # ---------------------------------------------------------------------------
-@wire
-class DetectedObject(Struct):
-    id: str = name()
-    label: str = name()
-    color: Optional[str] = None
-    score: float = unit()
-    bbox: list[float] = vec(4)  # x, y, w, h in pixels
-    center: list[float] = vec(2)
+class DetectedObject(Struct, kw_only=True):
+    id: described(NonEmpty, "stable while the object stays in view")
+    label: described(NonEmpty, "class name, through the command language (`cup`, `person`, …)")
+    color: described(Optional[str], "`red orange yellow green blue purple white black grey`, or nil") = None
+    score: described(UnitFloat, "detection confidence")
+    bbox: described(Box, "[x, y, w, h] px")
+    center: described(Point, "[x, y] px")
 
 
-@wire
-class ImageQuality(Struct):
-    brightness: float = unit()
-    contrast: float = unit()
-    sharpness: float = unit()
+class ImageQuality(Struct, kw_only=True):
+    brightness: described(UnitFloat, "mean luminance")
+    contrast: described(UnitFloat, "spread of luminance")
+    sharpness: described(UnitFloat, "focus / motion blur (1 = sharp)")
 
 
-@wire
-class Ray(Struct):
-    origin: list[float] = vec(2)  # pixels
-    direction: list[float] = vec(2)  # unit vector, image axes (x right, y down)
-    confidence: float = unit(default=1.0)
-    source: Optional[Literal["hand", "body"]] = None  # v1 extension: index finger or arm (None: hand, older senders)
+class Ray(Struct, kw_only=True):
+    origin: described(Point, "[x, y] px")
+    direction: described(Point, "[dx, dy] unit vector, image axes (x right, y down)")
+    confidence: described(UnitFloat, "how steady the pointing is, independent of the hand's `score`") = 1.0
+    source: described(Optional[RaySource],
+                      "**v1 extension**: `hand` = the index finger, `body` = the arm seen by the body stage; "
+                      "nil = a sender from before the extension (a hand ray)") = None
 
-    def _check_invariants(self) -> None:
+    def __post_init__(self) -> None:
         norm = math.hypot(*self.direction)
-        if abs(norm - 1.0) > 1e-3:
-            raise _Bad("bad_value", f"not a unit vector (norm {norm:.4f})", "direction")
+        _check(abs(norm - 1.0) <= 1e-3, "bad_value", f"direction: not a unit vector (norm {norm:.4f})")
 
 
-@wire
-class Hand(Struct):
-    hand: Literal["left", "right"]
-    score: float = unit()
-    landmarks: list[list[float]] = vec(21)
-    gesture: Optional[Literal["point", "open_palm", "wave", "fist", "thumbs_up"]] = None
-    ray: Optional[Ray] = None
+class Hand(Struct, kw_only=True):
+    hand: described(Handedness, "which hand, as the person sees it")
+    score: described(UnitFloat, "landmark confidence")
+    landmarks: described(Annotated[list[Point], Meta(min_length=21, max_length=21)],
+                         "21 × [x, y] px, MediaPipe order (0 wrist, 4 thumb tip, 8 index tip, …)")
+    gesture: described(Optional[GestureName], "this frame's raw class, or nil") = None
+    ray: described(Optional[Ray], "pointing ray, when the hand points") = None
 
 
-@wire
-class Body(Struct):
+class Body(Struct, kw_only=True):
     """One person's MediaPipe Pose skeleton (v1 extension, `Bodies`)."""
-    landmarks: list[list[float]] = vec(33)  # [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists)
-    visibility: list[float] = vec(33)  # each in [0, 1]
-    left_ray: Optional[Ray] = None  # the person's own left arm points: its steadied ray
-    right_ray: Optional[Ray] = None
-
-    def _check_invariants(self) -> None:
-        if any(not 0.0 <= v <= 1.0 for v in self.visibility):
-            raise _Bad("out_of_range", "visibility must be in [0, 1]", "visibility")
+    landmarks: described(Annotated[list[Point], Meta(min_length=33, max_length=33)],
+                         "33 × [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists, …)")
+    visibility: described(Annotated[list[UnitFloat], Meta(min_length=33, max_length=33)],
+                          "MediaPipe's visibility of each point; below 0.5 the point is a guess")
+    left_ray: described(Optional[Ray], "set when the person's own left arm points (`source` `body`)") = None
+    right_ray: described(Optional[Ray], "set when the right arm points") = None
 
 
-@wire
-class Word(Struct):
-    word: str
-    start: float
-    end: float
-    confidence: float = unit()
+class Word(Struct, kw_only=True):
+    word: described(str, "one word as recognised")
+    start: described(Finite, "source time")
+    end: described(Finite, "source time, inside the utterance")
+    confidence: UnitFloat
+
+    def __post_init__(self) -> None:
+        _check(self.start <= self.end, "bad_value", f"start: word {self.word!r} starts after it ends")
 
 
-@wire
-class Target(Struct):
-    id: str = name()
-    label: str = name()
+class Target(Struct, kw_only=True):
+    """The DetectedObject a command or question is about."""
+    id: described(NonEmpty, "the object's id in its Detections")
+    label: NonEmpty
     color: Optional[str] = None
-    bbox: list[float] = vec(4)
-    center: list[float] = vec(2)
-    score: float = unit()
-    cam: str = name()
+    bbox: described(Box, "[x, y, w, h] px")
+    center: described(Point, "[x, y] px")
+    score: UnitFloat
+    cam: described(NonEmpty, "the camera that saw it")
 
 
-@wire
-class Location(Struct):
-    x: float
-    y: float
-    cam: str = name()
+class Location(Struct, kw_only=True):
+    x: described(Finite, "px")
+    y: described(Finite, "px")
+    cam: NonEmpty
 
 
-@wire
-class Motion(Struct):
+class Motion(Struct, kw_only=True):
     """The robot moving itself ("go forward ten meters", "turn left"): FusedCommand intents `move` and `turn`."""
-    direction: Optional[Literal["forward", "back", "left", "right", "around"]] = None
-    distance: Optional[float] = None  # metres (>= 0); nil: not said, a small move
-    angle: Optional[float] = None  # degrees (>= 0), for turns
-
-    def _check_invariants(self) -> None:
-        for name in ("distance", "angle"):
-            value = getattr(self, name)
-            if value is not None and value < 0:
-                raise _Bad("out_of_range", f"{value} is negative", name)
+    direction: described(Optional[MotionDirection], "the robot's own frame: forward = the way it faces") = None
+    distance: described(Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+                        "metres; nil = not said (a short move of the planner's choosing)") = None
+    angle: described(Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+                     "degrees, for `turn` (\"turn left\" = 90, \"turn around\" = 180)") = None
 
 
-@wire
-class Weights(Struct):
-    speech: float = unit()
-    vision: float = unit()
-    gesture: float = unit()
+class Weights(Struct, kw_only=True):
+    """Normalised reliability of each modality for one decision."""
+    speech: UnitFloat
+    vision: UnitFloat
+    gesture: UnitFloat
 
 
 # ---------------------------------------------------------------------------
 # Top-level samples: every one carries v, stamp and source.
 # ---------------------------------------------------------------------------
-class Sample(Struct):
+class Sample(Struct, kw_only=True):
     MAX_BYTES: ClassVar[int] = 1 * MIB
 
-    def _check_invariants(self) -> None:
-        if self.v != SCHEMA_VERSION:
-            raise _Bad("bad_version", f"v={self.v}, this build speaks v{SCHEMA_VERSION}", "v")
-        if not self.stamp > 0:
-            raise _Bad("out_of_range", f"{self.stamp} is not a UNIX time", "stamp")
+    v: described(int, "schema version, `1`") = SCHEMA_VERSION
+    stamp: described(UnixTime, "seconds since the UNIX epoch, **when the observed thing happened** (frame "
+                               "capture, first audio sample, utterance end)")
+    source: described(NonEmpty, "the producing instance, `service/instance`")
+
+    def __post_init__(self) -> None:
+        _check(self.v == SCHEMA_VERSION, "bad_version", f"v: v={self.v}, this build speaks v{SCHEMA_VERSION}")
         self._check_sample()
 
     def _check_sample(self) -> None:
-        """Schema-specific cross-field rules."""
+        """Schema-specific cross-field rules (raise InvalidSample)."""
+
+    def _check_span(self) -> None:
+        _check(self.start <= self.end, "bad_value", f"start: start {self.start} is after end {self.end}")
 
 
-def _envelope(cls: type) -> type:
-    """Prepend the envelope fields (v, stamp, source) to a top-level sample."""
-    ann = {"v": int, "stamp": float, "source": str}
-    ann.update(cls.__dict__.get("__annotations__", {}))
-    cls.__annotations__ = ann
-    cls.v = field(default=SCHEMA_VERSION, metadata={})
-    cls.stamp = field(default=MISSING, metadata={})
-    cls.source = field(default=MISSING, metadata={"nonempty": True})
-    return wire(cls)
-
-
-@_envelope
-class Frame(Sample):
+class Frame(Sample, kw_only=True):
     MAX_BYTES: ClassVar[int] = 64 * MIB
-    seq: int
-    cam: str = name()
-    width: int
-    height: int
-    encoding: Literal["jpeg", "png", "bgr8"]
-    data: bytes
+    seq: described(Annotated[int, Meta(ge=0)], "gap-free per camera process")
+    cam: described(NonEmpty, "camera id")
+    width: described(Annotated[int, Meta(gt=0)], "px")
+    height: described(Annotated[int, Meta(gt=0)], "px")
+    encoding: described(ImageEncoding, "`bgr8`: raw rows of B,G,R bytes, `width*height*3` bytes")
+    data: described(bytes, "the image")
 
     def _check_sample(self) -> None:
-        if self.width <= 0 or self.height <= 0 or self.seq < 0:
-            raise _Bad("out_of_range", "width/height must be > 0 and seq >= 0")
-        if self.encoding == "bgr8" and len(self.data) != self.width * self.height * 3:
-            raise _Bad("bad_value", f"bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}", "data")
+        if self.encoding == "bgr8":
+            _check(len(self.data) == self.width * self.height * 3, "bad_value",
+                   f"data: bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}")
 
 
-@_envelope
-class AudioChunk(Sample):
+class AudioChunk(Sample, kw_only=True):
     MAX_BYTES: ClassVar[int] = 4 * MIB
-    mic: str = name()
-    rate: int
-    channels: int
-    format: Literal["s16le"]
-    data: bytes
+    mic: described(NonEmpty, "microphone id")
+    rate: described(Annotated[int, Meta(ge=1000, le=384000)], "Hz")
+    channels: described(Annotated[int, Meta(ge=1, le=32)], "interleaved")
+    format: described(Literal["s16le"], "signed 16-bit little endian")
+    data: described(bytes, "whole frames only")
 
     def _check_sample(self) -> None:
-        if not 1000 <= self.rate <= 384000 or not 1 <= self.channels <= 32:
-            raise _Bad("out_of_range", f"rate {self.rate} Hz / {self.channels} channels is not plausible audio")
-        if len(self.data) % (2 * self.channels):
-            raise _Bad("bad_value", f"{len(self.data)} bytes is not whole s16le frames", "data")
+        _check(len(self.data) % (2 * self.channels) == 0, "bad_value",
+               f"data: {len(self.data)} bytes is not whole s16le frames")
 
 
-@_envelope
-class Detections(Sample):
+class Detections(Sample, kw_only=True):
     MAX_BYTES: ClassVar[int] = 4 * MIB
-    seq: int
-    cam: str = name()
-    width: int
-    height: int
-    objects: list[DetectedObject]
-    quality: ImageQuality
+    seq: described(int, "of the frame the detections come from")
+    cam: NonEmpty
+    width: described(int, "px, of the frame")
+    height: described(int, "px, of the frame")
+    objects: described(list[DetectedObject], "may be empty: published for **every** processed frame, so "
+                                             "\"nothing seen\" is known")
+    quality: described(ImageQuality, "how far to trust this frame (see docs/vision.md)")
 
 
-@_envelope
-class Hands(Sample):
-    seq: int
-    cam: str = name()
-    width: int
-    height: int
-    hands: list[Hand]
+class Hands(Sample, kw_only=True):
+    seq: described(int, "of the frame")
+    cam: NonEmpty
+    width: described(int, "px, of the frame")
+    height: described(int, "px, of the frame")
+    hands: described(list[Hand], "may be empty; published for every processed frame")
 
 
-@_envelope
-class Bodies(Sample):
+class Bodies(Sample, kw_only=True):
     """v1 extension: the body stage's skeletons for one frame (an empty list when nobody is seen)."""
-    seq: int
-    cam: str = name()
-    width: int
-    height: int
-    bodies: list[Body]
+    seq: described(int, "of the frame")
+    cam: NonEmpty
+    width: described(int, "px, of the frame")
+    height: described(int, "px, of the frame")
+    bodies: described(list[Body], "may be empty (nobody seen); MediaPipe Pose finds at most one person")
 
 
-@_envelope
-class GestureEvent(Sample):
-    cam: str = name()
-    width: int
-    height: int
-    gesture: Literal["point", "open_palm", "wave", "fist", "thumbs_up"]
-    phase: Literal["start", "hold", "end"]
-    start: float
-    end: float
-    score: float = unit()
-    hand: Literal["left", "right"]
-    ray: Optional[Ray] = None
-
-    def _check_sample(self) -> None:
-        if self.start > self.end:
-            raise _Bad("bad_value", f"start {self.start} is after end {self.end}", "start")
-
-
-@_envelope
-class Transcript(Sample):
-    mic: str = name()
-    start: float
-    end: float
-    text: str
-    confidence: float = unit()
-    words: list[Word]
-    final: bool
-    backend: str = name()
+class GestureEvent(Sample, kw_only=True):
+    cam: NonEmpty
+    width: described(int, "px, of the frame")
+    height: described(int, "px, of the frame")
+    gesture: GestureName
+    phase: described(GesturePhase, "`hold` at most every 100 ms while the gesture lasts")
+    start: described(Finite, "stamp of the gesture's first frame")
+    end: described(Finite, "stamp of its latest frame (`start ≤ end`)")
+    score: UnitFloat
+    hand: described(Handedness, "the hand that makes it")
+    ray: described(Optional[Ray], "for `point`") = None
 
     def _check_sample(self) -> None:
-        if self.start > self.end:
-            raise _Bad("bad_value", f"start {self.start} is after end {self.end}", "start")
+        self._check_span()
 
 
-@_envelope
-class FusedCommand(Sample):
-    id: str = name()
-    intent: str = name()
-    text: Optional[str] = None
-    target: Optional[Target] = None
-    location: Optional[Location] = None
-    place: Optional[str] = None  # a named place of common.language.PLACE_PHRASES ("go to the kitchen")
-    gesture: Optional[str] = None
-    confidence: float = unit()
-    weights: Weights
-    inputs: dict[str, Optional[float]]
-    explanation: str
-    prompt: str
-    motion: Optional[Motion] = None  # v1 extension: intents move / turn (docs/wire.md)
+# Word times may stray this far outside their utterance (rounding of the recognisers' frame times).
+WORD_TIME_SLACK = 0.05
 
 
-@_envelope
-class Clarification(Sample):
-    id: str = name()
-    text: Optional[str] = None
-    reason: Literal["ambiguous", "conflict", "not_found", "low_confidence"]
-    question: str = name()
-    candidates: list[Target]
+class Transcript(Sample, kw_only=True):
+    mic: described(NonEmpty, "microphone id")
+    start: described(Finite, "utterance start, source time (audio clock)")
+    end: described(Finite, "utterance end; `stamp` = `end`")
+    text: described(str, "the words as recognised")
+    confidence: described(UnitFloat, "how sure the recogniser is of the words")
+    words: described(list[Word], "empty when the backend has no word times")
+    final: described(bool, "false for a partial result while the person is still speaking")
+    backend: described(NonEmpty, "the recogniser that produced it")
+
+    def _check_sample(self) -> None:
+        self._check_span()
+        lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
+        for i, w in enumerate(self.words):
+            _check(lo <= w.start and w.end <= hi, "bad_value",
+                   f"words[{i}]: {w.word!r} at {w.start}–{w.end} lies outside the utterance {self.start}–{self.end}")
 
 
-@_envelope
-class Stats(Sample):
+class FusedCommand(Sample, kw_only=True):
+    id: described(NonEmpty, "deterministic from the inputs: replaying the same samples gives the same id")
+    intent: described(NonEmpty, "`pick_up bring put_down go_to come_here stop look_at follow greet move turn` "
+                                "(`move`, `turn`: v1 extension, with `motion`)")
+    text: described(Optional[str], "the utterance (nil for gesture-only commands)") = None
+    target: described(Optional[Target], "the object meant") = None
+    location: described(Optional[Location], "a place in the image (\"put it there\" + pointing)") = None
+    place: described(Optional[str], "a named place (\"go to the kitchen\": `kitchen`), from "
+                                    "`common/language.py`") = None
+    gesture: described(Optional[str], "the gesture that took part") = None
+    confidence: UnitFloat
+    weights: described(Weights, "normalised reliability of each modality for this decision")
+    inputs: described(dict[str, Optional[Finite]], "the stamp of each modality's sample used; nil = missing")
+    explanation: described(str, "why this target won")
+    prompt: described(str, "a self-contained text for an LLM planner (command, objects in view with "
+                           "positions, gesture, motion)")
+    motion: described(Optional[Motion], "**v1 extension**, for `move` / `turn`; absent or nil otherwise") = None
+
+
+class Clarification(Sample, kw_only=True):
+    id: described(NonEmpty, "deterministic, like a command's")
+    text: described(Optional[str], "the utterance that needs clarifying") = None
+    reason: ClarificationReason
+    question: described(NonEmpty, "a question a person can answer (\"Which candy: the red one on the left "
+                                  "or …?\")")
+    candidates: described(list[Target], "the objects the question is between")
+
+
+class Stats(Sample, kw_only=True):
     """Reply of a service's stats queryable."""
-    service: str = name()
-    instance: str = name()
-    uptime: float
-    received: int
-    published: int
-    skipped: int
-    rejected: dict[str, int]
-    other: dict[str, int] = _meta(default_factory=dict)
+    service: NonEmpty
+    instance: NonEmpty
+    uptime: described(Finite, "seconds")
+    received: described(int, "samples received")
+    published: described(int, "samples published")
+    skipped: described(int, "stale frames replaced by newer ones")
+    rejected: described(dict[str, int], "invalid samples by reason")
+    other: described(dict[str, int], "service-specific counters, e.g. `undecodable`, `non_command`, "
+                                     "`dropped_overflow`") = msgspec.field(default_factory=dict)
 
 
 ALL_SAMPLES: tuple[type[Sample], ...] = (
-    Frame, AudioChunk, Detections, Hands, GestureEvent, Transcript, FusedCommand, Clarification, Stats,
+    Frame, AudioChunk, Detections, Hands, Bodies, GestureEvent, Transcript, FusedCommand, Clarification, Stats,
 )

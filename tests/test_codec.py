@@ -207,3 +207,64 @@ def test_keys_map_to_schemas_under_any_prefix():
         assert keys.parse_alive(keys.alive("vision", "host-1")) == ("vision", "host-1")
     with pytest.raises(ValueError):
         Keys().frame("a/b")
+
+
+# msgspec's error messages -> the documented reasons: the one table in common.schema, each row exercised.
+@pytest.mark.parametrize("index,change,reason", [
+    (5, {"words": [{"word": "pick", "start": T - 9.0, "end": T - 8.9, "confidence": 0.9}]}, "bad_value"),
+    (5, {"words": [{"word": "pick", "start": T - 0.5, "end": T - 0.6, "confidence": 0.9}]}, "bad_value"),
+    (0, {"seq": -1}, "out_of_range"),                      # int bound
+    (0, {"cam": ""}, "bad_value"),                         # empty string
+    (3, {"hands": [{"hand": "left"}]}, "missing_field"),   # nested missing field
+    (6, {"inputs": {1: 2.0}}, "wrong_type"),               # map key of the wrong type
+    (6, {"weights": []}, "wrong_type"),                    # nested map given as a list
+    (6, {"confidence": float("nan")}, "not_finite"),       # NaN against a 0–1 bound
+    (6, {"location": {"x": float("-inf"), "y": 0, "cam": "c"}}, "not_finite"),
+])
+def test_each_row_of_the_error_table(index, change, reason):
+    sample = examples()[index]
+    data = {**sample.to_dict(), **change}
+    with pytest.raises(InvalidSample) as err:
+        decode(msgpack.packb(data), type(sample))
+    assert err.value.reason == reason, err.value
+    with pytest.raises(InvalidSample) as err:   # the same reason through from_dict (hri pub's path)
+        type(sample).from_dict(msgpack.unpackb(msgpack.packb(data), strict_map_key=False))
+    assert err.value.reason == reason, err.value
+
+
+def test_nesting_too_deep_is_malformed_not_a_crash():
+    deep = b"\x91" * 200_000 + b"\x01"
+    payload = b"\x82\xa1v\x01\xa4deep" + deep
+    with pytest.raises(InvalidSample) as err:
+        decode(payload, Transcript)
+    assert err.value.reason == "not_msgpack"
+
+
+def test_malformed_msgpack_wins_over_a_missing_field():
+    # msgspec checks fields as it parses: a map cut short must still be reported as not MessagePack
+    with pytest.raises(InvalidSample) as err:
+        decode(msgpack.packb({"v": 1}) + b"\xc1", Transcript)
+    assert err.value.reason == "not_msgpack"
+
+
+def test_encode_refuses_values_msgpack_has_no_form_for():
+    import numpy as np
+    sample = examples()[2]
+    sample.objects[0].score = np.float32(0.5)
+    with pytest.raises(InvalidSample) as err:
+        encode(sample)
+    assert err.value.reason == "wrong_type"
+
+
+def test_constructing_a_sample_checks_its_cross_field_rules():
+    with pytest.raises(InvalidSample) as err:
+        Ray(origin=[0.0, 0.0], direction=[3.0, 4.0])
+    assert err.value.reason == "bad_value" and "unit vector" in err.value.detail
+
+
+def test_plain_msgpack_reads_and_writes_the_wire_format():
+    # any MessagePack library is a valid peer: the contract path and the plain msgpack package agree
+    for sample in examples():
+        plain = msgpack.unpackb(encode(sample), raw=False)
+        assert plain == sample.to_dict()
+        assert decode(msgpack.packb(plain, use_bin_type=True), type(sample)) == sample

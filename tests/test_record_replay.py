@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import json
 import threading
 import time
 
@@ -66,7 +67,14 @@ def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp
         assert {c.message_encoding for c in channels.values()} == {"msgpack"}
         assert channels["hri/speech/kbd/transcript"].metadata["schema"] == "Transcript"
         assert channels["hri/vision/cam0/objects"].metadata["schema"] == "Detections"
-        assert channels["hri/test/raw"].metadata["schema"] == ""
+        assert channels["hri/test/raw"].metadata["schema"] == "" and channels["hri/test/raw"].schema_id == 0
+        # each contract channel points at a JSON Schema record of its type, written once per type
+        schemas = summary.schemas
+        for topic, name in (("hri/speech/kbd/transcript", "Transcript"), ("hri/vision/cam0/objects", "Detections")):
+            record = schemas[channels[topic].schema_id]
+            assert record.name == name and record.encoding == "jsonschema"
+            assert name in json.loads(record.data)["$defs"]
+        assert len(schemas) == 2
         got = [(ch.topic, m.data, m.log_time, m.publish_time, m.sequence) for _, ch, m in reader.iter_messages()]
         assert [m.name for m in reader.iter_metadata()] == ["hri.record"]
     stamps = [T0, T0 + 0.1, T0 + 0.5]
