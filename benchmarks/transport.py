@@ -9,6 +9,8 @@ of the contract. Two figures per payload:
   pipeline, where sensors publish at 5-30 Hz);
 - burst: samples published back to back, total time / n (saturated throughput; here the Python work of both
   ends shares one GIL, so validation shows at its worst).
+- codec: encode + decode alone, no zenoh (contract: msgspec typed encode/validate/decode; raw: msgpack
+  packb/unpackb of the same dict): the part of the price the contract itself adds.
 Target: <= 1.3x. Usage: python benchmarks/transport.py [--n 2000]
 """
 
@@ -26,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import msgpack  # noqa: E402
 import zenoh  # noqa: E402
 
-from common.codec import ENCODING, decode  # noqa: E402
+from common.codec import ENCODING, decode, encode  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
 from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.transport import open_client  # noqa: E402
@@ -78,6 +80,14 @@ def run_latency(pub_session, sub_session, key: str, n: int, send, on_payload) ->
     return statistics.median(times)
 
 
+def codec_us(encode_one, decode_one, payload: bytes, n: int) -> float:
+    """Best-of-5 µs for one encode plus one decode."""
+    import timeit
+    enc = min(timeit.repeat(encode_one, number=n, repeat=5)) / n
+    dec = min(timeit.repeat(lambda: decode_one(payload), number=n, repeat=5)) / n
+    return (enc + dec) * 1e6
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--n", type=int, default=3000, help="samples per measurement (default 3000)")
@@ -88,9 +98,9 @@ def main() -> None:
     group.router()
     pub_s, sub_s = open_client(group.endpoint), open_client(group.endpoint)
     try:
-        print(f"{'':31s}{'latency (1 in flight)':^30s} {'burst (back to back)':^30s}")
+        print(f"{'':31s}{'latency (1 in flight)':^30s} {'burst (back to back)':^30s} {'codec only':^30s}")
         print(f"{'payload':22s} {'bytes':>8s} {'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}  "
-              f"{'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}")
+              f"{'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}  {'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}")
         worst, worst_burst = 0.0, 0.0
         for i, (label, sample) in enumerate(realistic_samples().items()):
             schema = type(sample)
@@ -114,10 +124,16 @@ def main() -> None:
                     contract_times.append(measure(pub_s, sub_s, contract_key, n, contract_send, contract_recv))
                 raw_us, contract_us = statistics.median(raw_times) * 1e6, statistics.median(contract_times) * 1e6
                 figures[mode] = (raw_us, contract_us, contract_us / raw_us)
+            payload = encode(sample)
+            raw_payload = msgpack.packb(as_dict, use_bin_type=True)
+            raw_codec = codec_us(lambda: msgpack.packb(as_dict, use_bin_type=True), raw_recv, raw_payload, n)
+            contract_codec = codec_us(lambda: encode(sample), contract_recv, payload, n)
+            figures["codec"] = (raw_codec, contract_codec, contract_codec / raw_codec)
             worst = max(worst, figures["latency"][2])
             worst_burst = max(worst_burst, figures["burst"][2])
-            (lr, lc, lx), (br, bc, bx) = figures["latency"], figures["burst"]
-            print(f"{label:22s} {size:8d} {lr:9.1f} {lc:12.1f} {lx:5.2f}x  {br:9.1f} {bc:12.1f} {bx:5.2f}x", flush=True)
+            (lr, lc, lx), (br, bc, bx), (cr, cc, cx) = figures["latency"], figures["burst"], figures["codec"]
+            print(f"{label:22s} {size:8d} {lr:9.1f} {lc:12.1f} {lx:5.2f}x  {br:9.1f} {bc:12.1f} {bx:5.2f}x  "
+                  f"{cr:9.1f} {cc:12.1f} {cx:5.2f}x", flush=True)
             raw_pub.undeclare()
             contract_pub.undeclare()
         print(f"worst ratio: latency {worst:.2f}x, burst {worst_burst:.2f}x (target <= 1.30x)")
