@@ -9,7 +9,7 @@ import pytest
 from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import (
-    ALL_SAMPLES, AudioChunk, Clarification, DetectedObject, Detections, Frame, FusedCommand, GestureEvent, Hand,
+    ALL_SAMPLES, AudioChunk, Bodies, Body, Clarification, DetectedObject, Detections, Frame, FusedCommand, GestureEvent, Hand,
     Hands, ImageQuality, InvalidSample, Location, Motion, Ray, Stats, Target, Transcript, Weights, Word,
 )
 
@@ -45,6 +45,10 @@ def examples():
                       candidates=[TARGET, TARGET]),
         Stats(stamp=T, source="vision/a", service="vision", instance="a", uptime=3.0, received=10, published=9,
               skipped=1, rejected={"not_msgpack": 2}, other={"undecodable": 1}),
+        Bodies(stamp=T, source="gesture/a", seq=7, cam="cam0", width=640, height=480,
+               bodies=[Body(landmarks=[[300.0 + i, 100.0 + 8 * i] for i in range(33)], visibility=[0.9] * 33,
+                            right_ray=Ray(origin=[200.0, 250.0], direction=[-0.6, 0.8], confidence=0.8,
+                                          source="body"))]),
     ]
 
 
@@ -220,6 +224,9 @@ def test_keys_map_to_schemas_under_any_prefix():
     (6, {"weights": []}, "wrong_type"),                    # nested map given as a list
     (6, {"confidence": float("nan")}, "not_finite"),       # NaN against a 0–1 bound
     (6, {"location": {"x": float("-inf"), "y": 0, "cam": "c"}}, "not_finite"),
+    (6, {"motion": {"direction": "forward", "distance": -1.0}}, "out_of_range"),
+    (9, {"bodies": [{"landmarks": [[0.0, 0.0]] * 33, "visibility": [1.5] * 33}]}, "out_of_range"),
+    (9, {"bodies": [{"landmarks": [[0.0, 0.0]] * 32, "visibility": [0.5] * 33}]}, "bad_value"),
 ])
 def test_each_row_of_the_error_table(index, change, reason):
     sample = examples()[index]

@@ -8,6 +8,7 @@ import sys
 
 import cv2
 import msgpack
+import msgspec
 import numpy as np
 import pytest
 
@@ -140,7 +141,7 @@ def test_timeline_is_in_source_time_skips_holds_and_partials_and_sends_only_what
     point = GestureEvent(stamp=T0 + 1.5, source="gesture/t", cam="table", width=W, height=H, gesture="point",
                          phase="start", start=T0 + 1.4, end=T0 + 1.5, score=0.9, hand="right",
                          ray=Ray(origin=[100, 100], direction=[0.6, 0.8]))
-    hold = GestureEvent(**{**point.__dict__, "phase": "hold", "stamp": T0 + 1.6, "end": T0 + 1.6})
+    hold = msgspec.structs.replace(point, phase="hold", stamp=T0 + 1.6, end=T0 + 1.6)
     state.ingest(KEYS.command(), command(red(objects), T0 + 2.1), now=0)  # arrives first, happened last
     state.ingest(KEYS.transcript("kbd"), encode(said), now=0)
     state.ingest(KEYS.transcript("kbd"), encode(partial), now=0)
