@@ -221,9 +221,7 @@ class Word(Struct, kw_only=True):
     start: described(Finite, "source time")
     end: described(Finite, "source time, inside the utterance")
     confidence: UnitFloat
-
-    def __post_init__(self) -> None:
-        _check(self.start <= self.end, "bad_value", f"start: word {self.word!r} starts after it ends")
+    # start <= end is checked by the Transcript that holds the word: one Python call per sample, not per word
 
 
 class Target(Struct, kw_only=True):
@@ -371,8 +369,9 @@ class Transcript(Sample, kw_only=True):
         self._check_span()
         lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
         for i, w in enumerate(self.words):
-            _check(lo <= w.start and w.end <= hi, "bad_value",
-                   f"words[{i}]: {w.word!r} at {w.start}–{w.end} lies outside the utterance {self.start}–{self.end}")
+            _check(lo <= w.start <= w.end <= hi, "bad_value",
+                   f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside the utterance "
+                   f"{self.start}–{self.end}")
 
 
 class FusedCommand(Sample, kw_only=True):
