@@ -28,6 +28,7 @@ from common.codec import encode  # noqa: E402
 from common.schema import FusedCommand  # noqa: E402
 from services.fusion.core import Config, FusionCore  # noqa: E402
 from services.fusion.ground import choose, score  # noqa: E402
+from services.fusion.join import Ready  # noqa: E402
 from services.fusion.parse import parse  # noqa: E402
 from tests.scenarios import BASE_STAMP, Obj, gesture, hands, say, see  # noqa: E402
 
@@ -81,7 +82,7 @@ def decision_latency(n: int, reps: int) -> tuple[list[float], list[float]]:
         assert isinstance(outs[0].sample, FusedCommand) and outs[0].sample.target.id == "target", outs[0].sample
         assert payload
         # bare: the same grounding on the same objects and ray, nothing else
-        p = core.context(core_pending_stub(base), "bench")
+        p = core.context(core_pending_stub(base), Ready("watermarks"))
         phrase = parse("pick up that red cup").obj
         t0 = time.perf_counter()
         choice = choose(phrase, score(phrase, p.objects, p.pointing, p.weights, ref=p.ref))
@@ -91,7 +92,7 @@ def decision_latency(n: int, reps: int) -> tuple[list[float], list[float]]:
 
 
 def core_pending_stub(base: float):
-    from services.fusion.core import PendingTranscript
+    from services.fusion.window import PendingTranscript
     key, t = say(0.0, 1.4, "pick up that red cup").build(base)
     return PendingTranscript(key, t, parse(t.text), 0.0, t.start - 1.0, t.end + 0.3)
 

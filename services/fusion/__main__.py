@@ -9,7 +9,8 @@ import zenoh
 
 from common.runner import Delivery, Service, main_exit, service_parser
 from common.schema import Clarification, Detections, FusedCommand, GestureEvent, Hands, Transcript
-from services.fusion.core import Config, FusionCore, Output
+from services.fusion.core import Config, FusionCore
+from services.fusion.outputs import Output
 
 EPILOG = """\
 examples:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from common.language import OBJECT_CATEGORIES, plural
+from common.schema import Location
 from services.fusion.evidence import Pointing
 from services.fusion.ground import Scored, SceneObject
 from services.fusion.parse import Motion, ObjectPhrase
@@ -143,7 +144,7 @@ def motion_words(m: Motion) -> str:
     return f"move {m.direction} {amount}"
 
 
-def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None, location: tuple | None,
+def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None, location: Location | None,
                    place: str | None, pointing: Pointing | None, gesture: str | None,
                    objects: list[SceneObject], missing: list[str], explanation: str,
                    motion: Motion | None = None) -> str:
@@ -157,7 +158,7 @@ def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None,
         lines.append(f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
                      f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}")
     if location is not None:
-        lines.append(f"Location: pixel ({location[0]:.0f}, {location[1]:.0f}) in camera {location[2]}")
+        lines.append(f"Location: pixel ({location.x:.0f}, {location.y:.0f}) in camera {location.cam}")
     if place:
         lines.append(f"Place: {place}")
     if pointing is not None:

@@ -22,7 +22,7 @@ import math
 from dataclasses import dataclass
 
 from common.language import canonical_label, label_matches
-from common.schema import Detections, Target, Weights
+from common.schema import Detections, Location, Target, Weights
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase
 
@@ -33,6 +33,8 @@ DEFAULT_MARGIN = 0.1
 MIN_EVIDENCE = 0.15  # below this the winner is a guess: confirm first
 LOCATION_REACH = 0.35  # fraction of the image diagonal along the ray when no object is on it
 MAX_CANDIDATES = 5
+ON_RAY = 0.7  # gesture score from which "there" means the object on the ray
+GESTURE_ONLY = Weights(speech=0.0, vision=0.0, gesture=1.0)
 UNDER_TIP_GAP = 0.5  # an object is under the fingertip when the ray enters its box within this x its diagonal
 FARTHER_ALONG = 0.5  # the gesture evidence of the other objects when one is under the fingertip
 
@@ -295,3 +297,19 @@ def ray_point(p: Pointing, reach: float = LOCATION_REACH) -> tuple[float, float]
     return round(x, 1), round(y, 1)
 
 
+
+
+def best_pointed(p: Pointing, objects: list[SceneObject]) -> Scored | None:
+    """The object the ray points at best, by the gesture alone (None: no objects)."""
+    ranked = score(ObjectPhrase(), objects, p, GESTURE_ONLY)
+    return ranked[0] if ranked else None
+
+
+def pointed_location(p: Pointing, objects: list[SceneObject]) -> Location:
+    """Where "there" is: the centre of the object on the ray (G >= `ON_RAY`), else `ray_point`."""
+    best = best_pointed(p, [o for o in objects if o.cam == p.cam])
+    if best is not None and (best.gesture or 0.0) >= ON_RAY:
+        x, y = best.obj.center
+    else:
+        x, y = ray_point(p)
+    return Location(x=float(x), y=float(y), cam=p.cam)

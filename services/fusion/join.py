@@ -4,17 +4,20 @@
   time horizon behind its own watermark and by a hard item cap, so memory stays flat. What is late and
   when a stream that went back in time is followed again are the common stamp rules (`common/stamps.py`,
   with the horizon as the reordering tolerance); future stamps never get here (the runner rejects them).
-- `Watermarks`: the latest stamp seen per modality, and which modalities count as live
-  (liveliness token present, or a sample arrived within `recent_s` of wall time).
-- `ready()`: a transcript's window can be decided once every live modality's watermark has
-  passed the window end, or once the wall-clock deadline has expired.
+- `Liveness`: which modalities count as live (liveliness token present, or a sample arrived within
+  `recent_s` of wall time); `Streams.watermark` is the latest stamp seen per modality.
+- `ready()`, the policy: a window can be decided (`Ready`, by watermarks or by the deadline, saying which
+  live modalities were behind) once every live modality's watermark has passed the window end, or once
+  the wall-clock deadline has expired; else `Wait`.
+- `Join`: the pending windows in decision order over the buffers; the buffers prune everything older
+  than `obsolete_before()` (no pending window reaches back that far) and than their horizon.
 """
 
 from __future__ import annotations
 
 import bisect
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Any, Generic, Iterable, Literal, Protocol, TypeVar
 
 from common.stamps import DEFAULT_RESET_RUN, OUT_OF_ORDER, RESET, StampGuard
 
@@ -131,12 +134,84 @@ class Liveness:
         return bool(self.tokens.get(modality)) or wall - self.last_arrival.get(modality, -1e18) <= self.recent_s
 
 
+@dataclass(frozen=True)
+class Ready:
+    """Decide the window now: every live modality's watermark passed its end (`by="watermarks"`), or the
+    deadline expired while the live modalities in `behind` had not got there yet."""
+    by: Literal["watermarks", "deadline"]
+    behind: tuple[str, ...] = ()
+
+    def __str__(self) -> str:  # how explanations say it
+        return self.by if self.by == "watermarks" else "deadline (waited for " + ", ".join(self.behind) + ")"
+
+
+@dataclass(frozen=True)
+class Wait:
+    """Not yet: the live modalities in `behind` have not reached the window end and the deadline is ahead."""
+    behind: tuple[str, ...]
+
+
 def ready(window_end: float, arrived_wall: float, now_wall: float, max_wait: float,
-          watermarks: dict[str, float], live: Iterable[str]) -> tuple[bool, str]:
-    """(decide now?, why). Watermarks pass the window end for every live modality, or the deadline hit."""
-    behind = [m for m in live if watermarks.get(m, 0.0) < window_end]
+          watermarks: dict[str, float], live: Iterable[str]) -> Ready | Wait:
+    """Watermarks pass the window end for every live modality, or the deadline hit."""
+    behind = tuple(sorted(m for m in live if watermarks.get(m, 0.0) < window_end))
     if not behind:
-        return True, "watermarks"
+        return Ready("watermarks")
     if now_wall - arrived_wall >= max_wait:
-        return True, "deadline (waited for " + ", ".join(sorted(behind)) + ")"
-    return False, ""
+        return Ready("deadline", behind)
+    return Wait(behind)
+
+
+class Window(Protocol):
+    lo: float  # source time the window starts at
+    hi: float  # source time it ends at
+    arrived: float  # wall time its opener arrived (the deadline counts from it)
+
+    @property
+    def order(self) -> Any: ...  # windows are decided in this order
+
+
+W = TypeVar("W", bound=Window)
+
+
+class Join(Generic[W]):
+    """Windows waiting for their inputs, over the buffers they read. Pure: wall time is passed in."""
+
+    def __init__(self, horizon: float, lookback: float, max_wait: float, live_recent_s: float):
+        self.streams = Streams(horizon)
+        self.liveness = Liveness(live_recent_s)
+        self.lookback = lookback  # a window also reads this much before its start (vision describes the scene)
+        self.max_wait = max_wait
+        self.windows: list[W] = []
+
+    def obsolete_before(self) -> float | None:
+        """Buffered samples older than this are needed by no pending window (None: no window is pending; the
+        buffers' horizon alone decides)."""
+        start = min((w.lo for w in self.windows), default=None)
+        return None if start is None else start - self.lookback
+
+    def add(self, modality: str, key: str, stamp: float, item: Any, wall: float, ident: Any = None) -> str:
+        """Buffer a sample ("added", "duplicate", "late" or "reset": `StreamBuffer.add`)."""
+        self.liveness.arrived(modality, wall)
+        return self.streams.add(modality, key, stamp, item, ident, self.obsolete_before())
+
+    def open(self, window: W) -> None:
+        self.windows.append(window)
+        self.windows.sort(key=lambda w: w.order)
+
+    def due(self, wall: float) -> list[tuple[W, Ready]]:
+        """The windows to decide now, in order, each with why; a window that must wait holds back the later
+        ones (decisions keep the order of `Window.order`)."""
+        live = [m for m in WAITED_MODALITIES if self.liveness.live(m, wall)]
+        marks = {m: self.streams.watermark(m) for m in WAITED_MODALITIES}
+        out: list[tuple[W, Ready]] = []
+        while self.windows:
+            head = self.windows[0]
+            verdict = ready(head.hi, head.arrived, wall, self.max_wait, marks, live)
+            if isinstance(verdict, Wait):
+                break
+            out.append((self.windows.pop(0), verdict))
+        return out
+
+    def __len__(self) -> int:
+        return len(self.windows)

@@ -1,0 +1,224 @@
+"""The clarification dialogue: a small state machine over the open question and the last command acted on.
+
+States: nothing open; a `Question` open (until answered, withdrawn, superseded by a new command or a stop, or
+`timeout` s of source time after it was asked); a `LastCommand` remembered for as long ("no, the other one"
+corrects it). Transitions return what to publish:
+- `clarify` / `clarify_place` ask (a Clarification) and open the question with the command drafted so far;
+- `reply` takes an utterance without an intent: an answer resolves the question into the drafted command,
+  re-asks with the candidates narrowed, or withdraws it ("no"); a correction re-does the last command on
+  another object.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+from typing import Callable
+
+from common.language import ANY_OBJECT, label_matches
+from common.schema import Location, Transcript
+from services.fusion import describe
+from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
+from services.fusion.outputs import Output, Outputs
+from services.fusion.parse import Motion, ObjectPhrase, Utterance
+from services.fusion.window import Context
+
+
+@dataclass
+class Draft:
+    """A command that is ready except for the person's answer."""
+    intent: str
+    text: str
+    target: SceneObject | None = None
+    location: Location | None = None
+    place: str | None = None
+    motion: Motion | None = None
+
+
+@dataclass
+class LastCommand:
+    """The latest command that acted on an object: "no, the other one" corrects it."""
+    intent: str
+    text: str
+    target: SceneObject
+    phrase: ObjectPhrase
+    place: str | None
+    expires: float  # source time
+
+
+@dataclass
+class Question:
+    """The open clarification."""
+    clarification_id: str
+    reason: str
+    draft: Draft
+    phrase: ObjectPhrase
+    candidates: list[SceneObject]
+    expires: float  # source time
+    question: str
+
+
+class Dialogue:
+    def __init__(self, outputs: Outputs, timeout: float, count: Callable[[str], None], log: logging.Logger):
+        self.outputs = outputs
+        self.timeout = timeout  # s of source time a question (or a command to correct) stays open
+        self.count = count
+        self.log = log
+        self.question: Question | None = None
+        self.last: LastCommand | None = None
+
+    # -- transitions without output ------------------------------------------------
+    def close(self) -> None:
+        """A stop closes the question."""
+        self.question = None
+
+    def supersede(self) -> None:
+        """A new command replaces the question and is no longer a correction of the last one."""
+        self.question = None
+        self.last = None
+
+    def expire(self, said_at: float) -> None:
+        """What is older than the timeout at `said_at` (an utterance's start) is over."""
+        if self.question is not None and said_at > self.question.expires:
+            self.count("dialogue_expired")
+            self.question = None
+        if self.last is not None and said_at > self.last.expires:
+            self.last = None
+
+    def acted(self, t: Transcript, intent: str, text: str, target: SceneObject, phrase: ObjectPhrase,
+              place: str | None) -> None:
+        """A command acted on `target`: "no, the other one" may follow."""
+        self.last = LastCommand(intent, text, target, phrase, place, t.end + self.timeout)
+
+    # -- asking ---------------------------------------------------------------------
+    def clarify(self, t: Transcript, u: Utterance, ctx: Context, choice: Choice, draft: Draft,
+                heard: bool = False) -> Output:
+        """Ask about the object of `draft`: which one (ambiguous, conflict), did you say (low confidence), or what
+        (not found: the answer may pick any visible object)."""
+        if choice.kind == "conflict":
+            question = describe.conflict_question(u.obj, choice.speech_best, choice.gesture_best)
+            candidates = [c.obj for c in choice.candidates]
+        elif choice.kind == "ambiguous":
+            question = describe.ambiguous_question(u.obj, list(choice.candidates))
+            candidates = [c.obj for c in choice.candidates]
+        elif choice.kind == "low_confidence":
+            question = describe.confirm_question(t.text, None if heard else choice.winner)
+            candidates = [c.obj for c in choice.candidates]
+        else:
+            visible = sorted(ctx.objects, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
+            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing)
+            candidates = visible
+        return self._ask(t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates,
+                         question)
+
+    def clarify_place(self, t: Transcript, u: Utterance, draft: Draft) -> Output:
+        question = "Where do you mean? Please point at the place." if u.deictic_place or not u.dest_obj else \
+            f"I can't see the {u.dest_obj.describe()}. Where should I put it?"
+        return self._ask(t, "not_found", draft, ObjectPhrase(), [], [], question)
+
+    def _ask(self, t: Transcript, reason: str, draft: Draft, phrase: ObjectPhrase, shown: list[SceneObject],
+             candidates: list[SceneObject], question: str) -> Output:
+        out = self.outputs.clarification(t, reason, question, shown)
+        self.question = Question(out.sample.id, reason, draft, phrase, candidates, t.end + self.timeout, question)
+        self.count(f"clarification_{reason}")
+        return out
+
+    def _reask(self, t: Transcript, q: Question, candidates: list[SceneObject]) -> Output:
+        self.count("dialogue_unresolved")
+        scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
+        question = describe.ambiguous_question(q.phrase, scored) if len(candidates) > 1 else q.question
+        out = self.outputs.clarification(t, q.reason, question, candidates)
+        self.question = Question(out.sample.id, q.reason, q.draft, q.phrase, candidates, t.end + self.timeout,
+                                 question)
+        return out
+
+    # -- answers and corrections -------------------------------------------------------
+    def reply(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output] | None:
+        """An utterance without an intent: the answer to the open question, a correction of the last command, or
+        None when it is neither."""
+        if self.question is not None and (u.has_content or ctx.pointing is not None):
+            return self._answer(t, u, ctx, self.question)
+        if self.last is not None and (u.other or (u.answer == "deny" and u.obj.specific)):
+            return self._correct_last(t, u, ctx, self.last)
+        return None
+
+    def _answer(self, t: Transcript, u: Utterance, ctx: Context, q: Question) -> list[Output]:
+        if u.other:
+            return self._other_answer(t, u, ctx, q)
+        pointing_answer = u.obj.deictic or (ctx.pointing is not None and not u.obj.specific)
+        if u.answer == "deny" and not u.obj.specific and not pointing_answer:
+            self.question = None
+            self.count("dialogue_cancelled")
+            self.log.info("'%s': the question %s is withdrawn", t.text, q.clarification_id)
+            return []
+        if not u.obj.specific and not pointing_answer:
+            if u.answer == "confirm" and (q.reason == "low_confidence" or len(q.candidates) <= 1):
+                draft = q.draft
+                if draft.target is None and q.candidates:
+                    draft.target = q.candidates[0]
+                return [self._from_draft(t, draft, ctx, f"confirmed by '{t.text}' (question {q.clarification_id})",
+                                         phrase=q.phrase)]
+            return [self._reask(t, q, q.candidates)]
+        pool = q.candidates if q.candidates and q.reason != "not_found" else ctx.objects or q.candidates
+        choice = ctx.choose(u.obj, pool, ctx.pointing, None, check_evidence=False)
+        if choice.kind == "target" and choice.winner is not None:
+            q.draft.target = choice.winner.obj
+            why = f"'{t.text}' answered question {q.clarification_id}: " + describe.explain_target(
+                choice.winner, choice.runner_up, ctx.weights.to_dict(), u.obj, None)
+            return [self._from_draft(t, q.draft, ctx, why, confidence=choice.winner.total, phrase=q.phrase)]
+        return [self._reask(t, q, [c.obj for c in choice.candidates] or q.candidates)]
+
+    def _other_answer(self, t: Transcript, u: Utterance, ctx: Context, q: Question) -> list[Output]:
+        """"The other one" / "not that one": every candidate but the one proposed, pointed at or acted on."""
+        excluded: SceneObject | None = q.draft.target
+        if excluded is None and u.obj.deictic and ctx.pointing is not None and q.candidates:
+            pointed = best_pointed(ctx.pointing, q.candidates)
+            if pointed is not None and (pointed.gesture or 0.0) >= 0.5:
+                excluded = pointed.obj
+        if excluded is None and self.last is not None:
+            excluded = self.last.target
+        pool = q.candidates
+        if len(pool) < 2 and excluded is not None:  # a yes/no question about one object: the others of its kind
+            kind = q.phrase.label if q.phrase.label not in (None, ANY_OBJECT) else excluded.label
+            pool = [o for o in ctx.objects if label_matches(kind, o.label)]
+        remaining = [o for o in pool if excluded is None or o.key != excluded.key]
+        if u.obj.specific:
+            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False) if s.match >= 0.5]
+            remaining = fit or remaining
+        if excluded is not None and len(remaining) == 1:
+            q.draft.target = remaining[0]
+            why = (f"'{t.text}' answered question {q.clarification_id}: not {excluded.id} ({excluded.name()}), "
+                   f"so the other candidate {remaining[0].id} ({remaining[0].name()})")
+            return [self._from_draft(t, q.draft, ctx, why, phrase=q.phrase)]
+        q.draft.target = None
+        return [self._reask(t, q, remaining if excluded is not None and remaining else pool)]
+
+    def _correct_last(self, t: Transcript, u: Utterance, ctx: Context, last: LastCommand) -> list[Output]:
+        """"No, the other one" / "not that one" / "no, the blue one" just after a command: the same command on
+        another object — of the same kind as the one acted on, unless the correction names another kind."""
+        self.last = None
+        self.count("corrected_by_speech")
+        kind = last.phrase.label if last.phrase.label not in (None, ANY_OBJECT) else last.target.label
+        phrase = u.obj if u.obj.label not in (None, ANY_OBJECT) else replace(u.obj, label=kind, deictic=False)
+        pool = [o for o in ctx.objects if o.key != last.target.key and label_matches(phrase.label, o.label)]
+        draft = Draft(last.intent, f"{last.text} / {t.text}", place=last.place)
+        choice = ctx.choose(phrase, pool, None, ctx.ref, check_evidence=False)
+        if choice.kind == "target" and choice.winner is not None:
+            draft.target = choice.winner.obj
+            why = (f"'{t.text}' corrected '{last.text}': not {last.target.id} ({last.target.name()}); "
+                   + describe.explain_target(choice.winner, choice.runner_up, ctx.weights.to_dict(), phrase, None))
+            return [self._from_draft(t, draft, ctx, why, confidence=choice.winner.total, phrase=phrase)]
+        if choice.kind != "ambiguous":
+            choice = Choice("not_found", None, ())
+        return [self.clarify(t, replace(u, obj=phrase), ctx, choice, draft)]
+
+    def _from_draft(self, t: Transcript, draft: Draft, ctx: Context, why: str, confidence: float | None = None,
+                    phrase: ObjectPhrase | None = None) -> Output:
+        """The drafted command, now decided: the question is over."""
+        self.question = None
+        if draft.target is not None:
+            self.acted(t, draft.intent, draft.text, draft.target, phrase or ObjectPhrase(), draft.place)
+        conf = confidence if confidence is not None else (ctx.reliabilities["speech"] or 0.0)
+        return self.outputs.command(t, draft.intent, ctx, confidence=conf, explanation=why,
+                                    text=f"{draft.text} / {t.text}", target=draft.target, location=draft.location,
+                                    gesture="point" if ctx.pointing else None, place=draft.place, motion=draft.motion)

@@ -1,0 +1,96 @@
+"""One transcript's window: the utterance waiting for its inputs (`PendingTranscript`), and what the buffers hold
+for it once it closes (`Context`: the objects in view, the pointing, the modality weights), gathered by `gather`."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+from common.language import DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS
+from common.schema import Detections, Hands, Transcript, Weights
+from services.fusion.evidence import (
+    Pointing, modality_weights, pointing_from_event, pointing_from_hands, select_pointing, speech_reliability,
+    vision_reliability,
+)
+from services.fusion.ground import Choice, SceneObject, choose, scene_objects, score
+from services.fusion.join import WAITED_MODALITIES, Ready, Streams
+from services.fusion.parse import ObjectPhrase, Utterance, word_key
+
+
+@dataclass
+class PendingTranscript:
+    key: str
+    transcript: Transcript
+    utterance: Utterance
+    arrived: float  # wall
+    lo: float
+    hi: float
+
+    @property
+    def order(self) -> tuple[float, float, str]:
+        """Decided in the order spoken: the dialogue sees utterances as the person said them."""
+        return self.transcript.end, self.transcript.stamp, self.transcript.source
+
+
+@dataclass
+class Context:
+    """What the window holds for one transcript, and the rules it is weighed by."""
+    objects: list[SceneObject]
+    detections: list[Detections]
+    pointing: Pointing | None
+    weights: Weights
+    reliabilities: dict[str, float | None]
+    inputs: dict[str, float | None]
+    missing: list[str]
+    ref: float
+    how: Ready  # why the window was closed
+    adaptive: bool  # --weights adaptive
+    margin: float  # the lead a winner needs
+
+    def choose(self, phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, ref: float | None,
+               check_evidence: bool = True) -> Choice:
+        """Score `objects` against the words (and `pointing`) with this window's weights, and decide."""
+        scored = score(phrase, objects, pointing, self.weights, adaptive=self.adaptive, ref=ref)
+        return choose(phrase, scored, margin=self.margin, check_evidence=check_evidence)
+
+
+def ref_time(t: Transcript, u: Utterance) -> float:
+    """When the person meant the object: the deictic word if there is one, else mid-utterance."""
+    if u.deictic:
+        words = DEICTIC_OBJECT_WORDS + DEICTIC_PLACE_WORDS
+        for w in t.words:
+            if word_key(w.word) in words:
+                offset = t.start if w.start < 1e6 <= t.start else 0.0  # relative word times
+                return offset + (w.start + w.end) / 2
+    return (t.start + t.end) / 2
+
+
+def gather(streams: Streams, p: PendingTranscript, how: Ready, *, weights_mode: str, vision_lookback: float,
+           margin: float, log: logging.Logger) -> Context:
+    """The window's evidence: per camera the detections nearest the reference time (looking back
+    `vision_lookback` before the window), the pointing nearest it, each modality's reliability and weight."""
+    t, u = p.transcript, p.utterance
+    ref = ref_time(t, u)
+    detections = []
+    by_key: dict[str, list[Detections]] = {}
+    for key, det in streams.between("vision", p.lo - vision_lookback, p.hi):
+        by_key.setdefault(key, []).append(det)
+    for key in sorted(by_key):
+        detections.append(min(by_key[key], key=lambda d: (abs(d.stamp - ref), d.stamp)))
+    obs = []
+    for _, item in streams.between("gesture", p.lo, p.hi):
+        obs.extend(pointing_from_hands(item) if isinstance(item, Hands) else pointing_from_event(item))
+    pointing = select_pointing(obs, ref)
+    rel = {"speech": speech_reliability(t, u),
+           "vision": vision_reliability(detections) if detections else None,
+           "gesture": pointing.reliability if pointing else None}
+    weights = modality_weights(weights_mode, rel)
+    inputs = {"speech": t.stamp, "vision": max((d.stamp for d in detections), default=None),
+              "gesture": pointing.stamp if pointing else None}
+    missing = [m for m in WAITED_MODALITIES if inputs[m] is None]
+    if log.isEnabledFor(logging.DEBUG):
+        log.debug("window [%.3f, %.3f] of '%s' closed by %s: %d detections, %d pointing observations, "
+                  "watermarks %s", p.lo, p.hi, t.text, how, len(detections), len(obs),
+                  {m: round(streams.watermark(m), 3) for m in WAITED_MODALITIES})
+    return Context(scene_objects(detections), detections, pointing, weights, rel, inputs, missing, ref, how,
+                   adaptive=weights_mode == "adaptive", margin=margin)

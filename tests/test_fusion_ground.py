@@ -1,0 +1,97 @@
+"""Unit tests of fusion's grounding (services/fusion/ground.py): scoring by words and pointing, the choice, the
+pointed location."""
+
+from __future__ import annotations
+
+from common import language as L
+from common.schema import Weights
+from services.fusion.evidence import select_pointing
+from services.fusion.ground import SceneObject, choose, pointing_score, ray_point, score
+from services.fusion.parse import parse
+from tests.scenarios import BASE_STAMP, Obj
+from tests.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
+from tests.test_fusion_evidence import _obs
+
+
+def _scene(objs, quality=1.0):
+    return [SceneObject(o.id, L.canonical_label(o.label), o.label, o.color,
+                        tuple(o.detected().bbox), o.center, o.score, "cam0", 640, 480, BASE_STAMP, quality)
+            for o in objs]
+
+
+def _pointing_at(target, origin=(320.0, 470.0)):
+    d = (target[0] - origin[0], target[1] - origin[1])
+    return select_pointing([_obs(BASE_STAMP + i * 0.1, d) for i in range(5)], BASE_STAMP + 0.2)
+
+
+EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
+
+
+def test_grounding_by_colour_class_and_position():
+    objs = _scene(TWO_CUPS + [Obj("ball", "sports ball", "red", (320, 330))])
+    for text, expected in (("the red cup", "cup_red"), ("the blue one", "cup_blue"), ("the ball", "ball"),
+                           ("the cup on the right", "cup_blue"), ("the left cup", "cup_red")):
+        phrase = parse(text).obj
+        choice = choose(phrase, score(phrase, objs, None, EVEN))
+        assert choice.kind == "target" and choice.winner.obj.id == expected, (text, choice)
+
+
+def test_grounding_two_red_candies_is_ambiguous_and_unknown_colour_is_not_found():
+    objs = _scene(CANDIES)
+    phrase = parse("the red candy").obj
+    choice = choose(phrase, score(phrase, objs, None, EVEN))
+    assert choice.kind == "ambiguous" and {c.obj.id for c in choice.candidates} == {"candy_01", "candy_02", "candy_03"}
+    phrase = parse("the purple candy").obj
+    assert choose(phrase, score(phrase, objs, None, EVEN)).kind == "not_found"
+
+
+def test_pointing_score_prefers_the_object_on_the_ray_and_ignores_what_is_behind_the_hand():
+    objs = _scene(TWO_CUPS + [Obj("behind", "cup", "green", (320, 479))])
+    p = _pointing_at(BLUE_CUP.center)
+    g = {o.id: pointing_score(p, o)[0] for o in objs}
+    assert g["cup_blue"] > 0.9 and g["cup_red"] < 0.01 and g["behind"] == 0.0
+
+
+def test_conflict_is_resolved_by_the_dominant_side_or_asked():
+    objs = _scene(TWO_CUPS)
+    phrase = parse("the red cup").obj
+    p = _pointing_at(BLUE_CUP.center)
+    clear = choose(phrase, score(phrase, objs, p, Weights(speech=0.35, vision=0.35, gesture=0.3)))
+    assert clear.kind == "conflict"
+    noisy = choose(phrase, score(phrase, objs, p, Weights(speech=0.1, vision=0.45, gesture=0.45)))
+    assert noisy.kind == "target" and noisy.winner.obj.id == "cup_blue" and noisy.overruled == "speech"
+    dark = choose(phrase, score(phrase, _scene(TWO_CUPS, quality=0.05), p, Weights(speech=0.5, vision=0.02,
+                                                                                  gesture=0.48), ref=BASE_STAMP))
+    assert dark.kind == "target" and dark.winner.obj.id == "cup_blue"
+
+
+def test_ray_point_stays_inside_the_image():
+    for target in ((320, 0), (0, 0), (639, 470), (100, 200)):
+        p = _pointing_at(target)
+        x, y = ray_point(p)
+        assert 0 <= x <= 639 and 0 <= y <= 479
+
+
+def test_the_pointing_hand_is_never_its_own_target():
+    """A skin-coloured blob of the pointing finger lies right on the ray; the object beyond it is meant."""
+    from common.schema import DetectedObject, Detections, ImageQuality, Weights
+    from services.fusion.evidence import Pointing
+    from services.fusion.ground import choose, scene_objects, score
+    from services.fusion.parse import parse
+
+    def obj(i, color, cx, cy):
+        return DetectedObject(id=i, label="object", color=color, score=0.95, bbox=[cx - 20, cy - 20, 40, 40],
+                              center=[cx, cy])
+    det = Detections(stamp=10.0, source="v", seq=1, cam="cam0", width=640, height=480,
+                     objects=[obj("finger", "orange", 430, 167), obj("candy", "red", 548, 132)],
+                     quality=ImageQuality(brightness=0.6, contrast=0.5, sharpness=0.6))
+    pointing = Pointing(stamp=10.0, cam="cam0", hand="right", origin=(271.0, 186.0), direction=(0.981, -0.193),
+                        confidence=0.9, stability=1.0, spread_deg=0.0, n=10, width=640, height=480,
+                        hand_box=(60.0, 20.0, 495.0, 400.0))
+    weights = Weights(speech=0.4, vision=0.35, gesture=0.25)
+    phrase = parse("pick up that one").obj
+    ranked = score(phrase, scene_objects([det]), pointing, weights, ref=10.0)
+    assert [c.obj.id for c in ranked][0] == "candy" and ranked[1].gesture == 0.0
+    assert choose(phrase, ranked).kind == "target"
+    without_box = Pointing(**{**pointing.__dict__, "hand_box": None})
+    assert choose(phrase, score(phrase, scene_objects([det]), without_box, weights, ref=10.0)).kind == "ambiguous"

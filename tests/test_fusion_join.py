@@ -1,0 +1,76 @@
+"""Unit tests of fusion's join (services/fusion/join.py): buffers, the readiness policy, liveness; through the core,
+waiting for a live modality until the deadline."""
+
+from __future__ import annotations
+
+from services.fusion.core import Config, FusionCore
+from services.fusion.join import Liveness, Ready, StreamBuffer, Wait, ready
+from tests.scenarios import BASE_STAMP, say, scene
+from tests.scenarios.suite import TWO_CUPS
+
+
+def test_stream_buffer_orders_dedupes_and_stays_bounded():
+    buf = StreamBuffer(horizon=5.0)
+    for s in (3.0, 1.0, 2.0, 2.0):
+        buf.add(s, s)
+    assert buf.stamps == [1.0, 2.0, 3.0]
+    assert buf.add(2.0, "again") == "duplicate"
+    for i in range(1000):
+        buf.add(1000.0 + i * 0.1, i)
+    assert buf.stamps[0] >= buf.watermark - 5.0 and len(buf) <= 51
+    assert buf.add(buf.watermark - 6.0, "old") == "late"
+    restart = buf.watermark - 500.0
+    verdicts = [buf.add(restart + 0.1 * i, "replay restarted") for i in range(buf.reset_run)]
+    assert verdicts == ["late"] * (buf.reset_run - 1) + ["reset"] and len(buf) == 1
+    assert buf.add(restart + 1.0, "new timeline") == "added" and buf.watermark == restart + 1.0
+
+
+def test_stream_buffer_keeps_what_a_pending_window_needs():
+    buf = StreamBuffer(horizon=5.0)
+    buf.add(1.0, "needed")
+    buf.add(100.0, "jump", keep_from=0.5)
+    assert buf.between(0.0, 2.0) == ["needed"]
+
+
+def test_ready_waits_for_live_watermarks_or_the_deadline():
+    marks = {"vision": 10.0, "gesture": 9.0}
+    assert ready(9.5, 0.0, 0.1, 0.5, marks, ["vision", "gesture"]) == Wait(behind=("gesture",))
+    assert ready(9.5, 0.0, 0.1, 0.5, marks, ["vision"]) == Ready("watermarks")  # gesture not live: not waited for
+    why = ready(9.5, 0.0, 0.6, 0.5, marks, ["vision", "gesture"])
+    assert why == Ready("deadline", behind=("gesture",)) and "gesture" in str(why)
+
+
+def test_liveness_token_or_recent_samples():
+    live = Liveness(recent_s=2.0)
+    assert not live.live("vision", 100.0)
+    live.arrived("vision", 100.0)
+    assert live.live("vision", 101.0) and not live.live("vision", 103.0)
+    live.token("vision", "a", True)
+    assert live.live("vision", 500.0)
+    live.token("vision", "a", False)
+    assert not live.live("vision", 500.0)
+
+
+def test_a_vision_token_makes_fusion_wait_until_the_deadline():
+    core = FusionCore(Config(max_wait=0.5), "fusion/test")
+    core.on_liveliness("vision", "v1", True)
+    key, t = say(0.0, 1.0, "hello").build(BASE_STAMP)
+    core.on_transcript(key, t, 1000.0)
+    assert core.tick(1000.1) == []
+    (out,) = core.tick(1000.6)
+    assert out.sample.intent == "greet" and out.sample.inputs["vision"] is None
+    core.on_liveliness("vision", "v1", False)
+    key, t = say(5.0, 6.0, "hello").build(BASE_STAMP)
+    core.on_transcript(key, t, 1001.0)
+    assert len(core.tick(1001.0)) == 1  # the token is gone: no waiting
+
+
+def test_deadline_decides_with_what_is_there_and_says_what_is_missing():
+    core = FusionCore(Config(max_wait=0.5), "fusion/test")
+    for step in scene(TWO_CUPS, -1.5, 0.5):  # vision stalls before the utterance ends
+        core.on_detections(*step.build(BASE_STAMP), 1000.0)
+    key, t = say(0.0, 1.5, "pick up the red cup").build(BASE_STAMP)
+    core.on_transcript(key, t, 1000.0)
+    assert core.tick(1000.2) == []
+    (out,) = core.tick(1000.6)
+    assert out.sample.target.id == "cup_red" and "deadline" in out.sample.explanation
