@@ -35,12 +35,28 @@ examples:
 """
 
 
+# The stack, in start order after the router: each service runs as `python -m services.<name>`. `hri up`, the demo
+# and docker-compose.yml start this set; tests/test_stack.py fails when they disagree on the services, their
+# commands and flags, or the router's port.
+STACK = ("camera", "vision", "gesture", "speech", "fusion")
+ROUTER_ARGV = ["common.cli", "router", "--listen"]  # + the endpoint
+
+
+def service_module(name: str) -> str:
+    return f"services.{name}"
+
+
 @dataclass
 class ServiceSpec:
     name: str
-    argv: list[str]
+    argv: list[str]  # the module (service_module(name)), then its flags
     stdin: int | IO | None = subprocess.DEVNULL
     env: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.name not in STACK or self.argv[:1] != [service_module(self.name)]:
+            raise ValueError(f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(STACK)}: "
+                             f"common/launcher.py STACK) runs as `python -m {service_module(self.name)}`")
 
 
 def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
@@ -67,7 +83,7 @@ def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
         speech = ["--input", args.speech_input]
         stdin: int | IO | None = subprocess.DEVNULL
         if args.speech_input == "text":
-            speech = ["--backend", "text", "--input", "text"]
+            speech = ["--backend", "text"]  # reads stdin; the speech service has no --input text
             stdin = None  # the terminal's stdin goes to the speech service
         elif args.speech_input == "wav":
             if not args.wav:
@@ -144,7 +160,7 @@ class Launcher:
 
     def start(self, specs: list[ServiceSpec], live_timeout: float = 60.0) -> None:
         if self.start_router:
-            self._start("router", ["common.cli", "router", "--listen", self.endpoint])
+            self._start("router", [*ROUTER_ARGV, self.endpoint])
         self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure)
         for spec in specs:
             self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)

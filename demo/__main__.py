@@ -83,6 +83,12 @@ def speech_audio(text: str) -> Path:
     return path
 
 
+def camera_spec(scene: str) -> ServiceSpec:
+    """The camera showing one of the script's photos (a new camera service per scene)."""
+    return ServiceSpec("camera", ["services.camera", "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10",
+                                  "--loop"])
+
+
 def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
     """Stream a WAV as AudioChunks in real time; each chunk stamped with its first sample's time."""
     with wave.open(str(path), "rb") as w:
@@ -206,9 +212,7 @@ def main() -> int:
                 latest_detections.clear()
                 hands_seen.clear()
                 _drain(results)  # a gesture-only result may come while the new scene settles: keep only those
-                camera = launcher.start_service(ServiceSpec(
-                    "camera", ["services.camera", "--source", str(SCENES / step.scene), "--cam", CAM,
-                               "--fps", "10", "--loop"]))
+                camera = launcher.start_service(camera_spec(step.scene))
                 shown = step.scene
                 deadline = time.monotonic() + 30
                 while not latest_detections and time.monotonic() < deadline:
