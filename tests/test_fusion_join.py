@@ -4,7 +4,7 @@ waiting for a live modality until the deadline."""
 from __future__ import annotations
 
 from services.fusion.core import Config, FusionCore
-from services.fusion.join import Liveness, Ready, StreamBuffer, Wait, ready
+from services.fusion.join import Join, Liveness, Ready, StreamBuffer, Wait, ready
 from tests.scenarios import BASE_STAMP, say, scene
 from tests.scenarios.suite import TWO_CUPS
 
@@ -74,3 +74,34 @@ def test_deadline_decides_with_what_is_there_and_says_what_is_missing():
     assert core.tick(1000.2) == []
     (out,) = core.tick(1000.6)
     assert out.sample.target.id == "cup_red" and "deadline" in out.sample.explanation
+
+
+class _Window:
+    def __init__(self, lo, hi, arrived, order):
+        self.lo, self.hi, self.arrived, self.order = lo, hi, arrived, order
+
+
+def test_join_decides_windows_in_order_and_a_waiting_head_holds_back_the_later_ones():
+    join = Join(horizon=30.0, lookback=2.0, max_wait=0.5, live_recent_s=2.0)
+    later, first = _Window(5.0, 6.0, 100.0, 2), _Window(1.0, 2.0, 100.0, 1)
+    join.open(later)
+    join.open(first)
+    join.add("vision", "cam0", 5.0, "frame", 100.0)  # past the first window's end, not the second's
+    join.add("gesture", "cam0", 1.5, "hand", 100.0)  # behind the first window's end
+    assert join.due(100.1) == []  # the first waits for gesture, so the second (ready or not) waits too
+    join.add("gesture", "cam0", 7.0, "hand", 100.2)
+    assert join.due(100.2) == [(first, Ready("watermarks"))]
+    assert join.due(100.7) == [(later, Ready("deadline", behind=("vision",)))]  # vision never reached 6.0
+    assert len(join) == 0
+
+
+def test_join_buffers_keep_what_a_pending_window_needs_and_no_more():
+    join = Join(horizon=5.0, lookback=2.0, max_wait=0.5, live_recent_s=2.0)
+    join.add("vision", "cam0", 1.0, "needed", 100.0)
+    join.open(_Window(2.5, 3.0, 100.0, 1))
+    assert join.obsolete_before() == 0.5  # the window's start less the vision lookback
+    join.add("vision", "cam0", 50.0, "far later", 100.0)  # 1.0 is beyond the horizon, yet still needed
+    assert join.streams.between("vision", 0.5, 3.0) == [("cam0", "needed")]
+    assert [w for w, _ in join.due(101.0)] and join.obsolete_before() is None
+    join.add("vision", "cam0", 51.0, "next", 101.0)  # the window is decided: the horizon alone prunes
+    assert join.streams.between("vision", 0.0, 3.0) == []

@@ -28,3 +28,27 @@ def test_named_places_are_published_in_the_command():
     assert cmd.intent == "go_to" and cmd.place == "kitchen" and cmd.location is None
     out = run_in_process(Scenario("no place", [say(0.0, 1.2, "come here")], []))
     assert out[0].place is None
+
+
+def test_one_builder_for_commands_and_questions():
+    from common.schema import Clarification, Location
+    from services.fusion.ground import MAX_CANDIDATES
+    from services.fusion.outputs import Outputs
+    from tests.test_fusion_dialogue import utterance, window
+    from tests.test_fusion_ground import _scene
+    from tests.scenarios.suite import CANDIES
+    build = Outputs("fusion/test")
+    t, _ = utterance(0.0, "put it there")
+    ctx = window(_scene(CANDIES))
+    out = build.command(t, "put_down", ctx, confidence=1.7, explanation="why", location=Location(x=12.0, y=34.0,
+                                                                                                 cam="cam0"))
+    cmd = out.sample
+    assert cmd.id == stable_id("cmd", t.source, t.stamp, t.mic) and cmd.confidence == 1.0 and not out.realtime
+    assert cmd.location == Location(x=12.0, y=34.0, cam="cam0") and cmd.weights == ctx.weights
+    assert "Location: pixel (12, 34) in camera cam0" in cmd.prompt and "Missing inputs: gesture" in cmd.prompt
+    spoken_stop = build.command(t, "stop", None, confidence=0.8, explanation="stop", realtime=True)
+    assert spoken_stop.realtime and spoken_stop.sample.weights.speech == 1.0
+    assert spoken_stop.sample.inputs == {"speech": t.stamp, "vision": None, "gesture": None}
+    question = build.clarification(t, "ambiguous", "Which one?", ctx.objects).sample
+    assert isinstance(question, Clarification) and question.id == stable_id("clr", t.source, t.stamp, t.mic)
+    assert len(ctx.objects) > MAX_CANDIDATES and len(question.candidates) == MAX_CANDIDATES

@@ -1,0 +1,84 @@
+"""Unit tests of fusion's dialogue (services/fusion/dialogue.py) as a state machine, without the join: asking opens
+the question, an answer resolves it into the drafted command, "no" withdraws it, time closes it, a correction
+re-does the last command. (The scenario suite's dialogue group runs the same through the whole core.)"""
+
+from __future__ import annotations
+
+import logging
+
+from common.schema import Clarification, FusedCommand
+from services.fusion.dialogue import Dialogue, Draft
+from services.fusion.join import Ready
+from services.fusion.outputs import Outputs
+from services.fusion.parse import parse
+from services.fusion.window import Context
+from tests.scenarios import BASE_STAMP, say
+from tests.scenarios.suite import TWO_CUPS
+from tests.test_fusion_ground import EVEN, _scene
+
+
+def window(objects) -> Context:
+    return Context(objects, [], None, EVEN, {"speech": 0.9, "vision": 0.9, "gesture": None},
+                   {"speech": BASE_STAMP, "vision": BASE_STAMP, "gesture": None}, ["gesture"], BASE_STAMP,
+                   Ready("watermarks"), adaptive=True, margin=0.1)
+
+
+def utterance(start: float, text: str):
+    _, t = say(start, start + 1.0, text).build(BASE_STAMP)
+    return t, parse(t.text)
+
+
+def asked_which_cup(counts: list[str]) -> tuple[Dialogue, Context, Clarification]:
+    dialogue = Dialogue(Outputs("fusion/test"), timeout=10.0, count=counts.append, log=logging.getLogger("test"))
+    ctx = window(_scene(TWO_CUPS))
+    t, u = utterance(0.0, "pick up the cup")
+    choice = ctx.choose(u.obj, ctx.objects, None, ctx.ref)
+    assert choice.kind == "ambiguous"
+    out = dialogue.clarify(t, u, ctx, choice, Draft("pick_up", t.text))
+    assert dialogue.question is not None and dialogue.question.clarification_id == out.sample.id
+    return dialogue, ctx, out.sample
+
+
+def test_an_answer_resolves_the_question_into_the_drafted_command():
+    counts: list[str] = []
+    dialogue, ctx, asked = asked_which_cup(counts)
+    assert asked.reason == "ambiguous" and {c.id for c in asked.candidates} == {"cup_red", "cup_blue"}
+    (out,) = dialogue.reply(*utterance(2.0, "the blue one"), ctx)
+    assert isinstance(out.sample, FusedCommand) and out.sample.intent == "pick_up"
+    assert out.sample.target.id == "cup_blue" and asked.id in out.sample.explanation
+    assert dialogue.question is None and dialogue.last.target.id == "cup_blue"  # "no, the other one" may follow
+    assert counts == ["clarification_ambiguous"]
+
+
+def test_no_withdraws_the_question_and_time_closes_it():
+    counts: list[str] = []
+    dialogue, ctx, _ = asked_which_cup(counts)
+    assert dialogue.reply(*utterance(2.0, "no"), ctx) == [] and dialogue.question is None
+    dialogue, ctx, _ = asked_which_cup(counts)
+    dialogue.expire(5.0 + BASE_STAMP)
+    assert dialogue.question is not None
+    dialogue.expire(12.0 + BASE_STAMP)  # more than 10 s after the question's utterance ended
+    assert dialogue.question is None and dialogue.reply(*utterance(12.0, "the blue one"), ctx) is None
+    assert counts == ["clarification_ambiguous", "dialogue_cancelled", "clarification_ambiguous",
+                      "dialogue_expired"]
+
+
+def test_an_answer_that_does_not_decide_asks_again_and_a_correction_redoes_the_last_command():
+    counts: list[str] = []
+    dialogue, ctx, asked = asked_which_cup(counts)
+    (again,) = dialogue.reply(*utterance(2.0, "yes"), ctx)  # a yes to a which-question says nothing
+    assert isinstance(again.sample, Clarification) and again.sample.id != asked.id
+    assert dialogue.question.clarification_id == again.sample.id
+    (cmd,) = dialogue.reply(*utterance(3.0, "the red one"), ctx)
+    assert cmd.sample.target.id == "cup_red"
+    (fixed,) = dialogue.reply(*utterance(4.0, "no, the other one"), ctx)
+    assert fixed.sample.intent == "pick_up" and fixed.sample.target.id == "cup_blue"
+    assert counts == ["clarification_ambiguous", "dialogue_unresolved", "corrected_by_speech"]
+
+
+def test_a_place_question_has_no_candidates():
+    dialogue = Dialogue(Outputs("fusion/test"), timeout=10.0, count=lambda n: None, log=logging.getLogger("test"))
+    t, u = utterance(0.0, "go there")
+    out = dialogue.clarify_place(t, u, Draft("go_to", t.text))
+    assert out.sample.reason == "not_found" and out.sample.candidates == [] and "point" in out.sample.question
+    assert dialogue.question.reason == "not_found" and dialogue.question.candidates == []
