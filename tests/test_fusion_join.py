@@ -4,7 +4,7 @@ waiting for a live modality until the deadline."""
 from __future__ import annotations
 
 from services.fusion.core import Config, FusionCore
-from services.fusion.join import Join, Liveness, Ready, StreamBuffer, Wait, ready
+from services.fusion.join import Join, Liveness, Ready, SeenOnce, StreamBuffer, Wait, ready
 from tests.scenarios import BASE_STAMP, say, scene
 from tests.scenarios.suite import TWO_CUPS
 
@@ -105,3 +105,12 @@ def test_join_buffers_keep_what_a_pending_window_needs_and_no_more():
     assert [w for w, _ in join.due(101.0)] and join.obsolete_before() is None
     join.add("vision", "cam0", 51.0, "next", 101.0)  # the window is decided: the horizon alone prunes
     assert join.streams.between("vision", 0.0, 3.0) == []
+
+
+def test_seen_once_drops_a_redelivered_transcript_and_forgets_beyond_the_horizon():
+    seen = SeenOnce(horizon=30.0, cap=3)
+    assert seen.first(("speech/mic0", 10.0), 10.0) and not seen.first(("speech/mic0", 10.0), 10.0)
+    assert seen.first(("speech/mic0", 50.0), 50.0) and len(seen) == 1  # 10.0 is 40 s behind: forgotten
+    for stamp in (51.0, 52.0, 53.0):
+        assert seen.first(("speech/mic0", stamp), stamp)
+    assert len(seen) == 3 and seen.first(("speech/mic0", 50.0), 53.0)  # the cap pushed the oldest out

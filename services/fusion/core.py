@@ -11,7 +11,6 @@ corrections), `outputs` (the FusedCommand / Clarification builder), `ground` (wh
 
 from __future__ import annotations
 
-import collections
 import logging
 from dataclasses import dataclass, replace
 from typing import Callable
@@ -21,7 +20,7 @@ from services.fusion import describe
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
-from services.fusion.join import Join, Ready
+from services.fusion.join import Join, Ready, SeenOnce
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance, parse
 from services.fusion.window import Context, PendingTranscript, gather
@@ -62,7 +61,7 @@ class FusionCore:
         self.gestures = Gestures(config.gesture_min_score, config.episode_gap, config.horizon)
         self.outputs = Outputs(source)
         self.dialogue = Dialogue(self.outputs, config.dialogue_timeout, self.count, self.log)
-        self.seen_transcripts: collections.OrderedDict[tuple[str, float], float] = collections.OrderedDict()
+        self.seen_transcripts = SeenOnce(config.horizon)
 
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
@@ -101,14 +100,9 @@ class FusionCore:
         if not t.final:
             self.count("partial_ignored")
             return []
-        ident = (t.source, t.stamp)
-        if ident in self.seen_transcripts:
+        if not self.seen_transcripts.first((t.source, t.stamp), t.stamp):
             self.count("duplicate")
             return []
-        self.seen_transcripts[ident] = t.stamp
-        while self.seen_transcripts and (len(self.seen_transcripts) > 1024 or next(
-                iter(self.seen_transcripts.values())) < t.stamp - self.cfg.horizon):
-            self.seen_transcripts.popitem(last=False)
         u = parse(t.text)
         if u.intent == "stop":  # no window to wait for: stop now
             self.dialogue.close()

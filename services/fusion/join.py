@@ -4,6 +4,7 @@
   time horizon behind its own watermark and by a hard item cap, so memory stays flat. What is late and
   when a stream that went back in time is followed again are the common stamp rules (`common/stamps.py`,
   with the horizon as the reordering tolerance); future stamps never get here (the runner rejects them).
+- `SeenOnce`: duplicates of what is not buffered (a transcript delivered twice).
 - `Liveness`: which modalities count as live (liveliness token present, or a sample arrived within
   `recent_s` of wall time); `Streams.watermark` is the latest stamp seen per modality.
 - `ready()`, the policy: a window can be decided (`Ready`, by watermarks or by the deadline, saying which
@@ -16,6 +17,7 @@
 from __future__ import annotations
 
 import bisect
+import collections
 from dataclasses import dataclass, field
 from typing import Any, Generic, Iterable, Literal, Protocol, TypeVar
 
@@ -113,6 +115,28 @@ class Streams:
 
     def size(self) -> int:
         return sum(len(b) for per_key in self.buffers.values() for b in per_key.values())
+
+
+class SeenOnce:
+    """Samples that are not buffered (transcripts open windows instead) are deduplicated by their ident: the
+    idents seen within `horizon` of source time, at most `cap` of them."""
+
+    def __init__(self, horizon: float, cap: int = 1024):
+        self.horizon = horizon
+        self.cap = cap
+        self.seen: collections.OrderedDict[Any, float] = collections.OrderedDict()
+
+    def first(self, ident: Any, stamp: float) -> bool:
+        """True the first time `ident` comes; False for a duplicate."""
+        if ident in self.seen:
+            return False
+        self.seen[ident] = stamp
+        while self.seen and (len(self.seen) > self.cap or next(iter(self.seen.values())) < stamp - self.horizon):
+            self.seen.popitem(last=False)
+        return True
+
+    def __len__(self) -> int:
+        return len(self.seen)
 
 
 class Liveness:
