@@ -297,8 +297,6 @@ def ray_point(p: Pointing, reach: float = LOCATION_REACH) -> tuple[float, float]
     return round(x, 1), round(y, 1)
 
 
-
-
 def best_pointed(p: Pointing, objects: list[SceneObject]) -> Scored | None:
     """The object the ray points at best, by the gesture alone (None: no objects)."""
     ranked = score(ObjectPhrase(), objects, p, GESTURE_ONLY)
