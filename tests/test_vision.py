@@ -211,7 +211,7 @@ def test_decode_undoes_the_letterbox_and_suppresses_duplicates():
         (320, 320, 100, 50, 1, 0.7),   # other class at the same place: kept
         (100, 500, 40, 40, 0, 0.2),    # below the threshold
     ])
-    found = decode(pred, Letterbox(0.5, 0, 160), (1280, 640), conf_threshold=0.35, iou_threshold=0.45)
+    found = decode(pred, Letterbox(0.5, 0, 160), (1280, 640), conf_threshold=0.35, iou_threshold=0.45, classes=3)
     assert [(c, round(s, 2)) for c, s, _ in found] == [(2, 0.9), (1, 0.7)]
     assert np.allclose(found[0][2], (540, 270, 200, 100))
     transposed = decode(pred.transpose(0, 2, 1), Letterbox(0.5, 0, 160), (1280, 640), 0.35, 0.45, classes=3)
