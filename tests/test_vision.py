@@ -208,7 +208,8 @@ def test_decode_undoes_the_letterbox_and_suppresses_duplicates():
     pred = planted([
         (320, 320, 100, 50, 2, 0.9),   # kept
         (322, 321, 100, 50, 2, 0.8),   # same class, overlaps: suppressed
-        (320, 320, 100, 50, 1, 0.7),   # other class at the same place: kept
+        (360, 320, 100, 50, 1, 0.7),   # other class, partly behind it (IoU 0.43): kept
+        (321, 320, 100, 50, 0, 0.6),   # other class, the same box: one object with two labels, the best stays
         (100, 500, 40, 40, 0, 0.2),    # below the threshold
     ])
     found = decode(pred, Letterbox(0.5, 0, 160), (1280, 640), conf_threshold=0.35, iou_threshold=0.45, classes=3)

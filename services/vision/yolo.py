@@ -10,7 +10,8 @@ read from the model's output shape (or given with `--family`) and fixes pre- and
 | `yolov8` (also v11) | 1×(4+C)×N (or 1×N×(4+C)) | cx, cy, w, h in input px | cls | RGB 0–1, letterbox centred |
 
 Letterbox: resize keeping the aspect ratio, pad with grey 114. Post-processing keeps boxes whose best class
-score reaches `conf_threshold`, maps them back to the frame, clips, and runs class-aware NMS at `iou_threshold`.
+score reaches `conf_threshold`, maps them back to the frame, clips, and runs class-aware NMS at `iou_threshold`,
+then drops a box of another class that overlaps a better one at IoU ≥ 0.7 (one object, two labels).
 A model whose outputs fit none of the families is a ModelError naming the shapes it has.
 """
 
@@ -27,6 +28,7 @@ from common.language import COCO_LABELS
 COCO_NAMES = COCO_LABELS  # the 80 COCO classes in the standard index order (0 person ... 79 toothbrush)
 STRIDES = (8, 16, 32)
 FAMILIES = ("yolox", "yolov5", "yolov8")
+SAME_OBJECT_IOU = 0.7  # boxes of different classes overlapping this much are one object: the best label stays
 
 
 class ModelError(RuntimeError):
@@ -193,14 +195,18 @@ def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_
     x2 = np.clip((cx + bw / 2 - lb.pad_x) / lb.scale, 0, width)
     y2 = np.clip((cy + bh / 2 - lb.pad_y) / lb.scale, 0, height)
     xyxy = np.stack([x1, y1, x2, y2], axis=1)
-    out = []
-    for c in np.unique(cls):
+    kept = []
+    for c in np.unique(cls):  # class by class: a cup does not suppress the bottle partly behind it
         idx = np.flatnonzero(cls == c)
-        for k in nms(xyxy[idx], score[idx], iou_threshold):
-            i = idx[k]
-            a, b, c2, d = (float(v) for v in xyxy[i])
-            if c2 > a and d > b:
-                out.append((int(c), float(score[i]), (a, b, c2 - a, d - b)))
+        kept += [int(idx[k]) for k in nms(xyxy[idx], score[idx], iou_threshold)]
+    kept = np.array(kept, np.int64)
+    # across classes only near-identical boxes: one object the model calls both cup (0.30) and bottle (0.25)
+    kept = kept[nms(xyxy[kept], score[kept], SAME_OBJECT_IOU)]
+    out = []
+    for i in kept:
+        a, b, c2, d = (float(v) for v in xyxy[i])
+        if c2 > a and d > b:
+            out.append((int(cls[i]), float(score[i]), (a, b, c2 - a, d - b)))
     out.sort(key=lambda f: -f[1])
     return out
 
