@@ -218,3 +218,17 @@ def test_object_color_on_a_small_object_in_a_box_of_table():
     x, y, w, h = (int(v) for v in box)
     assert color_name(cv2.cvtColor(img[y:y + h, x:x + w], cv2.COLOR_BGR2HSV))[0] == "green"
     assert object_color(img, box) == "red"
+
+
+def test_hri_up_passes_the_model_labels_and_extra_flags_to_vision():
+    import argparse
+
+    from common.launcher import add_up_arguments, services_from_args
+    p = argparse.ArgumentParser()
+    add_up_arguments(p)
+    args = p.parse_args(["--camera", "none", "--vision-backend", "onnx", "--model", "/models/yolox_nano.onnx",
+                         "--vision-labels", "classes.txt", "--vision-arg=--conf=0.4", "--speech-input", "none"])
+    args.camera = None
+    (vision,) = [s for s in services_from_args(args) if s.name == "vision"]
+    assert vision.argv == ["services.vision", "--backend", "onnx", "--model", "/models/yolox_nano.onnx",
+                           "--labels", "classes.txt", "--conf=0.4"]
