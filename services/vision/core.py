@@ -17,31 +17,36 @@ from services.vision.yolo import YoloDetector
 # Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
 # box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more
 # frequent inside the box than in the ring are the object's; the colour most of those pixels have names it.
-COLOR_SIDE = 48     # px: the box is scaled so that its longer side is at most this (cheap, and enough for a hue)
+COLOR_SIDE = 48     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
 RING = 0.25         # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
 
 
+_HUE_BIN = (np.arange(256) // 10 * 2).astype(np.uint8)  # hue -> 2 × (hue // 10)
+
+
 def _colour_bins(hsv: np.ndarray) -> np.ndarray:
     """Per pixel: 2 × (hue // 10) + (saturation ≥ 150) for chromatic pixels (0–35); 36 dark, 37 grey, 38 white."""
-    h, s, v = (hsv[..., k].astype(np.int32) for k in range(3))
-    bins = (h // 10) * 2 + (s >= 150)
-    bins = np.where(s < ACHROMATIC_SATURATION, np.where(v >= WHITE_VALUE, 38, 37), bins)
-    return np.where(v < DARK_VALUE, 36, bins)
+    h, s, v = cv2.split(hsv)
+    bins = _HUE_BIN[h] + (s >= 150)
+    achromatic = s < ACHROMATIC_SATURATION
+    bins[achromatic] = np.where(v[achromatic] >= WHITE_VALUE, 38, 37)
+    bins[v < DARK_VALUE] = 36
+    return bins
 
 
 def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """(HSV pixels of the box scaled to COLOR_SIDE, boolean mask of the object's pixels among them)."""
+    """(HSV of the box and the ring around it, every step-th pixel so that the box's longer side is about
+    COLOR_SIDE; boolean mask of the object's own pixels among them)."""
     frame_h, frame_w = bgr.shape[:2]
     x, y, w, h = bbox
     x0, y0 = int(max(0, x - RING * w)), int(max(0, y - RING * h))
     x1, y1 = int(min(frame_w, np.ceil(x + w + RING * w))), int(min(frame_h, np.ceil(y + h + RING * h)))
-    crop = bgr[y0:y1, x0:x1]
-    if crop.size == 0:
+    step = max(1, int(max(w, h) // COLOR_SIDE))  # every step-th pixel: enough for a histogram, and cheap
+    small = bgr[y0:y1:step, x0:x1:step]
+    if small.size == 0:
         return np.zeros((0, 3), np.uint8), np.zeros(0, bool)
-    s = min(1.0, COLOR_SIDE / max(w, h, 1.0))
-    small = cv2.resize(crop, (max(1, round(crop.shape[1] * s)), max(1, round(crop.shape[0] * s))),
-                       interpolation=cv2.INTER_AREA) if s < 1.0 else crop
+    s = 1.0 / step
     hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
     bins = _colour_bins(hsv)
     inbox = np.zeros(bins.shape, bool)

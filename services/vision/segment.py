@@ -205,20 +205,24 @@ def merge_slivers(found: list[Blob], share: float, sliver_area: float) -> list[B
     kept one's or a short side under `sliver_area` of its short side. The merged blob has the union box and both
     hue histograms. A blob of a distant hue, or as big as the other, is another object and stays."""
     kept: list[Blob] = []
+    names: list[str] = []  # hue name of each kept blob
     for blob in sorted(found, key=lambda b: -b.area):
         name = hue_name(blob.hist)[0]
-        for k in kept:
-            kb, b = k.detection.bbox, blob.detection.bbox
-            if (same_or_neighbour_hue(name, hue_name(k.hist)[0]) and overlap_of_smaller(b, kb) > share
+        b = blob.detection.bbox
+        for j, k in enumerate(kept):
+            kb = k.detection.bbox
+            if (same_or_neighbour_hue(name, names[j]) and overlap_of_smaller(b, kb) > share
                     and (blob.area < sliver_area * k.area or min(b[2:]) < sliver_area * min(kb[2:]))):
                 x0, y0 = min(kb[0], b[0]), min(kb[1], b[1])
                 x1, y1 = max(kb[0] + kb[2], b[0] + b[2]), max(kb[1] + kb[3], b[1] + b[3])
                 k.detection = Detection("", None, 0.0, (x0, y0, x1 - x0, y1 - y0))
                 k.area += blob.area
                 k.hist = k.hist + blob.hist
+                names[j] = hue_name(k.hist)[0]
                 break
         else:
             kept.append(blob)
+            names.append(name)
     return kept
 
 

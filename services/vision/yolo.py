@@ -17,6 +17,7 @@ A model whose outputs fit none of the families is a ModelError naming the shapes
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -79,23 +80,14 @@ def letterbox(bgr: np.ndarray, size: int | tuple[int, int], pre: Preprocess = Pr
     return tensor, Letterbox(scale, left, top)
 
 
-def nms(boxes: np.ndarray, scores: np.ndarray, iou_threshold: float) -> list[int]:
-    """Indices kept by greedy non-maximum suppression; boxes are N×4 x1,y1,x2,y2."""
-    order = np.argsort(-scores, kind="stable")
-    keep = []
-    areas = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
-    while order.size:
-        i = order[0]
-        keep.append(int(i))
-        rest = order[1:]
-        xx1 = np.maximum(boxes[i, 0], boxes[rest, 0])
-        yy1 = np.maximum(boxes[i, 1], boxes[rest, 1])
-        xx2 = np.minimum(boxes[i, 2], boxes[rest, 2])
-        yy2 = np.minimum(boxes[i, 3], boxes[rest, 3])
-        inter = np.clip(xx2 - xx1, 0, None) * np.clip(yy2 - yy1, 0, None)
-        iou = inter / (areas[i] + areas[rest] - inter + 1e-9)
-        order = rest[iou < iou_threshold]
-    return keep
+def nms(xyxy: np.ndarray, scores: np.ndarray, iou_threshold: float, classes: np.ndarray | None = None) -> np.ndarray:
+    """Indices kept by greedy non-maximum suppression (OpenCV's), class by class when `classes` is given."""
+    xywh = np.concatenate([xyxy[:, :2], xyxy[:, 2:] - xyxy[:, :2]], 1).tolist()
+    if classes is None:
+        kept = cv2.dnn.NMSBoxes(xywh, scores.tolist(), 0.0, iou_threshold)
+    else:
+        kept = cv2.dnn.NMSBoxesBatched(xywh, scores.tolist(), classes.tolist(), 0.0, iou_threshold)
+    return np.asarray(kept, np.int64).ravel()
 
 
 def grid_cells(input_hw: tuple[int, int], strides: tuple[int, ...] = STRIDES) -> int:
@@ -103,13 +95,16 @@ def grid_cells(input_hw: tuple[int, int], strides: tuple[int, ...] = STRIDES) ->
     return sum((input_hw[0] // s) * (input_hw[1] // s) for s in strides)
 
 
+@functools.lru_cache(maxsize=8)
 def yolox_grid(input_hw: tuple[int, int], strides: tuple[int, ...] = STRIDES) -> np.ndarray:
     """cells×3 (gx, gy, stride), in YOLOX's row order: stride 8 first, then 16, 32; y outer, x inner."""
     parts = []
     for s in strides:
         gy, gx = np.mgrid[0:input_hw[0] // s, 0:input_hw[1] // s]
         parts.append(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, s)], 1))
-    return np.concatenate(parts).astype(np.float32)
+    grid = np.concatenate(parts).astype(np.float32)
+    grid.flags.writeable = False  # cached: shared by every call
+    return grid
 
 
 def identify_family(shape: tuple[int, ...], classes: int | None, input_hw: tuple[int, int]) -> str | None:
@@ -149,20 +144,24 @@ def attributes_last(shape: tuple[int, ...], classes: int | None) -> bool:
     return shape[1] > shape[2]
 
 
-def candidates(output: np.ndarray, family: str, input_hw: tuple[int, int],
-               classes: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def candidates(output: np.ndarray, family: str, input_hw: tuple[int, int], classes: int | None = None,
+               min_objectness: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """(N×4 cx, cy, w, h in input px, N×C class scores) of one family's raw output."""
     pred = np.asarray(output, np.float32)[0]
     if family == "yolov8":
         if not attributes_last((1, *pred.shape), classes):
             pred = pred.T  # 1×(4+C)×N -> N×(4+C)
         return pred[:, :4], pred[:, 4:]
-    boxes, scores = pred[:, :4], pred[:, 5:] * pred[:, 4:5]  # objectness × class score
     if family == "yolox":
         grid = yolox_grid(input_hw)
         if len(grid) != len(pred):
             raise ModelError(f"a YOLOX output has one row per grid cell ({len(grid)} at {input_hw[1]}×{input_hw[0]}), "
                              f"this one has {len(pred)}: give --family yolov5 if its boxes are already decoded")
+    sel = pred[:, 4] >= min_objectness  # score = obj × cls ≤ obj: rows under the threshold cannot reach it
+    pred = pred[sel]
+    boxes, scores = pred[:, :4], pred[:, 5:] * pred[:, 4:5]  # objectness × class score
+    if family == "yolox":
+        grid = grid[sel]
         boxes = np.concatenate([(boxes[:, :2] + grid[:, :2]) * grid[:, 2:],
                                 np.exp(np.clip(boxes[:, 2:], -20, 20)) * grid[:, 2:]], 1)
     return boxes, scores
@@ -181,7 +180,9 @@ def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_
     if family is None:
         raise ModelError(f"output shape {shape} fits no detector family: YOLOX 1×cells×(5+C), YOLOv5 "
                          f"1×(3·cells)×(5+C), YOLOv8/11 1×(4+C)×N" + (f" (C = {classes})" if classes else ""))
-    boxes, class_scores = candidates(output, family, input_hw, classes)
+    boxes, class_scores = candidates(output, family, input_hw, classes, conf_threshold)
+    if not len(boxes):
+        return []
     cls = class_scores.argmax(axis=1)
     score = class_scores[np.arange(len(cls)), cls]
     sel = score >= conf_threshold
@@ -195,11 +196,7 @@ def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_
     x2 = np.clip((cx + bw / 2 - lb.pad_x) / lb.scale, 0, width)
     y2 = np.clip((cy + bh / 2 - lb.pad_y) / lb.scale, 0, height)
     xyxy = np.stack([x1, y1, x2, y2], axis=1)
-    kept = []
-    for c in np.unique(cls):  # class by class: a cup does not suppress the bottle partly behind it
-        idx = np.flatnonzero(cls == c)
-        kept += [int(idx[k]) for k in nms(xyxy[idx], score[idx], iou_threshold)]
-    kept = np.array(kept, np.int64)
+    kept = nms(xyxy, score, iou_threshold, cls)  # class by class: a cup does not suppress the bottle partly behind it
     # across classes only near-identical boxes: one object the model calls both cup (0.30) and bottle (0.25)
     kept = kept[nms(xyxy[kept], score[kept], SAME_OBJECT_IOU)]
     out = []
