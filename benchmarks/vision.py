@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -100,9 +101,12 @@ def onnx_frames() -> list[np.ndarray]:
 class BareYolox:
     """onnxruntime and a plain numpy/OpenCV loop: the same pre- and post-processing as the service's YOLOX path."""
 
-    def __init__(self, model: str, size: int = 416, conf: float = 0.3, iou: float = 0.45):
+    def __init__(self, model: str, size: int = 416, conf: float = 0.3, iou: float = 0.45, spinning: bool = False):
         import onnxruntime as ort
-        self.session = ort.InferenceSession(model, providers=["CPUExecutionProvider"])
+        options = ort.SessionOptions()
+        if not spinning:  # the service's session option; onnxruntime's default spins between runs
+            options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        self.session = ort.InferenceSession(model, options, providers=["CPUExecutionProvider"])
         self.size, self.conf, self.iou = size, conf, iou
         grids = []
         for s in (8, 16, 32):
@@ -130,24 +134,25 @@ class BareYolox:
 
 def onnx_throughput(model: str, frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
     bare = BareYolox(model)
+    bare_spinning = BareYolox(model, spinning=True)
     detector = YoloDetector(model)
     print(f"onnx model {model}: {detector.describe()}")
     pipeline = VisionPipeline(detector)
-    for f in frames[:2]:  # warm both sessions up
+    for f in frames[:2]:  # warm the sessions up
         bare.detect(f)
+        bare_spinning.detect(f)
         pipeline.process("cam0", f)
-    bare_fps, service_fps = [], []
-    for _ in range(repeats):  # alternate so drift hits both alike
-        t0 = time.perf_counter()
-        for i in range(n):
-            bare.detect(frames[i % len(frames)])
-        bare_fps.append(n / (time.perf_counter() - t0))
-        t0 = time.perf_counter()
-        for i in range(n):
-            pipeline.process("cam0", frames[i % len(frames)])
-        service_fps.append(n / (time.perf_counter() - t0))
+    bare_fps, spinning_fps, service_fps = [], [], []
+    for _ in range(repeats):  # alternate so drift hits all alike
+        for loop, fps in ((bare.detect, bare_fps), (bare_spinning.detect, spinning_fps),
+                          (lambda f: pipeline.process("cam0", f), service_fps)):
+            t0 = time.perf_counter()
+            for i in range(n):
+                loop(frames[i % len(frames)])
+            fps.append(n / (time.perf_counter() - t0))
     print_throughput(f"onnx throughput on {n} frames 640x480", "bare onnxruntime YOLOX loop", bare_fps,
                      "vision service onnx path", service_fps)
+    print(f"  (bare loop with onnxruntime's default thread spinning: {statistics.median(spinning_fps):.1f} frames/s)")
 
 
 def default_model() -> str:

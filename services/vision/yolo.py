@@ -226,7 +226,11 @@ class YoloDetector:
         except ImportError:
             raise ModelError("onnxruntime is not installed: pip install 'hri-fusion[vision]'") from None
         try:
-            self.session = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+            options = ort.SessionOptions()
+            # no busy-waiting of the thread pool between runs: on a robot's few cores it steals the CPU from the
+            # service's own post-processing and from the other services (benchmarks/vision.py measures both)
+            options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+            self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         except Exception as exc:
             raise ModelError(f"onnxruntime cannot load {model_path!r}: {exc}") from None
         inp = self.session.get_inputs()[0]
