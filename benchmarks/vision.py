@@ -178,7 +178,7 @@ def main() -> None:
             print(f"onnx: no model at {args.model} (give --model or HRI_YOLOX_MODEL); skipped")
             return
         images = onnx_frames()
-        onnx_throughput(args.model, images, max(20, args.frames // 5))
+        onnx_throughput(args.model, images, args.frames)
         if not args.skip_lag:
             frame_lag("vision", ["--backend", "onnx", "--model", args.model], "hri/vision/bench/objects", Detections,
                       images, args.seconds)

@@ -17,7 +17,7 @@ from services.vision.yolo import YoloDetector
 # Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
 # box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more
 # frequent inside the box than in the ring are the object's; the colour most of those pixels have names it.
-COLOR_SIDE = 48     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
+COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
 RING = 0.25         # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
 

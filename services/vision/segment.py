@@ -226,15 +226,6 @@ def merge_slivers(found: list[Blob], share: float, sliver_area: float) -> list[B
     return kept
 
 
-def drop_contained(found: list[Detection], share: float) -> list[Detection]:
-    """Largest first, keep a box unless more than `share` of it lies inside a box already kept (any colours)."""
-    kept: list[Detection] = []
-    for det in sorted(found, key=lambda d: -d.bbox[2] * d.bbox[3]):
-        if all(inside_share(det.bbox, k.bbox) <= share for k in kept):
-            kept.append(det)
-    return kept
-
-
 def inside_share(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> float:
     """The share of box a's area that lies inside box b."""
     ax, ay, aw, ah = a
