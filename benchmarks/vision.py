@@ -74,21 +74,27 @@ def bare_segmentation(bgr: np.ndarray, kernel: np.ndarray, lut: np.ndarray) -> l
     return boxes
 
 
-def throughput(frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
+def interleaved(loops: list, frames: list[np.ndarray], n: int, chunk: int = 20) -> list[list[float]]:
+    """frames/s of each loop, per round: every round runs each loop on the same `chunk` frames in turn, so the
+    load of a shared machine (it changes by the second) hits all loops alike. n frames per loop in all."""
+    fps: list[list[float]] = [[] for _ in loops]
+    for start in range(0, n, chunk):
+        batch = [frames[i % len(frames)] for i in range(start, start + chunk)]
+        for k, loop in enumerate(loops):
+            t0 = time.perf_counter()
+            for f in batch:
+                loop(f)
+            fps[k].append(chunk / (time.perf_counter() - t0))
+    return fps
+
+
+def throughput(frames: list[np.ndarray], n: int) -> None:
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
     lut = hue_lut()
     pipeline = VisionPipeline(ColorSegmenter())
-    bare_fps, service_fps = [], []
-    for _ in range(repeats):  # alternate so drift hits both alike
-        t0 = time.perf_counter()
-        for i in range(n):
-            bare_segmentation(frames[i % len(frames)], kernel, lut)
-        bare_fps.append(n / (time.perf_counter() - t0))
-        t0 = time.perf_counter()
-        for i in range(n):
-            pipeline.process("cam0", frames[i % len(frames)])
-        service_fps.append(n / (time.perf_counter() - t0))
-    print_throughput(f"throughput on {n} frames 640x480", "bare OpenCV segmentation", bare_fps,
+    bare_fps, service_fps = interleaved([lambda f: bare_segmentation(f, kernel, lut),
+                                         lambda f: pipeline.process("cam0", f)], frames, n)
+    print_throughput(f"throughput on {n} frames 640x480, rounds of 20", "bare OpenCV segmentation", bare_fps,
                      "vision service path", service_fps)
 
 
@@ -132,7 +138,7 @@ class BareYolox:
         return [(int(cls[keep][i]), float(conf[keep][i]), boxes[i]) for i in np.array(idx).ravel()]
 
 
-def onnx_throughput(model: str, frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
+def onnx_throughput(model: str, frames: list[np.ndarray], n: int) -> None:
     bare = BareYolox(model)
     bare_spinning = BareYolox(model, spinning=True)
     detector = YoloDetector(model)
@@ -142,15 +148,10 @@ def onnx_throughput(model: str, frames: list[np.ndarray], n: int, repeats: int =
         bare.detect(f)
         bare_spinning.detect(f)
         pipeline.process("cam0", f)
-    bare_fps, spinning_fps, service_fps = [], [], []
-    for _ in range(repeats):  # alternate so drift hits all alike
-        for loop, fps in ((bare.detect, bare_fps), (bare_spinning.detect, spinning_fps),
-                          (lambda f: pipeline.process("cam0", f), service_fps)):
-            t0 = time.perf_counter()
-            for i in range(n):
-                loop(frames[i % len(frames)])
-            fps.append(n / (time.perf_counter() - t0))
-    print_throughput(f"onnx throughput on {n} frames 640x480", "bare onnxruntime YOLOX loop", bare_fps,
+    bare_fps, service_fps = interleaved([bare.detect, lambda f: pipeline.process("cam0", f)], frames, n)
+    # on its own: a spinning pool goes on burning CPU after its run and would slow whatever runs next
+    (spinning_fps,) = interleaved([bare_spinning.detect], frames, n)
+    print_throughput(f"onnx throughput on {n} frames 640x480, rounds of 20", "bare onnxruntime YOLOX loop", bare_fps,
                      "vision service onnx path", service_fps)
     print(f"  (bare loop with onnxruntime's default thread spinning: {statistics.median(spinning_fps):.1f} frames/s)")
 
