@@ -100,7 +100,8 @@ def throughput(frames: list[np.ndarray], n: int) -> None:
 
 def onnx_frames() -> list[np.ndarray]:
     """Photos with things a COCO detector knows (a cup, a player and a ball, fruit), 640x480."""
-    names = ["coffee.png", "messi5.jpg", "apple.jpg", "tabletop/fruits.jpg", "tabletop/smarties.png", "tabletop/stuff.jpg"]
+    names = ["coffee.png", "messi5.jpg", "apple.jpg", "tabletop/fruits.jpg", "tabletop/smarties.png",
+             "tabletop/stuff.jpg"]
     return [cv2.resize(cv2.imread(str(DATA / "images" / n)), (640, 480)) for n in names]
 
 

@@ -49,7 +49,8 @@ def main(argv: list[str] | None = None) -> None:
     try:
         if args.backend == "onnx" and not args.model:
             service.log.warning("--backend onnx without --model: no model ships with hri-fusion, so the color "
-                                "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to ONNX)")
+                                "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to "
+                                "ONNX)")
         if args.model:  # a model given means the onnx backend
             names_file = args.names or args.labels
             detector = YoloDetector(args.model, read_names(names_file) if names_file else None, args.conf,

@@ -3,11 +3,11 @@
 No model ships with hri-fusion and none is downloaded: give a path (`--model yolox_nano.onnx`). The family is
 read from the model's output shape (or given with `--family`) and fixes pre- and post-processing:
 
-| family | output | boxes | score | input (default) |
-|---|---|---|---|---|
-| `yolox` | 1×cells×(5+C), cells = Σ (H/s)(W/s) over strides 8, 16, 32 | raw: cx=(tx+gx)·s, w=exp(tw)·s | obj·cls | BGR 0–255, letterbox top-left |
-| `yolov5` | 1×(3·cells)×(5+C) (three anchors per cell) | cx, cy, w, h in input px | obj·cls | RGB 0–1, letterbox centred |
-| `yolov8` (also v11) | 1×(4+C)×N (or 1×N×(4+C)) | cx, cy, w, h in input px | cls | RGB 0–1, letterbox centred |
+- `yolox`: 1×cells×(5+C), cells = Σ (H/s)(W/s) over strides 8, 16, 32; raw heads: cx = (tx+gx)·s,
+  w = exp(tw)·s; score obj·cls; input BGR 0–255, letterbox top-left.
+- `yolov5`: 1×(3·cells)×(5+C) (three anchors per cell); cx, cy, w, h in input px; score obj·cls; input RGB 0–1,
+  letterbox centred.
+- `yolov8` (also v11): 1×(4+C)×N (or 1×N×(4+C)); cx, cy, w, h in input px; score cls; input RGB 0–1, centred.
 
 Letterbox: resize keeping the aspect ratio, pad with grey 114. Post-processing keeps boxes whose best class
 score reaches `conf_threshold`, maps them back to the frame, clips, and runs class-aware NMS at `iou_threshold`,
@@ -58,7 +58,8 @@ class Letterbox:
     pad_y: float
 
 
-def letterbox(bgr: np.ndarray, size: int | tuple[int, int], pre: Preprocess = Preprocess()) -> tuple[np.ndarray, Letterbox]:
+def letterbox(bgr: np.ndarray, size: int | tuple[int, int],
+              pre: Preprocess = Preprocess()) -> tuple[np.ndarray, Letterbox]:
     """Resize keeping the aspect ratio, pad to the input size (an int: square; or (height, width)) with grey 114;
     returns the 1×3×H×W float32 tensor and the mapping back to the frame."""
     in_h, in_w = (size, size) if isinstance(size, int) else size
@@ -237,7 +238,8 @@ class YoloDetector:
         self.input_name = inp.name
         dims = [d if isinstance(d, int) and d > 0 else None for d in inp.shape]
         if len(dims) != 4:
-            raise ModelError(f"{model_path!r} takes a {len(dims)}-D input {inp.shape}; a YOLO detector takes 1×3×H×W")
+            raise ModelError(f"{model_path!r} takes a {len(dims)}-D input {inp.shape}; "
+                             f"a YOLO detector takes 1×3×H×W")
         side = dims[2] or dims[3] or 640
         self.input_hw = (dims[2] or side, dims[3] or side)
         self.conf_threshold, self.iou_threshold = conf_threshold, iou_threshold

@@ -11,9 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
-from common.language import COCO_LABELS
 from common.schema import DetectedObject, Detections, ImageQuality
 from tests.scenarios import KEYS, Expect, Scenario, Step, by_time, pointing, say
 
