@@ -20,7 +20,7 @@ ONNX backend (the real YOLOX-Nano model, --model or $HRI_YOLOX_MODEL or ../share
    runs slower than 30 fps here, so the service must drop to the latest frame (counted as skipped), not queue.
 Target for 1 and 3: service >= 0.9x the bare loop's frames/s.
 
-Usage: python benchmarks/vision.py [--seconds 60] [--frames 300] [--backends color,onnx] [--model PATH]
+Usage: python benchmarks/vision.py [--seconds 60] [--frames 300] [--backends color,onnx] [--model PATH] [--fps 30]
 """
 
 from __future__ import annotations
@@ -167,6 +167,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
     parser.add_argument("--backends", default="color,onnx", help="which backends to measure (default color,onnx)")
     parser.add_argument("--model", default=default_model(), help="YOLOX ONNX model for the onnx backend")
+    parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the lag runs (default 30)")
     parser.add_argument("--skip-lag", action="store_true", help="throughput only")
     args = parser.parse_args()
     backends = args.backends.split(",")
@@ -174,7 +175,7 @@ def main() -> None:
         images = frames_640()
         throughput(images, args.frames)
         if not args.skip_lag:
-            frame_lag("vision", [], "hri/vision/bench/objects", Detections, images, args.seconds)
+            frame_lag("vision", [], "hri/vision/bench/objects", Detections, images, args.seconds, args.fps)
     if "onnx" in backends:
         if not Path(args.model).is_file():
             print(f"onnx: no model at {args.model} (give --model or HRI_YOLOX_MODEL); skipped")
@@ -183,7 +184,7 @@ def main() -> None:
         onnx_throughput(args.model, images, args.frames)
         if not args.skip_lag:
             frame_lag("vision", ["--backend", "onnx", "--model", args.model], "hri/vision/bench/objects", Detections,
-                      images, args.seconds)
+                      images, args.seconds, args.fps)
 
 
 if __name__ == "__main__":
