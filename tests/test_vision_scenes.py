@@ -140,3 +140,18 @@ def test_cubes_on_a_blue_table():
     # orange, as orange candies do; one object either way, not a face and a sliver
     red = [d for d in found if iou(d.bbox, RED_CUBE) >= 0.5]
     assert len(red) == 1 and red[0].color in ("red", "orange"), found
+
+
+def test_background_rules_on_their_own():
+    from services.vision.segment import is_background
+    w, h = 640, 480
+    # a candy cut off in a corner (two borders, small) is an object; a wall piece along two borders is not
+    assert not is_background(38, 28, 800, w, h, borders=2, edge_share=0.02)
+    assert is_background(300, 200, 40000, w, h, borders=2, edge_share=0.1)
+    # a ring around the object: a frame-sized box filled to 20 %; the same box filled to 80 % is a close-up
+    assert is_background(600, 440, int(0.2 * 600 * 440), w, h, borders=0, edge_share=0.0)
+    assert not is_background(600, 440, int(0.8 * 600 * 440), w, h, borders=0, edge_share=0.0)
+    # a piece of a wall touching one border is background when the wall's hue owns much of the frame's edge
+    assert is_background(120, 100, 9000, w, h, borders=1, edge_share=0.4)
+    assert not is_background(120, 100, 9000, w, h, borders=1, edge_share=0.05)  # a cut-off object
+    assert not is_background(120, 100, 9000, w, h, borders=0, edge_share=0.4)   # an object in front of that wall

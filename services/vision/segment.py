@@ -16,7 +16,8 @@ colour is the same or a neighbour on the hue circle and it is small or thin next
 distinct object inside a bigger box.
 
 Achromatic blobs: dark pixels (black) and bright unsaturated ones (white) the same way, but only those that do not
-touch two or more image borders (a table, a wall) and stand out from the ring around them. Components smaller
+touch two or more image borders (a table, a wall), are not background by the rules above (the edge share being
+that of the whole black or white mask), and stand out from the ring around them. Components smaller
 than `min_area_frac` or larger than `max_area_frac` of the image are dropped; the upper bound is most of the frame,
 so a close-up object (a gripper camera's view) is kept.
 """
@@ -108,6 +109,9 @@ class ColorSegmenter:
         m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, self._kernel)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         min_area, max_area = self.min_area_frac * h * w, self.max_area_frac * h * w
+        if achromatic_color:  # the share of the frame's edge in this mask: a white wall or a black floor owns much
+            mask_edge_share = (np.count_nonzero(m[0]) + np.count_nonzero(m[-1]) + np.count_nonzero(m[1:-1, 0])
+                               + np.count_nonzero(m[1:-1, -1])) / float(2 * (h + w) - 4)
         out = []
         for i in range(1, n):
             x, y, bw, bh, area = (int(v) for v in stats[i])
@@ -118,6 +122,8 @@ class ColorSegmenter:
                 continue
             box = (float(x), float(y), float(bw), float(bh))
             if achromatic_color:
+                if is_background(bw, bh, area, w, h, borders, mask_edge_share):
+                    continue
                 if not stands_out(hsv[..., 2], labels, i, (x, y, bw, bh), achromatic_color == "white"):
                     continue  # a brighter (or darker) patch of the table, not an object on it
                 fill = area / float(bw * bh)
