@@ -1,19 +1,33 @@
-"""Vision: the service's detection path vs a bare OpenCV loop doing the same segmentation, one run.
+"""Vision: the service's detection paths vs the bare libraries doing the same work, one run.
 
+Colour backend:
 1. Throughput on the same 640x480 frames (the shipped photos, resized):
    - bare: blur, HSV, one mask per palette colour plus black and white, open/close, connected components,
      bounding boxes — plain OpenCV;
    - service path: JPEG decode is excluded from both; VisionPipeline.process = the same segmentation plus
-     colour naming, tracking, image quality and building the contract objects.
-   Target: service >= 0.9x the bare loop's frames/s.
+     colour naming, background and sliver rules, tracking, image quality and building the contract objects.
 2. End-to-end lag at 30 fps input: camera-like publisher -> router -> vision service -> subscriber; lag =
    receive time - frame stamp, p50/p99 per 10 s slice over 60 s (it must not grow).
 
-Usage: python benchmarks/vision.py [--seconds 60] [--frames 300]
+ONNX backend (the real YOLOX-Nano model, --model or $HRI_YOLOX_MODEL or ../shared/models/yolox_nano.onnx):
+3. Throughput on the same 640x480 frames:
+   - bare: an onnxruntime session and a plain loop: top-left letterbox to 416 (BGR, 0-255), run, YOLOX grid
+     decoding (rows with objectness < 0.3 skipped first), objectness x class score >= 0.3,
+     cv2.dnn.NMSBoxesBatched at IoU 0.45;
+   - service path: VisionPipeline(YoloDetector).process = the same plus labels through the language, each
+     object's colour from its own pixels, tracking, image quality and the contract objects.
+4. End-to-end lag at 30 fps for 60 s through `python -m services.vision --backend onnx --model ...`: the model
+   runs slower than 30 fps here, so the service must drop to the latest frame (counted as skipped), not queue.
+Target for 1 and 3: service >= 0.9x the bare loop's frames/s.
+
+Usage: python benchmarks/vision.py [--seconds 60] [--frames 300] [--backends color,onnx] [--model PATH] [--fps 30]
 """
 
 from __future__ import annotations
 
+import argparse
+import os
+import statistics
 import sys
 import time
 from pathlib import Path
@@ -23,12 +37,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks.lag import frame_benchmark_main, print_throughput  # noqa: E402
+from benchmarks.lag import frame_lag, print_throughput  # noqa: E402
 from common.schema import Detections  # noqa: E402
 from services.vision.color import CHROMATIC, HUE_RANGES  # noqa: E402
 from services.vision.core import VisionPipeline  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
-from tests.harness import DATA  # noqa: E402
+from services.vision.yolo import YoloDetector  # noqa: E402
+from tests.harness import DATA, ROOT  # noqa: E402
 
 
 def frames_640() -> list[np.ndarray]:
@@ -59,26 +74,117 @@ def bare_segmentation(bgr: np.ndarray, kernel: np.ndarray, lut: np.ndarray) -> l
     return boxes
 
 
-def throughput(frames: list[np.ndarray], n: int, repeats: int = 3) -> None:
+def interleaved(loops: list, frames: list[np.ndarray], n: int, chunk: int = 20) -> list[list[float]]:
+    """frames/s of each loop, per round: every round runs each loop on the same `chunk` frames in turn, so the
+    load of a shared machine (it changes by the second) hits all loops alike. n frames per loop in all."""
+    fps: list[list[float]] = [[] for _ in loops]
+    for start in range(0, n, chunk):
+        batch = [frames[i % len(frames)] for i in range(start, start + chunk)]
+        for k, loop in enumerate(loops):
+            t0 = time.perf_counter()
+            for f in batch:
+                loop(f)
+            fps[k].append(chunk / (time.perf_counter() - t0))
+    return fps
+
+
+def throughput(frames: list[np.ndarray], n: int) -> None:
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
     lut = hue_lut()
     pipeline = VisionPipeline(ColorSegmenter())
-    bare_fps, service_fps = [], []
-    for _ in range(repeats):  # alternate so drift hits both alike
-        t0 = time.perf_counter()
-        for i in range(n):
-            bare_segmentation(frames[i % len(frames)], kernel, lut)
-        bare_fps.append(n / (time.perf_counter() - t0))
-        t0 = time.perf_counter()
-        for i in range(n):
-            pipeline.process("cam0", frames[i % len(frames)])
-        service_fps.append(n / (time.perf_counter() - t0))
-    print_throughput(f"throughput on {n} frames 640x480", "bare OpenCV segmentation", bare_fps,
+    bare_fps, service_fps = interleaved([lambda f: bare_segmentation(f, kernel, lut),
+                                         lambda f: pipeline.process("cam0", f)], frames, n)
+    print_throughput(f"throughput on {n} frames 640x480, rounds of 20", "bare OpenCV segmentation", bare_fps,
                      "vision service path", service_fps)
 
 
+def onnx_frames() -> list[np.ndarray]:
+    """Photos with things a COCO detector knows (a cup, a player and a ball, fruit), 640x480."""
+    names = ["coffee.png", "messi5.jpg", "apple.jpg", "tabletop/fruits.jpg", "tabletop/smarties.png",
+             "tabletop/stuff.jpg"]
+    return [cv2.resize(cv2.imread(str(DATA / "images" / n)), (640, 480)) for n in names]
+
+
+class BareYolox:
+    """onnxruntime and a plain numpy/OpenCV loop: the same pre- and post-processing as the service's YOLOX path."""
+
+    def __init__(self, model: str, size: int = 416, conf: float = 0.3, iou: float = 0.45, spinning: bool = False):
+        import onnxruntime as ort
+        options = ort.SessionOptions()
+        if not spinning:  # the service's session option; onnxruntime's default spins between runs
+            options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+        self.session = ort.InferenceSession(model, options, providers=["CPUExecutionProvider"])
+        self.size, self.conf, self.iou = size, conf, iou
+        grids = []
+        for s in (8, 16, 32):
+            gy, gx = np.mgrid[0:size // s, 0:size // s]
+            grids.append(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, s)], 1))
+        self.grid = np.concatenate(grids).astype(np.float32)
+
+    def detect(self, bgr: np.ndarray) -> list:
+        h, w = bgr.shape[:2]
+        r = min(self.size / h, self.size / w)
+        canvas = np.full((self.size, self.size, 3), 114, np.uint8)
+        canvas[:int(h * r), :int(w * r)] = cv2.resize(bgr, (int(w * r), int(h * r)), interpolation=cv2.INTER_LINEAR)
+        out = self.session.run(None, {"images": canvas.transpose(2, 0, 1)[None].astype(np.float32)})[0][0]
+        sel = out[:, 4] >= self.conf  # objectness first: obj × cls cannot exceed obj
+        out, g = out[sel], self.grid[sel]
+        scores = out[:, 5:] * out[:, 4:5]
+        cls, conf = scores.argmax(1), scores.max(1)
+        keep = conf >= self.conf
+        cx, cy = (out[keep, 0] + g[keep, 0]) * g[keep, 2], (out[keep, 1] + g[keep, 1]) * g[keep, 2]
+        bw, bh = np.exp(out[keep, 2]) * g[keep, 2], np.exp(out[keep, 3]) * g[keep, 2]
+        boxes = np.stack([(cx - bw / 2) / r, (cy - bh / 2) / r, bw / r, bh / r], 1)
+        idx = cv2.dnn.NMSBoxesBatched(boxes.tolist(), conf[keep].tolist(), cls[keep].tolist(), self.conf, self.iou)
+        return [(int(cls[keep][i]), float(conf[keep][i]), boxes[i]) for i in np.array(idx).ravel()]
+
+
+def onnx_throughput(model: str, frames: list[np.ndarray], n: int) -> None:
+    bare = BareYolox(model)
+    bare_spinning = BareYolox(model, spinning=True)
+    detector = YoloDetector(model)
+    print(f"onnx model {model}: {detector.describe()}")
+    pipeline = VisionPipeline(detector)
+    for f in frames[:2]:  # warm the sessions up
+        bare.detect(f)
+        bare_spinning.detect(f)
+        pipeline.process("cam0", f)
+    bare_fps, service_fps = interleaved([bare.detect, lambda f: pipeline.process("cam0", f)], frames, n)
+    # on its own: a spinning pool goes on burning CPU after its run and would slow whatever runs next
+    (spinning_fps,) = interleaved([bare_spinning.detect], frames, n)
+    print_throughput(f"onnx throughput on {n} frames 640x480, rounds of 20", "bare onnxruntime YOLOX loop", bare_fps,
+                     "vision service onnx path", service_fps)
+    print(f"  (bare loop with onnxruntime's default thread spinning: {statistics.median(spinning_fps):.1f} frames/s)")
+
+
+def default_model() -> str:
+    return os.environ.get("HRI_YOLOX_MODEL") or str(ROOT.parent / "shared" / "models" / "yolox_nano.onnx")
+
+
 def main() -> None:
-    frame_benchmark_main(__doc__, "vision", "hri/vision/bench/objects", Detections, frames_640, throughput)
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=60.0, help="length of each lag run (default 60)")
+    parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
+    parser.add_argument("--backends", default="color,onnx", help="which backends to measure (default color,onnx)")
+    parser.add_argument("--model", default=default_model(), help="YOLOX ONNX model for the onnx backend")
+    parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the lag runs (default 30)")
+    parser.add_argument("--skip-lag", action="store_true", help="throughput only")
+    args = parser.parse_args()
+    backends = args.backends.split(",")
+    if "color" in backends:
+        images = frames_640()
+        throughput(images, args.frames)
+        if not args.skip_lag:
+            frame_lag("vision", [], "hri/vision/bench/objects", Detections, images, args.seconds, args.fps)
+    if "onnx" in backends:
+        if not Path(args.model).is_file():
+            print(f"onnx: no model at {args.model} (give --model or HRI_YOLOX_MODEL); skipped")
+            return
+        images = onnx_frames()
+        onnx_throughput(args.model, images, args.frames)
+        if not args.skip_lag:
+            frame_lag("vision", ["--backend", "onnx", "--model", args.model], "hri/vision/bench/objects", Detections,
+                      images, args.seconds, args.fps)
 
 
 if __name__ == "__main__":

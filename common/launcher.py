@@ -29,7 +29,7 @@ examples:
   hri up                                             # webcam 0, microphone, every service
   hri up --camera data/images/tabletop --speech-input text    # type commands on stdin
   hri up --camera clip.mp4 --speech-input wav --wav commands/
-  hri up --no-gesture --vision-backend onnx --model yolov8n.onnx
+  hri up --no-gesture --vision-backend onnx --model ../shared/models/yolox_nano.onnx   # YOLOX/v5/v8 ONNX, COCO-80
   hri up --secure ~/.hri/robot1 ...                  # secured: every service logs in (hri secure init)
   hri echo 'hri/fusion/**'                            # in another terminal
 """
@@ -75,6 +75,7 @@ def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
             vision += ["--model", args.model]
         if args.vision_labels:
             vision += ["--labels", args.vision_labels]
+        vision += args.vision_arg
         specs.append(ServiceSpec("vision", ["services.vision", *vision]))
     if not args.no_gesture:
         gesture = ["--mirrored"] if args.mirrored else []
@@ -222,9 +223,13 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fps", type=float, default=None, help="camera publish rate")
     p.add_argument("--loop", action="store_true", help="loop a video file or image folder")
     p.add_argument("--vision-backend", choices=("color", "onnx"), default="color")
-    p.add_argument("--model", default=None, help="ONNX model path for --vision-backend onnx")
+    p.add_argument("--model", default=None,
+                   help="ONNX detector path for --vision-backend onnx (YOLOX, YOLOv5 or YOLOv8/11 export)")
     p.add_argument("--vision-labels", default=None, metavar="FILE",
-                   help='colour -> label JSON for the color backend, e.g. data/demo/labels.json ({"*": "candy"})')
+                   help='colour -> label JSON for the color backend, e.g. data/demo/labels.json ({"*": "candy"}); '
+                        "with onnx, the model's class names, one per line (default: COCO-80)")
+    p.add_argument("--vision-arg", action="append", default=[], metavar="ARG",
+                   help="extra argument for the vision service, repeatable (e.g. --vision-arg=--conf=0.4)")
     p.add_argument("--no-vision", action="store_true", help="do not start the vision service")
     p.add_argument("--no-gesture", action="store_true", help="do not start the gesture service")
     p.add_argument("--mirrored", action="store_true", help="the camera image is mirrored (selfie view)")

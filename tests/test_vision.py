@@ -208,10 +208,11 @@ def test_decode_undoes_the_letterbox_and_suppresses_duplicates():
     pred = planted([
         (320, 320, 100, 50, 2, 0.9),   # kept
         (322, 321, 100, 50, 2, 0.8),   # same class, overlaps: suppressed
-        (320, 320, 100, 50, 1, 0.7),   # other class at the same place: kept
+        (360, 320, 100, 50, 1, 0.7),   # other class, partly behind it (IoU 0.43): kept
+        (321, 320, 100, 50, 0, 0.6),   # other class, the same box: one object with two labels, the best stays
         (100, 500, 40, 40, 0, 0.2),    # below the threshold
     ])
-    found = decode(pred, Letterbox(0.5, 0, 160), (1280, 640), conf_threshold=0.35, iou_threshold=0.45)
+    found = decode(pred, Letterbox(0.5, 0, 160), (1280, 640), conf_threshold=0.35, iou_threshold=0.45, classes=3)
     assert [(c, round(s, 2)) for c, s, _ in found] == [(2, 0.9), (1, 0.7)]
     assert np.allclose(found[0][2], (540, 270, 200, 100))
     transposed = decode(pred.transpose(0, 2, 1), Letterbox(0.5, 0, 160), (1280, 640), 0.35, 0.45, classes=3)

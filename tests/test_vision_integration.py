@@ -153,3 +153,23 @@ def test_onnx_backend_without_a_model_runs_the_color_backend(group):
         assert "without --model" in proc.output()
     finally:
         client.close()
+
+
+def test_the_real_yolox_model_through_the_service_finds_the_cup(group, tmp_path):
+    """`--backend onnx --model yolox_nano.onnx` as a real process: the family is logged, the cup is published."""
+    pytest.importorskip("onnxruntime")
+    from tests.shared import yolox_model
+    model = yolox_model()
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    (folder / "coffee.png").write_bytes((DATA / "images" / "coffee.png").read_bytes())
+    group.router()
+    proc = group.service("vision", "--backend", "onnx", "--model", str(model))
+    group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
+    got = group.echo("hri/vision/cam0/objects", count=2, timeout=60)
+    for d in got:
+        cups = [o for o in d["objects"] if o["label"] == "cup"]
+        assert len(cups) == 1 and cups[0]["score"] > 0.6, d["objects"]
+        x, y, w, h = cups[0]["bbox"]
+        assert abs(x + w / 2 - 292) < 30 and abs(y + h / 2 - 160) < 30, cups[0]  # the cup's centre, by eye
+    assert "yolox detector" in proc.output()

@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
+import argparse
+
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Detections, Frame
 from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter, read_labels
-from services.vision.yolo import COCO_NAMES, ModelError, YoloDetector, read_names
+from services.vision.yolo import FAMILIES, ModelError, YoloDetector, read_names
 
 EPILOG = """\
 examples:
   hri-vision                                         # colour segmentation, every camera
   hri-vision --labels data/demo/labels.json          # name the objects of a known tabletop
-  hri-vision --backend onnx --model yolov8n.onnx     # a YOLO detector you exported to ONNX
+  hri-vision --backend onnx --model yolox_nano.onnx  # a YOLOX / YOLOv5 / YOLOv8-11 detector in ONNX (COCO-80)
+  hri-vision --backend onnx --model best.onnx --labels classes.txt --conf 0.4   # your own classes
   hri-vision --cams front,wrist
 """
 
@@ -23,12 +26,22 @@ def main(argv: list[str] | None = None) -> None:
                             "in camera frames; publish Detections for every processed frame.", EPILOG)
     parser.add_argument("--backend", choices=("color", "onnx"), default="color",
                         help="color: HSV segmentation, no model (default); onnx: a YOLO model given by --model")
-    parser.add_argument("--model", default=None, help="YOLO ONNX model path (with --backend onnx)")
-    parser.add_argument("--names", default=None, help="class names file, one per line (default: the 80 COCO names)")
-    parser.add_argument("--conf", type=float, default=0.35, help="onnx confidence threshold (default 0.35)")
+    parser.add_argument("--model", default=None, help="ONNX detector path (YOLOX, YOLOv5 or YOLOv8/11 export)")
     parser.add_argument("--labels", default=None,
-                        help='JSON file mapping colour -> label for the color backend, "*" for any colour '
-                             '(default: every object is labelled "object")')
+                        help='color backend: JSON file mapping colour -> label, "*" for any colour (default: every '
+                             'object is "object"); onnx backend: the model\'s class names, one per line in class '
+                             'order, or a JSON list (default: the 80 COCO names)')
+    parser.add_argument("--names", default=None, help=argparse.SUPPRESS)  # old spelling of --labels for onnx
+    parser.add_argument("--conf", type=float, default=0.3, help="onnx confidence threshold (default 0.3)")
+    parser.add_argument("--iou", type=float, default=0.45, help="onnx NMS IoU threshold (default 0.45)")
+    parser.add_argument("--family", choices=("auto", *FAMILIES), default="auto",
+                        help="onnx export family (default: read from the output shape)")
+    parser.add_argument("--channels", choices=("rgb", "bgr"), default=None,
+                        help="onnx input channel order (default: the family's: BGR for yolox, RGB otherwise)")
+    parser.add_argument("--input-scale", type=float, default=None,
+                        help="multiply 0-255 pixels by this for the model (default: 1 for yolox, 1/255 otherwise)")
+    parser.add_argument("--letterbox", choices=("center", "topleft"), default=None,
+                        help="where the resized frame sits in the model input (default: topleft for yolox)")
     parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
     args = parser.parse_args(argv)
 
@@ -36,9 +49,13 @@ def main(argv: list[str] | None = None) -> None:
     try:
         if args.backend == "onnx" and not args.model:
             service.log.warning("--backend onnx without --model: no model ships with hri-fusion, so the color "
-                                "backend runs; give --model PATH (a YOLOv8/v11 detector exported to ONNX)")
+                                "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to "
+                                "ONNX)")
         if args.model:  # a model given means the onnx backend
-            detector = YoloDetector(args.model, read_names(args.names) if args.names else COCO_NAMES, args.conf)
+            names_file = args.names or args.labels
+            detector = YoloDetector(args.model, read_names(names_file) if names_file else None, args.conf,
+                                    args.iou, args.family, args.channels, args.input_scale, args.letterbox)
+            service.log.info("%s: %s", args.model, detector.describe())
         else:
             labels, warnings = read_labels(args.labels) if args.labels else ({}, [])
             for warning in warnings:

@@ -7,20 +7,69 @@ import numpy as np
 
 from common.language import canonical_label
 from common.schema import DetectedObject, ImageQuality
-from services.vision.color import color_name
+from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, color_name
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
 from services.vision.track import Tracker
 from services.vision.yolo import YoloDetector
 
 
-def box_color(hsv: np.ndarray, bbox: tuple[float, float, float, float], inner: float = 0.6) -> str | None:
-    """The colour of the central part of a box (its edges are mostly background)."""
+# Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
+# box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more
+# frequent inside the box than in the ring are the object's; the colour most of those pixels have names it.
+COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
+RING = 0.25         # the ring reaches this share of the box's size beyond each side
+FOREGROUND_RATIO = 1.5
+
+
+_HUE_BIN = (np.arange(256) // 10 * 2).astype(np.uint8)  # hue -> 2 × (hue // 10)
+
+
+def _colour_bins(hsv: np.ndarray) -> np.ndarray:
+    """Per pixel: 2 × (hue // 10) + (saturation ≥ 150) for chromatic pixels (0–35); 36 dark, 37 grey, 38 white."""
+    h, s, v = cv2.split(hsv)
+    bins = _HUE_BIN[h] + (s >= 150)
+    achromatic = s < ACHROMATIC_SATURATION
+    bins[achromatic] = np.where(v[achromatic] >= WHITE_VALUE, 38, 37)
+    bins[v < DARK_VALUE] = 36
+    return bins
+
+
+def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(HSV of the box and the ring around it, every step-th pixel so that the box's longer side is about
+    COLOR_SIDE; boolean mask of the object's own pixels among them)."""
+    frame_h, frame_w = bgr.shape[:2]
     x, y, w, h = bbox
-    cx, cy = x + w / 2, y + h / 2
-    x0, x1 = int(max(0, cx - w * inner / 2)), int(min(hsv.shape[1], cx + w * inner / 2 + 1))
-    y0, y1 = int(max(0, cy - h * inner / 2)), int(min(hsv.shape[0], cy + h * inner / 2 + 1))
-    return color_name(hsv[y0:y1, x0:x1])[0]
+    x0, y0 = int(max(0, x - RING * w)), int(max(0, y - RING * h))
+    x1, y1 = int(min(frame_w, np.ceil(x + w + RING * w))), int(min(frame_h, np.ceil(y + h + RING * h)))
+    step = max(1, int(max(w, h) // COLOR_SIDE))  # every step-th pixel: enough for a histogram, and cheap
+    small = bgr[y0:y1:step, x0:x1:step]
+    if small.size == 0:
+        return np.zeros((0, 3), np.uint8), np.zeros(0, bool)
+    s = 1.0 / step
+    hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
+    bins = _colour_bins(hsv)
+    inbox = np.zeros(bins.shape, bool)
+    bx0, by0 = int((x - x0) * s), int((y - y0) * s)
+    bx1, by1 = max(bx0 + 1, int(np.ceil((x + w - x0) * s))), max(by0 + 1, int(np.ceil((y + h - y0) * s)))
+    inbox[by0:by1, bx0:bx1] = True
+    ring = ~inbox
+    if ring.sum() < 0.1 * inbox.sum():  # the box fills the frame: its own outer band stands for the surroundings
+        band = max(1, int(0.12 * min(by1 - by0, bx1 - bx0)))
+        ring = inbox.copy()
+        ring[by0 + band:by1 - band, bx0 + band:bx1 - band] = False
+    in_hist = np.bincount(bins[inbox], minlength=39) / max(1, int(inbox.sum()))
+    ring_hist = np.bincount(bins[ring], minlength=39) / max(1, int(ring.sum()))
+    own = inbox & (in_hist > FOREGROUND_RATIO * ring_hist + 0.005)[bins]
+    if own.sum() < 0.05 * inbox.sum():  # nothing stands out from the surroundings: the box is all we have
+        own = inbox
+    return hsv, own
+
+
+def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> str | None:
+    """The colour most of the object's own pixels in this box have (see foreground_mask)."""
+    hsv, own = foreground_mask(bgr, bbox)
+    return color_name(hsv[own])[0] if own.any() else None
 
 
 class VisionPipeline:
@@ -33,9 +82,8 @@ class VisionPipeline:
     def detections(self, bgr: np.ndarray) -> list[Detection]:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
-        hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
-        # the language's class where one fits ("wine glass" -> "cup"), so "the cup" finds it
-        return [Detection(canonical_label(label), box_color(hsv, box), score, box)
+        # the language's class where one fits ("mug" -> "cup"), so "the cup" finds it
+        return [Detection(canonical_label(label), object_color(bgr, box), score, box)
                 for label, score, box in self.detector.detect(bgr)]
 
     def process(self, cam: str, bgr: np.ndarray) -> tuple[list[DetectedObject], ImageQuality]:

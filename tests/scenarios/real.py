@@ -1,7 +1,7 @@
 """Scenes made from the real YOLOX-Nano detector's output on real photos (../shared/models/yolox_nano.onnx).
 
-The detections are computed here with onnxruntime and the decoding of shared/models/MODEL.md (a small local
-decode; the vision service's own ONNX backend is tested in its own suite). `real_scenarios()` turns them into
+The detections are computed by the vision service's own ONNX backend (services/vision/yolo.py, the YOLOX family
+as shared/models/MODEL.md describes it). `real_scenarios()` turns them into
 scenarios of the suite: the tests run them in process and over Zenoh, benchmarks/fusion_eval.py scores them.
 Nothing of shared/ is copied: photos are read where they are.
 """
@@ -11,13 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
-from common.language import COCO_LABELS
 from common.schema import DetectedObject, Detections, ImageQuality
 from tests.scenarios import KEYS, Expect, Scenario, Step, by_time, pointing, say
 
-SIZE = 416
 # The nano model's scores are moderate (a real cup at 0.30-0.32 in these photos); 0.25 keeps them with margin.
 MIN_SCORE = 0.25
 NMS_IOU = 0.45
@@ -25,36 +21,22 @@ Found = list[tuple[str, float, list[float]]]  # (COCO label, score, [x, y, w, h]
 
 
 def yolox_detector(model: Path) -> Callable[[Path], tuple[Found, int, int]]:
-    """A function photo -> (detections, width, height) running the YOLOX-Nano ONNX model on the CPU."""
+    """A function photo -> (detections, width, height): the vision service's own ONNX backend
+    (services/vision/yolo.py, which reads the YOLOX family from the model's output) on the CPU."""
     import cv2
-    import onnxruntime as ort
-    session = ort.InferenceSession(str(model), providers=["CPUExecutionProvider"])
+    from services.vision.yolo import YoloDetector
+    detector = YoloDetector(str(model), conf_threshold=MIN_SCORE, iou_threshold=NMS_IOU)
+    assert detector.family == "yolox", detector.describe()
 
     def detect(path: Path) -> tuple[Found, int, int]:
         img = cv2.imread(str(path))
         if img is None:
             raise FileNotFoundError(f"cannot read the photo {path}")
         h, w = img.shape[:2]
-        r = min(SIZE / h, SIZE / w)
-        canvas = np.full((SIZE, SIZE, 3), 114, np.uint8)  # BGR, 0..255, top-left letterbox (MODEL.md)
-        canvas[:int(h * r), :int(w * r)] = cv2.resize(img, (int(w * r), int(h * r)), interpolation=cv2.INTER_LINEAR)
-        out = session.run(None, {"images": canvas.transpose(2, 0, 1)[None].astype(np.float32)})[0][0]
-        grids = []
-        for s in (8, 16, 32):
-            gy, gx = np.mgrid[0:SIZE // s, 0:SIZE // s]
-            grids.append(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, s)], 1))
-        g = np.concatenate(grids).astype(np.float32)
-        cx, cy = (out[:, 0] + g[:, 0]) * g[:, 2], (out[:, 1] + g[:, 1]) * g[:, 2]
-        bw, bh = np.exp(out[:, 2]) * g[:, 2], np.exp(out[:, 3]) * g[:, 2]
-        scores = out[:, 4:5] * out[:, 5:]
-        cls, conf = scores.argmax(1), scores.max(1)
-        keep = conf > MIN_SCORE
-        x0, y0 = np.clip((cx - bw / 2) / r, 0, w - 1), np.clip((cy - bh / 2) / r, 0, h - 1)
-        x1, y1 = np.clip((cx + bw / 2) / r, 0, w - 1), np.clip((cy + bh / 2) / r, 0, h - 1)
-        boxes = np.stack([x0, y0, x1 - x0, y1 - y0], 1)[keep]
-        idx = cv2.dnn.NMSBoxes(boxes.tolist(), conf[keep].tolist(), MIN_SCORE, NMS_IOU)
-        found = [(COCO_LABELS[int(cls[keep][i])], float(conf[keep][i]), [float(v) for v in boxes[i]])
-                 for i in np.array(idx).ravel()]
+        # the service clips boxes to [0, w] × [0, h]; the scenes keep them inside the last pixel as before
+        found = [(label, score, [min(x, w - 1), min(y, h - 1), min(bw, w - 1 - min(x, w - 1)),
+                                 min(bh, h - 1 - min(y, h - 1))])
+                 for label, score, (x, y, bw, bh) in detector.detect(img)]
         return found, w, h
     return detect
 
