@@ -171,7 +171,7 @@ def main() -> int:
         launcher.start([
             ServiceSpec("vision", ["services.vision", "--labels", str(SCENES / "labels.json")]),
             ServiceSpec("gesture", ["services.gesture"]),
-            ServiceSpec("speech", ["services.speech", "--input", "zenoh", "--commands", str(SCENES / "commands.txt")]),
+            ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),  # the default recogniser: Whisper
             ServiceSpec("fusion", ["services.fusion"]),
         ], live_timeout=120)
         session = launcher.session
