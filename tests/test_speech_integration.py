@@ -126,10 +126,12 @@ def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_sp
         sentence = read_wav_int16(synthesize(said, tmp_path / "s.wav", voice=PIPER_VOICE, trail_silence=0.8))
         tones = np.round(music_like(3.0) * 32767).astype(np.int16)
         gap = np.zeros(16000, np.int16)
-        t0 = time.time()
+        audio = np.concatenate([tones, gap, sentence, gap])
+        # published faster than real time, so stamped in the past: stamps ahead of the clock are rejected
+        t0 = time.time() - len(audio) / 16000 - 1.0
         client.publish(client.keys.audio("desk"), AudioChunk(
             stamp=t0 - 5, source="test/mic", mic="desk", rate=4000, channels=1, format="s16le", data=b"\0\0" * 80))
-        for chunk in chunks_of(np.concatenate([tones, gap, sentence, gap]), "desk", t0):
+        for chunk in chunks_of(audio, "desk", t0):
             client.publish(client.keys.audio("desk"), chunk)
         (key, t), = transcripts.wait(1, timeout=60)
         assert key == "hri/speech/desk/transcript" and t.backend == "whisper" and t.final
@@ -139,6 +141,7 @@ def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_sp
         assert len(transcripts.drain()) == 1  # nothing for the tones
         stats = client.stats("speech")
         assert stats["rejected"].get("unsupported_rate") == 1 and stats["published"] == 1 and speech.alive()
+        assert "clock_resync" not in stats["other"], stats
     finally:
         client.close()
     code, _ = speech.terminate()
