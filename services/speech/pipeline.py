@@ -51,15 +51,16 @@ class RecognitionWorker:
         self._executor.shutdown(wait=False, cancel_futures=True)
 
 
-_workers: dict[int, RecognitionWorker] = {}
 _workers_lock = threading.Lock()
 
 
 def worker_for(recogniser: Recogniser) -> RecognitionWorker:
+    """The recogniser's worker, made on first use and kept on the recogniser (so it goes when it goes)."""
     with _workers_lock:
-        worker = _workers.get(id(recogniser))
-        if worker is None or worker.recogniser is not recogniser:
-            worker = _workers[id(recogniser)] = RecognitionWorker(recogniser)
+        worker = getattr(recogniser, "_recognition_worker", None)
+        if worker is None:
+            worker = RecognitionWorker(recogniser)
+            setattr(recogniser, "_recognition_worker", worker)
         return worker
 
 
