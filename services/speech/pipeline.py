@@ -5,6 +5,10 @@ clock: the stamp of the first sample plus sample offsets. A chunk whose stamp di
 clock by more than `resync_after` (a gap, a restart) ends the utterance in progress and restarts
 the clock from the new stamp.
 
+With `partial_every` set, the utterance heard so far is also decoded every that many seconds of
+speech while the person speaks and published as a `final=false` Transcript (only when the worker is
+idle, and never after the final one).
+
 Every decode runs on one worker thread per recogniser (`RecognitionWorker`; a model is used by one
 thread at a time). A slow recogniser (Whisper) decodes *speculatively*: when the VAD sees the first
 window of silence, the utterance so far goes to the worker while the VAD keeps listening; when the
@@ -76,13 +80,16 @@ class Heard:
 
 class MicStream:
     def __init__(self, mic: str, source: str, recogniser: Recogniser, make_segmenter: Callable[[], Segmenter],
-                 count: Count, resync_after: float = 0.25):
+                 count: Count, resync_after: float = 0.25, partial_every: float | None = None):
         self.mic, self.source = mic, source
         self.recogniser = recogniser
         self.worker = worker_for(recogniser)
         self.segmenter = make_segmenter()
         # (audio_start, speech_end, decode started at the pause) of the utterance in progress
         self._speculation: tuple[int, int, Future] | None = None
+        self.partial_every = partial_every
+        self._partial: tuple[Utterance, Future] | None = None
+        self._partial_at = 0  # segmenter position when the last partial decode was started
         if getattr(recogniser, "speculative", False):
             self.segmenter.on_pause = self._speculate
         self.count = count
@@ -155,7 +162,27 @@ class MicStream:
                 heard.append(h)
         if self.segmenter.too_short > before:
             self.count("too_short", f"{self.mic}: a burst shorter than the minimum utterance was ignored")
+        if self.partial_every:
+            heard += self._partials()
         return heard
+
+    def _partials(self) -> list[Heard]:
+        """A finished partial decode to publish, and a new one started if it is time and the worker is idle."""
+        out: list[Heard] = []
+        if self._partial is not None and self._partial[1].done():
+            utt, future = self._partial
+            self._partial = None
+            result = None if future.cancelled() or future.exception() else future.result()
+            if result is not None and result.text:
+                out.append(self._heard(utt, result, final=False))
+                self.count("partials", "")
+        utt = self.segmenter.in_progress()
+        if (utt is not None and self._partial is None and self._speculation is None
+                and utt.speech_seconds >= self.partial_every
+                and self.segmenter.position - self._partial_at >= self.partial_every * RATE):
+            self._partial_at = self.segmenter.position
+            self._partial = (utt, self.worker.submit(utt.audio))
+        return out
 
     def _speculate(self, tentative: Utterance) -> None:
         if tentative.speech_seconds < self.segmenter.config.min_speech:
@@ -176,6 +203,9 @@ class MicStream:
         return self.worker.submit(utt.audio).result()
 
     def _recognise(self, utt: Utterance) -> Heard | None:
+        if self._partial is not None:  # the final result supersedes it
+            self._partial[1].cancel()
+            self._partial = None
         self.count("utterances", "")
         if utt.forced:
             self.count("utterance_cut", f"{self.mic}: speech longer than the maximum utterance was cut")
@@ -198,6 +228,9 @@ class MicStream:
                                          f"{result.confidence:.2f} < {self.recogniser.min_confidence:.2f} "
                                          f"({result.detail})")
             return None
+        return self._heard(utt, result, final=True)
+
+    def _heard(self, utt: Utterance, result: Recognition, final: bool) -> Heard:
         audio_t0 = self.stamp_of(utt.audio_start)
         words = [Word(word=w.word, start=audio_t0 + w.start, end=audio_t0 + w.end,
                       confidence=min(1.0, max(0.0, w.confidence))) for w in result.words]
@@ -206,7 +239,7 @@ class MicStream:
             start, end = min(start, words[0].start), max(end, words[-1].end)
         transcript = Transcript(stamp=end, source=self.source, mic=self.mic, start=start, end=end,
                                 text=result.text, confidence=min(1.0, max(0.0, result.confidence)), words=words,
-                                final=True, backend=self.recogniser.name)
+                                final=final, backend=self.recogniser.name)
         return Heard(transcript, utt.speech_end, result)
 
 

@@ -66,6 +66,15 @@ class Segmenter:
     def in_speech(self) -> bool:
         return self._voiced is not None
 
+    @property
+    def position(self) -> int:
+        """Stream index of the next window's first sample."""
+        return self._position
+
+    def in_progress(self) -> Utterance | None:
+        """The utterance being spoken, as far as it has been heard (None between utterances)."""
+        return self._tentative() if self._voiced is not None and self._silent_windows == 0 else None
+
     def feed(self, samples: np.ndarray) -> list[Utterance]:
         out: list[Utterance] = []
         self._pending = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
