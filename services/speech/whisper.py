@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import logging
 import math
 import os
 import re
@@ -189,6 +190,7 @@ class WhisperRecognizer:
         except ImportError as exc:
             raise BackendError(f"faster-whisper is not installed ({exc}): `pip install 'hri-fusion[speech]'`, "
                                "or use --backend pocketsphinx") from None
+        logging.getLogger("faster_whisper").setLevel(logging.WARNING)  # not a line per decode
         try:
             self.model = WhisperModel(str(folder), device="cpu", compute_type="int8", cpu_threads=settings.threads,
                                       local_files_only=True)
