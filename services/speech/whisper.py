@@ -181,6 +181,8 @@ class WhisperRecognizer:
 
     def __init__(self, model_path: str | None = None, min_confidence: float = 0.0, commands: Iterable[str] = (),
                  settings: WhisperSettings = WhisperSettings(), verify: bool = True):
+        if settings.prompt not in PROMPTS:
+            raise BackendError(f"unknown prompt {settings.prompt!r}: one of {', '.join(PROMPTS)}")
         folder, packaged = model_dir(model_path)
         check_model_dir(folder, packaged)
         if packaged and verify:
@@ -198,8 +200,6 @@ class WhisperRecognizer:
             raise BackendError(f"cannot load the Whisper model in {folder}: {exc}. " + _MODEL_HELP) from None
         self.folder, self.packaged = folder, packaged
         self.settings = settings
-        if settings.prompt not in PROMPTS:
-            raise BackendError(f"unknown prompt {settings.prompt!r}: one of {', '.join(PROMPTS)}")
         self.prompt = vocabulary_prompt(commands) if settings.prompt == "vocabulary" else None
         self.min_confidence = min_confidence
 
