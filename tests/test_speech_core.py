@@ -233,3 +233,67 @@ def test_stream_restarts_when_the_sample_rate_changes():
     assert "format_changed" in counted
     with pytest.raises(AudioError):
         stream.feed(np.zeros(100, np.float32), 2000, 100.2)
+
+
+# -- speculative decoding ----------------------------------------------------------
+class SpeculativeRecogniser:
+    """Records each decode's audio length; says 'stop' with word times inside the audio."""
+    name = "fake-whisper"
+    min_confidence = 0.0
+    speculative = True
+    matches = None  # no grammar gate
+
+    def __init__(self):
+        self.decoded: list[int] = []
+
+    def recognise(self, audio):
+        self.decoded.append(len(audio))
+        n = len(audio) / 16000
+        return Recognition("stop", 0.8, [RecognisedWord("stop", 0.2, n - 0.1, 0.8)])
+
+
+def energy_segmenter():
+    return Segmenter(lambda w: 1.0 if float(np.sqrt(np.mean(w ** 2))) > 0.01 else 0.0, 512, VadConfig())
+
+
+def test_decoding_starts_when_silence_begins_and_is_redone_only_if_speech_resumes():
+    t = np.arange(int(0.6 * 16000)) / 16000
+    tone = (0.2 * np.sin(2 * np.pi * 300 * t)).astype(np.float32)
+    pause, silence = np.zeros(int(0.15 * 16000), np.float32), np.zeros(16000, np.float32)
+    audio = np.concatenate([silence[:8000], tone, pause, tone, silence])  # a 150 ms pause inside one utterance
+    rec, counted = SpeculativeRecogniser(), []
+    stream = MicStream("mic0", "speech/test", rec, energy_segmenter, lambda n, d: counted.append(n))
+    heard = []
+    for off in range(0, len(audio), 320):
+        heard += stream.feed(audio[off:off + 320], 16000, 100.0 + off / 16000)
+    heard += stream.flush()
+    assert len(heard) == 1 and heard[0].transcript.text == "stop"
+    # one decode at the pause (wasted: speech resumed), one at the end (used: no decode after the VAD decided)
+    assert counted.count("speculation_wasted") == 1 and counted.count("speculation_used") == 1
+    assert len(rec.decoded) == 2 and rec.decoded[1] >= 2 * len(tone) + len(pause)
+    t_ = heard[0].transcript
+    assert 100.45 <= t_.start and t_.end <= 100.5 + (2 * len(tone) + len(pause)) / 16000 + 0.2
+
+
+def test_partials_come_while_the_person_speaks_and_never_after_the_final_result():
+    t = np.arange(int(2.5 * 16000)) / 16000
+    audio = np.concatenate([np.zeros(8000, np.float32), (0.2 * np.sin(2 * np.pi * 300 * t)).astype(np.float32),
+                            np.zeros(16000, np.float32)])
+    rec, counted = SpeculativeRecogniser(), []
+    stream = MicStream("mic0", "speech/test", rec, energy_segmenter, lambda n, d: counted.append(n),
+                       partial_every=0.5)
+    heard = []
+    for off in range(0, len(audio), 320):
+        heard += stream.feed(audio[off:off + 320], 16000, 100.0 + off / 16000)
+        while stream._partial is not None and not stream._partial[1].done():
+            pass  # the fake decodes at once; wait so the test does not depend on thread timing
+    heard += stream.flush()
+    finals = [h.transcript.final for h in heard]
+    assert finals[-1] and finals.count(True) == 1 and 3 <= finals.count(False) <= 5, finals
+    ends = [h.transcript.end for h in heard]
+    assert ends == sorted(ends)  # each partial covers more of the utterance; the final covers it all
+    # without partials: the same audio gives the final alone
+    plain = MicStream("mic0", "speech/test", SpeculativeRecogniser(), energy_segmenter, lambda n, d: None)
+    alone = [h for off in range(0, len(audio), 320) for h in plain.feed(audio[off:off + 320], 16000, 100.0 + off / 16000)]
+    alone += plain.flush()
+    assert [h.transcript.final for h in alone] == [True]

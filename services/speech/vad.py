@@ -58,10 +58,22 @@ class Segmenter:
         self._last_speech_end = 0
         self._silent_windows = 0
         self.too_short = 0  # bursts dropped as noise
+        # called with the utterance as it would close if the speech does not come back, at the first window
+        # of silence: a slow recogniser can start on it while the VAD waits `min_silence` to be sure
+        self.on_pause: Callable[[Utterance], None] | None = None
 
     @property
     def in_speech(self) -> bool:
         return self._voiced is not None
+
+    @property
+    def position(self) -> int:
+        """Stream index of the next window's first sample."""
+        return self._position
+
+    def in_progress(self) -> Utterance | None:
+        """The utterance being spoken, as far as it has been heard (None between utterances)."""
+        return self._tentative() if self._voiced is not None and self._silent_windows == 0 else None
 
     def feed(self, samples: np.ndarray) -> list[Utterance]:
         out: list[Utterance] = []
@@ -112,11 +124,20 @@ class Segmenter:
             self._silent_windows = 0
         else:
             self._silent_windows += 1
+            if self._silent_windows == 1 and self.on_pause is not None:
+                self.on_pause(self._tentative())
         if self._silent_windows * self.window >= cfg.min_silence * RATE:
             return self._close(forced=False)
         if (self._position - self._start) >= cfg.max_utterance * RATE:
             return self._close(forced=True)
         return None
+
+    def _tentative(self) -> Utterance:
+        """The utterance as `_close` would give it if the silence that just began lasts (padding so far)."""
+        assert self._voiced is not None
+        keep_until = min(self._position, self._last_speech_end + int(self.config.post_pad * RATE))
+        audio = np.concatenate(self._voiced)[:keep_until - self._audio_start]
+        return Utterance(audio, self._audio_start, self._start, self._last_speech_end)
 
     def _close(self, forced: bool) -> Utterance | None:
         assert self._voiced is not None

