@@ -73,14 +73,15 @@ def cmd_router(args: argparse.Namespace) -> int:
     log = setup_logging("hri.router", args.log_level)
     init_zenoh_logging()
     conf = zenoh_config(args)
+    # before the port opens: a client that sees the port may stop the router at once, and must get exit 0
+    stop = threading.Event()
+    _install_stop(stop)
     try:
         session = zenoh.open(conf)
     except zenoh.ZError as exc:
         log.error("cannot start the router on %s: %s (is another router already listening there?)",
                   ", ".join(args.listen), str(exc).split(" at ")[0])
         return 1
-    stop = threading.Event()
-    _install_stop(stop)
     log.info("zenoh router listening on %s (zid %s)", ", ".join(args.listen), session.zid())
     if args.secure:
         from common.security import read_secrets

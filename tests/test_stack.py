@@ -136,7 +136,7 @@ def test_the_demo_starts_the_stack_with_flags_every_service_accepts(monkeypatch)
             pass
 
     monkeypatch.setattr(demo, "Launcher", RecordingLauncher)
-    monkeypatch.setattr(demo, "speech_audio", lambda text: Path("unused.wav"))
+    monkeypatch.setattr(demo, "speech_audio", lambda text, voice=None: Path("unused.wav"))
     monkeypatch.setattr(sys, "argv", ["demo"])
     with pytest.raises(Started):
         demo.main()
