@@ -11,6 +11,7 @@ import pytest
 
 from services.vision.color import color_name
 from services.vision.core import VisionPipeline, object_color
+from services.vision.track import iou
 from services.vision.yolo import (Letterbox, ModelError, YoloDetector, decode, grid_cells, identify_family,
                                   letterbox, read_names)
 from tests.harness import DATA, ROOT
@@ -24,14 +25,6 @@ MESSI = DATA / "images" / "messi5.jpg"        # OpenCV's footballer and ball (op
 COFFEE_CUP = (170, 18, 245, 285)   # rim top to handle bottom, left rim edge to the spoon's top
 MESSI_PLAYER = (68, 62, 390, 272)  # raised left hand to right boot, hair to the left boot's sole
 MESSI_BALL = (338, 290, 50, 48)
-
-
-def iou(a, b) -> float:
-    ax, ay, aw, ah = a
-    bx, by, bw, bh = b
-    iw = max(0.0, min(ax + aw, bx + bw) - max(ax, bx))
-    ih = max(0.0, min(ay + ah, by + bh) - max(ay, by))
-    return iw * ih / (aw * ah + bw * bh - iw * ih)
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ import pytest
 
 from services.vision.color import HUE_RANGES
 from services.vision.segment import ColorSegmenter
+from services.vision.track import iou
 from tests.harness import DATA
 from tests.shared import shared_path
 
@@ -17,14 +18,6 @@ IMAGES = DATA / "images"
 # apple.jpg (opencv-doc, 512×512): the apple's body, left edge to right edge and shoulders to bottom (stem left out)
 APPLE = (45, 60, 420, 437)
 CHROMATIC_NAMES = set(HUE_RANGES)
-
-
-def iou(a, b) -> float:
-    ax, ay, aw, ah = a
-    bx, by, bw, bh = b
-    iw = max(0.0, min(ax + aw, bx + bw) - max(ax, bx))
-    ih = max(0.0, min(ay + ah, by + bh) - max(ay, by))
-    return iw * ih / (aw * ah + bw * bh - iw * ih)
 
 
 def rotate_hue(bgr: np.ndarray, shift: int) -> np.ndarray:
