@@ -8,7 +8,7 @@ Decoding is one pass at temperature 0 (no fallback ladder: it can take 20 s on a
 no conditioning on earlier text, English, word timestamps, at most a few tokens per second of audio
 (a loop cannot run on), and by default no prompt: a vocabulary prompt (`--prompt short|vocabulary`, from
 common/language.py and --commands) made Whisper tiny.en add "thank you"/"bye" after the command on
-a third of the test utterances and cost 140-220 ms of latency (docs/speech.md has the figures). Those
+a third of the test utterances and added ~150 ms of latency here (docs/speech.md has the figures). Those
 invented words are timed inside the speech, not after it, so the VAD's end of speech cannot catch them;
 `--tail-probability P` drops a last word or two that Whisper itself gave a probability below P.
 What Whisper heard is returned whether or not it is a command; only its known inventions are
