@@ -191,10 +191,11 @@ def test_a_last_word_or_two_starting_with_a_doubted_word_is_dropped():
 
 def test_the_short_prompt_holds_the_languages_core_words():
     words = short_prompt_words()
-    assert 20 <= len(words) <= 40 and len(set(words)) == len(words)
-    for word in ("pick up", "put down", "go to", "stop", "forward", "left", "right", "that", "there", "yes", "no",
-                 "red", "blue"):
+    assert 15 <= len(words) <= 25 and len(set(words)) == len(words)
+    for word in ("pick up", "put down", "go to", "stop", "forward", "left", "right", "that", "there", "red", "blue"):
         assert word in words, word
+    # the robot's own sentences come first, then the words, as plain text
+    assert whisper.short_prompt(["Pick up the red cup!", "# a comment"]).startswith("pick up the red cup pick up bring")
 
 
 # -- the model: package, checksum, --model ---------------------------------------------------------

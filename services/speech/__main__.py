@@ -60,8 +60,8 @@ def build_parser():
     parser.add_argument("--beam", type=int, default=WhisperSettings.beam_size,
                         help=f"whisper: beam size (default {WhisperSettings.beam_size}, greedy)")
     parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt,
-                        help="whisper: prime the decoder with the language's core words (short, ~30), its "
-                             "vocabulary (~120; both with --commands) or nothing "
+                        help="whisper: prime the decoder with the language's core words (short, 22 phrases), "
+                             "its vocabulary (~120; both with --commands) or nothing "
                              f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)")
     parser.add_argument("--tail-probability", type=float, default=None, metavar="P",
                         help="whisper: drop the last word or two when Whisper gives the first of them a probability "

@@ -58,7 +58,7 @@ PROMPTS = ("none", "short", "vocabulary")
 class WhisperSettings:
     beam_size: int = 1  # greedy: measured as accurate as beam 5 here and faster (docs/speech.md)
     threads: int = 2
-    prompt: str = "none"  # "short" (~30 core words) or "vocabulary" (~120): prime with the language's words
+    prompt: str = "none"  # "short" (22 core phrases) or "vocabulary" (~120): prime with the language's words
     # drop a last word or two that begin with a word Whisper itself doubts (probability below this; None: keep)
     tail_min_probability: float | None = None
     no_speech_prob: float = NO_SPEECH_PROB
@@ -136,7 +136,7 @@ def drop_improbable_tail(words: Sequence[T], min_probability: float | None, max_
     return list(words)
 
 
-def vocabulary_prompt(commands: Iterable[str] = (), vocabulary: Sequence[str] | None = None) -> str:
+def vocabulary_prompt(commands: Iterable[str] = ()) -> str:
     """The words Whisper is primed with: the robot's own commands first (when given), then the language's
     most useful words (common.language.prompt_words). Whisper reads the prompt as text that came before,
     so a plain list of the words makes them likelier without making any sentence shape likelier."""
@@ -146,7 +146,7 @@ def vocabulary_prompt(commands: Iterable[str] = (), vocabulary: Sequence[str] | 
         text = " ".join(normalise_words(line))
         if text and not line.lstrip().startswith("#") and text not in words:
             words.append(text)
-    words += [w for w in (prompt_words() if vocabulary is None else vocabulary) if w not in words]
+    words += [w for w in prompt_words() if w not in words]
     prompt = ""
     for w in words:  # stay well inside Whisper's 224-token prompt window (~1.3 tokens per word here)
         if len(prompt) + len(w) + 2 > PROMPT_CHARS:
@@ -159,22 +159,35 @@ PROMPT_CHARS = 600
 
 
 def short_prompt_words() -> list[str]:
-    """The words a spoken command turns on, from common.language's tables: the first phrase of each intent,
-    motion and direction, "this"/"that"/"there"/"here", yes/no and the colours (31 phrases, 70 tokens with
-    their commas; the vocabulary prompt is 173)."""
-    from common.language import (ANSWER_PHRASES, COLOR_PHRASES, DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS,
-                                 DIRECTION_PHRASES, INTENT_PHRASES, MOTION_PHRASES)
+    """The ~25 words a spoken command turns on most, from common.language's tables: the first phrase of each
+    intent, left/right/forward/back, this/that/there/here and the first five colours (31 tokens; the
+    vocabulary prompt is 173)."""
+    from common.language import (COLOR_PHRASES, DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS, DIRECTION_PHRASES,
+                                 INTENT_PHRASES)
     words: list[str] = []
-    for group in ([ps[0] for ps in INTENT_PHRASES.values()], [ps[0] for ps in MOTION_PHRASES.values()],
-                  [ps[0] for ps in DIRECTION_PHRASES.values()], list(DEICTIC_OBJECT_WORDS[:2]), list(DEICTIC_PLACE_WORDS),
-                  [ps[0] for ps in ANSWER_PHRASES.values()], list(COLOR_PHRASES)):
+    for group in ([ps[0] for ps in INTENT_PHRASES.values()],
+                  [DIRECTION_PHRASES[d][0] for d in ("left", "right", "forward", "back")],
+                  list(DEICTIC_OBJECT_WORDS[:2]), list(DEICTIC_PLACE_WORDS), list(COLOR_PHRASES)[:5]):
         words.extend(w for w in group if w not in words)
     return words
 
 
 def short_prompt(commands: Iterable[str] = ()) -> str:
-    """The short prompt: the --commands sentences (if any), then short_prompt_words()."""
-    return vocabulary_prompt(commands, short_prompt_words())
+    """The short prompt: the --commands sentences (if any), then short_prompt_words(), as plain text (a comma
+    is a token: a first try, 31 phrases with commas, was 70 tokens and measured less accurate; docs/speech.md)."""
+    words: list[str] = []
+    for line in commands:
+        text = " ".join(normalise_words(line))
+        if text and not line.lstrip().startswith("#") and text not in words:
+            words.append(text)
+    words += [w for w in short_prompt_words() if w not in words]
+    prompt = ""
+    for w in words:  # well inside Whisper's prompt window
+        if len(prompt) + len(w) + 1 > PROMPT_CHARS:
+            break
+        prompt = f"{prompt} {w}" if prompt else w
+    return prompt + "."
+
 
 _WORD = re.compile(r"\d+(?:\.\d+)?|[a-z]+(?:'[a-z]+)?")
 
