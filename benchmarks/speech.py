@@ -11,7 +11,8 @@ the sentence), clean and with pink noise at 10 dB. Then the whole pipeline on lo
 fusion processes; AudioChunks published at real-time pace): end of the last spoken word -> Transcript
 received, and -> fusion's answer (FusedCommand or Clarification) received, p50/p99, per backend.
 
-    .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|vocabulary]
+    .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|short|vocabulary]
+                                          [--tail-probability P]
                                           [--skip-latency] [--latency-only]
 
 Audio: the 32 test commands (tests/data/speech/commands*.txt), spoken by the piper neural voice
@@ -169,6 +170,8 @@ def main() -> None:
     parser.add_argument("--voice", default=PIPER_VOICE, help=f"synthesis voice (default {PIPER_VOICE})")
     parser.add_argument("--utterances", type=int, default=len(COMMANDS), help=f"commands (default {len(COMMANDS)})")
     parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt, help="whisper's prompt")
+    parser.add_argument("--tail-probability", type=float, default=None, metavar="P",
+                        help="whisper: drop a last word or two Whisper doubts (probability < P; default off)")
     parser.add_argument("--skip-latency", action="store_true", help="no process/zenoh latency part")
     parser.add_argument("--latency-only", action="store_true", help="only the process/zenoh latency part")
     args = parser.parse_args()
@@ -176,7 +179,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="hri-bench-speech-") as tmp:
         cache = AudioCache(Path(tmp))
         print(f"synthesising {len(texts)} commands ({args.voice}) ...", flush=True)
-        whisper = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt))
+        whisper = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt,
+                                                            tail_min_probability=args.tail_probability))
         whisper.recognise(np.zeros(RATE // 2, np.float32))
         sphinx = PocketsphinxRecognizer()
         print(f"whisper: {whisper.describe()}\n")
@@ -197,7 +201,9 @@ def main() -> None:
         print("end of the last spoken word -> received, whole pipeline on loopback (router + speech + fusion "
               "processes, real-time audio)")
         for backend in ("whisper",) if args.latency_only else ("whisper", "pocketsphinx"):
-            r = latency(backend, files, ("--prompt", args.prompt) if backend == "whisper" else ())
+            extra = ("--prompt", args.prompt) + (("--tail-probability", str(args.tail_probability))
+                                                 if args.tail_probability is not None else ())
+            r = latency(backend, files, extra if backend == "whisper" else ())
             print(f"  {backend:12s} -> Transcript   p50 {pct(r['transcript'], 50):4.0f} ms  p99 "
                   f"{pct(r['transcript'], 99):4.0f} ms  ({len(r['transcript'])}/{r['n']} utterances)")
             print(f"  {backend:12s} -> fusion answer p50 {pct(r['fusion'], 50):4.0f} ms  p99 "

@@ -21,7 +21,8 @@ from services.speech.pipeline import MicStream
 from services.speech.recognizers import BackendError
 from services.speech.synth import PIPER_VOICE, pink_noise
 from services.speech.vad import make_segmenter
-from services.speech.whisper import WhisperRecognizer, remove_loops
+from services.speech.recognizers import RecognisedWord
+from services.speech.whisper import WhisperRecognizer, drop_improbable_tail, remove_loops, short_prompt_words
 from tests.harness import ROOT
 from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score
 
@@ -169,6 +170,34 @@ def test_a_looping_phrase_is_kept_once():
     assert remove_loops("a b c a b c a b c d".split()) == ["a", "b", "c", "d"]
 
 
+def words_at(*spec: tuple[str, float, float]) -> list[RecognisedWord]:
+    """(word, start s, probability) -> RecognisedWords 0.2 s long."""
+    return [RecognisedWord(w, start, start + 0.2, p) for w, start, p in spec]
+
+
+def test_a_last_word_or_two_starting_with_a_doubted_word_is_dropped():
+    def kept(*spec):
+        return [w.word for w in drop_improbable_tail(words_at(*spec), min_probability=0.1)]
+    assert kept(("turn", 0, 0.6), ("right", 0.4, 0.9), ("thank", 0.6, 0.02), ("you", 0.7, 0.98)) == ["turn", "right"]
+    assert kept(("no", 0, 0.5), ("so", 0.3, 0.08)) == ["no"]
+    # the first word is never dropped, however doubted (a first word often is: it spans the VAD's pre-padding)
+    assert kept(("go", 0, 0.05)) == ["go"]
+    assert kept(("put", 0, 0.01), ("it", 0.4, 0.98), ("there", 0.6, 0.99)) == ["put", "it", "there"]
+    # only the last two words are looked at: a doubted word earlier is kept
+    assert kept(("pick", 0, 0.3), ("up", 0.3, 0.05), ("the", 0.5, 0.9), ("cup", 0.7, 0.9)) == ["pick", "up", "the", "cup"]
+    heard = words_at(("turn", 0, 0.6), ("right", 0.4, 0.02))
+    assert drop_improbable_tail(heard, None) == heard
+
+
+def test_the_short_prompt_holds_the_languages_core_words():
+    words = short_prompt_words()
+    assert 15 <= len(words) <= 25 and len(set(words)) == len(words)
+    for word in ("pick up", "put down", "go to", "stop", "forward", "left", "right", "that", "there", "red", "blue"):
+        assert word in words, word
+    # the robot's own sentences come first, then the words, as plain text
+    assert whisper.short_prompt(["Pick up the red cup!", "# a comment"]).startswith("pick up the red cup pick up bring")
+
+
 # -- the model: package, checksum, --model ---------------------------------------------------------
 def test_the_model_comes_from_the_package_and_its_checksum_is_checked(monkeypatch, tmp_path):
     folder = whisper.packaged_model_dir()
@@ -219,3 +248,16 @@ def test_model_option_and_environment_select_another_folder(monkeypatch, recogni
     assert [t.text for t in run_stream(by_option, samples)[0]] == expected == ["pick up the red cup"]
     monkeypatch.setenv(whisper.MODEL_ENV, str(copy))
     assert WhisperRecognizer().folder == copy
+
+
+def test_the_recogniser_drops_a_doubted_tail_only_when_asked(monkeypatch, recogniser):
+    from types import SimpleNamespace as NS
+    words = [NS(word=" Turn", start=0.0, end=0.4, probability=0.6), NS(word=" right", start=0.4, end=0.6, probability=0.9),
+             NS(word=" thank", start=0.62, end=0.62, probability=0.01), NS(word=" you.", start=0.62, end=0.66, probability=0.98)]
+    segment = NS(no_speech_prob=0.01, avg_logprob=-0.3, tokens=[1, 2, 3, 4, 5], words=words)
+    monkeypatch.setattr(recogniser.model, "transcribe", lambda *a, **kw: (iter([segment]), None))
+    audio = np.zeros(RATE, np.float32)
+    assert recogniser.recognise(audio).text == "turn right thank you"  # default: off
+    monkeypatch.setattr(recogniser, "settings", whisper.WhisperSettings(tail_min_probability=0.1))
+    result = recogniser.recognise(audio)
+    assert result.text == "turn right" and result.tail_removed == 2 and [w.word for w in result.words] == ["turn", "right"]

@@ -60,8 +60,13 @@ def build_parser():
     parser.add_argument("--beam", type=int, default=WhisperSettings.beam_size,
                         help=f"whisper: beam size (default {WhisperSettings.beam_size}, greedy)")
     parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt,
-                        help="whisper: prime the decoder with the command vocabulary (and --commands) or not "
+                        help="whisper: prime the decoder with the language's core words (short, 22 phrases), "
+                             "its vocabulary (~120; both with --commands) or nothing "
                              f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)")
+    parser.add_argument("--tail-probability", type=float, default=None, metavar="P",
+                        help="whisper: drop the last word or two when Whisper gives the first of them a probability "
+                             "below P (0.1 removes most of a prompt's invented '... thank you', and sometimes a real "
+                             "last word; default off, docs/speech.md)")
     parser.add_argument("--threads", type=int, default=WhisperSettings.threads,
                         help=f"whisper: CPU threads (default {WhisperSettings.threads})")
     parser.add_argument("--min-confidence", type=float, default=None,
@@ -70,7 +75,7 @@ def build_parser():
     parser.add_argument("--commands", default=None, metavar="FILE",
                         help="the robot's commands, one sentence per line. pocketsphinx recognises only these "
                              "(much more robust than its open grammar); whisper adds their words to its prompt "
-                             "with --prompt vocabulary (docs/speech.md)")
+                             "with --prompt short|vocabulary (docs/speech.md)")
     parser.add_argument("--partials", type=float, default=None, metavar="S",
                         help="while a person speaks, publish what was heard so far every S seconds as final=false "
                              "Transcripts (default off: each partial decode can delay the final one by up to a "
@@ -93,6 +98,8 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--min-confidence must be within 0–1")
     if args.beam < 1 or args.threads < 1:
         parser.error("--beam and --threads must be at least 1")
+    if args.tail_probability is not None and not 0.0 < args.tail_probability < 1.0:
+        parser.error("--tail-probability must be between 0 and 1 (e.g. 0.1)")
     if args.partials is not None and args.partials <= 0:
         parser.error("--partials must be a positive number of seconds")
 
@@ -144,7 +151,8 @@ def make_recogniser(args, service: Service):
             raise BackendError(f"cannot read the command list {args.commands!r}: {exc}") from None
     if args.backend == "whisper":
         rec = WhisperRecognizer(args.model, args.min_confidence, commands or (),
-                                WhisperSettings(beam_size=args.beam, threads=args.threads, prompt=args.prompt))
+                                WhisperSettings(beam_size=args.beam, threads=args.threads, prompt=args.prompt,
+                                                tail_min_probability=args.tail_probability))
         rec.recognise(np.zeros(RATE // 2, np.float32))  # the first decode allocates; not on a person's time
         service.log.info("%s ready in %.1f s", rec.describe(), time.monotonic() - started)
         return rec

@@ -214,6 +214,8 @@ class MicStream:
         if result is not None and result.repeats_removed:
             self.count("repeats_removed", f"{self.mic}: {result.repeats_removed} repeated word(s) dropped as a "
                                           f"loop at {at}")
+        if result is not None and result.tail_removed:
+            self.count("tail_removed", f"{self.mic}: {result.tail_removed} doubted last word(s) dropped at {at}")
         if result is None or not result.text:
             if result is not None and result.dropped:
                 self.count(result.dropped, f"{self.mic}: no words in the utterance at {at} ({result.dropped})")

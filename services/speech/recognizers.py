@@ -46,6 +46,7 @@ class Recognition:
     detail: str = ""  # for logs: the scores behind the confidence
     dropped: str = ""  # with no text: the counter saying why (e.g. "no_speech")
     repeats_removed: int = 0  # words dropped as a hallucinated loop
+    tail_removed: int = 0  # last words dropped because Whisper doubted the first of them (--tail-probability)
 
 
 def derive_pronunciation(word: str, lookup: Callable[[str], str | None]) -> str | None:

