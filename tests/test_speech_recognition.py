@@ -4,7 +4,6 @@ non-commands, one stream split into utterances. The bounds are what was measured
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from services.fusion.parse import parse
@@ -13,6 +12,7 @@ from services.speech.pipeline import MicStream
 from services.speech.recognizers import PocketsphinxRecognizer
 from services.speech.synth import concatenate, synthesize
 from services.speech.vad import make_segmenter
+from tests.speech_scoring import word_errors
 
 EXPECTED = Path(__file__).parent / "data" / "speech"
 COMMANDS = [line.strip() for line in (EXPECTED / "commands.txt").read_text().splitlines() if line.strip()]
@@ -30,15 +30,6 @@ WRONG_PUBLISHED_BOUND = {("en-us+f3", None): 0.6, ("en-us+f3", 10): 0.8, ("en-us
 def meaning(text: str) -> tuple:
     u = parse(text)
     return u.intent, u.answer, u.obj, u.place, u.deictic_place, u.dest_obj
-
-
-def word_errors(ref: list[str], hyp: list[str]) -> int:
-    d = np.arange(len(hyp) + 1)
-    for i, r in enumerate(ref, 1):
-        prev, d[0] = d.copy(), i
-        for j, h in enumerate(hyp, 1):
-            d[j] = min(prev[j] + 1, d[j - 1] + 1, prev[j - 1] + (r != h))
-    return int(d[-1])
 
 
 @pytest.fixture(scope="module")
