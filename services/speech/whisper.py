@@ -141,17 +141,23 @@ def vocabulary_prompt(commands: Iterable[str] = ()) -> str:
     most useful words (common.language.prompt_words). Whisper reads the prompt as text that came before,
     so a plain list of the words makes them likelier without making any sentence shape likelier."""
     from common.language import prompt_words
+    return _prompt(commands, prompt_words(), ", ")
+
+
+def _prompt(commands: Iterable[str], phrases: Iterable[str], separator: str) -> str:
+    """The --commands sentences (comments and repeats left out), then `phrases`, joined by `separator` while
+    they fit well inside Whisper's 224-token prompt window (~1.3 tokens per word here)."""
     words: list[str] = []
     for line in commands:
         text = " ".join(normalise_words(line))
         if text and not line.lstrip().startswith("#") and text not in words:
             words.append(text)
-    words += [w for w in prompt_words() if w not in words]
+    words += [w for w in phrases if w not in words]
     prompt = ""
-    for w in words:  # stay well inside Whisper's 224-token prompt window (~1.3 tokens per word here)
-        if len(prompt) + len(w) + 2 > PROMPT_CHARS:
+    for w in words:
+        if len(prompt) + len(w) + len(separator) > PROMPT_CHARS:
             break
-        prompt = f"{prompt}, {w}" if prompt else w
+        prompt = f"{prompt}{separator}{w}" if prompt else w
     return prompt + "."
 
 
@@ -175,18 +181,7 @@ def short_prompt_words() -> list[str]:
 def short_prompt(commands: Iterable[str] = ()) -> str:
     """The short prompt: the --commands sentences (if any), then short_prompt_words(), as plain text (a comma
     is a token: a first try, 31 phrases with commas, was 70 tokens and measured less accurate; docs/speech.md)."""
-    words: list[str] = []
-    for line in commands:
-        text = " ".join(normalise_words(line))
-        if text and not line.lstrip().startswith("#") and text not in words:
-            words.append(text)
-    words += [w for w in short_prompt_words() if w not in words]
-    prompt = ""
-    for w in words:  # well inside Whisper's prompt window
-        if len(prompt) + len(w) + 1 > PROMPT_CHARS:
-            break
-        prompt = f"{prompt} {w}" if prompt else w
-    return prompt + "."
+    return _prompt(commands, short_prompt_words(), " ")
 
 
 _WORD = re.compile(r"\d+(?:\.\d+)?|[a-z]+(?:'[a-z]+)?")
