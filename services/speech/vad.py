@@ -134,20 +134,22 @@ class Segmenter:
 
     def _tentative(self) -> Utterance:
         """The utterance as `_close` would give it if the silence that just began lasts (padding so far)."""
+        voiced, cut = self._heard_until(self._last_speech_end)
+        return Utterance(voiced[:cut], self._audio_start, self._start, self._last_speech_end)
+
+    def _heard_until(self, end: int) -> tuple[np.ndarray, int]:
+        """All audio of the utterance so far, and the index where its kept part ends (`end` + post-padding)."""
         assert self._voiced is not None
-        keep_until = min(self._position, self._last_speech_end + int(self.config.post_pad * RATE))
-        audio = np.concatenate(self._voiced)[:keep_until - self._audio_start]
-        return Utterance(audio, self._audio_start, self._start, self._last_speech_end)
+        keep_until = min(self._position, end + int(self.config.post_pad * RATE))
+        return np.concatenate(self._voiced), keep_until - self._audio_start
 
     def _close(self, forced: bool) -> Utterance | None:
-        assert self._voiced is not None
         cfg = self.config
         end = self._position if forced else self._last_speech_end
-        keep_until = min(self._position, end + int(cfg.post_pad * RATE))
-        audio = np.concatenate(self._voiced)[:keep_until - self._audio_start]
-        utt = Utterance(audio, self._audio_start, self._start, end, forced)
+        voiced, cut = self._heard_until(end)
+        utt = Utterance(voiced[:cut], self._audio_start, self._start, end, forced)
         # the windows after the kept audio are context for the next utterance
-        tail = np.concatenate(self._voiced)[keep_until - self._audio_start:]
+        tail = voiced[cut:]
         self._voiced = None
         self._before.clear()
         for i in range(0, len(tail) - self.window + 1, self.window):
