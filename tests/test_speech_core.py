@@ -84,6 +84,9 @@ def test_fsg_word_graph_is_a_probability_model():
 
 def test_normalise_lowercases_and_drops_punctuation():
     assert normalise("  Pick UP, the red cup! ") == "pick up the red cup"
+    # typed (--backend text) or heard, an amount keeps its number: the parser reads digits
+    assert normalise("Go forward 2.5 meters, then turn 90 degrees.") == "go forward 2.5 meters then turn 90 degrees"
+    assert normalise("Don't move 1,000 steps") == "don't move 1000 steps"
 
 
 def test_missing_pronunciations_are_derived_from_known_words():

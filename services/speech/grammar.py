@@ -303,7 +303,16 @@ def _object_words() -> set[str]:
     return {p for ps in lang.OBJECT_PHRASES.values() for p in ps}
 
 
+_WORD = re.compile(r"\d+(?:\.\d+)?|[a-z]+(?:'[a-z]+)?")
+
+
+def normalise_words(text: str) -> list[str]:
+    """Lower-case words and numbers, punctuation dropped ("Go 2.5 meters!" -> go, 2.5, meters; "1,000" -> 1000).
+    Apostrophes inside words stay; digits stay: fusion's parser reads them."""
+    return _WORD.findall(text.lower().replace(",", ""))
+
+
 def normalise(text: str) -> str:
-    """Lower-case words without punctuation, as fusion's parser reads them ("Pick up, the cup!" ->
-    "pick up the cup"). Apostrophes inside words stay."""
-    return " ".join(re.findall(r"[a-z]+(?:'[a-z]+)?", text.lower()))
+    """The words of `normalise_words` as one string, as fusion's parser reads them ("Pick up the cup!" ->
+    "pick up the cup")."""
+    return " ".join(normalise_words(text))

