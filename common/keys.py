@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from common.schema import (
-    AudioChunk, Bodies, Clarification, Detections, Frame, FusedCommand, GestureEvent, Hands, Sample, Stats, Transcript,
+    AudioChunk, Bodies, Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, Sample, Stats, Transcript,
 )
 
 DEFAULT_PREFIX = "hri"
@@ -11,6 +11,7 @@ DEFAULT_PREFIX = "hri"
 # (path below the prefix with {placeholders}, schema). The one table of what is published where.
 KEY_TABLE: tuple[tuple[str, type[Sample]], ...] = (
     ("camera/{cam}/frame", Frame),
+    ("camera/{cam}/depth", DepthFrame),
     ("audio/{mic}/pcm", AudioChunk),
     ("vision/{cam}/objects", Detections),
     ("gesture/{cam}/hands", Hands),
@@ -41,6 +42,9 @@ class Keys:
 
     def frame(self, cam: str = "*") -> str:
         return self._k("camera", check_chunk(cam, "camera id"), "frame")
+
+    def depth(self, cam: str = "*") -> str:
+        return self._k("camera", check_chunk(cam, "camera id"), "depth")
 
     def audio(self, mic: str = "*") -> str:
         return self._k("audio", check_chunk(mic, "microphone id"), "pcm")

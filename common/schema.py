@@ -30,6 +30,10 @@ Handedness = Literal["left", "right"]
 ClarificationReason = Literal["ambiguous", "conflict", "not_found", "low_confidence"]
 ImageEncoding = Literal["jpeg", "png", "bgr8"]
 RaySource = Literal["hand", "body"]
+# v1 extension (3-D): how a pointing ray was lifted into metres, best first.
+Ray3DMethod = Literal["eye_fingertip", "index_finger", "forearm", "shoulder_wrist", "world_landmarks"]
+DepthEncoding = Literal["16UC1", "32FC1"]
+DepthCompression = Literal["none", "png"]
 MotionDirection = Literal["forward", "back", "left", "right", "around"]
 GESTURES: tuple[str, ...] = get_args(GestureName)
 GESTURE_PHASES: tuple[str, ...] = get_args(GesturePhase)
@@ -48,6 +52,8 @@ UnixTime = Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)]
 NonEmpty = Annotated[str, Meta(min_length=1)]
 Point = Annotated[list[Finite], Meta(min_length=2, max_length=2)]
 Box = Annotated[list[Finite], Meta(min_length=4, max_length=4)]
+Point3 = Annotated[list[Finite], Meta(min_length=3, max_length=3)]
+Metres = Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)]
 
 
 def described(tp: Any, description: str, **constraints: Any) -> Any:
@@ -169,19 +175,101 @@ def _check(ok: bool, reason: str, detail: str) -> None:
 # ---------------------------------------------------------------------------
 # Nested maps
 # ---------------------------------------------------------------------------
+class ColorShare(Struct, kw_only=True):
+    """v1 extension: one colour name and how likely a person would call the object that."""
+    name: described(NonEmpty, "a basic colour name (`red`, `brown`, `grey`, …; docs/vision.md lists them)")
+    p: described(UnitFloat, "probability; the shares of one object sum to at most 1")
+
+
 class DetectedObject(Struct, kw_only=True):
     id: described(NonEmpty, "stable while the object stays in view")
     label: described(NonEmpty, "class name, through the command language (`cup`, `person`, …)")
-    color: described(Optional[str], "`red orange yellow green blue purple white black grey`, or nil") = None
+    color: described(Optional[str], "the most likely colour name (`red orange yellow green blue purple white black "
+                                    "grey`, and with the colour model also `brown pink`), or nil") = None
     score: described(UnitFloat, "detection confidence")
     bbox: described(Box, "[x, y, w, h] px")
     center: described(Point, "[x, y] px")
+    lab: described(Optional[Point3], "**v1 extension**: CIELAB (D65) [L 0–100, a, b] of the object's own pixels, "
+                                     "corrected for the scene's illuminant; nil = not measured") = None
+    colors: described(list[ColorShare], "**v1 extension**: the likeliest colour names, best first (at most 5); "
+                                        "`color` is the first") = msgspec.field(default_factory=list)
+    position: described(Optional[Point3], "**v1 extension**: [x, y, z] metres in the camera's optical frame "
+                                          "(x right, y down, z forward), from the depth of the object's own "
+                                          "pixels; absent without depth, never zero") = None
+    extent: described(Optional[Point3], "**v1 extension**: [width, height, depth] metres spanned by those "
+                                        "pixels; absent without depth") = None
+    depth_support: described(Optional[UnitFloat], "**v1 extension**: share of the object's pixels with a valid "
+                                                  "depth behind `position`") = None
+
+    def check_measurements(self, where: str) -> None:
+        """The v1-extension fields' cross-field rules (called by Detections, once per object that has them)."""
+        if self.lab is not None:
+            _check(0.0 <= self.lab[0] <= 100.0, "out_of_range", f"{where}.lab: L {self.lab[0]} is outside 0–100")
+        if self.position is not None:
+            _check(self.position[2] > 0.0, "bad_value",
+                   f"{where}.position: z {self.position[2]} m is not in front of the camera")
+        if self.extent is not None:
+            _check(min(self.extent) >= 0.0, "bad_value", f"{where}.extent: a negative size")
+
+
+class CameraInfo(Struct, kw_only=True):
+    """v1 extension: the intrinsics of the image they travel with (Zenoh has no latching, so they come along)."""
+    width: described(Annotated[int, Meta(gt=0)], "px, the resolution `k` belongs to")
+    height: described(Annotated[int, Meta(gt=0)], "px")
+    k: described(Annotated[list[Finite], Meta(min_length=9, max_length=9)],
+                 "K, 3×3 row-major: [fx, 0, cx, 0, fy, cy, 0, 0, 1] (px)")
+    distortion_model: described(NonEmpty, "`none`, `plumb_bob` (OpenCV k1 k2 p1 p2 k3), "
+                                          "`rational_polynomial`, …") = "none"
+    distortion: described(list[Finite], "the model's coefficients") = msgspec.field(default_factory=list)
+    frame_id: described(NonEmpty, "name of the camera's optical frame (x right, y down, z forward, metres)")
+
+    def __post_init__(self) -> None:
+        k = self.k
+        _check(k[0] > 0.0 and k[4] > 0.0, "bad_value", f"k: focal lengths must be > 0 (fx {k[0]}, fy {k[4]})")
+        _check(k[3] == 0.0 and k[6:] == [0.0, 0.0, 1.0], "bad_value",
+               "k: not a camera matrix (rows 2 and 3 must be [0, fy, cy] and [0, 0, 1])")
+
+    @property
+    def fx(self) -> float:
+        return self.k[0]
+
+    @property
+    def fy(self) -> float:
+        return self.k[4]
+
+    @property
+    def cx(self) -> float:
+        return self.k[2]
+
+    @property
+    def cy(self) -> float:
+        return self.k[5]
+
+    def check_size(self, width: int, height: int, what: str = "camera_info") -> None:
+        """Intrinsics belong to one resolution: refuse them with an image of another size."""
+        _check((self.width, self.height) == (width, height), "bad_value",
+               f"{what}: intrinsics are for {self.width}x{self.height}, the image is {width}x{height} "
+               f"(scale K with the image, or send the intrinsics of this resolution)")
 
 
 class ImageQuality(Struct, kw_only=True):
     brightness: described(UnitFloat, "mean luminance")
     contrast: described(UnitFloat, "spread of luminance")
     sharpness: described(UnitFloat, "focus / motion blur (1 = sharp)")
+
+
+class Ray3D(Struct, kw_only=True):
+    """v1 extension: a pointing ray in metres, in a camera's optical frame."""
+    origin: described(Point3, "[x, y, z] metres (the eyes for `eye_fingertip`, else the arm's proximal point)")
+    direction: described(Point3, "unit vector")
+    method: described(Ray3DMethod, "`eye_fingertip` (eyes through the index tip, the best cue), `index_finger`, "
+                                   "`forearm` (elbow→wrist), `shoulder_wrist`, `world_landmarks` (MediaPipe's "
+                                   "metric skeleton placed at the torso's depth)")
+    frame_id: described(NonEmpty, "the optical frame (CameraInfo.frame_id)")
+
+    def __post_init__(self) -> None:
+        norm = math.sqrt(sum(c * c for c in self.direction))
+        _check(abs(norm - 1.0) <= 1e-3, "bad_value", f"direction: not a unit vector (norm {norm:.4f})")
 
 
 class Ray(Struct, kw_only=True):
@@ -191,6 +279,7 @@ class Ray(Struct, kw_only=True):
     source: described(Optional[RaySource],
                       "**v1 extension**: `hand` = the index finger, `body` = the arm seen by the body stage; "
                       "nil = a sender from before the extension (a hand ray)") = None
+    ray3d: described(Optional[Ray3D], "**v1 extension**: the same ray in metres, when depth is known") = None
 
     def __post_init__(self) -> None:
         norm = math.hypot(*self.direction)
@@ -233,12 +322,19 @@ class Target(Struct, kw_only=True):
     center: described(Point, "[x, y] px")
     score: UnitFloat
     cam: described(NonEmpty, "the camera that saw it")
+    position: described(Optional[Point3], "**v1 extension**: [x, y, z] metres in `frame_id` (camera optical frame)"
+                        ) = None
+    extent: described(Optional[Point3], "**v1 extension**: [width, height, depth] metres") = None
+    frame_id: described(Optional[str], "**v1 extension**: the frame of `position`") = None
 
 
 class Location(Struct, kw_only=True):
     x: described(Finite, "px")
     y: described(Finite, "px")
     cam: NonEmpty
+    position: described(Optional[Point3], "**v1 extension**: the place in metres in `frame_id` (\"go there\": "
+                                          "where the pointing ray meets the floor or table)") = None
+    frame_id: described(Optional[str], "**v1 extension**: the frame of `position`") = None
 
 
 class Motion(Struct, kw_only=True):
@@ -287,11 +383,43 @@ class Frame(Sample, kw_only=True):
     height: described(Annotated[int, Meta(gt=0)], "px")
     encoding: described(ImageEncoding, "`bgr8`: raw rows of B,G,R bytes, `width*height*3` bytes")
     data: described(bytes, "the image")
+    camera_info: described(Optional[CameraInfo], "**v1 extension**: the colour camera's intrinsics, when known"
+                           ) = None
 
     def _check_sample(self) -> None:
         if self.encoding == "bgr8":
             _check(len(self.data) == self.width * self.height * 3, "bad_value",
                    f"data: bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}")
+        if self.camera_info is not None:
+            self.camera_info.check_size(self.width, self.height)
+
+
+class DepthFrame(Sample, kw_only=True):
+    """v1 extension: a depth image aligned to the colour Frame of the same capture (same `stamp` and `seq`),
+    so the colour intrinsics apply. 0 (16UC1) or 0/NaN (32FC1) = no measurement."""
+    MAX_BYTES: ClassVar[int] = 64 * MIB
+    seq: described(Annotated[int, Meta(ge=0)], "the `seq` of the colour Frame of the same capture")
+    cam: described(NonEmpty, "camera id (the colour camera it is aligned to)")
+    width: described(Annotated[int, Meta(gt=0)], "px, equal to the colour frame's")
+    height: described(Annotated[int, Meta(gt=0)], "px")
+    encoding: described(DepthEncoding, "`16UC1`: unsigned 16-bit little-endian units; `32FC1`: float32 "
+                                       "little-endian units")
+    compression: described(DepthCompression, "`none`: raw rows; `png`: a lossless 16-bit PNG (16UC1 only)"
+                           ) = "none"
+    depth_scale: described(Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)],
+                           "metres per unit, explicit even for 16UC1 (RealSense 0.001, YCB-Video 0.0001, TUM "
+                           "0.0002; 32FC1 in metres: 1.0)")
+    camera_info: described(CameraInfo, "intrinsics of the aligned image (the colour camera's)")
+    data: described(bytes, "the depth image")
+
+    def _check_sample(self) -> None:
+        self.camera_info.check_size(self.width, self.height)
+        if self.compression == "none":
+            need = self.width * self.height * (2 if self.encoding == "16UC1" else 4)
+            _check(len(self.data) == need, "bad_value",
+                   f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, got {len(self.data)}")
+        else:
+            _check(self.encoding == "16UC1", "bad_value", "compression: png carries 16UC1 depth only")
 
 
 class AudioChunk(Sample, kw_only=True):
@@ -316,6 +444,13 @@ class Detections(Sample, kw_only=True):
     objects: described(list[DetectedObject], "may be empty: published for **every** processed frame, so "
                                              "\"nothing seen\" is known")
     quality: described(ImageQuality, "how far to trust this frame (see docs/vision.md)")
+    frame_id: described(Optional[str], "**v1 extension**: the optical frame of the objects' `position`s (set "
+                                       "when depth was used)") = None
+
+    def _check_sample(self) -> None:
+        for i, o in enumerate(self.objects):
+            if o.lab is not None or o.position is not None or o.extent is not None:
+                o.check_measurements(f"objects[{i}]")
 
 
 class Hands(Sample, kw_only=True):
@@ -416,5 +551,5 @@ class Stats(Sample, kw_only=True):
 
 
 ALL_SAMPLES: tuple[type[Sample], ...] = (
-    Frame, AudioChunk, Detections, Hands, Bodies, GestureEvent, Transcript, FusedCommand, Clarification, Stats,
+    Frame, DepthFrame, AudioChunk, Detections, Hands, Bodies, GestureEvent, Transcript, FusedCommand, Clarification, Stats,
 )

@@ -9,26 +9,36 @@ import pytest
 from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import (
-    ALL_SAMPLES, AudioChunk, Bodies, Body, Clarification, DetectedObject, Detections, Frame, FusedCommand, GestureEvent, Hand,
-    Hands, ImageQuality, InvalidSample, Location, Motion, Ray, Stats, Target, Transcript, Weights, Word,
+    ALL_SAMPLES, AudioChunk, Bodies, Body, CameraInfo, Clarification, ColorShare, DepthFrame, DetectedObject, Detections,
+    Frame, FusedCommand, GestureEvent, Hand, Hands, ImageQuality, InvalidSample, Location, Motion, Ray, Ray3D, Stats,
+    Target, Transcript, Weights, Word,
 )
 
 T = 1_790_000_000.0
 LANDMARKS = [[100.0 + i, 200.0 - i] for i in range(21)]
 RAY = Ray(origin=[120.0, 180.0], direction=[0.6, -0.8], confidence=0.9)
 TARGET = Target(id="o3", label="cup", color="red", bbox=[10, 20, 30, 40], center=[25, 40], score=0.8, cam="cam0")
+INFO_2X2 = CameraInfo(width=2, height=2, k=[600.0, 0.0, 1.0, 0.0, 600.0, 1.0, 0.0, 0.0, 1.0], frame_id="cam0_optical")
 
 
 def examples():
     return [
-        Frame(stamp=T, source="camera/a", seq=7, cam="cam0", width=2, height=2, encoding="bgr8", data=bytes(12)),
+        Frame(stamp=T, source="camera/a", seq=7, cam="cam0", width=2, height=2, encoding="bgr8", data=bytes(12),
+              camera_info=INFO_2X2),
         AudioChunk(stamp=T, source="mic/a", mic="mic0", rate=16000, channels=1, format="s16le", data=bytes(640)),
         Detections(stamp=T, source="vision/a", seq=7, cam="cam0", width=640, height=480,
                    objects=[DetectedObject(id="o1", label="candy", color="red", score=0.9, bbox=[1, 2, 3, 4],
-                                           center=[2.5, 4.0])],
-                   quality=ImageQuality(brightness=0.5, contrast=0.4, sharpness=0.9)),
+                                           center=[2.5, 4.0]),
+                            DetectedObject(id="o2", label="cup", color="red", score=0.8, bbox=[5, 6, 7, 8],
+                                           center=[8.5, 10.0], lab=[38.0, 45.0, 30.0],
+                                           colors=[ColorShare(name="red", p=0.7), ColorShare(name="brown", p=0.2)],
+                                           position=[0.1, -0.05, 0.9], extent=[0.08, 0.1, 0.06], depth_support=0.8)],
+                   quality=ImageQuality(brightness=0.5, contrast=0.4, sharpness=0.9), frame_id="cam0_optical"),
         Hands(stamp=T, source="gesture/a", seq=7, cam="cam0", width=640, height=480,
-              hands=[Hand(hand="right", score=0.97, landmarks=LANDMARKS, gesture="point", ray=RAY)]),
+              hands=[Hand(hand="right", score=0.97, landmarks=LANDMARKS, gesture="point",
+                          ray=Ray(origin=[120.0, 180.0], direction=[0.6, -0.8], confidence=0.9, source="hand",
+                                  ray3d=Ray3D(origin=[0.0, -0.4, 1.5], direction=[0.0, 0.6, -0.8],
+                                              method="eye_fingertip", frame_id="cam0_optical")))]),
         GestureEvent(stamp=T, source="gesture/a", cam="cam0", width=640, height=480, gesture="point", phase="start",
                      start=T - 0.2, end=T, score=0.9, hand="right", ray=RAY),
         Transcript(stamp=T, source="speech/a", mic="mic0", start=T - 1.2, end=T, text="pick up that cup",
@@ -49,6 +59,8 @@ def examples():
                bodies=[Body(landmarks=[[300.0 + i, 100.0 + 8 * i] for i in range(33)], visibility=[0.9] * 33,
                             right_ray=Ray(origin=[200.0, 250.0], direction=[-0.6, 0.8], confidence=0.8,
                                           source="body"))]),
+        DepthFrame(stamp=T, source="camera/a", seq=7, cam="cam0", width=2, height=2, encoding="16UC1",
+                   depth_scale=0.001, camera_info=INFO_2X2, data=bytes(8)),
     ]
 
 
@@ -275,3 +287,71 @@ def test_plain_msgpack_reads_and_writes_the_wire_format():
         plain = msgpack.unpackb(encode(sample), raw=False)
         assert plain == sample.to_dict()
         assert decode(msgpack.packb(plain, use_bin_type=True), type(sample)) == sample
+
+
+# --- v1 extensions: colour measurement and 3-D ---------------------------------------------------------------
+def _reason(schema, data):
+    with pytest.raises(InvalidSample) as err:
+        decode(msgpack.packb(data), schema)
+    return err.value.reason, err.value.detail
+
+
+def test_intrinsics_of_another_resolution_are_refused():
+    frame = Frame(stamp=T, source="camera/a", seq=1, cam="cam0", width=2, height=2, encoding="bgr8", data=bytes(12),
+                  camera_info=INFO_2X2).to_dict()
+    frame["camera_info"]["width"] = 640
+    reason, detail = _reason(Frame, frame)
+    assert reason == "bad_value" and "640x2" in detail and "2x2" in detail
+
+
+def test_a_matrix_that_is_not_a_camera_matrix_is_refused():
+    depth = examples()[-1].to_dict()
+    depth["camera_info"]["k"][8] = 2.0
+    assert _reason(DepthFrame, depth)[0] == "bad_value"
+    depth = examples()[-1].to_dict()
+    depth["camera_info"]["k"][0] = 0.0
+    assert _reason(DepthFrame, depth)[0] == "bad_value"
+
+
+def test_depth_sizes_and_png_rule():
+    depth = examples()[-1].to_dict()
+    depth["data"] = bytes(7)
+    assert _reason(DepthFrame, depth)[0] == "bad_value"
+    depth = examples()[-1].to_dict()
+    depth["encoding"], depth["data"] = "32FC1", bytes(16)
+    assert decode(msgpack.packb(depth), DepthFrame).encoding == "32FC1"
+    depth["compression"] = "png"
+    assert _reason(DepthFrame, depth)[0] == "bad_value"          # png carries 16UC1 only
+    depth = examples()[-1].to_dict()
+    depth["depth_scale"] = 0.0
+    assert _reason(DepthFrame, depth)[0] == "out_of_range"
+
+
+def test_object_measurements_are_checked():
+    dets = examples()[2].to_dict()
+    dets["objects"][1]["position"][2] = 0.0
+    reason, detail = _reason(Detections, dets)
+    assert reason == "bad_value" and "objects[1].position" in detail
+    dets = examples()[2].to_dict()
+    dets["objects"][1]["lab"][0] = 140.0
+    assert _reason(Detections, dets)[0] == "out_of_range"
+    dets = examples()[2].to_dict()
+    dets["objects"][1]["colors"][0]["p"] = 1.5
+    assert _reason(Detections, dets)[0] == "out_of_range"
+
+
+def test_a_3d_ray_is_a_unit_vector():
+    hands = examples()[3].to_dict()
+    hands["hands"][0]["ray"]["ray3d"]["direction"] = [0.0, 1.0, 1.0]
+    assert _reason(Hands, hands)[0] == "bad_value"
+
+
+def test_a_sender_from_before_the_extensions_still_decodes():
+    """Backward compatibility within v1: none of the new fields is required."""
+    dets = examples()[2].to_dict()
+    for o in dets["objects"]:
+        for key in ("lab", "colors", "position", "extent", "depth_support"):
+            o.pop(key, None)
+    dets.pop("frame_id")
+    back = decode(msgpack.packb(dets), Detections)
+    assert back.objects[1].colors == [] and back.objects[1].position is None and back.frame_id is None
