@@ -266,6 +266,8 @@ class Ray3D(Struct, kw_only=True):
                                    "`forearm` (elbow→wrist), `shoulder_wrist`, `world_landmarks` (MediaPipe's "
                                    "metric skeleton placed at the torso's depth)")
     frame_id: described(NonEmpty, "the optical frame (CameraInfo.frame_id)")
+    hit: described(Optional[Point3], "where the ray meets the surface it points at (a plane fitted to the depth: "
+                                     "floor or table), metres; nil = it meets none in view") = None
 
     def __post_init__(self) -> None:
         norm = math.sqrt(sum(c * c for c in self.direction))
