@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from services.gesture.rules import classify, finger_states, palm_size
-from services.gesture.temporal import GestureTracker, Observation, close_up, fuse_arms
-from services.gesture.body import arm
+from services.gesture.temporal import GestureTracker, body_scale, close_up, fuse_arms
+from services.gesture.body import arm, raised_hand
 from tests.test_gesture import fold_index, real, rotate
 from tests.test_gesture_body import RIGHT_OUT, H, W, hand_at, person, run, starts
 
@@ -160,3 +160,30 @@ def test_a_close_up_hand_turns_pose_only_points_off():
     cues = fuse_arms([pointing_hand], [arm(body, s, W, H) for s in ("left", "right")], body)
     assert [(c.raw, c.source) for c in cues] == [("point", "hand")]
     assert starts(run(GestureTracker(), [([pointing_hand], body)] * 6)) == [("point", "left", "hand")]
+
+
+# -- a raised hand the hand stage cannot see (room distance) -------------------------------------------------
+RAISED = ((250, 150), (245, 80), (244, 65))  # the person's right forearm up, the wrist 100 px above the shoulder
+AT_THE_EAR = ((240, 230), (290, 160), (295, 150))  # "call me" / a phone: the hand at head height, beside the ear
+
+
+def test_an_arm_raised_above_the_shoulder_with_no_hand_seen_is_a_stop():
+    body = person(right_arm=RAISED)
+    assert raised_hand(body, "right", body_scale(body)) and not arm(body, "right", W, H).pointing
+    assert starts(run(GestureTracker(), [([], body)] * 6)) == [("open_palm", "right", None)]
+
+
+def test_a_hand_at_the_ear_or_hanging_is_no_raised_hand():
+    for right_arm in (AT_THE_EAR, None):
+        body = person(right_arm=right_arm)
+        assert not raised_hand(body, "right", body_scale(body))
+        assert starts(run(GestureTracker(), [([], body)] * 6)) == []
+
+
+def test_a_seen_hand_on_a_raised_arm_decides_and_an_occluded_arm_is_not_judged():
+    body = person(right_arm=RAISED)
+    rock = hand_at(SIGNS["rock"](), RAISED[1], 30)
+    assert starts(run(GestureTracker(), [([rock], body)] * 6)) == []  # a sign, not a stop
+    hidden = person(right_arm=RAISED)
+    hidden[[12, 14, 16], 2] = 0.2
+    assert not raised_hand(hidden, "right", body_scale(hidden))

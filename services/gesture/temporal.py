@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from services.gesture.body import MIN_VISIBILITY, TORSO_PER_SHOULDERS, Arm, arm, arm_judged, raised_palm
+from services.gesture.body import MIN_VISIBILITY, TORSO_PER_SHOULDERS, Arm, arm, arm_judged, raised_hand, raised_palm
 from services.gesture.rules import classify, finger_states, palm_size, pointing_ray
 
 HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
@@ -88,7 +88,8 @@ def clearly_seen(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float = 
 def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> bool:
     """May a pointing arm make this hand (no class of its own) a point? Only a hand the hand stage cannot read (small
     at room distance, or a finger unclear) and that shows no other finger than the index extended: a hand with the
-    middle, ring or little finger out ("call me", peace/V, rock, an open hand) is not a pointing hand, whatever the arm does."""
+    middle, ring or little finger out ("call me", peace/V, rock, an open hand) is not a pointing hand, whatever the
+    arm does."""
     if clearly_seen(landmarks, palm, hand_ray_min_palm):
         return False
     return "extended" not in finger_states(landmarks)[1:]
@@ -100,9 +101,11 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
     decides (a fist on an extended arm is not pointing; an open palm never becomes a point); the arm adds only
     what the hand stage cannot see: a small or unclear hand with no other finger out on a pointing arm points
     (`body_may_point`), and a pointing arm without a hand still points. An open palm that is not raised is resting
-    (no stop) — unless the hand is a close-up (`close_up`), where the skeleton is no reference. A close-up hand in
-    view also turns pose-only points off (MediaPipe Pose then often guesses a skeleton around the hand). The more
-    reliable ray wins: the finger's when the palm is at least `hand_ray_min_palm` px, else the arm's."""
+    (no stop) — unless the hand is a close-up (`close_up`), where the skeleton is no reference. An arm whose hand
+    is not seen at all and that is raised above the shoulder, forearm up (`raised_hand`), is a stop: safety first,
+    at room distance the hand itself is a few pixels. A close-up hand in view also turns pose-only cues off
+    (MediaPipe Pose then often guesses a skeleton around the hand). The more reliable ray wins: the finger's when
+    the palm is at least `hand_ray_min_palm` px, else the arm's."""
     free = [a for a in arms if a.visibility >= MIN_VISIBILITY]  # an arm pose cannot see has no wrist to match
     palms = [palm_size(obs.landmarks) for obs in observations]
     any_close_up = any(close_up(palm, body) for palm in palms)
@@ -134,9 +137,14 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
                 ray, source, conf = match.ray, "body", match.confidence
         cues.append(Cue(match.side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, source, conf, k, match))
     for a in free:
-        if a.pointing and not any_close_up:
+        if any_close_up:
+            continue
+        if a.pointing:
             cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "point", a.ray,
                             "body", a.confidence, None, a))
+        elif raised_hand(body, a.side, body_scale(body)):  # a hand raised at room distance, too small to be seen
+            cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "open_palm", None,
+                            "body", 1.0, None, a))
     return cues
 
 
