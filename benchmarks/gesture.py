@@ -11,7 +11,10 @@ accuracy on real pointing photos.
 3. `--rays`: angular error of the two body rays (eyes -> fingertip vs forearm elbow -> fingertip) to the target
    pixels of ../shared/data/pointing (README there), on the arm that points.
 
-Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300] [--rays]
+4. `--photos`: the stops and points that start on every real photo (the 27 hand photos of issue #23 and the 30
+   people photos, as defined in tests/test_gesture_photos.py), per photo and counted.
+
+Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300] [--rays] [--photos]
 """
 
 from __future__ import annotations
@@ -158,12 +161,33 @@ def print_rays() -> None:
                       f"over {len(vals)} photos")
 
 
+def print_photos() -> None:
+    from tests.test_gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
+    people = sorted((SHARED / "data" / "people").glob("*.jpg"))
+    sets = {"27 hand photos": HAND_PHOTOS_27}
+    for label in PEOPLE_EXPECTED:
+        sets[f"people {label}"] = [("people", p.name, PEOPLE_EXPECTED[label], None) for p in people
+                                   if p.name.startswith(label + "_")]
+    for title, photos in sets.items():
+        results = evaluate(photos)
+        for name, (starts, judged) in results.items():
+            flags = [k for k, v in judged.items() if v and k != "right"]
+            print(f"  {'ok   ' if judged['right'] else 'WRONG'} {name[:48]:48s} {starts} {' '.join(flags)}")
+        print(f"{title}: {count(results, 'right')} of {len(results)} right, {count(results, 'missed_stop')} stops "
+              f"missed, {count(results, 'phantom_point')} phantom points, {count(results, 'false_stop')} false stops"
+              f" ({len(photos) - len(results)} photos not found)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=60.0, help="length of the lag run (default 60)")
     parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
     parser.add_argument("--rays", action="store_true", help="only the body-ray accuracy on the pointing photos")
+    parser.add_argument("--photos", action="store_true", help="only the stop/point counts on the real photos")
     args = parser.parse_args()
+    if args.photos:
+        print_photos()
+        return
     if args.rays:
         print_rays()
         return

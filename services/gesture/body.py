@@ -32,6 +32,8 @@ AWAY_DEG = 35.0          # arm (shoulder -> wrist) away from the torso line (sho
 RELEASE_AWAY_DEG = 25.0  # ...and to keep
 TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are out of frame
 FINGERS_UP_DEG = 60.0    # a raised palm: wrist -> middle knuckle within this of image-up
+RAISED_ABOVE_SHOULDER = 0.3  # a raised hand (no hand seen): wrist this many body scales above its shoulder...
+FOREARM_UP_DEG = 45.0        # ...and the forearm (elbow -> wrist) within this of image-up
 
 
 @dataclass(frozen=True)
@@ -138,3 +140,19 @@ def arm_judged(landmarks: np.ndarray | list, side: str) -> bool:
     p = np.asarray(landmarks, dtype=float).reshape(33, 3)
     s, e, _, _, _ = ARMS[side]
     return bool(p[s, 2] >= MIN_VISIBILITY and p[e, 2] >= MIN_VISIBILITY)
+
+
+def raised_hand(landmarks: np.ndarray | list, side: str, scale: float) -> bool:
+    """A hand raised above the shoulder with the forearm up (the 'stop' / 'attention' arm), judged on the body
+    alone — for a person too far for the hand stage to see the hand (a 10 px hand at 4 m). The wrist at least
+    `RAISED_ABOVE_SHOULDER` x `scale` (the person's size, px) above the shoulder: a hand at the ear ('call me',
+    a phone) stays below that on the people photos (at most 0.15), a hand raised above the head is well above."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    s, e, w, _, _ = ARMS[side]
+    if min(p[s, 2], p[e, 2], p[w, 2]) < MIN_VISIBILITY:
+        return False
+    forearm = _unit(p[w, :2] - p[e, :2])
+    if forearm is None:
+        return False
+    up = math.degrees(math.acos(max(-1.0, min(1.0, -forearm[1]))))
+    return bool(p[s, 1] - p[w, 1] >= RAISED_ABOVE_SHOULDER * scale and up <= FOREARM_UP_DEG)

@@ -9,7 +9,12 @@ works for an upright hand.
 
 Classes (first match):
 - `open_palm`: index, middle, ring and little finger extended (the stop sign);
-- `point`: index extended, the other three curled;
+- `point`: index out, the other three folded over (each tip no farther from the wrist than its middle joint),
+  whatever the thumb does (raised or tucked) and from any side (palm, back, edge). "Index out" is an extended
+  index, or — the finger aimed at the camera and foreshortened — a straight index whose tip is beyond its middle
+  joint, at least `FORESHORTENED_REACH` palm sizes long. "Folded over" is stricter than curled: a relaxed or
+  half-closed hand, whose other fingertips are still beyond their middle joints, is not a point; neither is a
+  hand with any other finger extended (peace/V, rock, "call me");
 - `thumbs_up`: all four curled, the thumb extended and pointing up in the image (within 50°);
 - `fist`: all four curled, the thumb folded (its tip near the palm);
 - None otherwise.
@@ -31,6 +36,7 @@ CURLED_REACH = 0.45      # below this: curled
 STRAIGHT = 0.9           # |tip - MCP| / length of its three bones: a straight finger...
 SHORT_REACH = 0.3        # ...this long counts as extended too (a hand tilted away looks short, not bent)
 TIP_BEYOND_PIP = 1.1     # |tip - wrist| / |PIP - wrist| at least this for an extended finger
+FORESHORTENED_REACH = 0.2  # a straight index aimed at the camera may look this short and still point
 THUMB_OUT = 0.65         # |thumb tip - index MCP| / palm at least this: thumb sticks out
 THUMB_UP_DEG = 50.0
 PALM_LENGTH_PER_WIDTH = 1.45
@@ -63,6 +69,24 @@ def finger_states(p: np.ndarray) -> list[str]:
     return states
 
 
+def folded_over(p: np.ndarray, mcp: int) -> bool:
+    """Is this finger folded back toward the palm: its tip no farther from the wrist than its middle joint (PIP)?
+    A pointing hand's other fingers are; a relaxed hand's are not (their tips stay beyond the PIP)."""
+    return float(np.linalg.norm(p[mcp + 3] - p[WRIST])) <= float(np.linalg.norm(p[mcp + 1] - p[WRIST]))
+
+
+def index_out(p: np.ndarray, state: str) -> bool:
+    """The index sticks out: extended, or straight and beyond its PIP but foreshortened (aimed at the camera)."""
+    if state == "extended":
+        return True
+    mcp = INDEX_MCP
+    palm = palm_size(p)
+    tip_to_mcp = float(np.linalg.norm(p[mcp + 3] - p[mcp]))
+    bones = sum(float(np.linalg.norm(p[mcp + i + 1] - p[mcp + i])) for i in range(3)) or 1.0
+    beyond = float(np.linalg.norm(p[mcp + 3] - p[WRIST])) / (float(np.linalg.norm(p[mcp + 1] - p[WRIST])) or 1.0)
+    return tip_to_mcp / bones >= STRAIGHT and beyond >= TIP_BEYOND_PIP and tip_to_mcp / palm >= FORESHORTENED_REACH
+
+
 def thumb_out(p: np.ndarray) -> bool:
     return float(np.linalg.norm(p[THUMB_TIP] - p[INDEX_MCP])) / palm_size(p) >= THUMB_OUT
 
@@ -83,7 +107,7 @@ def classify(landmarks: np.ndarray | list) -> str | None:
     others = (middle, ring, little)
     if index == "extended" and all(s == "extended" for s in others):
         return "open_palm"
-    if index == "extended" and all(s == "curled" for s in others):
+    if index_out(p, index) and all(folded_over(p, mcp) for mcp in FINGERS[1:]):
         return "point"
     if index == "curled" and all(s == "curled" for s in others):
         if thumb_out(p):

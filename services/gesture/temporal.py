@@ -24,10 +24,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from services.gesture.body import MIN_VISIBILITY, Arm, arm, arm_judged, raised_palm
-from services.gesture.rules import classify, palm_size, pointing_ray
+from services.gesture.body import MIN_VISIBILITY, TORSO_PER_SHOULDERS, Arm, arm, arm_judged, raised_hand, raised_palm
+from services.gesture.rules import classify, finger_states, palm_size, pointing_ray
 
 HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
+CLOSE_UP_PALM_PER_BODY = 0.75  # palm / body_scale at least this: a close-up hand, the skeleton is no reference
 
 
 @dataclass
@@ -61,28 +62,72 @@ class Cue:
     arm: Arm | None = None
 
 
+def body_scale(body: np.ndarray) -> float:
+    """The person's size in px for comparing a hand with: the shoulder width, or the torso length / 1.4 when
+    that is larger (a person turned sideways has narrow shoulders in the image, not a short torso)."""
+    p = np.asarray(body, dtype=float).reshape(33, 3)
+    shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2]))
+    torsos = [float(np.linalg.norm(p[hip, :2] - p[s, :2])) for s, hip in ((11, 23), (12, 24))
+              if min(p[s, 2], p[hip, 2]) >= MIN_VISIBILITY]
+    return max([shoulders, *(t / TORSO_PER_SHOULDERS for t in torsos)]) or 1.0
+
+
+def close_up(palm: float, body: np.ndarray | None) -> bool:
+    """Is this hand much nearer the camera than the body (or the body a skeleton MediaPipe guessed around it)? A
+    palm is about 0.25-0.4 shoulder widths on people at 1-3 m; at `CLOSE_UP_PALM_PER_BODY` or more the skeleton is no
+    reference for where the hand is or what it does."""
+    return body is not None and palm >= CLOSE_UP_PALM_PER_BODY * body_scale(body)
+
+
+def clearly_seen(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> bool:
+    """A hand large enough for its fingers to be read (palm >= `hand_ray_min_palm` px) with every finger clearly
+    extended or curled: its own class decides, the body does not overrule it."""
+    return palm >= hand_ray_min_palm and "unclear" not in finger_states(landmarks)
+
+
+def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> bool:
+    """May a pointing arm make this hand (no class of its own) a point? Only a hand the hand stage cannot read (small
+    at room distance, or a finger unclear) and that shows no other finger than the index extended: a hand with the
+    middle, ring or little finger out ("call me", peace/V, rock, an open hand) is not a pointing hand, whatever the
+    arm does."""
+    if clearly_seen(landmarks, palm, hand_ray_min_palm):
+        return False
+    return "extended" not in finger_states(landmarks)[1:]
+
+
 def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray | None,
               hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> list[Cue]:
-    """Hands and arms of one frame -> cues. A hand whose wrist is at the arm's wrist is that arm's hand: its class
-    decides (a fist on an extended arm is not pointing; an unclear hand on a pointing arm points), an open palm
-    that is not raised is resting (no stop), and the more reliable ray wins (the finger's when the palm is at
-    least `hand_ray_min_palm` px, else the arm's). A pointing arm without a hand still points."""
+    """Hands and arms of one frame -> cues. A hand whose wrist is at the arm's wrist is that arm's hand. Its class
+    decides (a fist on an extended arm is not pointing; an open palm never becomes a point); the arm adds only
+    what the hand stage cannot see: a small or unclear hand with no other finger out on a pointing arm points
+    (`body_may_point`), and a pointing arm without a hand still points. An open palm that is not raised is resting
+    (no stop) — unless the hand is a close-up (`close_up`), where the skeleton is no reference. An arm whose hand
+    is not seen at all and that is raised above the shoulder, forearm up (`raised_hand`), is a stop: safety first,
+    at room distance the hand itself is a few pixels. A close-up hand in view also turns pose-only cues off
+    (MediaPipe Pose then often guesses a skeleton around the hand). The more reliable ray wins: the finger's when
+    the palm is at least `hand_ray_min_palm` px, else the arm's."""
     free = [a for a in arms if a.visibility >= MIN_VISIBILITY]  # an arm pose cannot see has no wrist to match
+    palms = [palm_size(obs.landmarks) for obs in observations]
+    any_close_up = any(close_up(palm, body) for palm in palms)
     cues = []
     for k, obs in enumerate(observations):
-        palm = palm_size(obs.landmarks)
+        palm = palms[k]
         raw = hand_class = classify(obs.landmarks)
         near = [a for a in free if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0])))
                 <= max(1.5 * palm, 0.5 * a.forearm)]
         match = min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
-        if match is None:
+        if match is None or close_up(palm, body):
+            if match is not None:
+                free.remove(match)  # its hand is in view: no second, pose-only cue for the same arm
             ray = pointing_ray(obs.landmarks) if raw == "point" else None
-            cues.append(Cue(obs.hand, obs.score, obs.landmarks[0].copy(), palm, raw, ray, "hand", observation=k))
+            side = obs.hand if match is None else match.side
+            cues.append(Cue(side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, "hand", observation=k))
             continue
         free.remove(match)
-        if raw == "open_palm" and arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
-            raw = None  # resting on a hip, a leg or a table
-        if raw is None and match.pointing:
+        if raw == "open_palm":
+            if arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
+                raw = None  # resting on a hip, a leg or a table; never a point
+        elif raw is None and match.pointing and body_may_point(obs.landmarks, palm, hand_ray_min_palm):
             raw = "point"
         ray, source, conf = None, "hand", 1.0
         if raw == "point":
@@ -92,9 +137,14 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
                 ray, source, conf = match.ray, "body", match.confidence
         cues.append(Cue(match.side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, source, conf, k, match))
     for a in free:
+        if any_close_up:
+            continue
         if a.pointing:
             cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "point", a.ray,
                             "body", a.confidence, None, a))
+        elif raised_hand(body, a.side, body_scale(body)):  # a hand raised at room distance, too small to be seen
+            cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "open_palm", None,
+                            "body", 1.0, None, a))
     return cues
 
 
