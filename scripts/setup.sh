@@ -6,9 +6,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 APT_PACKAGES=(espeak-ng sox)          # speech audio for the demo and the speech tests
-# `setup.sh --test` (make test) adds what only the tests need: a real browser for `hri view`'s page.
+# `setup.sh --test` (make test) adds what only the tests need: a real browser for `hri view`'s page and
+# OpenCV's documentation photos (real hands).
 if [ "${1:-}" = "--test" ]; then
-    APT_PACKAGES+=(chromium)
+    APT_PACKAGES+=(chromium opencv-doc)   # opencv-doc: real hand photos for the gesture tests
 fi
 PYTHON=${PYTHON:-python3}
 VENV=.venv
