@@ -15,7 +15,7 @@ import pytest
 from common.depth import UndecodableDepth, depth_frame, depth_metres, depth_units, encode_depth, metres
 from common.schema import CameraInfo, DetectedObject, InvalidSample
 from services.camera.rgbd import mirror_camera_info
-from services.vision.depth import DepthMatcher, foreground, object_depth, with_depth
+from services.vision.depth import DepthImage, DepthMatcher, foreground, object_depth, with_depth
 from tests.shared import shared_path
 
 # YCB-Video (PoseCNN tools/demo.py): fx, fy, cx, cy; 1 depth unit = 0.1 mm
@@ -116,7 +116,10 @@ def test_holes_inside_a_box_lower_the_support_not_the_position():
     empty[y:y + h, x:x + w] = 0
     assert object_depth(metres(empty, YCB_SCALE), YCB_INFO, box) is None
     obj = DetectedObject(id="o1", label="can", score=0.9, bbox=list(box), center=[x + w / 2, y + h / 2])
-    assert with_depth(obj, metres(empty, YCB_SCALE), YCB_INFO).position is None
+    assert with_depth(obj, DepthImage(empty, YCB_SCALE, YCB_INFO)).position is None
+    # the service's path: 16-bit units scaled per sampled pixel, the same as metres converted up front
+    measured = with_depth(obj, DepthImage(holed, YCB_SCALE, YCB_INFO))
+    assert np.allclose(measured.position, after.position, atol=5e-3) and measured.depth_support < 1.0
 
 
 def test_a_mirrored_camera_keeps_positions_right():

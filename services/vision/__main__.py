@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 
-from common.depth import UndecodableDepth, depth_metres
+from common.depth import UndecodableDepth
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import DepthFrame, Detections, Frame
 from services.vision.core import VisionPipeline
-from services.vision.depth import DepthMatcher
+from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
 from services.vision.yolo import FAMILIES, ModelError, YoloDetector, read_names
 
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> None:
         depths.add(delivery.sample)  # decoded only if a colour frame claims it
 
     def depth_for(frame: Frame):
-        """(metres, CameraInfo) of the depth frame of this capture, or None: colour-only users never wait."""
+        """The depth image of this capture, or None: colour-only users never wait for depth."""
         depth = depths.match(frame.cam, frame.seq, frame.stamp)
         if depth is None:
             return None
@@ -87,7 +87,7 @@ def main(argv: list[str] | None = None) -> None:
                                     service.keys.depth(frame.cam))
             return None
         try:
-            return depth_metres(depth), depth.camera_info
+            return DepthImage.from_frame(depth)
         except UndecodableDepth as exc:
             service.counters.reject("undecodable", str(exc), service.keys.depth(frame.cam))
             return None
@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> None:
         service.publish(service.keys.objects(frame.cam), Detections(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, objects=objects, quality=quality,
-            frame_id=depth[1].frame_id if depth is not None else None))
+            frame_id=depth.camera_info.frame_id if depth is not None else None))
 
     for cam in args.cams.split(","):
         # the camera sends depth just before colour, so its slot is usually served first
