@@ -73,14 +73,8 @@ def main(argv: list[str] | None = None) -> None:
 
     depths = DepthMatcher()
 
-    def on_depth(delivery) -> None:
-        depths.add(delivery.sample)  # decoded only if a colour frame claims it
-
-    def depth_for(frame: Frame):
-        """The depth image of this capture, or None: colour-only users never wait for depth."""
-        depth = depths.match(frame.cam, frame.seq, frame.stamp)
-        if depth is None:
-            return None
+    def depth_image(frame: Frame, depth) -> DepthImage | None:
+        """The decoded depth image of this capture, or None (counted) when it does not fit the colour frame."""
         if (depth.width, depth.height) != (frame.width, frame.height):
             service.counters.reject("bad_value", f"depth {depth.width}x{depth.height} is not aligned to the colour "
                                     f"frame {frame.width}x{frame.height} (seq {frame.seq}): no positions",
@@ -92,13 +86,28 @@ def main(argv: list[str] | None = None) -> None:
             service.counters.reject("undecodable", str(exc), service.keys.depth(frame.cam))
             return None
 
-    def on_image(frame: Frame, img) -> None:
-        depth = depth_for(frame)
+    def process(frame: Frame, img, depth: DepthImage | None) -> None:
         objects, quality = pipeline.process(frame.cam, img, depth)
         service.publish(service.keys.objects(frame.cam), Detections(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, objects=objects, quality=quality,
             frame_id=depth.camera_info.frame_id if depth is not None else None))
+
+    def on_depth(delivery) -> None:
+        ready = depths.add(delivery.sample)  # decoded only when a colour frame claims it
+        if ready is not None:  # the colour frame of this capture was served first and waited for it
+            frame, img = ready
+            process(frame, img, depth_image(frame, delivery.sample))
+
+    def on_image(frame: Frame, img) -> None:
+        depth = depths.match(frame.cam, frame.seq, frame.stamp)
+        if depth is None and depths.expects(frame.cam, frame.seq, frame.stamp):
+            if depths.wait(frame, img) is not None:
+                service.counters.add("skipped")  # an older frame whose depth never came: latest-only
+            return
+        if depths.take_waiting(frame.cam) is not None:
+            service.counters.add("skipped")
+        process(frame, img, None if depth is None else depth_image(frame, depth))
 
     for cam in args.cams.split(","):
         # the camera sends depth just before colour, so its slot is usually served first

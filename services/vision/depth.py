@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import msgspec
 import numpy as np
@@ -167,21 +167,59 @@ def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:
                                    depth_support=round(measured.support, 3))
 
 
+EXPECT_DEPTH_S = 1.0  # a camera that sent depth this recently (source time) is expected to send it again
+
+
 class DepthMatcher:
-    """The few latest depth frames per camera, and the one that belongs to a colour frame (same seq and stamp).
-    Not thread-safe: the service's one worker calls it."""
+    """Pairs colour frames with the depth frame of the same capture (same cam, seq and stamp). Not thread-safe:
+    the service's one worker calls it.
 
-    def __init__(self, keep: int = 4):
+    Depth and colour arrive on two latest-only keys, so the colour frame can be served before its depth. A
+    colour frame without its depth therefore waits (one per camera) when that camera sent depth within
+    EXPECT_DEPTH_S and no newer depth is already in: its depth is then usually next in line. It is released when
+    the depth comes, or dropped when a newer colour frame of the camera arrives first (counted by the caller as
+    skipped: latest-only). A camera without depth never makes a frame wait.
+    """
+
+    def __init__(self, keep: int = 4, expect_s: float = EXPECT_DEPTH_S):
         self.keep = keep
+        self.expect_s = expect_s
         self.frames: dict[str, list[DepthFrame]] = {}
+        self.waiting: dict[str, tuple[Any, Any]] = {}  # cam -> (colour frame, its decoded image)
 
-    def add(self, frame: DepthFrame) -> None:
+    def add(self, frame: DepthFrame) -> tuple[Any, Any] | None:
+        """Keep a depth frame; returns the waiting (colour frame, image) it belongs to, if any."""
         kept = self.frames.setdefault(frame.cam, [])
         kept.append(frame)
         del kept[:-self.keep]
+        waiting = self.waiting.get(frame.cam)
+        if waiting is not None and self._same(frame, waiting[0].seq, waiting[0].stamp):
+            return self.waiting.pop(frame.cam)
+        return None
+
+    @staticmethod
+    def _same(depth: DepthFrame, seq: int, stamp: float) -> bool:
+        return depth.seq == seq and abs(depth.stamp - stamp) < 1e-6
 
     def match(self, cam: str, seq: int, stamp: float) -> DepthFrame | None:
         for frame in reversed(self.frames.get(cam, [])):
-            if frame.seq == seq and abs(frame.stamp - stamp) < 1e-6:
+            if self._same(frame, seq, stamp):
                 return frame
         return None
+
+    def expects(self, cam: str, seq: int, stamp: float) -> bool:
+        """True if the depth of this capture is probably still on its way."""
+        kept = self.frames.get(cam)
+        if not kept:
+            return False
+        newest = kept[-1]
+        return newest.stamp < stamp and stamp - newest.stamp <= self.expect_s
+
+    def wait(self, frame: Any, image: Any) -> tuple[Any, Any] | None:
+        """Park a colour frame for its depth; returns the one it replaces (its depth never came), if any."""
+        replaced = self.waiting.pop(frame.cam, None)
+        self.waiting[frame.cam] = (frame, image)
+        return replaced
+
+    def take_waiting(self, cam: str) -> tuple[Any, Any] | None:
+        return self.waiting.pop(cam, None)
