@@ -145,3 +145,29 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
         for o in det.objects:
             expected = object_depth(depth_units(d), d.camera_info, tuple(o.bbox), depth_scale=d.depth_scale)
             assert np.allclose(o.position, expected.position, atol=1e-3) if expected else o.position is None
+
+
+def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused(group, tmp_path):
+    from tests.harness import DATA
+    photo = DATA / "demo" / "pointing.png"  # 640x480
+    folder = tmp_path / "colour"
+    folder.mkdir()
+    (folder / photo.name).write_bytes(photo.read_bytes())
+    good, bad = tmp_path / "good.json", tmp_path / "bad.json"
+    good.write_text(json.dumps({**YCB_INTRINSICS, "frame_id": "webcam_optical"}))
+    bad.write_text(json.dumps({**YCB_INTRINSICS, "width": 320, "height": 240}))
+    group.router()
+    client = Client(group.endpoint)
+    try:
+        frames = client.collect("hri/camera/cam0/frame")
+        group.service("camera", "--source", str(folder), "--fps", "10", "--loop", "--intrinsics", str(good),
+                      "--mirror")
+        _, frame = frames.wait(1, timeout=30)[0]
+    finally:
+        client.close()
+    assert frame.camera_info.frame_id == "webcam_optical_mirrored"
+    assert frame.camera_info.cx == pytest.approx(640 - 1 - 312.9869)
+    camera = group.service("camera", "--source", str(folder), "--intrinsics", str(bad))
+    camera.popen.wait(60)
+    assert camera.popen.returncode == 2, camera.output()
+    assert "intrinsics are for 320x240 but the images are 640x480" in camera.output()
