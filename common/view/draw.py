@@ -107,6 +107,20 @@ def draw_quality(img: np.ndarray, layers: dict[str, Any]) -> None:
                     f"{q['sharpness']:.2f}", 4, img.shape[0] - 4, (255, 255, 255))
 
 
+def colourize_depth(metres: np.ndarray) -> np.ndarray:
+    """BGR picture of a depth image in metres (NaN = none): near red, far blue (over the 2nd–98th
+    percentile of the valid depths, OpenCV jet), no measurement black."""
+    valid = np.isfinite(metres)
+    out = np.zeros((*metres.shape, 3), np.uint8)
+    if not valid.any():
+        return out
+    near, far = np.percentile(metres[valid], [2, 98])
+    scaled = np.clip((far - np.where(valid, metres, far)) / max(far - near, 1e-3), 0.0, 1.0)
+    out[:] = cv2.applyColorMap((scaled * 255).astype(np.uint8), cv2.COLORMAP_JET)
+    out[~valid] = 0
+    return out
+
+
 # bottom to top: the decision is drawn last so it is never hidden
 LAYERS: tuple[Callable[[np.ndarray, dict[str, Any]], None], ...] = (
     draw_objects, draw_hands, draw_decision, draw_quality)

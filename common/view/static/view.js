@@ -109,6 +109,7 @@ function drawDecision(ctx, layers) {
 }
 
 const LAYERS = [drawObjects, drawHands, drawDecision];
+const DEPTH_ALPHA = 0.6;
 
 function drawCamera(name) {
   const cam = view.cams[name];
@@ -117,6 +118,11 @@ function drawCamera(name) {
   if (cam.canvas.width !== cam.bitmap.width) cam.canvas.width = cam.bitmap.width;
   if (cam.canvas.height !== cam.bitmap.height) cam.canvas.height = cam.bitmap.height;
   ctx.drawImage(cam.bitmap, 0, 0);
+  if (cam.depthToggle.checked && cam.depthBitmap) {  // the depth overlay: near red, far blue, no depth black
+    ctx.globalAlpha = DEPTH_ALPHA;
+    ctx.drawImage(cam.depthBitmap, 0, 0, cam.canvas.width, cam.canvas.height);
+    ctx.globalAlpha = 1;
+  }
   const layers = (view.state && view.state.cameras[name]) || {};
   for (const layer of LAYERS) {
     try { layer(ctx, layers); } catch (err) { view.pageErrors++; console.warn("overlay", layer.name, err); }
@@ -129,11 +135,20 @@ function cameraPanel(name) {
   if (cam) return cam;
   const canvas = el("canvas", { width: 640, height: 480, "data-cam": name });
   const meta = el("div", { class: "meta" });
-  const panel = el("section", { class: "camera", id: `cam-${name}` }, el("h2", {}, name), canvas, meta);
+  const depthToggle = el("input", { type: "checkbox", "data-depth": name });
+  const depthLabel = el("label", { class: "depth-toggle", hidden: "" }, depthToggle, " depth");
+  const panel = el("section", { class: "camera", id: `cam-${name}` }, el("h2", {}, name, " ", depthLabel), canvas,
+    meta);
   const empty = $("cameras").querySelector(".empty");
   if (empty) empty.remove();
   $("cameras").append(panel);
-  cam = view.cams[name] = { canvas, meta, panel, n: -1, bitmap: null, frames: 0 };
+  cam = view.cams[name] = { canvas, meta, panel, n: -1, bitmap: null, frames: 0, depthToggle, depthLabel,
+    depthBitmap: null, depthSeq: null, depthLoading: false };
+  depthToggle.addEventListener("change", () => {
+    const info = view.state && view.state.cameras[name];
+    if (info) updateDepth(name, info);
+    drawCamera(name);
+  });
   frameLoop(name);
   return cam;
 }
@@ -168,8 +183,31 @@ async function frameLoop(name) {
   }
 }
 
+// The depth overlay: fetched only while its toggle is on, once per new depth frame.
+async function updateDepth(name, info) {
+  const cam = view.cams[name];
+  cam.depthLabel.hidden = !info.depth;
+  if (!info.depth || !cam.depthToggle.checked || cam.depthLoading || cam.depthSeq === info.depth.seq) return;
+  cam.depthLoading = true;
+  try {
+    const res = await fetch(`/api/depth/${encodeURIComponent(name)}`, { cache: "no-store" });
+    if (res.status === 200) {
+      const bitmap = await createImageBitmap(await res.blob());
+      if (cam.depthBitmap) cam.depthBitmap.close();
+      cam.depthBitmap = bitmap;
+      cam.depthSeq = parseInt(res.headers.get("X-Seq"), 10);
+      drawCamera(name);
+    }
+  } catch (err) {
+    view.pageErrors++;
+  } finally {
+    cam.depthLoading = false;
+  }
+}
+
 function updateCameraMeta(name, info) {
   const cam = cameraPanel(name);
+  updateDepth(name, info);
   const q = info.quality;
   const quality = q ? `brightness ${num(q.brightness)} · contrast ${num(q.contrast)} · sharpness ${num(q.sharpness)}`
     : "no detections yet";
