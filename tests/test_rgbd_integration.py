@@ -171,3 +171,23 @@ def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused
     camera.popen.wait(60)
     assert camera.popen.returncode == 2, camera.output()
     assert "intrinsics are for 320x240 but the images are 640x480" in camera.output()
+
+
+def test_on_a_secured_robot_vision_may_read_depth(group, tmp_path):
+    """The access rules let vision (and gesture) receive camera/*/depth: positions work with --secure too."""
+    from common.security import init_secrets
+    from tests.harness import wait_for_port
+    folder = ycb_folder(tmp_path)
+    secrets = str(init_secrets(tmp_path / "secrets", {}).folder)
+    group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
+    wait_for_port(group.port)
+    group.service("vision", "--secure", secrets)
+    reader = Client(group.endpoint, secure=secrets)
+    try:
+        reader.wait_alive("vision", timeout=120)
+        out = reader.collect("hri/vision/cam0/objects")
+        group.service("camera", "--source", str(folder), "--fps", "4", "--loop", "--secure", secrets)
+        _, det = out.wait(1, timeout=60, where=lambda k, s: s.frame_id is not None)[0]
+    finally:
+        reader.close()
+    assert det.frame_id == "ycb_camera_optical_frame" and any(o.position for o in det.objects)
