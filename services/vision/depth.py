@@ -96,7 +96,8 @@ def foreground(z: np.ndarray) -> np.ndarray:
     peaks = np.flatnonzero((smooth >= padded[:-2]) & (smooth > padded[2:]) & (smooth > 0))
     best: tuple[int, int] | None = None
     best_mass = -1.0
-    for peak in peaks:  # nearest first
+    smooth = smooth.tolist()  # the walk below reads single bins: Python floats are faster than numpy scalars
+    for peak in peaks.tolist():  # nearest first
         floor = FLANK * smooth[peak]
         a = peak
         while a > 0 and smooth[a - 1] >= floor and smooth[a - 1] <= smooth[a] * 1.5:
@@ -104,7 +105,7 @@ def foreground(z: np.ndarray) -> np.ndarray:
         b = peak
         while b < n_bins - 1 and smooth[b + 1] >= floor and smooth[b + 1] <= smooth[b] * 1.5:
             b += 1
-        mass = counts[a:b + 1].sum()
+        mass = float(counts[a:b + 1].sum())
         if mass >= MIN_MODE_SHARE * z.size:
             best = (a, b)
             break
@@ -144,17 +145,21 @@ def object_depth(depth: np.ndarray, info: CameraInfo, bbox: tuple[float, float, 
     if n_own < MIN_POINTS:
         return None
     pts = np.sort(back_project(u[own], v[own], z[own], info), axis=0)
-    p5, position, p95 = (_interpolated(pts, q) for q in (0.05, 0.5, 0.95))
-    return ObjectDepth(position=tuple(float(c) for c in position), extent=tuple(float(c) for c in p95 - p5),
+    p5, position, p95 = _quantiles(pts, n_own).tolist()
+    return ObjectDepth(position=tuple(position), extent=(p95[0] - p5[0], p95[1] - p5[1], p95[2] - p5[2]),
                        support=z.size / total, points=n_own)
 
 
-def _interpolated(sorted_rows: np.ndarray, q: float) -> np.ndarray:
-    """The q-quantile of each column of row-sorted data (linear interpolation, as numpy's default)."""
-    at = q * (len(sorted_rows) - 1)
-    lo = int(at)
-    hi = min(lo + 1, len(sorted_rows) - 1)
-    return sorted_rows[lo] + (at - lo) * (sorted_rows[hi] - sorted_rows[lo])
+QUANTILES = np.array([0.05, 0.5, 0.95])
+
+
+def _quantiles(sorted_rows: np.ndarray, n: int) -> np.ndarray:
+    """The 5th, 50th and 95th percentiles (rows) of each column of row-sorted data, interpolated linearly as
+    numpy's default."""
+    at = QUANTILES * (n - 1)
+    lo = at.astype(np.int64)
+    hi = np.minimum(lo + 1, n - 1)
+    return sorted_rows[lo] + (at - lo)[:, None] * (sorted_rows[hi] - sorted_rows[lo])
 
 
 def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:
