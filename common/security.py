@@ -47,8 +47,9 @@ class Role:
 ROLES: dict[str, Role] = {
     "camera": Role(publish=("camera/**",), service="camera"),
     "mic": Role(publish=("audio/**",)),  # a microphone elsewhere sending AudioChunks
-    "vision": Role(publish=("vision/**",), subscribe=("camera/*/frame",), service="vision"),
-    "gesture": Role(publish=("gesture/**",), subscribe=("camera/*/frame",), service="gesture"),
+    # depth: aligned depth frames of RGB-D cameras (positions in metres, 3-D pointing)
+    "vision": Role(publish=("vision/**",), subscribe=("camera/*/frame", "camera/*/depth"), service="vision"),
+    "gesture": Role(publish=("gesture/**",), subscribe=("camera/*/frame", "camera/*/depth"), service="gesture"),
     "speech": Role(publish=("speech/**",), subscribe=("audio/*/pcm",), service="speech"),
     "fusion": Role(publish=("fusion/**",), subscribe=("speech/**", "vision/**", "gesture/**"), service="fusion"),
     "reader": Role(subscribe=("**",)),  # hri echo / list / stats / record, a planner listening to commands

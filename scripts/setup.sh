@@ -9,7 +9,8 @@ APT_PACKAGES=(espeak-ng sox)          # speech audio for the demo and the speech
 # `setup.sh --test` (make test) adds what only the tests need: a real browser for `hri view`'s page and
 # OpenCV's documentation photos (real hands).
 if [ "${1:-}" = "--test" ]; then
-    APT_PACKAGES+=(chromium opencv-doc)   # opencv-doc: real hand photos for the gesture tests
+    # opencv-doc: real hand photos for the gesture tests; libusb: pyrealsense2's wheel links it (the RealSense test)
+    APT_PACKAGES+=(chromium opencv-doc libusb-1.0-0)
 fi
 PYTHON=${PYTHON:-python3}
 VENV=.venv

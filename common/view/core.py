@@ -21,7 +21,8 @@ from common.codec import decode
 from common.image import UndecodableFrame, frame_image
 from common.keys import Keys
 from common.schema import (
-    Clarification, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats, Transcript,
+    Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats,
+    Transcript,
 )
 from common.view.command import DEFAULT_MAX_FPS
 
@@ -55,6 +56,8 @@ class CameraState:
     released: int = 0
     detections: Detections | None = None
     hands: Hands | None = None
+    depth: DepthFrame | None = None  # latest; colourized only when the page asks (the depth toggle)
+    depth_jpeg: tuple[int, float, bytes] | None = None  # (seq, stamp, JPEG) of the last colourized one
 
 
 @dataclass
@@ -147,6 +150,8 @@ class ViewState:
             self._camera(sample.cam).detections = sample
         elif isinstance(sample, Hands):
             self._camera(sample.cam).hands = sample
+        elif isinstance(sample, DepthFrame):
+            self._camera(sample.cam).depth = sample
         elif isinstance(sample, GestureEvent):
             if sample.phase == "start":  # "hold" comes every 100 ms; the start is the event a person sees
                 self._add_entry(sample.stamp, {
@@ -204,6 +209,30 @@ class ViewState:
             state = self.cameras.get(cam)
             return state.shown if state else None
 
+    def depth_picture(self, cam: str) -> tuple[int, float, bytes] | None:
+        """(seq, stamp, JPEG) of the camera's latest depth frame colourized (near red, far blue, none black);
+        None without depth, or when it does not decode (counted)."""
+        with self.lock:
+            state = self.cameras.get(cam)
+            depth = state.depth if state else None
+            if depth is None:
+                return None
+            if state.depth_jpeg is not None and state.depth_jpeg[:2] == (depth.seq, depth.stamp):
+                return state.depth_jpeg
+        from common.depth import UndecodableDepth, depth_metres
+        from common.view.draw import colourize_depth
+        try:
+            picture = colourize_depth(depth_metres(depth))
+        except UndecodableDepth:
+            self.ignore(self.keys.depth(cam), "undecodable")
+            return None
+        ok, buf = cv2.imencode(".jpg", picture, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        if not ok:
+            return None
+        with self.lock:
+            state.depth_jpeg = (depth.seq, depth.stamp, buf.tobytes())
+            return state.depth_jpeg
+
     # -- services ---------------------------------------------------------------
     def set_alive(self, service: str, instance: str, alive: bool) -> None:
         with self.lock:
@@ -253,7 +282,9 @@ class ViewState:
                 cameras[cam] = {
                     "frame": None if shown is None else {"n": shown.n, "seq": shown.seq, "stamp": shown.stamp,
                                                          "width": shown.width, "height": shown.height},
-                    "received": state.received, "released": state.released, **self.overlay(cam)}
+                    "received": state.received, "released": state.released,
+                    "depth": None if state.depth is None else {"seq": state.depth.seq, "stamp": state.depth.stamp},
+                    **self.overlay(cam)}
             ignored: dict[str, dict[str, int]] = {}
             for (key, reason), count in sorted(self.ignored.items()):
                 ignored.setdefault(key, {})[reason] = count

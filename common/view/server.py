@@ -112,6 +112,16 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
                 return web.Response(status=204, headers={"Cache-Control": "no-store"})
             await changes.wait(deadline - time.monotonic())
 
+    async def api_depth(request: web.Request) -> web.Response:
+        """The camera's latest depth frame as a colourized JPEG (the page's depth toggle); 204 without depth."""
+        picture = await asyncio.get_running_loop().run_in_executor(None, state.depth_picture,
+                                                                   request.match_info["cam"])
+        if picture is None:
+            return web.Response(status=204, headers={"Cache-Control": "no-store"})
+        seq, stamp, jpeg = picture
+        return web.Response(body=jpeg, content_type="image/jpeg", headers={
+            "Cache-Control": "no-store", "X-Seq": str(seq), "X-Stamp": repr(stamp)})
+
     async def api_player(request: web.Request) -> web.Response:
         if player is None:
             return web.json_response({"error": "not a recording: start `hri view FILE.mcap`"}, status=409)
@@ -139,6 +149,7 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
     app.router.add_get("/", index)
     app.router.add_get("/api/state", api_state)
     app.router.add_get("/api/frame/{cam}", api_frame)
+    app.router.add_get("/api/depth/{cam}", api_depth)
     app.router.add_post("/api/player", api_player)
     app.router.add_static("/static/", STATIC)
     return app

@@ -33,6 +33,12 @@ function clock(stamp) {
 }
 
 function objectName(o) { return [o.color, o.label].filter(Boolean).join(" "); }
+// " (x, y, z) m" in the camera's optical frame when depth gave the object a position (as draw.py)
+function signed(v) { return `${v >= 0 ? "+" : ""}${v.toFixed(2)}`; }
+function objectPosition(o) {
+  const p = o && o.position;
+  return p ? ` (${signed(p[0])}, ${signed(p[1])}, ${p[2].toFixed(2)}) m` : "";
+}
 
 // -- layers (bottom to top), as in draw.py ------------------------------------------------------------
 function drawLabel(ctx, text, x, y, colour) {
@@ -55,7 +61,7 @@ function drawObjects(ctx, layers) {
   const decided = new Set([layers.target, ...(layers.candidates || [])].filter(Boolean).map((o) => o.id));
   for (const o of layers.objects || []) {
     drawBox(ctx, o.bbox, COLOURS.box, 2);
-    if (!decided.has(o.id)) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}`, o.bbox[0], o.bbox[1], COLOURS.box);
+    if (!decided.has(o.id)) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}${objectPosition(o)}`, o.bbox[0], o.bbox[1], COLOURS.box);
   }
 }
 
@@ -92,7 +98,7 @@ function drawDecision(ctx, layers) {
     ctx.strokeStyle = COLOURS.target; ctx.lineWidth = 3;
     ctx.beginPath(); ctx.moveTo(t.center[0] - 9, t.center[1]); ctx.lineTo(t.center[0] + 9, t.center[1]);
     ctx.moveTo(t.center[0], t.center[1] - 9); ctx.lineTo(t.center[0], t.center[1] + 9); ctx.stroke();
-    drawLabel(ctx, `${t.intent || "target"}: ${objectName(t)} ${t.id}`, t.bbox[0], t.bbox[1], COLOURS.target);
+    drawLabel(ctx, `${t.intent || "target"}: ${objectName(t)} ${t.id}${objectPosition(t)}`, t.bbox[0], t.bbox[1], COLOURS.target);
   }
   if (layers.location) {
     const { x, y } = layers.location;
@@ -103,6 +109,7 @@ function drawDecision(ctx, layers) {
 }
 
 const LAYERS = [drawObjects, drawHands, drawDecision];
+const DEPTH_ALPHA = 0.6;
 
 function drawCamera(name) {
   const cam = view.cams[name];
@@ -111,6 +118,11 @@ function drawCamera(name) {
   if (cam.canvas.width !== cam.bitmap.width) cam.canvas.width = cam.bitmap.width;
   if (cam.canvas.height !== cam.bitmap.height) cam.canvas.height = cam.bitmap.height;
   ctx.drawImage(cam.bitmap, 0, 0);
+  if (cam.depthToggle.checked && cam.depthBitmap) {  // the depth overlay: near red, far blue, no depth black
+    ctx.globalAlpha = DEPTH_ALPHA;
+    ctx.drawImage(cam.depthBitmap, 0, 0, cam.canvas.width, cam.canvas.height);
+    ctx.globalAlpha = 1;
+  }
   const layers = (view.state && view.state.cameras[name]) || {};
   for (const layer of LAYERS) {
     try { layer(ctx, layers); } catch (err) { view.pageErrors++; console.warn("overlay", layer.name, err); }
@@ -123,11 +135,20 @@ function cameraPanel(name) {
   if (cam) return cam;
   const canvas = el("canvas", { width: 640, height: 480, "data-cam": name });
   const meta = el("div", { class: "meta" });
-  const panel = el("section", { class: "camera", id: `cam-${name}` }, el("h2", {}, name), canvas, meta);
+  const depthToggle = el("input", { type: "checkbox", "data-depth": name });
+  const depthLabel = el("label", { class: "depth-toggle", hidden: "" }, depthToggle, " depth");
+  const panel = el("section", { class: "camera", id: `cam-${name}` }, el("h2", {}, name, " ", depthLabel), canvas,
+    meta);
   const empty = $("cameras").querySelector(".empty");
   if (empty) empty.remove();
   $("cameras").append(panel);
-  cam = view.cams[name] = { canvas, meta, panel, n: -1, bitmap: null, frames: 0 };
+  cam = view.cams[name] = { canvas, meta, panel, n: -1, bitmap: null, frames: 0, depthToggle, depthLabel,
+    depthBitmap: null, depthSeq: null, depthLoading: false };
+  depthToggle.addEventListener("change", () => {
+    const info = view.state && view.state.cameras[name];
+    if (info) updateDepth(name, info);
+    drawCamera(name);
+  });
   frameLoop(name);
   return cam;
 }
@@ -162,8 +183,31 @@ async function frameLoop(name) {
   }
 }
 
+// The depth overlay: fetched only while its toggle is on, once per new depth frame.
+async function updateDepth(name, info) {
+  const cam = view.cams[name];
+  cam.depthLabel.hidden = !info.depth;
+  if (!info.depth || !cam.depthToggle.checked || cam.depthLoading || cam.depthSeq === info.depth.seq) return;
+  cam.depthLoading = true;
+  try {
+    const res = await fetch(`/api/depth/${encodeURIComponent(name)}`, { cache: "no-store" });
+    if (res.status === 200) {
+      const bitmap = await createImageBitmap(await res.blob());
+      if (cam.depthBitmap) cam.depthBitmap.close();
+      cam.depthBitmap = bitmap;
+      cam.depthSeq = parseInt(res.headers.get("X-Seq"), 10);
+      drawCamera(name);
+    }
+  } catch (err) {
+    view.pageErrors++;
+  } finally {
+    cam.depthLoading = false;
+  }
+}
+
 function updateCameraMeta(name, info) {
   const cam = cameraPanel(name);
+  updateDepth(name, info);
   const q = info.quality;
   const quality = q ? `brightness ${num(q.brightness)} · contrast ${num(q.contrast)} · sharpness ${num(q.sharpness)}`
     : "no detections yet";
@@ -195,7 +239,9 @@ function entryNode(e) {
       el("small", {}, `score ${num(e.score)}`));
   } else if (e.kind === "command") {
     const t = e.target;
-    const what = t ? ` → ${objectName(t)} ${t.id}` : (e.place ? ` → ${e.place}` : "");
+    const loc = e.location;
+    const what = t ? ` → ${objectName(t)} ${t.id}${objectPosition(t)}`
+      : (e.place ? ` → ${e.place}${objectPosition(loc)}` : "");
     const summary = el("summary", {}, time, el("span", { class: "kind" }, "command"),
       `${e.intent}${what} `, el("small", {}, `confidence ${num(e.confidence)}`));
     const missing = Object.entries(e.inputs || {}).filter(([, s]) => s === null).map(([m]) => m);
