@@ -9,7 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from common.schema import DetectedObject, Detections, Hand, Hands, ImageQuality, Ray, Ray3D, Weights
+from common.schema import (
+    Bodies, Body, DetectedObject, Detections, Hand, Hands, ImageQuality, Ray, Ray3D, Weights,
+)
 from services.fusion import space
 from services.fusion.evidence import pointing_from_hands, select_pointing
 from services.fusion.ground import best_pointed, pointed_location, scene_objects, score
@@ -226,3 +228,80 @@ def test_a_command_carries_position_extent_and_frame():
     assert target.extent == pytest.approx([0.08, 0.22, 0.08])
     assert "at (-0.80, 0.50, 2.40) m in cam0_optical" in out[0].prompt  # the planner sees metres
     assert "3-D ray (eye_fingertip) from (0.45, -0.55, 3.20) m" in out[0].prompt
+
+
+# ---------------------------------------------------------------------------
+# "On my left": the speaker's side, from the body's orientation
+# ---------------------------------------------------------------------------
+def body(facing: bool | None) -> Body:
+    """A standing person in the middle of the image: facing the camera (their left shoulder on the image's right),
+    their back to it, or side-on (None: shoulders one behind the other)."""
+    p = [[320.0, 150.0]] * 33
+    p = [list(q) for q in p]
+    if facing is None:
+        p[11], p[12] = [322.0, 200.0], [318.0, 200.0]
+    else:
+        left, right = (370.0, 270.0) if facing else (270.0, 370.0)
+        p[11], p[12] = [left, 200.0], [right, 200.0]
+    p[23], p[24] = [p[11][0] - 10, 330.0], [p[12][0] + 10, 330.0]
+    return Body(landmarks=p, visibility=[0.99] * 33)
+
+
+def bodies(b: Body | None, stamp: float) -> Bodies:
+    return Bodies(stamp=stamp, source="gesture/cam0", seq=1, cam="cam0", width=W, height=H,
+                  bodies=[] if b is None else [b])
+
+
+def test_side_words_said_from_the_speaker():
+    assert space.said_from_speaker("pick up the cup on my left") == {"left"}
+    assert space.said_from_speaker("bring me the one to my Right, please") == {"right"}
+    assert space.said_from_speaker("the bottle left of me") == {"left"}
+    assert space.said_from_speaker("the cup on your left") == set()
+    assert space.said_from_speaker("the left cup") == set()
+
+
+def test_facing_from_the_shoulders():
+    assert space.facing_camera(body(True).landmarks, body(True).visibility) is True
+    assert space.facing_camera(body(False).landmarks, body(False).visibility) is False
+    assert space.facing_camera(body(None).landmarks, body(None).visibility) is None
+    hidden = Body(landmarks=body(True).landmarks, visibility=[0.1] * 33)
+    assert space.facing_camera(hidden.landmarks, hidden.visibility) is None
+
+
+def run_with_body(text: str, person: Body | None) -> str:
+    """Two cups, one on each side of the image; the person's body (if any) seen throughout."""
+    cups = [DetectedObject(id="image_left", label="cup", score=0.9, bbox=[60, 300, 60, 80], center=[90, 340]),
+            DetectedObject(id="image_right", label="cup", score=0.9, bbox=[520, 300, 60, 80], center=[550, 340])]
+
+    def see(s):
+        return Detections(stamp=s, source="vision/cam0", seq=1, cam="cam0", width=W, height=H, objects=cups,
+                          quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.6))
+    steps = [step(t / 10, see) for t in range(-10, 20, 2)]
+    if person is not None:
+        steps += [Step(t / 10, lambda base, t=t: (KEYS.bodies("cam0"), bodies(person, base + t / 10)))
+                  for t in range(-10, 20, 2)]
+    steps.append(say(0.0, 0.8, text))
+    from services.fusion.core import Config, FusionCore
+    core = FusionCore(Config(), "fusion/test")
+    for modality in ("vision", "gesture"):
+        core.on_liveliness(modality, "test", True)
+    out = []
+    for s in sorted(steps, key=lambda s: s.t):
+        key, sample = s.build(BASE_STAMP)
+        feed = {Detections: core.on_detections, Bodies: core.on_bodies}.get(type(sample), core.on_transcript)
+        out += [o.sample for o in feed(key, sample, 1000.0)] + [o.sample for o in core.tick(1000.0)]
+    out += [o.sample for o in core.tick(2000.0)]
+    assert len(out) == 1 and out[0].target is not None, out
+    return out[0].target.id
+
+
+@pytest.mark.parametrize("text,person,expected", [
+    ("pick up the cup on my left", body(True), "image_right"),  # face to face: my left is your right
+    ("pick up the cup on my right", body(True), "image_left"),
+    ("pick up the cup on my left", body(False), "image_left"),  # seen from behind: the same side as the camera
+    ("pick up the cup on my left", None, "image_right"),  # not seen: taken to face the robot
+    ("pick up the cup on your left", body(True), "image_left"),  # the robot's = the camera's
+    ("pick up the left cup", body(True), "image_left"),
+])
+def test_on_my_left_is_the_speakers_left(text, person, expected):
+    assert run_with_body(text, person) == expected

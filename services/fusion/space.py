@@ -9,7 +9,9 @@ objects (a ray and an object in different frames are compared in 2-D).
 
 from __future__ import annotations
 
+import collections
 import math
+import re
 from dataclasses import dataclass
 
 from common.schema import Location, Ray3D
@@ -212,3 +214,64 @@ def ray_words(ray: Ray3 | None) -> str:
     if ray.hit is not None:
         words += f", meeting a surface at ({ray.hit[0]:.2f}, {ray.hit[1]:.2f}, {ray.hit[2]:.2f}) m"
     return words
+
+
+# ---------------------------------------------------------------------------
+# "On my left": the speaker's side
+# ---------------------------------------------------------------------------
+_MINE = re.compile(r"\b(?:my|mine)\s+(left|right)\b|\b(left|right)\s+of\s+me\b", re.IGNORECASE)
+LEFT_SHOULDER, RIGHT_SHOULDER = 11, 12
+MIN_VISIBILITY = 0.5
+PROFILE = 0.25  # shoulders closer than this x their length to the hips (in x): seen side-on, facing unknown
+FACING_MAX_AGE = 3.0  # s between the body seen and the words
+
+
+def said_from_speaker(text: str) -> set[str]:
+    """The side words the speaker said from their own side: "on my left", "to my right", "left of me"."""
+    return {(m.group(1) or m.group(2)).lower() for m in _MINE.finditer(text or "")}
+
+
+def facing_camera(landmarks, visibility) -> bool | None:
+    """Does the person face the camera? Their own left shoulder is on the image's right when they do (the camera
+    is not mirrored: Body landmarks are the person's own sides). None when the shoulders are unseen or side-on."""
+    if min(visibility[LEFT_SHOULDER], visibility[RIGHT_SHOULDER]) < MIN_VISIBILITY:
+        return None
+    (lx, ly), (rx, ry) = landmarks[LEFT_SHOULDER], landmarks[RIGHT_SHOULDER]
+    width = abs(lx - rx)
+    scale = max(abs(landmarks[23][1] - ly), abs(landmarks[24][1] - ry), width, 1e-6)
+    if width < PROFILE * scale:
+        return None
+    return lx > rx
+
+
+class Facing:
+    """The latest few body orientations per camera, to turn "my left" into the camera's side."""
+
+    def __init__(self, keep: int = 64):
+        self.seen: collections.deque[tuple[float, str, bool]] = collections.deque(maxlen=keep)
+
+    def add(self, bodies) -> None:
+        for body in bodies.bodies[:1]:  # MediaPipe Pose finds one person: the speaker, when anyone
+            facing = facing_camera(body.landmarks, body.visibility)
+            if facing is not None:
+                self.seen.append((bodies.stamp, bodies.cam, facing))
+
+    def at(self, ref: float) -> bool | None:
+        near = [(abs(s - ref), f) for s, _, f in self.seen if abs(s - ref) <= FACING_MAX_AGE]
+        return min(near)[1] if near else None
+
+    def camera_words(self, spatial: tuple[str, ...], text: str, ref: float) -> tuple[tuple[str, ...], str | None]:
+        """`spatial` with the speaker's "left"/"right" turned into the camera's (and why), else unchanged.
+        "On your left" and a plain "left" are the robot's (= the camera's) already. A person who is not seen is
+        taken to face the robot, the usual way to speak to one."""
+        mine = said_from_speaker(text) & set(spatial)
+        if not mine:
+            return spatial, None
+        facing = self.at(ref)
+        if facing is False:
+            return spatial, "the speaker's back is to the camera: their left is the camera's left"
+        swap = {"left": "right", "right": "left"}
+        words = tuple(swap[w] if w in mine else w for w in spatial)
+        why = ("the speaker faces the camera" if facing else "the speaker, not seen, is taken to face the robot") + \
+            f": their {'/'.join(sorted(mine))} is the camera's {'/'.join(sorted(swap[w] for w in mine))}"
+        return words, why
