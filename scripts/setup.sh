@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 APT_PACKAGES=(espeak-ng sox)          # speech audio for the demo and the speech tests
 # `setup.sh --test` (make test) adds what only the tests need: a real browser for `hri view`'s page.
 if [ "${1:-}" = "--test" ]; then
-    APT_PACKAGES+=(chromium)
+    APT_PACKAGES+=(chromium libusb-1.0-0)   # libusb: pyrealsense2's wheel links it (the RealSense test)
 fi
 PYTHON=${PYTHON:-python3}
 VENV=.venv

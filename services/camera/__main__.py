@@ -1,12 +1,18 @@
-"""Process shell of the camera service: source -> Frame samples on hri/camera/{cam}/frame."""
+"""Process shell of the camera service: source -> Frame samples on hri/camera/{cam}/frame, and from an RGB-D
+source DepthFrame samples on hri/camera/{cam}/depth (same stamp and seq, published just before the colour frame
+so that a consumer holding the colour frame already has its depth)."""
 
 from __future__ import annotations
 
 import threading
 import time
 
+import numpy as np
+
 from common.runner import Service, main_exit, service_parser
+from common.depth import depth_frame
 from common.schema import Frame
+from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.source import SourceError, encode_image, open_source
 
 EPILOG = """\
@@ -14,13 +20,17 @@ examples:
   hri-camera --source 0                              # webcam /dev/video0
   hri-camera --source demo/data/camera --fps 5 --loop
   hri-camera --source clip.mp4 --cam front --encoding bgr8
+  hri-camera --source realsense                      # Intel RealSense: colour + aligned depth (extra: realsense)
+  hri-camera --source ../shared/data/rgbd/ycb_video --loop   # NAME-color.png + NAME-depth.png + intrinsics.json
+  hri-camera --source 0 --intrinsics webcam.json     # a colour camera's K travels with its frames
 """
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = service_parser("camera", "Publish camera frames (Frame) on <prefix>/camera/<cam>/frame.", EPILOG)
     parser.add_argument("--source", required=True,
-                        help="device index (0), video file, image file, or folder of images (name order)")
+                        help="device index (0), 'realsense' or 'realsense:SERIAL', video file, image file, folder of "
+                             "images (name order), or folder of colour/depth pairs with an intrinsics.json (RGB-D)")
     parser.add_argument("--cam", default="cam0", help="camera id used in keys and samples (default cam0)")
     parser.add_argument("--fps", type=float, default=None,
                         help="publish rate; default: the video's own rate, 10 for images, as fast as the device")
@@ -28,19 +38,51 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--count", type=int, default=None, help="stop after N frames")
     parser.add_argument("--encoding", choices=("jpeg", "png", "bgr8"), default="jpeg", help="default jpeg")
     parser.add_argument("--quality", type=int, default=90, help="JPEG quality 1–100 (default 90)")
+    parser.add_argument("--intrinsics", default=None,
+                        help="intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
+                             "docs/vision.md): sent with every frame; overrides an RGB-D folder's own")
+    parser.add_argument("--depth-compression", choices=("none", "png"), default="none",
+                        help="depth frames as raw 16-bit rows (default) or a lossless 16-bit PNG (~3x smaller, "
+                             "for slow links)")
+    parser.add_argument("--mirror", action="store_true",
+                        help="flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
+                             "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)")
+    parser.add_argument("--rs-size", default="640x480", help="RealSense resolution WxH (default 640x480)")
     args = parser.parse_args(argv)
     if not 1 <= args.quality <= 100:
         parser.error("--quality must be within 1–100")
+    try:
+        rs_size = tuple(int(v) for v in args.rs_size.lower().split("x"))
+        assert len(rs_size) == 2 and min(rs_size) > 0
+    except (ValueError, AssertionError):
+        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
 
     service = Service("camera", args)
     try:
-        source = open_source(args.source)
+        intrinsics = read_intrinsics(args.intrinsics) if args.intrinsics else None
+        source = open_source(args.source, rs_size, args.fps, intrinsics)
     except SourceError as exc:
         service.log.error("%s", exc)
         main_exit(2)
     service.on_close(source.close)
     fps = args.fps or source.native_fps or (10.0 if source.finite else None)
     key = service.keys.frame(args.cam)
+    depth_key = service.keys.depth(args.cam)
+    checked: set[tuple[int, int]] = set()
+
+    def prepare(item) -> Capture:
+        """The source's image or capture with the intrinsics that belong to it, mirrored if asked."""
+        capture = item if isinstance(item, Capture) else Capture(item)
+        if intrinsics is not None:
+            capture.camera_info = intrinsics.camera_info
+            if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
+                capture.depth_scale = intrinsics.depth_scale
+        if capture.camera_info is not None:
+            size = capture.color.shape[1], capture.color.shape[0]
+            if size not in checked:  # once per resolution: a wrong K is refused with the first frame
+                check_intrinsics(capture.camera_info, *size, args.intrinsics or source.description)
+                checked.add(size)
+        return mirror_capture(capture) if args.mirror else capture
     service.log.info("publishing %s on %s at %s", source.description, key, f"{fps:g} fps" if fps else "device rate")
 
     def loop(stop: threading.Event) -> None:
@@ -48,7 +90,8 @@ def main(argv: list[str] | None = None) -> None:
         next_at = time.monotonic()
         while not stop.is_set():
             produced = False
-            for img in source.frames():
+            for item in source.frames():
+                capture = prepare(item)
                 produced = True
                 if period:
                     delay = next_at - time.monotonic()
@@ -56,10 +99,18 @@ def main(argv: list[str] | None = None) -> None:
                         return
                     next_at = max(next_at + period, time.monotonic() - period)
                 stamp = time.time()  # capture time: the moment the frame is in hand
+                img = capture.color
                 h, w = img.shape[:2]
+                if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:
+                    # depth first: whoever matches depth to colour has it when the colour frame arrives
+                    service.publish(depth_key, depth_frame(
+                        capture.depth, stamp=stamp, source=service.source, seq=seq, cam=args.cam,
+                        depth_scale=capture.depth_scale, camera_info=capture.camera_info,
+                        compression=args.depth_compression), lossless=False)
                 service.publish(key, Frame(stamp=stamp, source=service.source, seq=seq, cam=args.cam, width=w,
                                            height=h, encoding=args.encoding,
-                                           data=encode_image(img, args.encoding, args.quality)),
+                                           data=encode_image(img, args.encoding, args.quality),
+                                           camera_info=capture.camera_info),
                                 lossless=False)
                 seq += 1
                 if stop.is_set() or (args.count is not None and seq >= args.count):

@@ -19,7 +19,8 @@ class SourceError(RuntimeError):
 
 @dataclass
 class Source:
-    """An opened source. `frames()` yields BGR images; `native_fps` is None when the source has no clock."""
+    """An opened source. `frames()` yields BGR images (colour sources) or `rgbd.Capture`s (RGB-D sources);
+    `native_fps` is None when the source has no clock."""
     description: str
     native_fps: float | None
     finite: bool
@@ -69,8 +70,14 @@ class CaptureSource(Source):
         self.cap.release()
 
 
-def open_source(spec: str) -> Source:
-    """'0' -> V4L2 device 0, a folder -> its images in name order, an image file, else a video file."""
+def open_source(spec: str, realsense_size: tuple[int, int] = (640, 480), fps: float | None = None,
+                intrinsics=None) -> Source:
+    """'0' -> V4L2 device 0, 'realsense[:SERIAL]' -> an Intel RealSense (RGB-D), a folder of colour/depth pairs
+    with an intrinsics.json -> RGB-D captures, another folder -> its images in name order, an image file, else a
+    video file."""
+    if spec == "realsense" or spec.startswith("realsense:"):
+        from services.camera.rgbd import open_realsense
+        return open_realsense(spec, realsense_size, fps)
     if spec.isdigit():
         cap = cv2.VideoCapture(int(spec))
         if not cap.isOpened():
@@ -82,6 +89,9 @@ def open_source(spec: str) -> Source:
         raise SourceError(f"source {spec!r} does not exist: give a device index, a video file, an image file "
                           f"or a folder of images")
     if path.is_dir():
+        from services.camera.rgbd import RgbdFolderSource, is_rgbd_folder
+        if is_rgbd_folder(path):
+            return RgbdFolderSource(path, intrinsics)
         images = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS)
         if not images:
             raise SourceError(f"folder {spec} holds no images ({', '.join(sorted(IMAGE_EXTENSIONS))})")

@@ -1,13 +1,16 @@
-"""Process shell of the vision service: Frame -> Detections on <prefix>/vision/<cam>/objects."""
+"""Process shell of the vision service: Frame (+ the DepthFrame of the same capture, when there is one) ->
+Detections on <prefix>/vision/<cam>/objects."""
 
 from __future__ import annotations
 
 import argparse
 
+from common.depth import UndecodableDepth, depth_metres
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Detections, Frame
+from common.schema import DepthFrame, Detections, Frame
 from services.vision.core import VisionPipeline
+from services.vision.depth import DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
 from services.vision.yolo import FAMILIES, ModelError, YoloDetector, read_names
 
@@ -68,13 +71,38 @@ def main(argv: list[str] | None = None) -> None:
     if not service.connect():
         main_exit(0)
 
+    depths = DepthMatcher()
+
+    def on_depth(delivery) -> None:
+        depths.add(delivery.sample)  # decoded only if a colour frame claims it
+
+    def depth_for(frame: Frame):
+        """(metres, CameraInfo) of the depth frame of this capture, or None: colour-only users never wait."""
+        depth = depths.match(frame.cam, frame.seq, frame.stamp)
+        if depth is None:
+            return None
+        if (depth.width, depth.height) != (frame.width, frame.height):
+            service.counters.reject("bad_value", f"depth {depth.width}x{depth.height} is not aligned to the colour "
+                                    f"frame {frame.width}x{frame.height} (seq {frame.seq}): no positions",
+                                    service.keys.depth(frame.cam))
+            return None
+        try:
+            return depth_metres(depth), depth.camera_info
+        except UndecodableDepth as exc:
+            service.counters.reject("undecodable", str(exc), service.keys.depth(frame.cam))
+            return None
+
     def on_image(frame: Frame, img) -> None:
-        objects, quality = pipeline.process(frame.cam, img)
+        depth = depth_for(frame)
+        objects, quality = pipeline.process(frame.cam, img, depth)
         service.publish(service.keys.objects(frame.cam), Detections(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
-            height=frame.height, objects=objects, quality=quality))
+            height=frame.height, objects=objects, quality=quality,
+            frame_id=depth[1].frame_id if depth is not None else None))
 
     for cam in args.cams.split(","):
+        # the camera sends depth just before colour, so its slot is usually served first
+        service.subscribe(service.keys.depth(cam.strip()), DepthFrame, on_depth, latest=True, monotonic=True)
         service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
                           monotonic=True)
     main_exit(service.run())

@@ -1,0 +1,145 @@
+"""RGB-D through real processes on loopback: camera (colour/depth folder) -> vision -> Detections with positions;
+`hri record` / `hri replay` carry the depth frames and their intrinsics."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import cv2
+import numpy as np
+import pytest
+
+from common.codec import decode
+from common.depth import depth_metres, depth_units, metres
+from common.schema import CameraInfo, DepthFrame, Detections, Frame
+from services.vision.depth import object_depth
+from tests.harness import Client
+from tests.shared import shared_path
+
+pytestmark = pytest.mark.integration
+
+YCB_INTRINSICS = {"width": 640, "height": 480, "fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109,
+                  "depth_scale": 0.0001, "frame_id": "ycb_camera_optical_frame"}
+
+
+def ycb_folder(tmp_path, intrinsics: dict | None = None):
+    """The two YCB-Video pairs with an intrinsics.json (the format of docs/vision.md) in a fresh folder."""
+    src = shared_path("data/rgbd/ycb_video")
+    folder = tmp_path / "ycb"
+    folder.mkdir()
+    for p in sorted(src.glob("*.png")):
+        (folder / p.name).write_bytes(p.read_bytes())
+    (folder / "intrinsics.json").write_text(json.dumps(intrinsics or YCB_INTRINSICS))
+    return folder
+
+
+def check_positions(det: Detections, depth_png, info: CameraInfo) -> int:
+    """Every position lies inside its box when projected with K and equals the in-process computation on the
+    same depth file (the wire kept depth and K intact and the right depth was matched); returns how many."""
+    m = metres(cv2.imread(str(depth_png), cv2.IMREAD_UNCHANGED), 0.0001)
+    n = 0
+    for o in det.objects:
+        expected = object_depth(m, info, tuple(o.bbox))
+        if expected is None:
+            assert o.position is None
+            continue
+        n += 1
+        x, y, z = o.position
+        u, v = info.fx * x / z + info.cx, info.fy * y / z + info.cy
+        bx, by, bw, bh = o.bbox
+        assert bx - 2 <= u <= bx + bw + 2 and by - 2 <= v <= by + bh + 2, (o, u, v)
+        assert np.allclose(o.position, expected.position, atol=1e-3), (o, expected)
+        assert 0.0 < o.depth_support <= 1.0 and len(o.extent) == 3
+    return n
+
+
+def test_rgbd_folder_through_camera_and_vision_gives_positions_in_metres(group, tmp_path):
+    folder = ycb_folder(tmp_path)
+    group.router()
+    group.service("vision")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("vision", timeout=60)
+        depth = client.collect("hri/camera/cam0/depth")
+        frames = client.collect("hri/camera/cam0/frame")
+        out = client.collect("hri/vision/cam0/objects")
+        group.service("camera", "--source", str(folder), "--fps", "4", "--loop", "--depth-compression", "png")
+        got = [s for _, s in out.wait(4, timeout=60)]
+        depths = {d.seq: d for _, d in depth.wait(4, timeout=30)}
+        colours = {f.seq: f for _, f in frames.wait(4, timeout=30)}
+    finally:
+        client.close()
+    info = CameraInfo(width=640, height=480, k=[1066.778, 0, 312.9869, 0, 1067.487, 241.3109, 0, 0, 1],
+                      frame_id="ycb_camera_optical_frame")
+    for seq, d in depths.items():  # same capture: same stamp and seq; the colour frame carries its K too
+        if seq in colours:
+            assert colours[seq].stamp == d.stamp and colours[seq].camera_info == d.camera_info == info
+        assert d.compression == "png" and d.encoding == "16UC1" and d.depth_scale == 0.0001
+    with_positions = 0
+    for det in got:
+        name = sorted(folder.glob("*-depth.png"))[det.seq % 2]
+        if det.frame_id is None:  # a colour frame whose depth was not in yet: no positions, never zeros
+            assert all(o.position is None for o in det.objects)
+            continue
+        assert det.frame_id == "ycb_camera_optical_frame"
+        with_positions += check_positions(det, name, info)
+    assert with_positions >= 10
+
+
+def test_a_wrong_resolution_intrinsics_file_is_refused_at_start_up(group, tmp_path):
+    folder = ycb_folder(tmp_path, {**YCB_INTRINSICS, "width": 1280, "height": 720})
+    group.router()
+    camera = group.service("camera", "--source", str(folder))
+    camera.popen.wait(60)
+    assert camera.popen.returncode == 2, camera.output()
+    assert "intrinsics are for 1280x720 but the images are 640x480" in camera.output()
+
+
+def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
+    from mcap.reader import make_reader
+    folder = ycb_folder(tmp_path)
+    group.router()
+    path = tmp_path / "rgbd.mcap"
+    recorder = group.start("record", "common.cli", "record", "-o", str(path), "hri/camera/**")
+    deadline = time.monotonic() + 60
+    while "recording" not in recorder.output() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    camera = group.service("camera", "--source", str(folder), "--fps", "5", "--count", "2")
+    camera.popen.wait(60)
+    assert camera.popen.returncode == 0, camera.output()
+    time.sleep(1.0)
+    code, _ = recorder.terminate(timeout=5.0)
+    assert code == 0, recorder.output()
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        schemas = {c.topic: c.metadata["schema"] for c in reader.get_summary().channels.values()}
+        recorded = [(ch.topic, m.data) for _, ch, m in reader.iter_messages()]
+    assert schemas == {"hri/camera/cam0/depth": "DepthFrame", "hri/camera/cam0/frame": "Frame"}
+    depths = [decode(d, DepthFrame) for t, d in recorded if t.endswith("/depth")]
+    frames = [decode(d, Frame) for t, d in recorded if t.endswith("/frame")]
+    assert [d.seq for d in depths] == [f.seq for f in frames] == [0, 1]
+    assert [d.stamp for d in depths] == [f.stamp for f in frames]
+    for d, name in zip(depths, sorted(folder.glob("*-depth.png"))):
+        assert np.array_equal(depth_units(d), cv2.imread(str(name), cv2.IMREAD_UNCHANGED))  # lossless
+        assert d.camera_info.fx == 1066.778 and d.depth_scale == 0.0001
+
+    # replayed into a fresh vision: the positions come back
+    group.service("vision")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("vision", timeout=60)
+        out = client.collect("hri/vision/cam0/objects")
+        res = group.hri("replay", str(path), timeout=60)
+        assert res.returncode == 0, res.stderr
+        got = [s for _, s in out.wait(2, timeout=30)]
+    finally:
+        client.close()
+    assert [g.seq for g in got] == [0, 1]
+    for det, d in zip(got, depths):
+        assert det.frame_id == "ycb_camera_optical_frame"
+        m = depth_metres(d)
+        assert any(o.position is not None for o in det.objects)
+        for o in det.objects:
+            expected = object_depth(m, d.camera_info, tuple(o.bbox))
+            assert (o.position is None) == (expected is None)
