@@ -10,7 +10,7 @@ from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Bodies, Body, DepthFrame, Frame, GestureEvent, Hand, Hands, Ray
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
-from services.gesture.space import DepthError, FrameRays, depth_view
+from services.gesture.space import FrameRays, depth_view
 from services.gesture.temporal import GestureTracker
 
 EPILOG = """\
@@ -127,7 +127,7 @@ def main(argv: list[str] | None = None) -> None:
             return None
         try:
             return FrameRays(depth_view(depth), skeleton, world)
-        except (DepthError, ValueError) as exc:
+        except ValueError as exc:  # UndecodableDepth: a broken PNG, a size that does not match
             service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {exc}")
             return None
 

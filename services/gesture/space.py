@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from common.depth import depth_metres
 from common.schema import DepthFrame, Ray3D
 
 WINDOW = 7  # px, side of the window whose median depth lifts a landmark
@@ -51,10 +52,6 @@ MIN_SUPPORT = 5
 def inlier_tolerance(z: np.ndarray) -> np.ndarray:
     """Distance (m) from a plane that still counts as on it: structured-light / stereo noise grows with z²."""
     return 0.01 + 0.004 * z * z
-
-
-class DepthError(ValueError):
-    """A DepthFrame that cannot be read (bad PNG, wrong size); the message says what is wrong."""
 
 
 @dataclass(frozen=True)
@@ -107,21 +104,8 @@ class DepthView:
 
 
 def depth_view(msg: DepthFrame) -> DepthView:
-    """A validated DepthFrame as metres (16UC1 or 32FC1, raw or 16-bit PNG); NaN and negative = no measurement."""
-    if msg.compression == "png":
-        import cv2
-        img = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_UNCHANGED)
-        if img is None or img.dtype != np.uint16 or img.ndim != 2:
-            raise DepthError(f"depth {msg.cam} seq {msg.seq}: the PNG is not a single-channel 16-bit image")
-        if img.shape != (msg.height, msg.width):
-            raise DepthError(f"depth {msg.cam} seq {msg.seq}: the PNG is {img.shape[1]}x{img.shape[0]}, the "
-                             f"header says {msg.width}x{msg.height}")
-        raw = img
-    else:
-        dtype = "<u2" if msg.encoding == "16UC1" else "<f4"
-        raw = np.frombuffer(msg.data, dtype=dtype).reshape(msg.height, msg.width)
-    metres = raw.astype(np.float32) * np.float32(msg.depth_scale)
-    metres[~np.isfinite(metres) | (metres < 0)] = 0.0
+    """A validated DepthFrame as metres, 0 = no measurement (common/depth.py decodes; raises UndecodableDepth)."""
+    metres = np.nan_to_num(depth_metres(msg), nan=0.0, posinf=0.0, neginf=0.0)
     k = msg.camera_info
     return DepthView(metres, k.fx, k.fy, k.cx, k.cy, k.frame_id)
 
