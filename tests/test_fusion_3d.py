@@ -197,11 +197,17 @@ def test_an_object_behind_the_spot_on_the_floor_is_not_there():
     assert loc.position == pytest.approx(list(before), abs=1e-3)
 
 
-def test_fit_projection_recovers_the_pinhole_and_refuses_one_object():
-    pts = [np.array(p) for p in ([0.1, 0.2, 1.0], [-0.5, 0.3, 2.0], [0.7, -0.2, 3.0])]
-    f, cx, cy = space.fit_projection([(tuple(project(p)), tuple(p)) for p in pts])
-    assert (f, cx, cy) == pytest.approx((F, CX, CY), abs=1e-6)
-    assert space.fit_projection([(tuple(project(pts[0])), tuple(pts[0]))]) is None
+def test_fit_projection_recovers_the_pinhole_despite_an_odd_object():
+    objects = scene_objects([detections([thing("a", "cup", [0.1, 0.2, 1.0]), thing("b", "cup", [-0.5, 0.3, 2.0]),
+                                         thing("c", "cup", [0.7, -0.2, 3.0])])])
+    assert space.fit_projection(objects) == pytest.approx((F, CX, CY))
+    odd = DetectedObject(id="table", label="dining table", score=0.5, bbox=[0, 100, 640, 380], center=[320, 290],
+                         position=[0.4, 0.35, 1.5], extent=[1.5, 0.5, 1.2])  # its median point is not its centre
+    objects = scene_objects([detections([thing("a", "cup", [0.1, 0.2, 1.0]), thing("b", "cup", [-0.5, 0.3, 2.0]),
+                                         odd])])
+    assert space.fit_projection(objects)[0] == pytest.approx(F, rel=0.01)
+    on_axis = scene_objects([detections([thing("a", "cup", [0.01, 0.02, 1.0])])])
+    assert space.fit_projection(on_axis) is None
 
 
 # ---------------------------------------------------------------------------

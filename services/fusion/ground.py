@@ -324,17 +324,15 @@ def best_pointed(p: Pointing, objects: list[SceneObject]) -> Scored | None:
 
 
 def pointed_location(p: Pointing, objects: list[SceneObject]) -> Location:
-    """Where "there" is: the centre of the object on the ray (G >= `ON_RAY`), else `ray_point`."""
+    """Where "there" is: the centre of the object on the ray (G >= `ON_RAY`), else `ray_point`; in metres when the
+    ray met a surface (`space.there`)."""
     mine = [o for o in objects if o.cam == p.cam]
+    if p.ray3d is not None and p.ray3d.hit is not None:
+        return space.there(p.ray3d, mine, p.cam, ray_point(p), ON_RAY, p.spread_deg)
     best = best_pointed(p, mine)
-    if best is not None and (best.gesture or 0.0) >= ON_RAY and not (
-            in_3d(p, best.obj) and not space.before_hit(p.ray3d, best.obj.position, best.obj.extent)):
-        x, y = best.obj.center
-        if best.obj.position is not None:
-            return Location(x=float(x), y=float(y), cam=p.cam, position=list(best.obj.position),
-                            frame_id=best.obj.frame_id)
-    elif p.ray3d is not None and p.ray3d.hit is not None:
-        return space.hit_location(p.ray3d, mine, p.cam, ray_point(p))
+    on_ray = best.obj if best is not None and (best.gesture or 0.0) >= ON_RAY else None
+    if on_ray is not None:
+        x, y = on_ray.center
     else:
         x, y = ray_point(p)
     return Location(x=float(x), y=float(y), cam=p.cam)

@@ -139,41 +139,29 @@ def before_hit(ray: Ray3, position, extent) -> bool:
     return t_obj <= t_hit + 2 * radius(extent)
 
 
-def fit_projection(pairs: list[tuple[tuple[float, float], tuple[float, float, float]]]
-                   ) -> tuple[float, float, float] | None:
-    """(f, cx, cy) of a pinhole camera (square pixels) from objects' pixel centres and 3-D positions, by least
-    squares on u = f x/z + cx, v = f y/z + cy; None with fewer than two objects or a degenerate spread. Fusion does
-    not receive the intrinsics (they travel with frames), and vision measured each position at its object's pixels."""
-    rows = [(p[0] / p[2], 1.0, 0.0, c[0]) for c, p in pairs] + [(p[1] / p[2], 0.0, 1.0, c[1]) for c, p in pairs]
-    if len(pairs) < 2:
+def fit_projection(objects) -> tuple[float, float, float] | None:
+    """(f, cx, cy) of the pinhole that shows the objects' 3-D positions at their pixel centres, or None without an
+    object off the image's middle. Fusion does not receive the intrinsics (they travel with frames), so they are read
+    back from vision's objects: the principal point is taken at the image centre (within a few % on real cameras)
+    and f is the median of each object's own estimate (f = (u - cx) z / x, and the same in y, from the objects at
+    least 5 % of the focal length off the axis), so that one odd object (a table whose median point is not its box
+    centre) does not move it."""
+    estimates = []
+    cx = cy = 0.0
+    for o in objects:
+        cx, cy = o.width / 2.0, o.height / 2.0
+        x, y, z = o.position
+        for offset, pixel, centre in ((x / z, o.center[0], cx), (y / z, o.center[1], cy)):
+            if abs(offset) >= 0.05:
+                f = (pixel - centre) / offset
+                if f > 0:
+                    estimates.append(f)
+    if not estimates:
         return None
-    # normal equations of the 3-parameter linear model
-    ata = [[sum(r[i] * r[j] for r in rows) for j in range(3)] for i in range(3)]
-    atb = [sum(r[i] * r[3] for r in rows) for i in range(3)]
-    try:
-        f, cx, cy = _solve3(ata, atb)
-    except ZeroDivisionError:
-        return None
-    if not (f > 0 and math.isfinite(f)):
-        return None
+    estimates.sort()
+    mid = len(estimates) // 2
+    f = estimates[mid] if len(estimates) % 2 else (estimates[mid - 1] + estimates[mid]) / 2
     return f, cx, cy
-
-
-def _solve3(a: list[list[float]], b: list[float]) -> tuple[float, float, float]:
-    """Gaussian elimination with partial pivoting (3x3); ZeroDivisionError when singular."""
-    m = [row[:] + [b[i]] for i, row in enumerate(a)]
-    for col in range(3):
-        pivot = max(range(col, 3), key=lambda r: abs(m[r][col]))
-        if abs(m[pivot][col]) < 1e-12:
-            raise ZeroDivisionError("singular")
-        m[col], m[pivot] = m[pivot], m[col]
-        for r in range(col + 1, 3):
-            k = m[r][col] / m[col][col]
-            m[r] = [m[r][i] - k * m[col][i] for i in range(4)]
-    x = [0.0, 0.0, 0.0]
-    for r in (2, 1, 0):
-        x[r] = (m[r][3] - sum(m[r][i] * x[i] for i in range(r + 1, 3))) / m[r][r]
-    return x[0], x[1], x[2]
 
 
 def project(point, projection: tuple[float, float, float]) -> tuple[float, float] | None:
@@ -186,8 +174,7 @@ def project(point, projection: tuple[float, float, float]) -> tuple[float, float
 def hit_location(ray: Ray3, objects, cam: str, fallback_px: tuple[float, float]) -> Location:
     """"There" in metres: where the ray meets the floor or table (`ray.hit`). Its pixel is the hit projected with the
     pinhole fitted to the objects in view (`fit_projection`), else `fallback_px` (the 2-D ray's point)."""
-    pairs = [(o.center, o.position) for o in objects if o.position is not None and same_frame(ray, o.frame_id)]
-    projection = fit_projection(pairs)
+    projection = fit_projection([o for o in objects if o.position is not None and same_frame(ray, o.frame_id)])
     px = project(ray.hit, projection) if projection is not None else None
     x, y = px if px is not None else fallback_px
     return Location(x=round(float(x), 1), y=round(float(y), 1), cam=cam, position=[round(c, 4) for c in ray.hit],
@@ -275,3 +262,28 @@ class Facing:
         why = ("the speaker faces the camera" if facing else "the speaker, not seen, is taken to face the robot") + \
             f": their {'/'.join(sorted(mine))} is the camera's {'/'.join(sorted(swap[w] for w in mine))}"
         return words, why
+
+
+def holds(position, extent, point, margin: float = 0.05) -> bool:
+    """Is `point` inside the object's box (position ± extent / 2, plus `margin`)? A table holds the spot on it."""
+    if extent is None:
+        return False
+    return all(abs(point[i] - position[i]) <= extent[i] / 2 + margin for i in range(3))
+
+
+def there(ray: Ray3, objects, cam: str, fallback_px: tuple[float, float], on_ray: float = 0.7,
+          sigma_deg: float = SIGMA_DEG) -> Location:
+    """"There" when the ray met a surface: the object the ray points at (G >= `on_ray`, in metres) if the ray
+    reaches it before the surface and the surface's spot is not on that object (a table holds the spot: the spot
+    is meant), else the spot itself (`hit_location`). Objects without a position cannot say they are before it."""
+    best, best_g = None, on_ray
+    for o in objects:
+        if o.position is None or not same_frame(ray, o.frame_id):
+            continue
+        g, _ = pointing_score(ray, o.position, o.extent, sigma_deg)
+        if g >= best_g and before_hit(ray, o.position, o.extent) and not holds(o.position, o.extent, ray.hit):
+            best, best_g = o, g
+    if best is not None:
+        return Location(x=float(best.center[0]), y=float(best.center[1]), cam=cam, position=list(best.position),
+                        frame_id=best.frame_id or ray.frame_id)
+    return hit_location(ray, objects, cam, fallback_px)
