@@ -39,10 +39,11 @@ SEGMENTS = {"eye_fingertip": (0.15, 1.2), "forearm": (0.1, 0.6), "shoulder_wrist
             "index_finger": (0.02, 0.2), "world_landmarks": (0.15, 1.2)}
 
 # Plane fit (RANSAC) near the ray
-CLOUD_STEP = 4  # px between back-projected depth samples (640x480 -> 19 200 points)
+CLOUD_POINTS = 20000  # about this many back-projected depth samples per frame (every 4th px of 640x480)
 CONE_DEG = 12.0  # points within this angle of the ray (plus CONE_BASE) are candidates for its surface
 CONE_BASE = 0.1  # m
 RANSAC_ITERATIONS = 150
+RANSAC_SUBSET = 1000  # points each hypothesis is counted on (the winner's inliers are then taken among all)
 MIN_PLANE_POINTS = 150
 MAX_PLANES = 3  # the first supported plane along the ray among the largest few (a box top before the table)
 SUPPORT_RADIUS = 0.06  # m: a hit needs plane points this close to it (the plane is seen there)
@@ -94,8 +95,9 @@ class DepthView:
     def project(self, p: np.ndarray | list) -> tuple[float, float]:
         return (float(p[0] * self.fx / p[2] + self.cx), float(p[1] * self.fy / p[2] + self.cy))
 
-    def cloud(self, step: int = CLOUD_STEP) -> np.ndarray:
-        """N x 3 points of every `step`-th valid pixel."""
+    def cloud(self, step: int | None = None) -> np.ndarray:
+        """N x 3 points of every `step`-th valid pixel (default: about `CLOUD_POINTS` points whatever the size)."""
+        step = step or max(1, int(round(math.sqrt(self.width * self.height / CLOUD_POINTS))))
         sub = self.metres[::step, ::step]
         rows, cols = np.nonzero(sub > 0)
         z = sub[rows, cols].astype(float)
@@ -233,26 +235,28 @@ class Plane:
 
 
 def fit_plane(points: np.ndarray, iterations: int = RANSAC_ITERATIONS, seed: int = 0) -> Plane | None:
-    """The plane with most points within `inlier_tolerance` (RANSAC on 3 points), refined by least squares on its
-    inliers. Deterministic (seeded). None with fewer than `MIN_PLANE_POINTS` points or inliers."""
+    """The plane with most points within `inlier_tolerance` (RANSAC on 3 points, each hypothesis counted on a
+    random subset of at most `RANSAC_SUBSET` points), refined by least squares on its inliers among all points.
+    Deterministic (seeded). None with fewer than `MIN_PLANE_POINTS` points or inliers."""
     n = len(points)
     if n < MIN_PLANE_POINTS:
         return None
     rng = np.random.default_rng(seed)
+    subset = points if n <= RANSAC_SUBSET else points[rng.choice(n, RANSAC_SUBSET, replace=False)]
+    tolerance = inlier_tolerance(subset[:, 2])
+    a, b, c = (subset[rng.integers(0, len(subset), size=iterations)] for _ in range(3))
+    normals = np.cross(b - a, c - a)
+    norms = np.linalg.norm(normals, axis=1)
+    ok = norms > 1e-9
+    normals, a = normals[ok] / norms[ok, None], a[ok]
+    if not len(normals):
+        return None
+    # distances of every subset point to every hypothesis: iterations x subset
+    counts = (np.abs(subset @ normals.T - np.sum(normals * a, axis=1)) <= tolerance[:, None]).sum(axis=0)
+    k = int(np.argmax(counts))
     tolerance = inlier_tolerance(points[:, 2])
-    best, best_count = None, 0
-    samples = rng.integers(0, n, size=(iterations, 3))
-    for a, b, c in samples:
-        normal = np.cross(points[b] - points[a], points[c] - points[a])
-        norm = float(np.linalg.norm(normal))
-        if norm < 1e-9:
-            continue
-        normal /= norm
-        inside = np.abs((points - points[a]) @ normal) <= tolerance
-        count = int(inside.sum())
-        if count > best_count:
-            best, best_count = inside, count
-    if best is None or best_count < MIN_PLANE_POINTS:
+    best = np.abs((points - a[k]) @ normals[k]) <= tolerance
+    if best.sum() < MIN_PLANE_POINTS:
         return None
     for _ in range(2):  # least squares on the inliers, then the inliers of that plane
         inliers = points[best]
