@@ -134,8 +134,9 @@ def grounding(rooms: int, noise_deg: float, seed: int = 0) -> None:
             size = rng.uniform(0.06, 0.25)
             w, h = size * F / p[2], size * 1.5 * F / p[2]
             c = project(p)
-            objects.append(DetectedObject(id=f"o{i}", label="bottle", score=0.9, bbox=[c[0] - w / 2, c[1] - h / 2, w, h],
-                                          center=c.tolist(), position=p.tolist(), extent=[size, size * 1.5, size]))
+            objects.append(DetectedObject(id=f"o{i}", label="bottle", score=0.9,
+                                          bbox=[c[0] - w / 2, c[1] - h / 2, w, h], center=c.tolist(),
+                                          position=p.tolist(), extent=[size, size * 1.5, size]))
         if len(objects) < 2:
             continue
         k = int(rng.integers(0, len(objects)))
