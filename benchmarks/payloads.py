@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import cv2
+import msgspec
 
 from common.schema import Sample
 from tests.harness import DATA
@@ -15,6 +16,9 @@ def realistic_samples() -> dict[str, Sample]:
     img = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
     frame = by_name["Frame"]
     frame.encoding, frame.width, frame.height = "jpeg", 640, 480
+    if frame.camera_info is not None:  # the example's intrinsics are for its own tiny size: these fit 640x480
+        frame.camera_info = msgspec.structs.replace(frame.camera_info, width=640, height=480,
+                                                    k=[525.0, 0.0, 319.5, 0.0, 525.0, 239.5, 0.0, 0.0, 1.0])
     frame.data = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
     det = by_name["Detections"]
     det.objects = det.objects * 12

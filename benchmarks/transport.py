@@ -11,7 +11,13 @@ of the contract. Two figures per payload:
   ends shares one GIL, so validation shows at its worst).
 - codec: encode + decode alone, no zenoh (contract: msgspec typed encode/validate/decode; raw: msgpack
   packb/unpackb of the same dict): the part of the price the contract itself adds.
-Target: <= 1.3x. Usage: python benchmarks/transport.py [--n 2000]
+Target: <= 1.3x.
+
+Depth (the real YCB-Video 640x480 depth image of ../shared/data/rgbd/ycb_video, when present): a DepthFrame raw
+(16UC1 rows, 600 kB) and as a lossless 16-bit PNG go through the same paths, so their rows give the wire cost
+of each; then the PNG's encode and decode time (OpenCV) and size: what compressing buys and costs.
+
+Usage: python benchmarks/transport.py [--n 2000]
 """
 
 from __future__ import annotations
@@ -88,6 +94,42 @@ def codec_us(encode_one, decode_one, payload: bytes, n: int) -> float:
     return (enc + dec) * 1e6
 
 
+def depth_samples() -> dict:
+    """DepthFrame raw and PNG of the real YCB-Video depth image (empty without ../shared)."""
+    import os
+
+    import cv2
+
+    from common.depth import depth_frame
+    from common.schema import CameraInfo
+    shared = Path(os.environ.get("HRI_SHARED") or Path(__file__).resolve().parent.parent.parent / "shared")
+    path = shared / "data" / "rgbd" / "ycb_video" / "000002-depth.png"
+    if not path.is_file():
+        print(f"(no {path}: the depth rows are skipped; set HRI_SHARED)")
+        return {}
+    depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    info = CameraInfo(width=640, height=480, k=[1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0],
+                      frame_id="ycb_camera_optical_frame")
+    return {f"DepthFrame 640x480 {c}": depth_frame(depth, stamp=time.time(), source="bench/cam", seq=0, cam="bench",
+                                                   depth_scale=0.0001, camera_info=info, compression=c)
+            for c in ("none", "png")}
+
+
+def png_cost(samples: dict) -> None:
+    """Encode and decode time of the depth PNG (OpenCV), best of 5 × 20, and the sizes."""
+    import timeit
+
+    from common.depth import depth_units, encode_depth
+    if not samples:
+        return
+    raw, png = samples["DepthFrame 640x480 none"], samples["DepthFrame 640x480 png"]
+    depth = depth_units(raw)
+    enc = min(timeit.repeat(lambda: encode_depth(depth, "png"), number=20, repeat=5)) / 20
+    dec = min(timeit.repeat(lambda: depth_units(png), number=20, repeat=5)) / 20
+    print(f"depth 640x480: raw {len(raw.data)} bytes, PNG {len(png.data)} bytes "
+          f"({len(png.data) / len(raw.data):.2f}x); PNG encode {enc * 1000:.1f} ms, decode {dec * 1000:.1f} ms")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--n", type=int, default=3000, help="samples per measurement (default 3000)")
@@ -102,7 +144,8 @@ def main() -> None:
         print(f"{'payload':22s} {'bytes':>8s} {'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}  "
               f"{'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}  {'raw µs':>9s} {'contract µs':>12s} {'ratio':>6s}")
         worst, worst_burst = 0.0, 0.0
-        for i, (label, sample) in enumerate(realistic_samples().items()):
+        depth = depth_samples()
+        for i, (label, sample) in enumerate({**realistic_samples(), **depth}.items()):
             schema = type(sample)
             as_dict = sample.to_dict()
             size = len(msgpack.packb(as_dict, use_bin_type=True))
@@ -137,6 +180,7 @@ def main() -> None:
             raw_pub.undeclare()
             contract_pub.undeclare()
         print(f"worst ratio: latency {worst:.2f}x, burst {worst_burst:.2f}x (target <= 1.30x)")
+        png_cost(depth)
     finally:
         pub_s.close()
         sub_s.close()

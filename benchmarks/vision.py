@@ -20,7 +20,15 @@ ONNX backend (the real YOLOX-Nano model, --model or $HRI_YOLOX_MODEL or ../share
    runs slower than 30 fps here, so the service must drop to the latest frame (counted as skipped), not queue.
 Target for 1 and 3: service >= 0.9x the bare loop's frames/s.
 
-Usage: python benchmarks/vision.py [--seconds 60] [--frames 300] [--backends color,onnx] [--model PATH] [--fps 30]
+Depth (the real YCB-Video RGB-D frames of ../shared/data/rgbd/ycb_video, 640x480, colour backend):
+5. Throughput of VisionPipeline.process colour only vs with the aligned depth (positions for every object),
+   the depth decoded from a raw 16UC1 DepthFrame and from a PNG one, interleaved on the same frames.
+   Target: with depth >= 0.9x colour only.
+6. End-to-end lag at 30 fps with depth: colour + depth frames of each capture published like the camera does
+   (depth first, both latest-only) into a real vision process for --seconds; lag per slice must stay flat.
+
+Usage: python benchmarks/vision.py [--seconds 60] [--frames 300] [--backends color,onnx,depth] [--model PATH]
+       [--fps 30]
 """
 
 from __future__ import annotations
@@ -38,12 +46,16 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.lag import frame_lag, print_throughput  # noqa: E402
-from common.schema import Detections  # noqa: E402
+from common.codec import decode  # noqa: E402
+from common.depth import depth_frame  # noqa: E402
+from common.runner import SamplePublisher  # noqa: E402
+from common.schema import CameraInfo, Detections, Frame  # noqa: E402
 from services.vision.color import CHROMATIC, HUE_RANGES  # noqa: E402
 from services.vision.core import VisionPipeline  # noqa: E402
+from services.vision.depth import DepthImage  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
 from services.vision.yolo import YoloDetector  # noqa: E402
-from tests.harness import DATA, ROOT  # noqa: E402
+from tests.harness import DATA, ROOT, Client, ProcessGroup  # noqa: E402
 
 
 def frames_640() -> list[np.ndarray]:
@@ -157,6 +169,98 @@ def onnx_throughput(model: str, frames: list[np.ndarray], n: int) -> None:
     print(f"  (bare loop with onnxruntime's default thread spinning: {statistics.median(spinning_fps):.1f} frames/s)")
 
 
+def rgbd_frames() -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """The YCB-Video colour/depth pairs (640x480, 0.1 mm units), or None when ../shared is absent."""
+    folder = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared") / "data" / "rgbd" / "ycb_video"
+    pairs = [(cv2.imread(str(c)), cv2.imread(str(c).replace("-color", "-depth"), cv2.IMREAD_UNCHANGED))
+             for c in sorted(folder.glob("*-color.png"))]
+    return pairs or None
+
+
+YCB_INFO = CameraInfo(width=640, height=480, k=[1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0],
+                      frame_id="ycb_camera_optical_frame")
+
+
+def depth_throughput(pairs: list[tuple[np.ndarray, np.ndarray]], n: int) -> None:
+    pipeline = VisionPipeline(ColorSegmenter())
+    colours = [c for c, _ in pairs]
+    raw = [depth_frame(d, stamp=1.0, source="bench/cam", seq=0, cam="bench", depth_scale=0.0001,
+                       camera_info=YCB_INFO) for _, d in pairs]
+    png = [depth_frame(d, stamp=1.0, source="bench/cam", seq=0, cam="bench", depth_scale=0.0001,
+                       camera_info=YCB_INFO, compression="png") for _, d in pairs]
+    index = {id(c): i for i, c in enumerate(colours)}
+    objects = sum(len(pipeline.process("bench", c)[0]) for c in colours) / len(colours)
+    colour_fps, raw_fps, png_fps = interleaved([
+        lambda c: pipeline.process("bench", c),
+        lambda c: pipeline.process("bench", c, DepthImage.from_frame(raw[index[id(c)]])),
+        lambda c: pipeline.process("bench", c, DepthImage.from_frame(png[index[id(c)]])),
+    ], colours, n)
+    print_throughput(f"depth: throughput on {n} YCB-Video RGB-D frames 640x480 ({objects:.0f} objects per frame "
+                     f"on average), rounds of 20", "colour only", colour_fps, "with depth (raw 16UC1)", raw_fps)
+    p = statistics.median(png_fps)
+    print(f"  {'with depth (PNG, decode included)':32s} {p:7.1f} frames/s   ratio "
+          f"{p / statistics.median(colour_fps):.2f}x")
+
+
+def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: float) -> None:
+    """Colour + depth of each capture at `fps` into a real vision process; lag of its Detections."""
+    group = ProcessGroup()
+    group.router()
+    group.service("vision")
+    client = Client(group.endpoint)
+    lags: list[tuple[float, float]] = []
+    positioned = [0]
+    start = time.time()
+
+    def on_output(sample) -> None:
+        out = decode(sample.payload.to_bytes(), Detections)
+        now = time.time()
+        lags.append((now - start, now - out.stamp))
+        positioned[0] += out.frame_id is not None
+
+    try:
+        client.wait_alive("vision", timeout=90)
+        sub = client.session.declare_subscriber("hri/vision/bench/objects", on_output)
+        frame_pub = SamplePublisher(client.session, "hri/camera/bench/frame", lossless=False)
+        depth_pub = SamplePublisher(client.session, "hri/camera/bench/depth", lossless=False)
+        jpegs = [cv2.imencode(".jpg", c, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes() for c, _ in pairs]
+        sent = 0
+        start = time.time()
+        next_at = time.monotonic()
+        while time.time() - start < seconds:
+            next_at += 1.0 / fps
+            k = sent % len(pairs)
+            stamp = time.time()
+            depth_pub.put(depth_frame(pairs[k][1], stamp=stamp, source="bench/cam", seq=sent, cam="bench",
+                                      depth_scale=0.0001, camera_info=YCB_INFO))
+            frame_pub.put(Frame(stamp=stamp, source="bench/cam", seq=sent, cam="bench", width=640, height=480,
+                                encoding="jpeg", data=jpegs[k], camera_info=YCB_INFO))
+            sent += 1
+            delay = next_at - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        time.sleep(1.0)
+        sub.undeclare()
+        frame_pub.undeclare()
+        depth_pub.undeclare()
+        stats = client.stats("vision")
+    finally:
+        client.close()
+        group.close()
+    print(f"depth: end-to-end lag at {fps:.0f} fps with depth for {seconds:.0f} s: {sent} RGB-D captures sent, "
+          f"{len(lags)} Detections received ({positioned[0]} with positions), {stats['skipped']} stale samples "
+          f"skipped by the service")
+    slice_s = max(seconds / 6, 1.0)
+    for k in range(int(seconds // slice_s)):
+        part = [lag for t, lag in lags if k * slice_s <= t < (k + 1) * slice_s]
+        if part:
+            p50, p99 = np.percentile(part, [50, 99]) * 1000
+            print(f"  {k * slice_s:4.0f}-{(k + 1) * slice_s:3.0f} s  p50 {p50:6.1f} ms  p99 {p99:6.1f} ms  n={len(part)}")
+    if lags:
+        p50, p99 = np.percentile([lag for _, lag in lags], [50, 99]) * 1000
+        print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")
+
+
 def default_model() -> str:
     return os.environ.get("HRI_YOLOX_MODEL") or str(ROOT.parent / "shared" / "models" / "yolox_nano.onnx")
 
@@ -165,7 +269,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=60.0, help="length of each lag run (default 60)")
     parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
-    parser.add_argument("--backends", default="color,onnx", help="which backends to measure (default color,onnx)")
+    parser.add_argument("--backends", default="color,onnx,depth",
+                        help="which backends to measure (default color,onnx,depth)")
     parser.add_argument("--model", default=default_model(), help="YOLOX ONNX model for the onnx backend")
     parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the lag runs (default 30)")
     parser.add_argument("--skip-lag", action="store_true", help="throughput only")
@@ -176,6 +281,14 @@ def main() -> None:
         throughput(images, args.frames)
         if not args.skip_lag:
             frame_lag("vision", [], "hri/vision/bench/objects", Detections, images, args.seconds, args.fps)
+    if "depth" in backends:
+        pairs = rgbd_frames()
+        if pairs is None:
+            print("depth: no RGB-D frames under ../shared/data/rgbd/ycb_video (set HRI_SHARED); skipped")
+        else:
+            depth_throughput(pairs, args.frames)
+            if not args.skip_lag:
+                rgbd_lag(pairs, args.seconds, args.fps)
     if "onnx" in backends:
         if not Path(args.model).is_file():
             print(f"onnx: no model at {args.model} (give --model or HRI_YOLOX_MODEL); skipped")

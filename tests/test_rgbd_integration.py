@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from common.codec import decode
-from common.depth import depth_metres, depth_units, metres
+from common.depth import depth_units
 from common.schema import CameraInfo, DepthFrame, Detections, Frame
 from services.vision.depth import object_depth
 from tests.harness import Client
@@ -37,10 +37,10 @@ def ycb_folder(tmp_path, intrinsics: dict | None = None):
 def check_positions(det: Detections, depth_png, info: CameraInfo) -> int:
     """Every position lies inside its box when projected with K and equals the in-process computation on the
     same depth file (the wire kept depth and K intact and the right depth was matched); returns how many."""
-    m = metres(cv2.imread(str(depth_png), cv2.IMREAD_UNCHANGED), 0.0001)
+    units = cv2.imread(str(depth_png), cv2.IMREAD_UNCHANGED)
     n = 0
     for o in det.objects:
-        expected = object_depth(m, info, tuple(o.bbox))
+        expected = object_depth(units, info, tuple(o.bbox), depth_scale=0.0001)
         if expected is None:
             assert o.position is None
             continue
@@ -130,16 +130,44 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     try:
         client.wait_alive("vision", timeout=60)
         out = client.collect("hri/vision/cam0/objects")
-        res = group.hri("replay", str(path), timeout=60)
-        assert res.returncode == 0, res.stderr
-        got = [s for _, s in out.wait(2, timeout=30)]
+        # looped: the liveliness token comes before the subscriptions, so the very first replayed frame may be lost
+        group.start("replay", "common.cli", "replay", str(path), "--loop")
+        got = {}
+        for seq in (0, 1):
+            _, det = out.wait(1, timeout=30, where=lambda k, s: s.seq == seq and s.frame_id is not None)[0]
+            got[seq] = det
     finally:
         client.close()
-    assert [g.seq for g in got] == [0, 1]
-    for det, d in zip(got, depths):
+    for seq, d in enumerate(depths):
+        det = got[seq]
         assert det.frame_id == "ycb_camera_optical_frame"
-        m = depth_metres(d)
         assert any(o.position is not None for o in det.objects)
         for o in det.objects:
-            expected = object_depth(m, d.camera_info, tuple(o.bbox))
-            assert (o.position is None) == (expected is None)
+            expected = object_depth(depth_units(d), d.camera_info, tuple(o.bbox), depth_scale=d.depth_scale)
+            assert np.allclose(o.position, expected.position, atol=1e-3) if expected else o.position is None
+
+
+def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused(group, tmp_path):
+    from tests.harness import DATA
+    photo = DATA / "demo" / "pointing.png"  # 640x480
+    folder = tmp_path / "colour"
+    folder.mkdir()
+    (folder / photo.name).write_bytes(photo.read_bytes())
+    good, bad = tmp_path / "good.json", tmp_path / "bad.json"
+    good.write_text(json.dumps({**YCB_INTRINSICS, "frame_id": "webcam_optical"}))
+    bad.write_text(json.dumps({**YCB_INTRINSICS, "width": 320, "height": 240}))
+    group.router()
+    client = Client(group.endpoint)
+    try:
+        frames = client.collect("hri/camera/cam0/frame")
+        group.service("camera", "--source", str(folder), "--fps", "10", "--loop", "--intrinsics", str(good),
+                      "--mirror")
+        _, frame = frames.wait(1, timeout=30)[0]
+    finally:
+        client.close()
+    assert frame.camera_info.frame_id == "webcam_optical_mirrored"
+    assert frame.camera_info.cx == pytest.approx(640 - 1 - 312.9869)
+    camera = group.service("camera", "--source", str(folder), "--intrinsics", str(bad))
+    camera.popen.wait(60)
+    assert camera.popen.returncode == 2, camera.output()
+    assert "intrinsics are for 320x240 but the images are 640x480" in camera.output()

@@ -15,7 +15,7 @@ import pytest
 from common.depth import UndecodableDepth, depth_frame, depth_metres, depth_units, encode_depth, metres
 from common.schema import CameraInfo, DetectedObject, InvalidSample
 from services.camera.rgbd import mirror_camera_info
-from services.vision.depth import DepthMatcher, foreground, object_depth, with_depth
+from services.vision.depth import DepthImage, DepthMatcher, foreground, object_depth, with_depth
 from tests.shared import shared_path
 
 # YCB-Video (PoseCNN tools/demo.py): fx, fy, cx, cy; 1 depth unit = 0.1 mm
@@ -116,7 +116,10 @@ def test_holes_inside_a_box_lower_the_support_not_the_position():
     empty[y:y + h, x:x + w] = 0
     assert object_depth(metres(empty, YCB_SCALE), YCB_INFO, box) is None
     obj = DetectedObject(id="o1", label="can", score=0.9, bbox=list(box), center=[x + w / 2, y + h / 2])
-    assert with_depth(obj, metres(empty, YCB_SCALE), YCB_INFO).position is None
+    assert with_depth(obj, DepthImage(empty, YCB_SCALE, YCB_INFO)).position is None
+    # the service's path: 16-bit units scaled per sampled pixel, the same as metres converted up front
+    measured = with_depth(obj, DepthImage(holed, YCB_SCALE, YCB_INFO))
+    assert np.allclose(measured.position, after.position, atol=5e-3) and measured.depth_support < 1.0
 
 
 def test_a_mirrored_camera_keeps_positions_right():
@@ -201,3 +204,35 @@ def test_the_matcher_pairs_depth_and_colour_by_seq_and_stamp():
     assert matcher.match("c", 0, 10.0) is None  # older than the kept ones
     assert matcher.match("c", 2, 12.5) is None  # same seq, another capture (a restarted camera)
     assert matcher.match("other", 2, 12.0) is None
+
+
+def test_a_colour_frame_served_before_its_depth_waits_for_it_but_colour_only_cameras_never_wait():
+    from types import SimpleNamespace
+    info = CameraInfo(width=2, height=2, k=[1, 0, 0.5, 0, 1, 0.5, 0, 0, 1], frame_id="f")
+
+    def depth(seq, cam="c"):
+        return depth_frame(np.ones((2, 2), np.uint16), stamp=10.0 + seq / 30, source="t/x", seq=seq, cam=cam,
+                           depth_scale=0.001, camera_info=info)
+
+    def colour(seq, cam="c"):
+        return SimpleNamespace(cam=cam, seq=seq, stamp=10.0 + seq / 30)
+
+    matcher = DepthMatcher()
+    assert not matcher.expects("c", 0, 10.0)  # no depth ever: colour goes straight on
+    assert matcher.add(depth(0)) is None
+    assert matcher.match("c", 0, 10.0) is not None
+    # frame 1 is served before depth 1: it waits, and depth 1 releases it
+    f1 = colour(1)
+    assert matcher.match("c", 1, f1.stamp) is None and matcher.expects("c", 1, f1.stamp)
+    assert matcher.wait(f1, "image 1") is None
+    assert matcher.add(depth(1)) == (f1, "image 1")
+    # frame 2 waits, its depth is lost; frame 3 replaces it
+    f2, f3 = colour(2), colour(3)
+    matcher.wait(f2, "image 2")
+    assert matcher.wait(f3, "image 3") == (f2, "image 2")
+    # a newer depth already in: this frame's depth is lost, no waiting
+    matcher.add(depth(5))
+    assert not matcher.expects("c", 4, colour(4).stamp)
+    # a camera whose depth stopped a while ago is not waited for
+    assert not matcher.expects("c", 99, 10.0 + 99 / 30)
+    assert not matcher.expects("other", 1, 10.0)

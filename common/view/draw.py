@@ -47,14 +47,20 @@ def object_name(obj: dict[str, Any]) -> str:
     return " ".join(p for p in (obj.get("color"), obj["label"]) if p)
 
 
+def object_position(obj: dict[str, Any]) -> str:
+    """' (x, y, z) m' in the camera's optical frame when depth gave the object a position, else ''."""
+    p = obj.get("position")
+    return f" ({p[0]:+.2f}, {p[1]:+.2f}, {p[2]:.2f}) m" if p else ""
+
+
 def draw_objects(img: np.ndarray, layers: dict[str, Any]) -> None:
     # the decision layer labels its own objects (target, candidates): no second label under theirs
     decided = {o["id"] for o in [layers.get("target"), *layers.get("candidates", [])] if o}
     for obj in layers.get("objects", []):
         _box(img, obj["bbox"], BOX, 2)
         if obj["id"] not in decided:
-            _label(img, f"{object_name(obj)} {obj['id']} {obj['score']:.2f}", obj["bbox"][0], obj["bbox"][1],
-                   BOX)
+            _label(img, f"{object_name(obj)} {obj['id']} {obj['score']:.2f}{object_position(obj)}", obj["bbox"][0],
+                   obj["bbox"][1], BOX)
 
 
 def draw_hands(img: np.ndarray, layers: dict[str, Any]) -> None:
@@ -87,8 +93,8 @@ def draw_decision(img: np.ndarray, layers: dict[str, Any]) -> None:
         _box(img, target["bbox"], TARGET, 4)
         cx, cy = _pt(target["center"])
         cv2.drawMarker(img, (cx, cy), TARGET, cv2.MARKER_CROSS, 18, 3)
-        _label(img, f"{target.get('intent', 'target')}: {object_name(target)} {target['id']}",
-               target["bbox"][0], target["bbox"][1], TARGET)
+        _label(img, f"{target.get('intent', 'target')}: {object_name(target)} {target['id']}"
+                    f"{object_position(target)}", target["bbox"][0], target["bbox"][1], TARGET)
     loc = layers.get("location")
     if loc:
         cv2.drawMarker(img, _pt([loc["x"], loc["y"]]), TARGET, cv2.MARKER_TILTED_CROSS, 24, 3)

@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 
-from common.depth import UndecodableDepth, depth_metres
+from common.depth import UndecodableDepth
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import DepthFrame, Detections, Frame
 from services.vision.core import VisionPipeline
-from services.vision.depth import DepthMatcher
+from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
 from services.vision.yolo import FAMILIES, ModelError, YoloDetector, read_names
 
@@ -73,32 +73,41 @@ def main(argv: list[str] | None = None) -> None:
 
     depths = DepthMatcher()
 
-    def on_depth(delivery) -> None:
-        depths.add(delivery.sample)  # decoded only if a colour frame claims it
-
-    def depth_for(frame: Frame):
-        """(metres, CameraInfo) of the depth frame of this capture, or None: colour-only users never wait."""
-        depth = depths.match(frame.cam, frame.seq, frame.stamp)
-        if depth is None:
-            return None
+    def depth_image(frame: Frame, depth) -> DepthImage | None:
+        """The decoded depth image of this capture, or None (counted) when it does not fit the colour frame."""
         if (depth.width, depth.height) != (frame.width, frame.height):
             service.counters.reject("bad_value", f"depth {depth.width}x{depth.height} is not aligned to the colour "
                                     f"frame {frame.width}x{frame.height} (seq {frame.seq}): no positions",
                                     service.keys.depth(frame.cam))
             return None
         try:
-            return depth_metres(depth), depth.camera_info
+            return DepthImage.from_frame(depth)
         except UndecodableDepth as exc:
             service.counters.reject("undecodable", str(exc), service.keys.depth(frame.cam))
             return None
 
-    def on_image(frame: Frame, img) -> None:
-        depth = depth_for(frame)
+    def process(frame: Frame, img, depth: DepthImage | None) -> None:
         objects, quality = pipeline.process(frame.cam, img, depth)
         service.publish(service.keys.objects(frame.cam), Detections(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, objects=objects, quality=quality,
-            frame_id=depth[1].frame_id if depth is not None else None))
+            frame_id=depth.camera_info.frame_id if depth is not None else None))
+
+    def on_depth(delivery) -> None:
+        ready = depths.add(delivery.sample)  # decoded only when a colour frame claims it
+        if ready is not None:  # the colour frame of this capture was served first and waited for it
+            frame, img = ready
+            process(frame, img, depth_image(frame, delivery.sample))
+
+    def on_image(frame: Frame, img) -> None:
+        depth = depths.match(frame.cam, frame.seq, frame.stamp)
+        if depth is None and depths.expects(frame.cam, frame.seq, frame.stamp):
+            if depths.wait(frame, img) is not None:
+                service.counters.add("skipped")  # an older frame whose depth never came: latest-only
+            return
+        if depths.take_waiting(frame.cam) is not None:
+            service.counters.add("skipped")
+        process(frame, img, None if depth is None else depth_image(frame, depth))
 
     for cam in args.cams.split(","):
         # the camera sends depth just before colour, so its slot is usually served first

@@ -6,9 +6,9 @@ import cv2
 import numpy as np
 
 from common.language import canonical_label
-from common.schema import CameraInfo, DetectedObject, ImageQuality
+from common.schema import DetectedObject, ImageQuality
 from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, color_name
-from services.vision.depth import with_depth
+from services.vision.depth import DepthImage, with_depth
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
 from services.vision.track import Tracker
@@ -87,9 +87,9 @@ class VisionPipeline:
         return [Detection(canonical_label(label), object_color(bgr, box), score, box)
                 for label, score, box in self.detector.detect(bgr)]
 
-    def process(self, cam: str, bgr: np.ndarray, depth: tuple[np.ndarray, CameraInfo] | None = None
+    def process(self, cam: str, bgr: np.ndarray, depth: DepthImage | None = None
                 ) -> tuple[list[DetectedObject], ImageQuality]:
-        """`depth`: the aligned depth image (float32 metres, NaN = none) and its intrinsics, when known."""
+        """`depth`: the depth image aligned to `bgr`, with its intrinsics, when known."""
         tracker = self.trackers.setdefault(cam, Tracker(prefix=f"{cam}-o"))
         objects = [
             DetectedObject(id=obj_id, label=d.label, color=d.color, score=round(d.score, 4),
@@ -97,6 +97,6 @@ class VisionPipeline:
             for obj_id, d in tracker.update(self.detections(bgr))
         ]
         if depth is not None:  # positions in metres (services/vision/depth.py)
-            objects = [with_depth(o, *depth) for o in objects]
+            objects = [with_depth(o, depth) for o in objects]
         brightness, contrast, sharpness = image_quality(bgr)
         return objects, ImageQuality(brightness=brightness, contrast=contrast, sharpness=sharpness)

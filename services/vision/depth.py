@@ -22,18 +22,32 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import msgspec
 import numpy as np
 
+from common.depth import depth_units
 from common.schema import CameraInfo, DepthFrame, DetectedObject
 
-MAX_SAMPLES = 4096      # points sampled per box (a regular grid): the median needs no more, and it stays cheap
+MAX_SAMPLES = 1024      # points sampled per box (a regular grid): a median needs no more, and 30 boxes stay cheap
 MIN_POINTS = 12         # fewer valid depths in a box than this: no position
 BIN_M = 0.01            # histogram bin: 1 cm …
 BIN_SHARE = 0.01        # … or 1 % of the depth, whichever is larger (sensor noise grows with distance)
 FLANK = 0.15            # a mode's cluster reaches down to this share of its peak's height
 MIN_MODE_SHARE = 0.15   # a mode must hold this share of the box's valid depths to be an object
+
+
+class DepthImage(NamedTuple):
+    """An aligned depth image as it came (uint16 or float32 units: converted per sampled pixel, not per frame)."""
+    units: np.ndarray
+    depth_scale: float   # metres per unit
+    camera_info: CameraInfo
+
+    @classmethod
+    def from_frame(cls, frame: DepthFrame) -> "DepthImage":
+        """Raises common.depth.UndecodableDepth."""
+        return cls(depth_units(frame), frame.depth_scale, frame.camera_info)
 
 
 @dataclass(frozen=True)
@@ -44,22 +58,26 @@ class ObjectDepth:
     points: int                           # foreground points used
 
 
-def box_samples(depth_m: np.ndarray, bbox: tuple[float, float, float, float], max_samples: int = MAX_SAMPLES
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(u, v, z) of a regular grid of the box's pixels (z NaN = no depth), at most about `max_samples`."""
-    h, w = depth_m.shape
+def box_samples(depth: np.ndarray, bbox: tuple[float, float, float, float], max_samples: int = MAX_SAMPLES,
+                depth_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """(u, v, z metres) of the valid pixels of a regular grid over the box (at most about `max_samples`), and
+    how many grid pixels there were in all."""
+    h, w = depth.shape
     x, y, bw, bh = bbox
     x0, y0 = max(0, int(math.floor(x))), max(0, int(math.floor(y)))
     x1, y1 = min(w, int(math.ceil(x + bw))), min(h, int(math.ceil(y + bh)))
     if x1 <= x0 or y1 <= y0:
-        empty = np.zeros(0, np.float32)
-        return empty, empty, empty
+        empty = np.zeros(0)
+        return empty, empty, empty, 0
     step = max(1, int(math.ceil(math.sqrt((x1 - x0) * (y1 - y0) / max_samples))))
     # centred grid: the samples sit symmetrically in the box (a mirrored box samples the mirrored pixels)
     ox, oy = ((x1 - x0 - 1) % step) // 2, ((y1 - y0 - 1) % step) // 2
-    z = depth_m[y0 + oy:y1:step, x0 + ox:x1:step]
-    vs, us = np.mgrid[y0 + oy:y1:step, x0 + ox:x1:step]
-    return us.ravel().astype(np.float32), vs.ravel().astype(np.float32), z.ravel()
+    grid = depth[y0 + oy:y1:step, x0 + ox:x1:step]
+    z = grid.ravel().astype(np.float64) * depth_scale
+    with np.errstate(invalid="ignore"):
+        index = np.flatnonzero((z > 0) & (z < np.inf))  # NaN compares False: 0, NaN and inf are no depth
+    rows, cols = np.divmod(index, grid.shape[1])
+    return (x0 + ox + cols * step).astype(np.float64), (y0 + oy + rows * step).astype(np.float64), z[index], z.size
 
 
 def foreground(z: np.ndarray) -> np.ndarray:
@@ -67,13 +85,14 @@ def foreground(z: np.ndarray) -> np.ndarray:
     if z.size == 0:
         return np.zeros(0, bool)
     lo, hi = float(z.min()), float(z.max())
-    width = max(BIN_M, BIN_SHARE * float(np.median(z)))
+    width = max(BIN_M, BIN_SHARE * float(z.mean()))
     if hi - lo <= 3 * width:
         return np.ones(z.size, bool)  # one surface: all of it
     n_bins = int(math.ceil((hi - lo) / width)) + 1
-    counts = np.bincount(((z - lo) / width).astype(np.int64), minlength=n_bins).astype(np.float64)
-    smooth = np.convolve(np.pad(counts, 1), [0.25, 0.5, 0.25], mode="valid")
-    padded = np.pad(smooth, 1, constant_values=-1.0)
+    bins = ((z - lo) / width).astype(np.int64)
+    counts = np.bincount(bins, minlength=n_bins).astype(np.float64)
+    smooth = np.convolve(counts, [0.25, 0.5, 0.25])[1:-1]  # same length, zeros beyond the ends
+    padded = np.concatenate(([-1.0], smooth, [-1.0]))
     peaks = np.flatnonzero((smooth >= padded[:-2]) & (smooth > padded[2:]) & (smooth > 0))
     best: tuple[int, int] | None = None
     best_mass = -1.0
@@ -93,7 +112,6 @@ def foreground(z: np.ndarray) -> np.ndarray:
             best, best_mass = (a, b), mass
     assert best is not None
     a, b = best
-    bins = ((z - lo) / width).astype(np.int64)
     return (bins >= a) & (bins <= b)
 
 
@@ -113,31 +131,35 @@ def back_project(u: np.ndarray, v: np.ndarray, z: np.ndarray, info: CameraInfo) 
     return np.stack([xn * z, yn * z, z], 1)
 
 
-def object_depth(depth_m: np.ndarray, info: CameraInfo, bbox: tuple[float, float, float, float],
-                 max_samples: int = MAX_SAMPLES) -> ObjectDepth | None:
-    """Position, extent and depth support of the object in `bbox` ([x, y, w, h] px) from a float32 depth image
-    in metres (NaN = no measurement) aligned to the image K belongs to; None without enough valid depth."""
-    u, v, z = box_samples(depth_m, bbox, max_samples)
-    if z.size == 0:
+def object_depth(depth: np.ndarray, info: CameraInfo, bbox: tuple[float, float, float, float],
+                 max_samples: int = MAX_SAMPLES, depth_scale: float = 1.0) -> ObjectDepth | None:
+    """Position, extent and depth support of the object in `bbox` ([x, y, w, h] px) from a depth image aligned
+    to the image K belongs to (units × `depth_scale` = metres; 0 or NaN = no measurement); None without enough
+    valid depth."""
+    u, v, z, total = box_samples(depth, bbox, max_samples, depth_scale)
+    if z.size < MIN_POINTS:
         return None
-    valid = np.isfinite(z) & (z > 0)
-    n_valid = int(valid.sum())
-    if n_valid < MIN_POINTS:
-        return None
-    u, v, z = u[valid], v[valid], z[valid].astype(np.float64)
     own = foreground(z)
-    if own.sum() < MIN_POINTS:
+    n_own = int(own.sum())
+    if n_own < MIN_POINTS:
         return None
-    pts = back_project(u[own], v[own], z[own], info)
-    position = np.median(pts, axis=0)
-    p5, p95 = np.percentile(pts, [5, 95], axis=0)
+    pts = np.sort(back_project(u[own], v[own], z[own], info), axis=0)
+    p5, position, p95 = (_interpolated(pts, q) for q in (0.05, 0.5, 0.95))
     return ObjectDepth(position=tuple(float(c) for c in position), extent=tuple(float(c) for c in p95 - p5),
-                       support=n_valid / valid.size, points=int(own.sum()))
+                       support=z.size / total, points=n_own)
 
 
-def with_depth(obj: DetectedObject, depth_m: np.ndarray, info: CameraInfo) -> DetectedObject:
+def _interpolated(sorted_rows: np.ndarray, q: float) -> np.ndarray:
+    """The q-quantile of each column of row-sorted data (linear interpolation, as numpy's default)."""
+    at = q * (len(sorted_rows) - 1)
+    lo = int(at)
+    hi = min(lo + 1, len(sorted_rows) - 1)
+    return sorted_rows[lo] + (at - lo) * (sorted_rows[hi] - sorted_rows[lo])
+
+
+def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:
     """The object with its position, extent and depth support from the depth image (unchanged without depth)."""
-    measured = object_depth(depth_m, info, tuple(obj.bbox))
+    measured = object_depth(depth.units, depth.camera_info, tuple(obj.bbox), depth_scale=depth.depth_scale)
     if measured is None or measured.position[2] <= 0:
         return obj
     return msgspec.structs.replace(obj, position=[round(c, 4) for c in measured.position],
@@ -145,21 +167,59 @@ def with_depth(obj: DetectedObject, depth_m: np.ndarray, info: CameraInfo) -> De
                                    depth_support=round(measured.support, 3))
 
 
+EXPECT_DEPTH_S = 1.0  # a camera that sent depth this recently (source time) is expected to send it again
+
+
 class DepthMatcher:
-    """The few latest depth frames per camera, and the one that belongs to a colour frame (same seq and stamp).
-    Not thread-safe: the service's one worker calls it."""
+    """Pairs colour frames with the depth frame of the same capture (same cam, seq and stamp). Not thread-safe:
+    the service's one worker calls it.
 
-    def __init__(self, keep: int = 4):
+    Depth and colour arrive on two latest-only keys, so the colour frame can be served before its depth. A
+    colour frame without its depth therefore waits (one per camera) when that camera sent depth within
+    EXPECT_DEPTH_S and no newer depth is already in: its depth is then usually next in line. It is released when
+    the depth comes, or dropped when a newer colour frame of the camera arrives first (counted by the caller as
+    skipped: latest-only). A camera without depth never makes a frame wait.
+    """
+
+    def __init__(self, keep: int = 4, expect_s: float = EXPECT_DEPTH_S):
         self.keep = keep
+        self.expect_s = expect_s
         self.frames: dict[str, list[DepthFrame]] = {}
+        self.waiting: dict[str, tuple[Any, Any]] = {}  # cam -> (colour frame, its decoded image)
 
-    def add(self, frame: DepthFrame) -> None:
+    def add(self, frame: DepthFrame) -> tuple[Any, Any] | None:
+        """Keep a depth frame; returns the waiting (colour frame, image) it belongs to, if any."""
         kept = self.frames.setdefault(frame.cam, [])
         kept.append(frame)
         del kept[:-self.keep]
+        waiting = self.waiting.get(frame.cam)
+        if waiting is not None and self._same(frame, waiting[0].seq, waiting[0].stamp):
+            return self.waiting.pop(frame.cam)
+        return None
+
+    @staticmethod
+    def _same(depth: DepthFrame, seq: int, stamp: float) -> bool:
+        return depth.seq == seq and abs(depth.stamp - stamp) < 1e-6
 
     def match(self, cam: str, seq: int, stamp: float) -> DepthFrame | None:
         for frame in reversed(self.frames.get(cam, [])):
-            if frame.seq == seq and abs(frame.stamp - stamp) < 1e-6:
+            if self._same(frame, seq, stamp):
                 return frame
         return None
+
+    def expects(self, cam: str, seq: int, stamp: float) -> bool:
+        """True if the depth of this capture is probably still on its way."""
+        kept = self.frames.get(cam)
+        if not kept:
+            return False
+        newest = kept[-1]
+        return newest.stamp < stamp and stamp - newest.stamp <= self.expect_s
+
+    def wait(self, frame: Any, image: Any) -> tuple[Any, Any] | None:
+        """Park a colour frame for its depth; returns the one it replaces (its depth never came), if any."""
+        replaced = self.waiting.pop(frame.cam, None)
+        self.waiting[frame.cam] = (frame, image)
+        return replaced
+
+    def take_waiting(self, cam: str) -> tuple[Any, Any] | None:
+        return self.waiting.pop(cam, None)

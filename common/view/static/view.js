@@ -33,6 +33,12 @@ function clock(stamp) {
 }
 
 function objectName(o) { return [o.color, o.label].filter(Boolean).join(" "); }
+// " (x, y, z) m" in the camera's optical frame when depth gave the object a position (as draw.py)
+function signed(v) { return `${v >= 0 ? "+" : ""}${v.toFixed(2)}`; }
+function objectPosition(o) {
+  const p = o && o.position;
+  return p ? ` (${signed(p[0])}, ${signed(p[1])}, ${p[2].toFixed(2)}) m` : "";
+}
 
 // -- layers (bottom to top), as in draw.py ------------------------------------------------------------
 function drawLabel(ctx, text, x, y, colour) {
@@ -55,7 +61,7 @@ function drawObjects(ctx, layers) {
   const decided = new Set([layers.target, ...(layers.candidates || [])].filter(Boolean).map((o) => o.id));
   for (const o of layers.objects || []) {
     drawBox(ctx, o.bbox, COLOURS.box, 2);
-    if (!decided.has(o.id)) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}`, o.bbox[0], o.bbox[1], COLOURS.box);
+    if (!decided.has(o.id)) drawLabel(ctx, `${objectName(o)} ${o.id} ${num(o.score)}${objectPosition(o)}`, o.bbox[0], o.bbox[1], COLOURS.box);
   }
 }
 
@@ -92,7 +98,7 @@ function drawDecision(ctx, layers) {
     ctx.strokeStyle = COLOURS.target; ctx.lineWidth = 3;
     ctx.beginPath(); ctx.moveTo(t.center[0] - 9, t.center[1]); ctx.lineTo(t.center[0] + 9, t.center[1]);
     ctx.moveTo(t.center[0], t.center[1] - 9); ctx.lineTo(t.center[0], t.center[1] + 9); ctx.stroke();
-    drawLabel(ctx, `${t.intent || "target"}: ${objectName(t)} ${t.id}`, t.bbox[0], t.bbox[1], COLOURS.target);
+    drawLabel(ctx, `${t.intent || "target"}: ${objectName(t)} ${t.id}${objectPosition(t)}`, t.bbox[0], t.bbox[1], COLOURS.target);
   }
   if (layers.location) {
     const { x, y } = layers.location;
@@ -195,7 +201,9 @@ function entryNode(e) {
       el("small", {}, `score ${num(e.score)}`));
   } else if (e.kind === "command") {
     const t = e.target;
-    const what = t ? ` → ${objectName(t)} ${t.id}` : (e.place ? ` → ${e.place}` : "");
+    const loc = e.location;
+    const what = t ? ` → ${objectName(t)} ${t.id}${objectPosition(t)}`
+      : (e.place ? ` → ${e.place}${objectPosition(loc)}` : "");
     const summary = el("summary", {}, time, el("span", { class: "kind" }, "command"),
       `${e.intent}${what} `, el("small", {}, `confidence ${num(e.confidence)}`));
     const missing = Object.entries(e.inputs || {}).filter(([, s]) => s === null).map(([m]) => m);
