@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 
 import cv2
 import numpy as np
@@ -86,3 +87,36 @@ def test_a_pointing_person_gets_a_3d_ray_that_meets_the_floor(group, tmp_path):
         seen = np.array([F * b[0] / b[2] - F * a[0] / a[2], F * b[1] / b[2] - F * a[1] / a[2]])
         seen /= np.linalg.norm(seen)
         assert math.degrees(math.acos(min(1.0, float(seen @ np.array(ray.direction))))) < 15.0, (seen, ray.direction)
+
+
+@requires_services("gesture")
+def test_a_broken_depth_frame_is_counted_and_the_2d_rays_still_go_out(group):
+    from common.schema import CameraInfo, DepthFrame, Frame
+    bgr = cv2.imread(str(shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")))
+    h, w = bgr.shape[:2]
+    png = cv2.imencode(".png", bgr)[1].tobytes()
+    info = CameraInfo(width=w, height=h, k=[F, 0, w / 2, 0, F, h / 2, 0, 0, 1], frame_id=FRAME)
+    group.router()
+    proc = group.service("gesture")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("gesture", timeout=90)
+        bodies = client.collect("hri/gesture/cam0/bodies")
+        for seq in range(4):
+            stamp = time.time()
+            client.publish("hri/camera/cam0/depth", DepthFrame(
+                stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=w, height=h, encoding="16UC1",
+                compression="png", depth_scale=0.001, camera_info=info, data=b"not a png at all"))
+            client.publish("hri/camera/cam0/frame", Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0",
+                                                          width=w, height=h, encoding="png", data=png))
+            time.sleep(0.5)
+        (_, body), = bodies.wait(1, timeout=60, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray
+                                 is not None)
+        assert body.bodies[0].right_ray.ray3d is None  # no depth to lift it with: the 2-D ray alone
+        deadline = time.monotonic() + 10
+        while client.stats("gesture")["rejected"].get("bad_value", 0) < 1:
+            assert time.monotonic() < deadline, client.stats("gesture")
+            time.sleep(0.2)
+    finally:
+        client.close()
+    assert proc.alive() and "no PNG signature" in proc.output(), proc.output()

@@ -10,7 +10,7 @@ from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Bodies, Body, DepthFrame, Frame, GestureEvent, Hand, Hands, Ray
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
-from services.gesture.space import FrameRays, depth_view
+from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
 
 EPILOG = """\
@@ -114,6 +114,8 @@ def main(argv: list[str] | None = None) -> None:
                 stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
                 height=frame.height, bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)]))
         publish_events(frame, events, rays3d, hand_rays3d)
+        if rays3d is not None and rays3d.error:
+            service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {rays3d.error}")
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
         last_frame[frame.cam] = (time.monotonic(), frame)
 
@@ -125,11 +127,7 @@ def main(argv: list[str] | None = None) -> None:
             if frame.cam in depths:
                 service.counters.add("depth_unmatched")  # a camera with depth, but not of this capture (yet)
             return None
-        try:
-            return FrameRays(depth_view(depth), skeleton, world)
-        except ValueError as exc:  # UndecodableDepth: a broken PNG, a size that does not match
-            service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {exc}")
-            return None
+        return FrameRays(depth, skeleton, world)  # decoded only if someone points
 
     def on_depth(d) -> None:
         depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)

@@ -320,29 +320,44 @@ def side_of_hand(pose: np.ndarray | None, hand: np.ndarray) -> str | None:
 
 
 class FrameRays:
-    """The 3-D rays of one frame, computed on demand and once each: the shell asks for the hands' and arms' rays."""
+    """The 3-D rays of one frame, computed on demand and once each: the shell asks for the hands' and arms' rays.
+    A DepthFrame is decoded only when a ray is asked for (most frames have nobody pointing); a frame that cannot be
+    decoded gives no rays and leaves its reason in `error`."""
 
-    def __init__(self, view: DepthView, pose: np.ndarray | None, world: np.ndarray | None):
-        self.view, self.pose, self.world = view, pose, world
+    def __init__(self, depth: DepthView | DepthFrame, pose: np.ndarray | None, world: np.ndarray | None):
+        self._depth = depth
+        self._view = depth if isinstance(depth, DepthView) else None
+        self.pose, self.world = pose, world
+        self.error: str | None = None
         self._cloud: np.ndarray | None = None
         self._done: dict = {}
 
+    @property
+    def view(self) -> DepthView | None:
+        if self._view is None and self.error is None:
+            try:
+                self._view = depth_view(self._depth)
+            except ValueError as exc:  # UndecodableDepth: a broken PNG, a size that does not match
+                self.error = str(exc)
+        return self._view
+
     def _wire(self, key, make) -> Ray3D | None:
         if key not in self._done:
-            ray = make()
+            view = self.view
+            ray = make(view) if view is not None else None
             if ray is None:
                 self._done[key] = None
             else:
                 if self._cloud is None:
-                    self._cloud = self.view.cloud()
-                self._done[key] = to_wire(ray, self.view.frame_id, surface_hit(self.view, ray, self._cloud))
+                    self._cloud = view.cloud()
+                self._done[key] = to_wire(ray, view.frame_id, surface_hit(view, ray, self._cloud))
         return self._done[key]
 
     def arm(self, side: str, hand: np.ndarray | None = None) -> Ray3D | None:
         if self.pose is None:
             return None
         return self._wire(("arm", side, hand is not None and hand.tobytes()),
-                          lambda: arm_ray3d(self.view, self.pose, side, hand, self.world))
+                          lambda view: arm_ray3d(view, self.pose, side, hand, self.world))
 
     def hand(self, hand: np.ndarray) -> Ray3D | None:
         """A pointing hand: its arm's ray when the body stage sees that arm, else the index finger's."""
@@ -351,4 +366,4 @@ class FrameRays:
             ray = self.arm(side, hand)
             if ray is not None:
                 return ray
-        return self._wire(("hand", hand.tobytes()), lambda: hand_ray3d(self.view, hand))
+        return self._wire(("hand", hand.tobytes()), lambda view: hand_ray3d(view, hand))
