@@ -100,8 +100,8 @@ def main(argv: list[str] | None = None) -> None:
         tracker = trackers[frame.cam]
         tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
         rays3d = frame_rays(frame, skeleton, posers[frame.cam].world if args.body and skeleton is not None else None)
-        hand_rays3d = {o.hand: rays3d.hand(o.landmarks) for o, t in zip(observations, tracked)
-                       if rays3d is not None and t.ray is not None}
+        hand_rays3d = {o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
+                       for o, t in zip(observations, tracked) if rays3d is not None and t.ray is not None}
         hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
                                                                        o.landmarks.tolist()],
                       gesture=t.gesture, ray=to_ray(t.ray, hand_rays3d.get(o.hand)))

@@ -359,11 +359,12 @@ class FrameRays:
         return self._wire(("arm", side, hand is not None and hand.tobytes()),
                           lambda view: arm_ray3d(view, self.pose, side, hand, self.world))
 
-    def hand(self, hand: np.ndarray) -> Ray3D | None:
-        """A pointing hand: its arm's ray when the body stage sees that arm, else the index finger's."""
+    def hand(self, hand: np.ndarray, tip: bool = True) -> Ray3D | None:
+        """A pointing hand: its arm's ray when the body stage sees that arm (through the hand's own index tip when
+        `tip`: the 2-D ray came from the finger, not from the arm), else the index finger's."""
         side = side_of_hand(self.pose, hand)
         if side is not None:
-            ray = self.arm(side, hand)
+            ray = self.arm(side, hand if tip else None)
             if ray is not None:
                 return ray
         return self._wire(("hand", hand.tobytes()), lambda view: hand_ray3d(view, hand))
