@@ -100,7 +100,7 @@ def pointing_from_hands(hands: Hands) -> list[PointingObs]:
         xs, ys = [p[0] for p in h.landmarks], [p[1] for p in h.landmarks]
         out.append(PointingObs(hands.stamp, hands.cam, h.hand, tuple(h.ray.origin), tuple(h.ray.direction),
                                h.ray.confidence * h.score, hands.width, hands.height,
-                               (min(xs), min(ys), max(xs), max(ys)), space.from_wire(h.ray.ray3d)))
+                               (min(xs), min(ys), max(xs), max(ys)), ray3d=space.from_wire(h.ray.ray3d)))
     return out
 
 
