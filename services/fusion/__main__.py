@@ -8,7 +8,7 @@ import time
 import zenoh
 
 from common.runner import Delivery, Service, main_exit, service_parser
-from common.schema import Clarification, Detections, FusedCommand, GestureEvent, Hands, Transcript
+from common.schema import Bodies, Clarification, Detections, FusedCommand, GestureEvent, Hands, Transcript
 from services.fusion.core import Config, FusionCore
 from services.fusion.outputs import Output
 
@@ -99,6 +99,7 @@ def main(argv: list[str] | None = None) -> None:
     service.subscribe(keys.objects("*"), Detections, handler(core.on_detections), maxlen=300)
     service.subscribe(keys.hands("*"), Hands, handler(core.on_hands), maxlen=600)
     service.subscribe(keys.gesture_event("*"), GestureEvent, handler(core.on_gesture_event), maxlen=200)
+    service.subscribe(keys.bodies("*"), Bodies, handler(core.on_bodies), maxlen=50)  # which way the speaker faces
 
     def tick() -> None:
         while True:

@@ -15,8 +15,8 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.schema import Detections, GestureEvent, Hands, Location, Transcript
-from services.fusion import describe
+from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from services.fusion import describe, space
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
@@ -62,6 +62,7 @@ class FusionCore:
         self.outputs = Outputs(source)
         self.dialogue = Dialogue(self.outputs, config.dialogue_timeout, self.count, self.log)
         self.seen_transcripts = SeenOnce(config.horizon)
+        self.facing = space.Facing()  # which way the speaker faces: "on my left"
 
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
@@ -82,6 +83,10 @@ class FusionCore:
 
     def on_hands(self, key: str, hands: Hands, wall: float) -> list[Output]:
         self._add("gesture", key, hands.stamp, hands, wall)
+        return []
+
+    def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
+        self.facing.add(bodies)
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
@@ -156,6 +161,11 @@ class FusionCore:
     def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         intent = u.intent
         assert intent is not None
+        spatial, why = self.facing.camera_words(u.obj.spatial, t.text, ctx.ref)
+        if why:  # "on my left": the speaker's side, turned into the camera's
+            u = replace(u, obj=replace(u.obj, spatial=spatial))
+            self.count("speaker_side")
+            self.log.info("'%s': %s", t.text, why)
         speech_rel = ctx.reliabilities["speech"] or 0.0
         named = u.obj.specific or u.obj.noun is not None
         wants_object = intent in TARGET_INTENTS or (intent in ("look_at", "follow") and (

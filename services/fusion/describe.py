@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from common.language import OBJECT_CATEGORIES, plural
 from common.schema import Location
+from services.fusion import space
 from services.fusion.evidence import Pointing
 from services.fusion.ground import Scored, SceneObject
 from services.fusion.parse import Motion, ObjectPhrase
@@ -156,15 +157,17 @@ def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None,
                      f"left/right = its own left/right{said})")
     if target is not None:
         lines.append(f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
-                     f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}")
+                     f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}"
+                     + space.metres_words(target.position, target.frame_id, target.extent))
     if location is not None:
-        lines.append(f"Location: pixel ({location.x:.0f}, {location.y:.0f}) in camera {location.cam}")
+        lines.append(f"Location: pixel ({location.x:.0f}, {location.y:.0f}) in camera {location.cam}"
+                     + space.metres_words(location.position, location.frame_id))
     if place:
         lines.append(f"Place: {place}")
     if pointing is not None:
         lines.append(f"Gesture: {pointing.hand} hand pointing from ({pointing.origin[0]:.0f}, "
                      f"{pointing.origin[1]:.0f}) towards ({pointing.direction[0]:.2f}, {pointing.direction[1]:.2f}) "
-                     f"in camera {pointing.cam}")
+                     f"in camera {pointing.cam}" + space.ray_words(pointing.ray3d))
     elif gesture:
         lines.append(f"Gesture: {gesture}")
     if objects:
@@ -176,7 +179,7 @@ def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None,
         for o in sorted(shown, key=lambda o: (o.cam, o.center[0], o.id)):
             lines.append(f"- {o.id}: {o.name()} at ({o.center[0]:.0f}, {o.center[1]:.0f}) size "
                          f"{o.bbox[2]:.0f}x{o.bbox[3]:.0f} in camera {o.cam} ({o.width}x{o.height}), {region(o)}, "
-                         f"score {o.score:.2f}")
+                         f"score {o.score:.2f}" + space.metres_words(o.position, o.frame_id))
     else:
         lines.append("Objects in view: none reported")
     if missing:

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 from common.schema import Detections, GestureEvent, Hands, ImageQuality, Transcript, Weights
+from services.fusion import space
 from services.fusion.parse import Utterance, word_key
 
 # Fixed weights used by `--weights fixed`: the comparison baseline that ignores evidence quality.
@@ -66,6 +67,7 @@ class PointingObs:
     width: int
     height: int
     hand_box: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of the hand's landmarks
+    ray3d: space.Ray3 | None = None  # the same ray in metres, when the gesture service had depth
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,7 @@ class Pointing:
     width: int
     height: int
     hand_box: tuple[float, float, float, float] | None = None  # the pointing hand itself: never its target
+    ray3d: space.Ray3 | None = None  # the cluster's 3-D rays averaged (services/fusion/space.py)
 
     @property
     def reliability(self) -> float:
@@ -97,7 +100,7 @@ def pointing_from_hands(hands: Hands) -> list[PointingObs]:
         xs, ys = [p[0] for p in h.landmarks], [p[1] for p in h.landmarks]
         out.append(PointingObs(hands.stamp, hands.cam, h.hand, tuple(h.ray.origin), tuple(h.ray.direction),
                                h.ray.confidence * h.score, hands.width, hands.height,
-                               (min(xs), min(ys), max(xs), max(ys))))
+                               (min(xs), min(ys), max(xs), max(ys)), ray3d=space.from_wire(h.ray.ray3d)))
     return out
 
 
@@ -105,7 +108,7 @@ def pointing_from_event(ev: GestureEvent) -> list[PointingObs]:
     if ev.gesture != "point" or ev.ray is None:
         return []
     return [PointingObs(ev.stamp, ev.cam, ev.hand, tuple(ev.ray.origin), tuple(ev.ray.direction),
-                        ev.ray.confidence * ev.score, ev.width, ev.height)]
+                        ev.ray.confidence * ev.score, ev.width, ev.height, ray3d=space.from_wire(ev.ray.ray3d))]
 
 
 def _angle_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -139,7 +142,8 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
                 max(b[3] for b in boxes)) if boxes else None
     return Pointing(stamp=nearest.stamp, cam=nearest.cam, hand=nearest.hand, origin=(ox, oy), direction=direction,
                     confidence=confidence, stability=stability, spread_deg=spread, n=len(cluster),
-                    width=nearest.width, height=nearest.height, hand_box=hand_box)
+                    width=nearest.width, height=nearest.height, hand_box=hand_box,
+                    ray3d=space.mean_ray([(o.ray3d, o.confidence) for o in cluster]))
 
 
 def modality_weights(mode: str, reliabilities: dict[str, float | None]) -> Weights:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 from common.language import canonical_label, label_matches
 from common.schema import Detections, Location, Target, Weights
+from services.fusion import space
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase
 
@@ -54,10 +55,16 @@ class SceneObject:
     height: int
     stamp: float
     quality: float  # image quality in [0, 1]
+    position: tuple[float, float, float] | None = None  # metres in `frame_id` (camera optical frame), with depth
+    extent: tuple[float, float, float] | None = None
+    frame_id: str | None = None
 
     def to_target(self) -> Target:
         return Target(id=self.id, label=self.raw_label, color=self.color, bbox=list(self.bbox),
-                      center=list(self.center), score=self.score, cam=self.cam)
+                      center=list(self.center), score=self.score, cam=self.cam,
+                      position=list(self.position) if self.position else None,
+                      extent=list(self.extent) if self.extent else None,
+                      frame_id=self.frame_id if self.position else None)
 
     @property
     def key(self) -> tuple[str, str]:
@@ -74,7 +81,9 @@ def scene_objects(detections: list[Detections]) -> list[SceneObject]:
         for o in det.objects:
             out.append(SceneObject(id=o.id, label=canonical_label(o.label), raw_label=o.label, color=o.color,
                                    bbox=tuple(o.bbox), center=tuple(o.center), score=o.score, cam=det.cam,
-                                   width=det.width, height=det.height, stamp=det.stamp, quality=q))
+                                   width=det.width, height=det.height, stamp=det.stamp, quality=q,
+                                   position=tuple(o.position) if o.position else None,
+                                   extent=tuple(o.extent) if o.extent else None, frame_id=det.frame_id))
     return out
 
 
@@ -124,6 +133,8 @@ def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str]
     if word == "middle":
         mid = (min(xs.values()) + max(xs.values())) / 2
         return {i: expo(abs(x - mid), w) for i, x in xs.items()}
+    if word in ("nearest", "farthest") and all(o.position is not None for o in group):  # by depth, in metres
+        return space.distance_preferences(word, {o.key: o.position for o in group})
     if word == "nearest":  # no depth: nearer to the camera = lower in the image
         return {i: expo(max(bottoms.values()) - b, h) for i, b in bottoms.items()}
     if word == "farthest":
@@ -135,6 +146,11 @@ def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str]
     return {i: 1.0 for i in xs}
 
 
+def in_3d(p: Pointing, o: SceneObject) -> bool:
+    """Are the ray and this object both in metres, in one frame? Then they are compared in 3-D."""
+    return p.ray3d is not None and o.position is not None and space.same_frame(p.ray3d, o.frame_id)
+
+
 def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
     """(G, angle in degrees). Objects in another camera, behind the hand, or on the pointing hand itself (a
     skin-coloured blob of the finger lies right on the ray) score 0."""
@@ -144,6 +160,8 @@ def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
         x0, y0, x1, y1 = p.hand_box
         if x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1:
             return 0.0, None
+    if in_3d(p, o):
+        return space.pointing_score(p.ray3d, o.position, o.extent, p.spread_deg)
     vx, vy = o.center[0] - p.origin[0], o.center[1] - p.origin[1]
     dist = math.hypot(vx, vy)
     radius = 0.5 * math.hypot(o.bbox[2], o.bbox[3]) * 0.5  # half of the half-diagonal: the object's core
@@ -179,6 +197,8 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     fingertip; for a hand ray (origin at the index knuckle) the finger's own length is added (half the hand box)."""
     if o.cam != p.cam:
         return False
+    if in_3d(p, o):
+        return space.under_fingertip(p.ray3d, o.position, o.extent)
     gap = ray_gap(p, o)
     if gap is None:
         return False
@@ -304,10 +324,15 @@ def best_pointed(p: Pointing, objects: list[SceneObject]) -> Scored | None:
 
 
 def pointed_location(p: Pointing, objects: list[SceneObject]) -> Location:
-    """Where "there" is: the centre of the object on the ray (G >= `ON_RAY`), else `ray_point`."""
-    best = best_pointed(p, [o for o in objects if o.cam == p.cam])
-    if best is not None and (best.gesture or 0.0) >= ON_RAY:
-        x, y = best.obj.center
+    """Where "there" is: the centre of the object on the ray (G >= `ON_RAY`), else `ray_point`; in metres when the
+    ray met a surface (`space.there`)."""
+    mine = [o for o in objects if o.cam == p.cam]
+    if p.ray3d is not None and p.ray3d.hit is not None:
+        return space.there(p.ray3d, mine, p.cam, ray_point(p), ON_RAY, p.spread_deg)
+    best = best_pointed(p, mine)
+    on_ray = best.obj if best is not None and (best.gesture or 0.0) >= ON_RAY else None
+    if on_ray is not None:
+        x, y = on_ray.center
     else:
         x, y = ray_point(p)
     return Location(x=float(x), y=float(y), cam=p.cam)

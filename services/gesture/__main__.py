@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import collections
 import time
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
+from common.schema import Bodies, Body, DepthFrame, Frame, GestureEvent, Hand, Hands, Ray
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
+from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
 
 EPILOG = """\
@@ -20,16 +22,19 @@ examples:
 """
 
 
-def to_ray(ray) -> Ray | None:
+DEPTH_KEPT = 4  # depth frames kept per camera to find the one of a colour frame (latest-only otherwise)
+
+
+def to_ray(ray, ray3d=None) -> Ray | None:
     if ray is None:
         return None
     return Ray(origin=[round(v, 2) for v in ray.origin], direction=list(ray.direction), confidence=ray.confidence,
-               source=ray.source)
+               source=ray.source, ray3d=ray3d)
 
 
-def to_body(landmarks, arms) -> Body:
-    """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body`."""
-    rays = {arm.side: to_ray(ray) for arm, ray in arms}
+def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
+    """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body` (3-D rays when depth is known)."""
+    rays = {arm.side: to_ray(ray, rays3d.arm(arm.side) if rays3d and ray else None) for arm, ray in arms}
     return Body(landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
                 visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
                 left_ray=rays.get("left"), right_ray=rays.get("right"))
@@ -75,6 +80,7 @@ def main(argv: list[str] | None = None) -> None:
     posers: dict[str, PoseLandmarker] = {}
     trackers: dict[str, GestureTracker] = {}
     last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
+    depths: dict[str, collections.deque] = {}  # cam -> the last DEPTH_KEPT DepthFrames
     service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values()]])
     if not service.connect():
         main_exit(0)
@@ -93,26 +99,49 @@ def main(argv: list[str] | None = None) -> None:
         skeleton = posers[frame.cam].detect(img) if args.body else None
         tracker = trackers[frame.cam]
         tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
+        rays3d = frame_rays(frame, skeleton, posers[frame.cam].world if args.body and skeleton is not None else None)
+        hand_rays3d = {o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
+                       for o, t in zip(observations, tracked) if rays3d is not None and t.ray is not None}
         hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
                                                                        o.landmarks.tolist()],
-                      gesture=t.gesture, ray=to_ray(t.ray)) for o, t in zip(observations, tracked)]
+                      gesture=t.gesture, ray=to_ray(t.ray, hand_rays3d.get(o.hand)))
+                 for o, t in zip(observations, tracked)]
         service.publish(service.keys.hands(frame.cam), Hands(
             stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
             height=frame.height, hands=hands))
         if args.body:
             service.publish(service.keys.bodies(frame.cam), Bodies(
                 stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
-                height=frame.height, bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms)]))
-        publish_events(frame, events)
+                height=frame.height, bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)]))
+        publish_events(frame, events, rays3d, hand_rays3d)
+        if rays3d is not None and rays3d.error:
+            service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {rays3d.error}")
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
         last_frame[frame.cam] = (time.monotonic(), frame)
 
-    def publish_events(frame: Frame, events: list) -> None:
+    def frame_rays(frame: Frame, skeleton, world) -> FrameRays | None:
+        """The 3-D rays of this frame, when the depth of the same capture (same seq and stamp) has come."""
+        depth = next((d for d in reversed(depths.get(frame.cam, ())) if d.seq == frame.seq
+                      and d.stamp == frame.stamp), None)
+        if depth is None:
+            if frame.cam in depths:
+                service.counters.add("depth_unmatched")  # a camera with depth, but not of this capture (yet)
+            return None
+        return FrameRays(depth, skeleton, world)  # decoded only if someone points
+
+    def on_depth(d) -> None:
+        depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)
+
+    def publish_events(frame: Frame, events: list, rays3d: FrameRays | None = None,
+                       hand_rays3d: dict | None = None) -> None:
         for ev in events:
+            ray3d = None
+            if ev.ray is not None and rays3d is not None:
+                ray3d = rays3d.arm(ev.hand) if ev.ray.source == "body" else (hand_rays3d or {}).get(ev.hand)
             service.publish(service.keys.gesture_event(frame.cam), GestureEvent(
                 stamp=frame.stamp, source=service.source, cam=frame.cam, width=frame.width, height=frame.height,
                 gesture=ev.gesture, phase=ev.phase, start=ev.start, end=ev.end, score=ev.score, hand=ev.hand,
-                ray=to_ray(ev.ray)), lossless=True, realtime=ev.gesture == "open_palm")
+                ray=to_ray(ev.ray, ray3d)), lossless=True, realtime=ev.gesture == "open_palm")
             if ev.phase != "hold":
                 service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)
 
@@ -131,6 +160,8 @@ def main(argv: list[str] | None = None) -> None:
     for cam in args.cams.split(","):
         service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
                           monotonic=True)
+        # a camera without depth sends none: nothing changes (2-D rays only)
+        service.subscribe(service.keys.depth(cam.strip()), DepthFrame, on_depth, maxlen=DEPTH_KEPT)
     main_exit(service.run(tick=end_idle_streams, tick_interval=0.1))
 
 

@@ -67,6 +67,7 @@ class PoseLandmarker:
         except ImportError as exc:
             raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
                                 f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)") from None
+        self.world: np.ndarray | None = None  # the last detect()'s 33x3 world landmarks
         self._pose = mp_pose.Pose(static_image_mode=not video, model_complexity=POSE_FULL,
                                   min_detection_confidence=min_detection, min_tracking_confidence=min_tracking)
 
@@ -74,6 +75,9 @@ class PoseLandmarker:
         """33x3 [x px, y px, visibility], or None when no person is seen."""
         h, w = bgr.shape[:2]
         result = self._pose.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        world = result.pose_world_landmarks
+        # metres, origin between the hips (the 3-D ray when the arm has no depth: services/gesture/space.py)
+        self.world = np.array([[lm.x, lm.y, lm.z] for lm in world.landmark], dtype=float) if world else None
         if not result.pose_landmarks:
             return None
         return np.array([[lm.x * w, lm.y * h, lm.visibility] for lm in result.pose_landmarks.landmark], dtype=float)

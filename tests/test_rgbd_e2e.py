@@ -1,0 +1,144 @@
+"""RGB-D end to end over Zenoh: camera (a colour/depth folder) -> vision (the real YOLOX-Nano) -> fusion, with a spoken
+command published by the test.
+
+The scene is built at test time from a real YCB-Video RGB-D frame (shared/data/rgbd/ycb_video/000002: a Soft Scrub
+bottle on a table, 0.1 mm depth, PoseCNN's intrinsics): no real frame there has two bottles, so the bottle's own
+pixels (colour and depth, where its depth is under 1.05 m) are copied up and to the right, and their depth made
+0.35 m smaller: a second bottle held up in front of the table, higher in the image than the first but nearer the
+camera. In the image the lowest bottle is the first; by depth the nearest is the copy.
+
+"Go there": nobody is in these frames, so the pointing hand is published by the test: a person's eyes beside the
+camera, the ray towards a spot on the table, lifted and met with the table by the gesture service's own functions
+(services/gesture/space.py) on the frame's real depth. Fusion must answer with that point, on the table.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+
+import cv2
+import numpy as np
+import pytest
+
+from common.cli import make_transcript
+from common.schema import FusedCommand, Hand, Hands, Ray, Ray3D
+from services.gesture.space import DepthView, Lifted, surface_hit
+from tests.harness import Client
+from tests.shared import shared_path, yolox_model
+
+pytestmark = pytest.mark.integration
+
+K = {"width": 640, "height": 480, "fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109,
+     "depth_scale": 0.0001, "frame_id": "ycb_camera_optical_frame"}
+BOTTLE = (210, 31, 97, 257)  # the Soft Scrub bottle in 000002 (YOLOX-Nano: bottle 0.76)
+COPY_AT = (420, 5)  # top-left of its copy
+NEARER = 0.35  # m
+
+
+def two_bottles(folder) -> tuple[np.ndarray, np.ndarray]:
+    src = shared_path("data/rgbd/ycb_video")
+    colour = cv2.imread(str(src / "000002-color.png"))
+    depth = cv2.imread(str(src / "000002-depth.png"), cv2.IMREAD_UNCHANGED)
+    x, y, w, h = BOTTLE
+    dx, dy = COPY_AT
+    z = depth[y:y + h, x:x + w].astype(float) * K["depth_scale"]
+    own = (z > 0) & (z < 1.05)  # the bottle (and the table right at its foot), not the room behind
+    colour[dy:dy + h, dx:dx + w][own] = colour[y:y + h, x:x + w][own]
+    depth[dy:dy + h, dx:dx + w][own] = depth[y:y + h, x:x + w][own] - int(NEARER / K["depth_scale"])
+    folder.mkdir()
+    cv2.imwrite(str(folder / "000001-color.png"), colour)
+    cv2.imwrite(str(folder / "000001-depth.png"), depth)
+    (folder / "intrinsics.json").write_text(json.dumps(K))
+    return colour, depth
+
+
+def say(client: Client, text: str) -> None:
+    client.publish("hri/speech/kbd/transcript",
+                   make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"))
+
+
+def start(group, folder) -> Client:
+    group.router()
+    group.service("vision", "--backend", "onnx", "--model", str(yolox_model()))
+    group.service("fusion")
+    client = Client(group.endpoint)
+    client.wait_alive("vision", timeout=90)
+    client.wait_alive("fusion", timeout=60)
+    group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
+    return client
+
+
+def wait_for_bottles(client: Client) -> list:
+    """Detections of two bottles with positions (the first frames may come before their depth)."""
+    objects = client.collect("hri/vision/cam0/objects")
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline:
+        for _, det in objects.drain(0.5):
+            bottles = [o for o in det.objects if o.label == "bottle" and o.position is not None]
+            if len(bottles) == 2:
+                return bottles
+    raise AssertionError("vision never reported two bottles with positions")
+
+
+def test_the_nearest_bottle_is_chosen_by_depth_not_by_the_lowest_box(group, tmp_path):
+    two_bottles(tmp_path / "scene")
+    client = start(group, tmp_path / "scene")
+    try:
+        bottles = wait_for_bottles(client)
+        results = client.collect("hri/fusion/command")
+        say(client, "pick up the nearest bottle")
+        cmd = results.wait(1, timeout=30)[0][1]
+    finally:
+        client.close()
+    lowest = max(bottles, key=lambda o: o.bbox[1] + o.bbox[3])
+    nearest = min(bottles, key=lambda o: float(np.linalg.norm(o.position)))
+    assert lowest.id != nearest.id  # the scene is what it should be: 2-D and depth disagree
+    assert nearest.position[2] < lowest.position[2] - 0.25, bottles
+    assert isinstance(cmd, FusedCommand) and cmd.intent == "pick_up", cmd
+    assert cmd.target.id == nearest.id, cmd.explanation
+    assert cmd.target.position == nearest.position and cmd.target.frame_id == K["frame_id"]
+    assert cmd.target.extent == nearest.extent
+
+
+def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):
+    _, depth = two_bottles(tmp_path / "scene")
+    view = DepthView(depth.astype(np.float32) * K["depth_scale"], K["fx"], K["fy"], K["cx"], K["cy"], K["frame_id"])
+    spot_px = (560, 420)  # the table, bottom right
+    spot = view.back_project(*spot_px, view.depth_at(*spot_px))
+    eyes = np.array([0.35, -0.45, 0.2])  # a person standing just beside and in front of the camera
+    direction = (spot - eyes) / np.linalg.norm(spot - eyes)
+    tip = eyes + 0.6 * direction
+    hit = surface_hit(view, Lifted(eyes, direction, "eye_fingertip", 0.6))
+    assert hit is not None
+    project = lambda p: (K["fx"] * p[0] / p[2] + K["cx"], K["fy"] * p[1] / p[2] + K["cy"])  # noqa: E731
+    tip_px, spot_seen = np.array(project(tip)), np.array(project(hit))
+    d2 = (spot_seen - tip_px) / np.linalg.norm(spot_seen - tip_px)
+    ray3d = Ray3D(origin=eyes.tolist(), direction=direction.tolist(), method="eye_fingertip",
+                  frame_id=K["frame_id"], hit=[float(c) for c in hit])
+    client = start(group, tmp_path / "scene")
+    try:
+        wait_for_bottles(client)
+        results = client.collect("hri/fusion/command")
+        t0 = time.time()
+        for i in range(12):  # pointing for the 1.1 s up to the end of the words
+            tip_list = [float(c) for c in tip_px]
+            client.publish("hri/gesture/cam0/hands", Hands(
+                stamp=t0 - 1.1 + 0.1 * i, source="test/gesture", seq=i, cam="cam0", width=640, height=480,
+                hands=[Hand(hand="right", score=0.95, landmarks=[tip_list] * 21, gesture="point",
+                            ray=Ray(origin=tip_list, direction=d2.tolist(), confidence=0.9, source="body",
+                                    ray3d=ray3d))]))
+        client.publish("hri/speech/kbd/transcript", make_transcript(
+            "go there", mic="kbd", end=t0, confidence=0.95, source="test/kbd"))
+        cmd = results.wait(1, timeout=30)[0][1]
+    finally:
+        client.close()
+    assert cmd.intent == "go_to" and cmd.location is not None, cmd
+    loc = cmd.location
+    assert loc.frame_id == K["frame_id"] and loc.position == pytest.approx(hit.tolist(), abs=1e-3)
+    # on the table: the real depth where the point is seen says the same distance (an independent reading)
+    u, v = project(loc.position)
+    assert abs(view.depth_at(u, v) - loc.position[2]) < 0.02
+    assert np.linalg.norm(np.array(loc.position) - spot) < 0.03
+    # its pixel, from the pinhole fusion fits to the objects' centres and positions, lands near where it is seen
+    assert abs(loc.x - u) < 30 and abs(loc.y - v) < 30, (loc, u, v)
