@@ -144,6 +144,10 @@ class FusionCore:
             reply = self.dialogue.reply(t, u, ctx)
             if reply is not None:
                 return reply
+            if u.obj.specific and u.answer is None and not u.other:  # "the bottle behind the cup": look at it
+                self.count("bare_reference")
+                self.dialogue.supersede()
+                return self.command_for(t, replace(u, intent="look_at"), ctx)
             self.count("ignored_no_intent")
             self.log.info("'%s' is not a command I know; ignored", t.text)
             return []

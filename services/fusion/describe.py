@@ -73,7 +73,8 @@ def ambiguous_question(phrase: ObjectPhrase, candidates: list[Scored]) -> str:
     if len(objs) > 3 and len({o.color for o in objs}) == 1 and len(set(relative_positions(objs))) < len(objs):
         return (f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{plural(what)} that fit. "
                 f"Which one? Point at it, or say where it is (left, right, top, bottom).")
-    return f"Which {what}: {or_list(candidate_phrases(objs))}?"
+    unchecked = f"I can't tell {' '.join(phrase.unmatched)} by sight. " if phrase.unmatched else ""
+    return f"{unchecked}Which {what}: {or_list(candidate_phrases(objs))}?"
 
 
 def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> str:
@@ -85,8 +86,9 @@ def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> st
 def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
     """What I could not find, what I can see instead, and the question. An unknown noun is said as such:
     "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?"."""
-    if phrase.noun:
-        lead = f"I don't know what {a(phrase.noun)} is."
+    unknown = phrase.unknown_nouns
+    if unknown:
+        lead = " ".join(f"I don't know what {a(n)} is." for n in unknown)
         what = f"the {phrase.describe()}"
     else:
         what = f"the {phrase.describe()}" if phrase.specific else "what you mean"

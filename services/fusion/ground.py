@@ -23,8 +23,10 @@ from dataclasses import dataclass
 
 from common.language import canonical_label, label_matches
 from common.schema import Detections, Location, Target, Weights
+from services.fusion import relations as rel
+from services.fusion import touch
 from services.fusion.evidence import Pointing, image_quality
-from services.fusion.parse import ObjectPhrase
+from services.fusion.parse import ObjectPhrase, Relation
 
 POINTING_SIGMA_DEG = 8.0  # angular noise of a pointing ray from hand landmarks
 SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
@@ -188,27 +190,111 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     return gap <= reach
 
 
+def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, str]]:
+    """The objects the fingertip touches (services/fusion/touch.py): the smallest box that contains it wins over
+    the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip."""
+    tip = touch.fingertip(p.origin, p.direction, p.hand_box)
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person"]
+    hit, _ = touch.touched(tip, [o.bbox for o in mine])
+    return {mine[i].key for i in hit}
+
+
 def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], tuple[float, float | None]]:
-    """(G, angle) per object: `pointing_score`, then what lies under the fingertip wins over what lies further
-    along the ray."""
+    """(G, angle) per object: `pointing_score`; then an object the fingertip touches gets G = 1 (even when its
+    centre lies behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what
+    lies further along the ray."""
     out = {o.key: pointing_score(p, o) for o in objects}
-    under = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
-    if under:
-        out = {k: ((1.0, a) if k in under else (g * FARTHER_ALONG, a)) for k, (g, a) in out.items()}
+    near = touched_objects(p, objects)
+    if not near:
+        near = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
+    if near:
+        out = {k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
+               for k, (g, a) in out.items()}
     return out
 
 
+RELATION_FLOOR = 0.05  # below this fit nobody is in that relation to the anchor: the words are not matched
+
+
+def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[SceneObject, float]]:
+    """The objects the anchor's words fit, with how well (its own spatial words chosen among them)."""
+    if anchor.unknown_nouns or (anchor.label is None and not anchor.color):
+        return []
+    fits = {o.key: _attribute_match(anchor, o) for o in scene}
+    group = [o for o in scene if fits[o.key] >= 0.5]
+    for word in anchor.spatial:
+        prefs = _spatial_scores(word, group) if group else {}
+        for o in group:
+            fits[o.key] *= prefs.get(o.key, 1.0)
+    return [(o, fits[o.key]) for o in group if fits[o.key] > 0]
+
+
+def _relation_scores(relation: Relation, group: list[SceneObject],
+                     scene: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """Preference in [0, 1] for each object of `group` (1 for the best fit; 0 for all when no anchor is seen or
+    nothing is in that relation to one)."""
+    anchor_sets = [_anchor_fits(a, scene) for a in relation.anchors]
+    raw: dict[tuple[str, str], float] = {}
+    for o in group:
+        if relation.kind == "between":
+            if len(anchor_sets) >= 2:
+                pairs = [(a, wa, b, wb) for a, wa in anchor_sets[0] for b, wb in anchor_sets[1]]
+            else:
+                one = anchor_sets[0]
+                pairs = [(one[i][0], one[i][1], one[j][0], one[j][1]) for i in range(len(one))
+                         for j in range(i + 1, len(one))]
+            raw[o.key] = max((wa * wb * rel.between(o.bbox, a.bbox, b.bbox) for a, wa, b, wb in pairs
+                              if o.key not in (a.key, b.key) and a.cam == o.cam == b.cam), default=0.0)
+        else:
+            rule = rel.PAIRWISE[relation.kind]
+            raw[o.key] = max((w * rule(o.bbox, a.bbox) for anchors in anchor_sets for a, w in anchors
+                              if a.key != o.key and a.cam == o.cam), default=0.0)
+    best = max(raw.values(), default=0.0)
+    if best < RELATION_FLOOR:
+        return {k: 0.0 for k in raw}
+    return {k: v / best for k, v in raw.items()}
+
+
+ORDINAL_OTHERS = 0.2  # preference of the objects that are not in the said place of the order
+
+
+def _ordinal_scores(ordinal: int, counted_from: str | None,
+                    group: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """"The second bottle from the left": 1 for the object in that place of the order, ORDINAL_OTHERS for the rest
+    (all 0 when there are fewer objects than the ordinal)."""
+    key = {"left": lambda o: o.center[0], "right": lambda o: -o.center[0], "top": lambda o: o.center[1],
+           "bottom": lambda o: -o.center[1], "nearest": lambda o: -(o.bbox[1] + o.bbox[3]),
+           "farthest": lambda o: o.bbox[1] + o.bbox[3]}[counted_from or "left"]
+    order = sorted(group, key=lambda o: (o.cam, key(o), o.id))
+    index = ordinal - 1 if ordinal > 0 else len(order) + ordinal
+    if not 0 <= index < len(order):
+        return {o.key: 0.0 for o in group}
+    return {o.key: 1.0 if i == index else ORDINAL_OTHERS for i, o in enumerate(order)}
+
+
 def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, weights: Weights,
-          *, adaptive: bool = True, ref: float | None = None) -> list[Scored]:
-    """All objects scored and ranked (best first; ties broken by camera and id for determinism)."""
+          *, adaptive: bool = True, ref: float | None = None, scene: list[SceneObject] | None = None) -> list[Scored]:
+    """All objects scored and ranked (best first; ties broken by camera and id for determinism). `scene`: every
+    object in view, where a relation's anchors are looked for (default: `objects`; the dialogue scores only the
+    candidates of its question, but "the one next to the laptop" may name a laptop that is not one of them)."""
     if not objects:
         return []
     match = {o.key: _attribute_match(phrase, o) for o in objects}
+    for relation in phrase.relations:  # relations choose among the objects the words fit
+        fitting = [o for o in objects if match[o.key] >= 0.5]
+        prefs = _relation_scores(relation, fitting, scene if scene is not None else objects)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 0.0 if phrase.relations else 1.0)
     fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
     for word in phrase.spatial:  # spatial words choose among the objects that fit the other words
         prefs = _spatial_scores(word, fitting)
         for o in objects:
             match[o.key] *= prefs.get(o.key, 1.0)
+    if phrase.ordinal:
+        fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
+        prefs = _ordinal_scores(phrase.ordinal, phrase.ordinal_from, fitting)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 0.0)
     use_gesture = pointing is not None and weights.gesture > 0
     ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
     if ws + wg <= 0:
