@@ -168,9 +168,8 @@ SPATIAL_PHRASES: dict[str, tuple[str, ...]] = {
     "middle": ("middle", "center", "centre", "in the middle"),
     "top": ("top", "upper", "at the top"),
     "bottom": ("bottom", "lower", "at the bottom"),
-    "nearest": ("nearest", "closest", "close", "front", "at the front", "in the front", "frontmost",
-                "front one"),
-    "farthest": ("farthest", "furthest", "far", "at the back", "in the back", "back one", "rearmost", "far one"),
+    "nearest": ("nearest", "closest", "close", "front", "at the front", "in the front", "frontmost"),
+    "farthest": ("farthest", "furthest", "far", "at the back", "in the back", "rearmost"),
     "biggest": ("biggest", "largest", "big", "large", "bigger", "larger"),
     "smallest": ("smallest", "tiniest", "small", "little", "smaller", "tiny"),
 }

@@ -15,6 +15,7 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from common.language import ANY_OBJECT
 from common.schema import Detections, GestureEvent, Hands, Location, Transcript
 from services.fusion import describe
 from services.fusion.dialogue import Dialogue, Draft
@@ -144,7 +145,8 @@ class FusionCore:
             reply = self.dialogue.reply(t, u, ctx)
             if reply is not None:
                 return reply
-            if u.obj.specific and u.answer is None and not u.other:  # "the bottle behind the cup": look at it
+            # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
+            if u.obj.label not in (None, ANY_OBJECT) and u.answer is None and not u.other:
                 self.count("bare_reference")
                 self.dialogue.supersede()
                 return self.command_for(t, replace(u, intent="look_at"), ctx)
