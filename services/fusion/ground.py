@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from common.language import canonical_label, label_matches
 from common.schema import Detections, Location, Target, Weights
 from services.fusion import relations as rel
@@ -232,27 +234,50 @@ def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[S
 def _relation_scores(relation: Relation, group: list[SceneObject],
                      scene: list[SceneObject]) -> dict[tuple[str, str], float]:
     """Preference in [0, 1] for each object of `group` (1 for the best fit; 0 for all when no anchor is seen or
-    nothing is in that relation to one)."""
+    nothing is in that relation to one). An object is never its own anchor; anchors in another camera do not count.
+    Vectorised over candidates x anchors (services/fusion/relations.py): 1000 objects stay within milliseconds."""
+    if not group:
+        return {}
     anchor_sets = [_anchor_fits(a, scene) for a in relation.anchors]
-    raw: dict[tuple[str, str], float] = {}
-    for o in group:
-        if relation.kind == "between":
-            if len(anchor_sets) >= 2:
-                pairs = [(a, wa, b, wb) for a, wa in anchor_sets[0] for b, wb in anchor_sets[1]]
-            else:
-                one = anchor_sets[0]
-                pairs = [(one[i][0], one[i][1], one[j][0], one[j][1]) for i in range(len(one))
-                         for j in range(i + 1, len(one))]
-            raw[o.key] = max((wa * wb * rel.between(o.bbox, a.bbox, b.bbox) for a, wa, b, wb in pairs
-                              if o.key not in (a.key, b.key) and a.cam == o.cam == b.cam), default=0.0)
-        else:
-            rule = rel.PAIRWISE[relation.kind]
-            raw[o.key] = max((w * rule(o.bbox, a.bbox) for anchors in anchor_sets for a, w in anchors
-                              if a.key != o.key and a.cam == o.cam), default=0.0)
-    best = max(raw.values(), default=0.0)
-    if best < RELATION_FLOOR:
-        return {k: 0.0 for k in raw}
-    return {k: v / best for k, v in raw.items()}
+    ids: dict[tuple[str, str], int] = {}
+    cams: dict[str, int] = {}
+
+    def index(objs: list[SceneObject]) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array([ids.setdefault(o.key, len(ids)) for o in objs]),
+                np.array([cams.setdefault(o.cam, len(cams)) for o in objs]))
+    cand_id, cand_cam = index(group)
+    boxes = [o.bbox for o in group]
+    if relation.kind == "between":
+        first = sorted(anchor_sets[0], key=lambda f: -f[1])[:rel.BETWEEN_MAX_ANCHORS]
+        second = sorted(anchor_sets[1], key=lambda f: -f[1])[:rel.BETWEEN_MAX_ANCHORS] if len(anchor_sets) > 1 \
+            else first
+        if not first or not second:
+            return {o.key: 0.0 for o in group}
+        a_id, a_cam = index([a for a, _ in first])
+        b_id, b_cam = index([b for b, _ in second])
+        m = rel.between_matrix(boxes, [a.bbox for a, _ in first], [b.bbox for b, _ in second])
+        m = m * np.array([w for _, w in first])[None, :, None] * np.array([w for _, w in second])[None, None, :]
+        ok = ((cand_id[:, None, None] != a_id[None, :, None]) & (cand_id[:, None, None] != b_id[None, None, :])
+              & (a_id[None, :, None] != b_id[None, None, :]) & (cand_cam[:, None, None] == a_cam[None, :, None])
+              & (cand_cam[:, None, None] == b_cam[None, None, :]))
+        raw = np.where(ok, m, 0.0).reshape(len(group), -1).max(axis=1)
+    else:
+        best: dict[tuple[str, str], tuple[SceneObject, float]] = {}
+        for anchors in anchor_sets:
+            for a, w in anchors:
+                if a.key not in best or best[a.key][1] < w:
+                    best[a.key] = (a, w)
+        if not best:
+            return {o.key: 0.0 for o in group}
+        chosen = list(best.values())
+        a_id, a_cam = index([a for a, _ in chosen])
+        m = rel.fit_matrix(relation.kind, boxes, [a.bbox for a, _ in chosen]) * np.array([w for _, w in chosen])[None]
+        ok = (cand_id[:, None] != a_id[None, :]) & (cand_cam[:, None] == a_cam[None, :])
+        raw = np.where(ok, m, 0.0).max(axis=1)
+    top = float(raw.max())
+    if top < RELATION_FLOOR:
+        return {o.key: 0.0 for o in group}
+    return {o.key: float(v) / top for o, v in zip(group, raw)}
 
 
 ORDINAL_OTHERS = 0.2  # preference of the objects that are not in the said place of the order

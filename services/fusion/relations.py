@@ -18,121 +18,170 @@ The 2-D rules (a single image has no depth; a depth-based rule can replace `furt
 
 from __future__ import annotations
 
-import math
+import numpy as np
 
 Box = tuple[float, float, float, float]  # x, y, w, h
 
 RELATIONS = ("next_to", "behind", "in_front_of", "left_of", "right_of", "on", "in", "under", "above", "between")
 SOFT = 0.1  # fraction of the objects' size over which a "which side" test goes from doubt to certainty
+BETWEEN_MAX_ANCHORS = 16  # "between the two bottles" looks at pairs of the best-fitting 16 bottles at most
+
+# The rules work on arrays: `o` holds candidates as columns x, y, w, h of shape (n, 1), `a` anchors of shape (1, m);
+# each rule returns the (n, m) matrix of fits. The scalar functions below wrap them for single boxes.
 
 
-def _size(a: Box, b: Box) -> float:
-    return max(1.0, math.sqrt(0.5 * (a[2] * a[3] + b[2] * b[3])))
+def _cols(boxes) -> tuple[np.ndarray, ...]:
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)
+    return b[:, 0], b[:, 1], b[:, 2], b[:, 3]
 
 
-def _sigmoid(x: float) -> float:
-    return 1.0 / (1.0 + math.exp(-max(-50.0, min(50.0, x))))
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-np.clip(x, -50.0, 50.0)))
 
 
-def box_gap(a: Box, b: Box) -> tuple[float, float]:
-    """(horizontal, vertical) gap between two boxes in pixels, 0 where they overlap."""
-    gx = max(0.0, max(a[0] - (b[0] + b[2]), b[0] - (a[0] + a[2])))
-    gy = max(0.0, max(a[1] - (b[1] + b[3]), b[1] - (a[1] + a[3])))
-    return gx, gy
+class _Pair:
+    """Candidates (rows) against anchors (columns): the quantities every rule needs."""
+
+    def __init__(self, objects, anchors):
+        ox, oy, ow, oh = (v[:, None] for v in _cols(objects))
+        ax, ay, aw, ah = (v[None, :] for v in _cols(anchors))
+        self.o, self.a = (ox, oy, ow, oh), (ax, ay, aw, ah)
+        self.size = np.maximum(1.0, np.sqrt(0.5 * (ow * oh + aw * ah)))
+        self.gx = np.maximum(0.0, np.maximum(ox - (ax + aw), ax - (ox + ow)))
+        self.gy = np.maximum(0.0, np.maximum(oy - (ay + ah), ay - (oy + oh)))
+        self.ix = np.maximum(0.0, np.minimum(ox + ow, ax + aw) - np.maximum(ox, ax))  # horizontal overlap
+        self.iy = np.maximum(0.0, np.minimum(oy + oh, ay + ah) - np.maximum(oy, ay))
+        self.smaller = np.where(ow * oh < aw * ah, 1.0, 0.2)  # what rests on or in something is smaller than it
 
 
-def inside_share(o: Box, a: Box) -> float:
-    """How much of o's box lies inside a's box (0..1)."""
-    ix = max(0.0, min(o[0] + o[2], a[0] + a[2]) - max(o[0], a[0]))
-    iy = max(0.0, min(o[1] + o[3], a[1] + a[3]) - max(o[1], a[1]))
-    return ix * iy / max(o[2] * o[3], 1e-6)
+def _next_to(p: _Pair) -> np.ndarray:
+    return np.exp(-np.hypot(p.gx, p.gy) / p.size)
+
+
+def _further_back(p: _Pair, sign: float) -> np.ndarray:
+    """sign +1: o is further from the camera than a (its bottom edge higher in the image); -1: nearer."""
+    (_, oy, _, oh), (_, ay, _, ah) = p.o, p.a
+    ref = np.maximum(1.0, 0.5 * (oh + ah))
+    return _sigmoid(sign * ((ay + ah) - (oy + oh)) / (SOFT * ref)) * np.exp(-p.gx / p.size)
+
+
+def _side(p: _Pair, sign: float) -> np.ndarray:
+    """sign -1: o left of a; +1: right of a. Nearer objects on that side fit better."""
+    (ox, _, ow, _), (ax, _, aw, _) = p.o, p.a
+    side = _sigmoid(sign * ((ox + ow / 2) - (ax + aw / 2)) / (SOFT * p.size))
+    return side * np.exp(-0.5 * np.hypot(p.gx, p.gy) / p.size)
+
+
+def _on(p: _Pair) -> np.ndarray:
+    """o rests on a: o's bottom edge within a's box (a little above its top allowed), over it horizontally."""
+    (_, oy, ow, oh), (_, ay, _, ah) = p.o, p.a
+    bottom = oy + oh
+    tol = 0.1 * ah
+    inside = (bottom >= ay - tol) & (bottom <= ay + ah + tol)
+    off = np.minimum(np.abs(bottom - ay), np.abs(bottom - ay - ah))
+    vertical = np.where(inside, 1.0, np.exp(-off / np.maximum(1.0, 0.2 * ah)))
+    return vertical * (p.ix / np.maximum(ow, 1e-6)) * p.smaller
+
+
+def _in(p: _Pair) -> np.ndarray:
+    (_, _, ow, oh), _ = p.o, p.a
+    return p.ix * p.iy / np.maximum(ow * oh, 1e-6) * p.smaller
+
+
+def _under(p: _Pair, sign: float) -> np.ndarray:
+    """sign +1: o below a (under); -1: o above a. They overlap horizontally."""
+    (_, oy, ow, oh), (_, ay, aw, ah) = p.o, p.a
+    share = p.ix / np.maximum(np.minimum(ow, aw), 1e-6)
+    return _sigmoid(sign * ((oy + oh / 2) - (ay + ah / 2)) / (SOFT * p.size)) * share
+
+
+RULES = {
+    "next_to": _next_to,
+    "behind": lambda p: _further_back(p, 1.0),
+    "in_front_of": lambda p: _further_back(p, -1.0),
+    "left_of": lambda p: _side(p, -1.0),
+    "right_of": lambda p: _side(p, 1.0),
+    "on": _on,
+    "in": _in,
+    "under": lambda p: _under(p, 1.0),
+    "above": lambda p: _under(p, -1.0),
+}
+PAIRWISE = tuple(RULES)
+
+
+def fit_matrix(kind: str, objects, anchors) -> np.ndarray:
+    """(n, m): how well each of n boxes stands in relation `kind` to each of m anchor boxes."""
+    return RULES[kind](_Pair(objects, anchors))
+
+
+def between_matrix(objects, first, second) -> np.ndarray:
+    """(n, m, k): how well each box lies between anchor i of `first` and anchor j of `second`: its centre projects
+    inside the segment between their centres and lies near it (within about its own size)."""
+    ox, oy, ow, oh = (v[:, None, None] for v in _cols(objects))
+    ax, ay, aw, ah = (v[None, :, None] for v in _cols(first))
+    bx, by, bw, bh = (v[None, None, :] for v in _cols(second))
+    cx, cy = ox + ow / 2, oy + oh / 2
+    acx, acy, bcx, bcy = ax + aw / 2, ay + ah / 2, bx + bw / 2, by + bh / 2
+    dx, dy = bcx - acx, bcy - acy
+    length2 = dx * dx + dy * dy
+    safe = np.maximum(length2, 1e-6)
+    t = ((cx - acx) * dx + (cy - acy) * dy) / safe
+    off = np.abs((cx - acx) * dy - (cy - acy) * dx) / np.sqrt(safe)
+    fit = _sigmoid(t / SOFT) * _sigmoid((1 - t) / SOFT) * np.exp(-off / np.maximum(1.0, np.sqrt(ow * oh)))
+    return np.where(length2 < 1e-6, 0.0, fit)
+
+
+# -- single boxes (the rules above, one pair at a time) --------------------------------------------------------------
+def relation(kind: str, o: Box, a: Box) -> float:
+    return float(fit_matrix(kind, [o], [a])[0, 0])
 
 
 def next_to(o: Box, a: Box) -> float:
-    gx, gy = box_gap(o, a)
-    return math.exp(-math.hypot(gx, gy) / _size(o, a))
-
-
-def further_back(o: Box, a: Box) -> float:
-    """Degree to which o stands further from the camera than a (2-D: its bottom edge is higher in the image)."""
-    ref = max(1.0, 0.5 * (o[3] + a[3]))
-    return _sigmoid(((a[1] + a[3]) - (o[1] + o[3])) / (SOFT * ref))
+    return relation("next_to", o, a)
 
 
 def behind(o: Box, a: Box) -> float:
-    gx, _ = box_gap(o, a)
-    return further_back(o, a) * math.exp(-gx / _size(o, a))
+    return relation("behind", o, a)
 
 
 def in_front_of(o: Box, a: Box) -> float:
-    gx, _ = box_gap(o, a)
-    return further_back(a, o) * math.exp(-gx / _size(o, a))
-
-
-def _side(o: Box, a: Box, sign: float) -> float:
-    """sign -1: o left of a; +1: right of a. Nearer objects on that side fit better."""
-    side = _sigmoid(sign * ((o[0] + o[2] / 2) - (a[0] + a[2] / 2)) / (SOFT * _size(o, a)))
-    return side * math.exp(-0.5 * math.hypot(*box_gap(o, a)) / _size(o, a))
+    return relation("in_front_of", o, a)
 
 
 def left_of(o: Box, a: Box) -> float:
-    return _side(o, a, -1.0)
+    return relation("left_of", o, a)
 
 
 def right_of(o: Box, a: Box) -> float:
-    return _side(o, a, 1.0)
-
-
-def _smaller(o: Box, a: Box) -> float:
-    return 1.0 if o[2] * o[3] < a[2] * a[3] else 0.2
+    return relation("right_of", o, a)
 
 
 def on(o: Box, a: Box) -> float:
-    """o rests on a: o's bottom edge within a's box (a little above its top allowed), over it horizontally."""
-    bottom = o[1] + o[3]
-    tol = 0.1 * a[3]
-    vertical = 1.0 if a[1] - tol <= bottom <= a[1] + a[3] + tol else math.exp(
-        -min(abs(bottom - a[1]), abs(bottom - a[1] - a[3])) / max(1.0, 0.2 * a[3]))
-    ox = max(0.0, min(o[0] + o[2], a[0] + a[2]) - max(o[0], a[0])) / max(o[2], 1e-6)
-    return vertical * ox * _smaller(o, a)
+    return relation("on", o, a)
 
 
 def in_(o: Box, a: Box) -> float:
-    return inside_share(o, a) * _smaller(o, a)
+    return relation("in", o, a)
 
 
 def under(o: Box, a: Box) -> float:
-    ox = max(0.0, min(o[0] + o[2], a[0] + a[2]) - max(o[0], a[0])) / max(min(o[2], a[2]), 1e-6)
-    return _sigmoid(((o[1] + o[3] / 2) - (a[1] + a[3] / 2)) / (SOFT * _size(o, a))) * ox
+    return relation("under", o, a)
 
 
 def above(o: Box, a: Box) -> float:
-    return under(a, o)
+    return relation("above", o, a)
 
 
 def between(o: Box, a: Box, b: Box) -> float:
-    """o's centre projects inside the segment between a's and b's centres and lies near it."""
-    ox, oy = o[0] + o[2] / 2, o[1] + o[3] / 2
-    ax, ay = a[0] + a[2] / 2, a[1] + a[3] / 2
-    bx, by = b[0] + b[2] / 2, b[1] + b[3] / 2
-    dx, dy = bx - ax, by - ay
-    length2 = dx * dx + dy * dy
-    if length2 < 1e-6:
-        return 0.0
-    t = ((ox - ax) * dx + (oy - ay) * dy) / length2
-    inside = _sigmoid(t / SOFT) * _sigmoid((1 - t) / SOFT)
-    off = abs((ox - ax) * dy - (oy - ay) * dx) / math.sqrt(length2)
-    return inside * math.exp(-off / _size(o, o))
-
-
-PAIRWISE = {"next_to": next_to, "behind": behind, "in_front_of": in_front_of, "left_of": left_of,
-            "right_of": right_of, "on": on, "in": in_, "under": under, "above": above}
+    return float(between_matrix([o], [a], [b])[0, 0, 0])
 
 
 def relation_fit(kind: str, o: Box, anchors: list[Box]) -> float:
     """The best fit of o to `kind` over the anchors (pairs of anchors for "between"); 0 without anchors."""
+    if not anchors:
+        return 0.0
     if kind == "between":
-        return max((between(o, anchors[i], anchors[j]) for i in range(len(anchors))
-                    for j in range(i + 1, len(anchors))), default=0.0)
-    rule = PAIRWISE[kind]
-    return max((rule(o, a) for a in anchors), default=0.0)
+        m = between_matrix([o], anchors, anchors)[0]
+        np.fill_diagonal(m, 0.0)
+        return float(m.max())
+    return float(fit_matrix(kind, [o], anchors).max())
