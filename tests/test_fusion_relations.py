@@ -199,3 +199,30 @@ def test_everyday_words_map_to_what_the_detector_names():
 def test_a_modifier_nothing_can_check_is_said_back_never_dropped():
     phrase = parse("grab the soap bottle").obj
     assert phrase.label == "bottle" and phrase.unmatched == ("soap",) and phrase.describe() == "soap bottle"
+
+
+# -- questions that help ----------------------------------------------------------------------------------------------
+# Two red cups one behind the other ("left"/"right" would be a guess); one stands by the laptop, one by the sink.
+CLUSTER = [Obj("cup_a", "cup", "red", (300, 200), (60, 80)), Obj("cup_b", "cup", "red", (320, 230), (60, 80)),
+           Obj("laptop", "laptop", "grey", (200, 190), (100, 70)), Obj("sink", "sink", "white", (400, 260), (80, 60))]
+
+
+@pytest.mark.parametrize("answer,target", [("the one next to the laptop", "cup_a"), ("the one by the sink", "cup_b"),
+                                           ("the cup beside the sink", "cup_b")])
+def test_the_question_names_what_tells_the_cups_apart_and_those_words_answer_it(answer, target):
+    from tests.scenarios import Expect, Scenario, by_time, check, pointing, run_in_process, say, scene
+    steps = scene(CLUSTER, t1=6.0) + pointing(None, t1=6.0) + [say(0.0, 1.5, "pick up the red cup"),
+                                                               say(3.0, 4.5, answer)]
+    sc = Scenario(answer, by_time(steps), [
+        Expect("clarification", reason="ambiguous", candidates=("cup_a", "cup_b"),
+               question="Which cup: the one next to the laptop or the one next to the sink?"),
+        Expect("command", intent="pick_up", target=target)])
+    outputs = run_in_process(sc)
+    assert not check(sc, outputs), check(sc, outputs)
+
+
+def test_colours_and_positions_still_tell_apart_when_they_can():
+    from services.fusion.describe import candidate_phrases
+    objs = _scene([Obj("cup_red", "cup", "red", (100, 300)), Obj("cup_white", "cup", "white", (500, 300)),
+                   Obj("laptop", "laptop", "grey", (300, 300), (100, 70))])
+    assert candidate_phrases(objs[:2], objs) == ["the red one on the left", "the white one on the right"]
