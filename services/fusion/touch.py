@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 Box = tuple[float, float, float, float]  # x, y, w, h
 EDGE_TOLERANCE = 0.03  # of the box's diagonal
 EDGE_MIN_PX = 3.0
@@ -48,7 +50,13 @@ def _inside_share(small: Box, big: Box) -> float:
 def touched(point: tuple[float, float], boxes: list[Box]) -> tuple[list[int], list[int]]:
     """(touched, supports): indices of the boxes the fingertip touches (the smallest containing box, and any other
     containing box that does not hold it), and of the containing boxes that hold a touched one (what it rests on)."""
-    inside = sorted((i for i, b in enumerate(boxes) if contains(b, point)), key=lambda i: boxes[i][2] * boxes[i][3])
+    if not boxes:
+        return [], []
+    b = np.asarray(boxes, dtype=float).reshape(-1, 4)  # vectorised: a scene of 1000 boxes in microseconds
+    tol = np.maximum(EDGE_MIN_PX, EDGE_TOLERANCE * np.hypot(b[:, 2], b[:, 3]))
+    mask = ((b[:, 0] - tol <= point[0]) & (point[0] <= b[:, 0] + b[:, 2] + tol)
+            & (b[:, 1] - tol <= point[1]) & (point[1] <= b[:, 1] + b[:, 3] + tol))
+    inside = sorted(np.flatnonzero(mask).tolist(), key=lambda i: boxes[i][2] * boxes[i][3])
     hit: list[int] = []
     supports: list[int] = []
     for i in inside:
