@@ -41,6 +41,7 @@ _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
     ("ordinal_from", L.phrases(L.ORDINAL_FROM_PHRASES)),
     ("ordinal", {w: str(n) for w, n in L.ORDINAL_WORDS.items()}),
     ("spatial", L.phrases(L.SPATIAL_PHRASES)),
+    ("spatial", L.phrases(L.SPATIAL_EXTRA_PHRASES)),
     ("place", L.phrases(L.PLACE_PHRASES)),
     ("object", {**{p: L.canonical_label(key) for p, key in L.phrases(L.OBJECT_PHRASES).items()},
                 **L.phrases(L.LABEL_PHRASES), **{p: lab for p, lab in L.OBJECT_SYNONYMS.items()
