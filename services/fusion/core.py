@@ -214,6 +214,8 @@ class FusionCore:
             expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
             if u.obj.noun is not None:
                 expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
+            if u.obj.unmatched:  # said back, never silently dropped
+                expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
             self.dialogue.acted(t, intent, t.text, target.obj, u.obj, u.place)
             return [self.outputs.target_command(t, intent, target, location, ctx, expl, place=u.place)]
         expl = f"'{t.text}' -> {intent}" + (f" to the {u.place}" if u.place else "") + (
