@@ -226,3 +226,21 @@ def test_colours_and_positions_still_tell_apart_when_they_can():
     objs = _scene([Obj("cup_red", "cup", "red", (100, 300)), Obj("cup_white", "cup", "white", (500, 300)),
                    Obj("laptop", "laptop", "grey", (300, 300), (100, 70))])
     assert candidate_phrases(objs[:2], objs) == ["the red one on the left", "the white one on the right"]
+
+
+def test_the_vectorised_pointing_agrees_with_the_rule_object_by_object():
+    import random
+
+    from services.fusion.ground import pointing_arrays, pointing_score, under_fingertip
+    rng = random.Random(7)
+    objs = _scene([Obj(f"o{i}", "cup", "red", (rng.uniform(0, 640), rng.uniform(0, 480)),
+                       (rng.uniform(5, 200), rng.uniform(5, 200))) for i in range(300)])
+    for p in (_body_ray_at((320.0, 470.0), (0.3, -0.95)), _hand_ray((320.0, 470.0), (0.0, -1.0),
+                                                                     (300.0, 440.0, 340.0, 480.0)),
+              _body_ray_at((320.0, 240.0), (1.0, 0.0))):
+        g, angle, under = pointing_arrays(p, objs)
+        for i, o in enumerate(objs):
+            want_g, want_angle = pointing_score(p, o)
+            assert g[i] == pytest.approx(want_g, abs=1e-9), o
+            assert (want_angle is None and angle[i] != angle[i]) or angle[i] == pytest.approx(want_angle, abs=1e-6)
+            assert bool(under[i]) == (want_angle is not None and want_g > 0 and under_fingertip(p, o)), o
