@@ -244,3 +244,20 @@ def test_the_vectorised_pointing_agrees_with_the_rule_object_by_object():
             assert g[i] == pytest.approx(want_g, abs=1e-9), o
             assert (want_angle is None and angle[i] != angle[i]) or angle[i] == pytest.approx(want_angle, abs=1e-6)
             assert bool(under[i]) == (want_angle is not None and want_g > 0 and under_fingertip(p, o)), o
+
+
+@pytest.mark.parametrize("text,label,relations,spatial,place", [
+    ("bring the cup next to the bowl to the kitchen", "cup", ["next to the bowl"], (), "kitchen"),
+    ("bring me the plant on the table", "potted plant", ["on the dining table"], (), None),
+    ("pick up the cup in the kitchen", "cup", [], (), "kitchen"),  # a place, not an object: no relation
+    ("hand me the cup on your left", "cup", [], ("left",), None),
+    ("hand me the bottle that is next to the sink on the right", "bottle", ["next to the sink"], ("right",), None),
+    ("look at the chair in front", "chair", [], ("nearest",), None),
+    ("look at the cup behind", "cup", [], ("farthest",), None),
+    ("the stool on the far left", "chair", [], ("left",), None),
+    ("put the cup on the table", "cup", [], (), "table"),  # put_down: the relation word starts the destination
+])
+def test_the_parser_splits_head_relations_and_places(text, label, relations, spatial, place):
+    u = parse(text)
+    assert (u.obj.label, [r.describe() for r in u.obj.relations], u.obj.spatial, u.place) == (
+        label, relations, spatial, place), u

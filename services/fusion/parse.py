@@ -541,8 +541,9 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     obj = _read_object(obj_tags, tokens)
     if before:
         obj = _merge(_read_object([t for t in before if t.index >= start], tokens), obj)
-    anchored = {i for r in obj.relations for t in obj_tags if t.kind == "place" for i in (t.index,)
-                if intent != "put_down"}
+    first_relation = next((t.index for t in obj_tags if t.kind == "relation"), None)
+    anchored = {t.index for t in obj_tags if t.kind == "place" and " ".join(t.words) in L.PLACE_AS_OBJECT
+                and first_relation is not None and t.index > first_relation and obj.relations}  # "on the table"
     place = next((t.value for t in dest_tags if t.kind == "place" and t.index not in anchored), None)
     deictic_place = next((t.value for t in dest_tags if t.kind == "deictic_place"), None)
     dest_obj = None
