@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from common.language import OBJECT_CATEGORIES, plural
+from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
 from common.schema import Location
 from services.fusion import relations
 from services.fusion.evidence import Pointing
@@ -139,6 +139,13 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
             f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
     if not visible:
         return f"{lead} I don't see any objects. Can you show me?"
+    if phrase.relations and not unknown and phrase.label:
+        kind = [o for o in visible if label_matches(phrase.label, o.label)]
+        if kind:  # the thing is there, the relation is not: say which part did not fit
+            where = " and ".join(r.describe() for r in phrase.relations)
+            noun = phrase.label if phrase.label != ANY_OBJECT else "one"
+            return f"I can see {and_list([a(o.name()) for o in kind[:3]])}, but no {noun} {where}. " \
+                f"Which one do you mean?"
     shown = sorted(visible[:4], key=lambda o: (o.cam, o.center[0], o.id))  # read left to right, like the scene
     names = [o.name() for o in shown]
     if len(set(names)) < len(names):  # two of a kind: say where each is
