@@ -261,3 +261,24 @@ def test_the_parser_splits_head_relations_and_places(text, label, relations, spa
     u = parse(text)
     assert (u.obj.label, [r.describe() for r in u.obj.relations], u.obj.spatial, u.place) == (
         label, relations, spatial, place), u
+
+
+def test_a_body_ray_in_a_hands_frame_touches_from_its_own_origin():
+    """A body ray may arrive in a Hands frame with the hand's landmarks: its origin already is the fingertip."""
+    objs = _scene([Obj("cup", "cup", "white", (300, 300), (50, 60)), Obj("tray", "box", "grey", (300, 330),
+                                                                          (240, 160))])
+    body = Pointing(stamp=BASE_STAMP, cam="cam0", hand="right", origin=(300.0, 300.0), direction=(0.0, 1.0),
+                    confidence=0.9, stability=1.0, spread_deg=0.0, n=5, width=640, height=480,
+                    hand_box=(290.0, 240.0, 310.0, 290.0), source="body")
+    assert deictic_scores(body, objs)[("cam0", "cup")][0] == 1.0
+    blob = _scene([Obj("finger", "candy", "orange", (300, 280), (12, 12))])  # a skin blob on the hand itself
+    assert deictic_scores(body, objs + blob)[("cam0", "finger")][0] == 0.0
+    from services.fusion.evidence import pointing_from_event, pointing_from_hands
+    from common.schema import GestureEvent, Hand, Hands, Ray
+    ray = Ray(origin=[300.0, 300.0], direction=[0.0, 1.0], source="body")
+    hands = Hands(stamp=1.0, source="gesture/cam0", seq=1, cam="cam0", width=640, height=480,
+                  hands=[Hand(hand="right", score=0.9, landmarks=[[300.0, 280.0]] * 21, gesture="point", ray=ray)])
+    assert pointing_from_hands(hands)[0].source == "body"
+    ev = GestureEvent(stamp=1.0, source="gesture/cam0", cam="cam0", width=640, height=480, gesture="point",
+                      phase="start", start=0.5, end=1.0, score=0.9, hand="right", ray=ray)
+    assert pointing_from_event(ev)[0].source == "body"

@@ -193,11 +193,20 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     return gap <= reach
 
 
+def _on_the_hand(p: Pointing, o: SceneObject) -> bool:
+    """The object's centre lies on the pointing hand (a skin-coloured blob of the finger): never its target."""
+    if p.hand_box is None:
+        return False
+    x0, y0, x1, y1 = p.hand_box
+    return x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1
+
+
 def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, str]]:
     """The objects the fingertip touches (services/fusion/touch.py): the smallest box that contains it wins over
-    the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip."""
-    tip = touch.fingertip(p.origin, p.direction, p.hand_box)
-    mine = [o for o in objects if o.cam == p.cam and o.label != "person"]
+    the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip; nor is
+    a blob on the pointing hand itself."""
+    tip = touch.fingertip(p.origin, p.direction, None if p.source == "body" else p.hand_box)
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)]
     hit, _ = touch.touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
 

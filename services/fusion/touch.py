@@ -22,7 +22,8 @@ NESTED = 0.8  # the smaller box lies this much inside the bigger one: the bigger
 
 def fingertip(origin: tuple[float, float], direction: tuple[float, float],
               hand_box: tuple[float, float, float, float] | None) -> tuple[float, float]:
-    """The fingertip in the image. `hand_box`: x0, y0, x1, y1 of the pointing hand's landmarks (None: body ray)."""
+    """The fingertip in the image. `hand_box`: x0, y0, x1, y1 of the pointing hand's landmarks for a hand ray (its
+    origin is the index knuckle); None for a body ray (its origin is the fingertip)."""
     if hand_box is None:
         return origin
     x0, y0, x1, y1 = hand_box
