@@ -282,3 +282,9 @@ def test_a_body_ray_in_a_hands_frame_touches_from_its_own_origin():
     ev = GestureEvent(stamp=1.0, source="gesture/cam0", cam="cam0", width=640, height=480, gesture="point",
                       phase="start", start=0.5, end=1.0, score=0.9, hand="right", ray=ray)
     assert pointing_from_event(ev)[0].source == "body"
+
+
+def test_a_self_correction_keeps_the_kind_and_takes_the_new_relation():
+    u = parse("pick up the red cup, no, the one next to the bowl")
+    assert (u.obj.label, u.obj.color, [r.describe() for r in u.obj.relations]) == ("cup", None, ["next to the bowl"])
+    assert parse("pick up the red cup, no, the second one").obj.ordinal == 2

@@ -407,9 +407,14 @@ def _merge(before: ObjectPhrase, after: ObjectPhrase) -> ObjectPhrase:
     names_kind = (after.label not in (None, L.ANY_OBJECT)) or after.noun is not None
     if names_kind:
         return after
-    return ObjectPhrase(color=after.color or (before.color if not after.spatial else None),
-                        label=before.label, spatial=after.spatial or before.spatial,
-                        deictic=after.deictic or before.deictic, noun=before.noun)
+    moved = bool(after.spatial or after.relations or after.ordinal)  # a new position replaces the old colour too
+    return ObjectPhrase(color=after.color or (before.color if not moved else None),
+                        label=before.label, spatial=after.spatial or (before.spatial if not moved else ()),
+                        deictic=after.deictic or before.deictic, noun=before.noun,
+                        relations=after.relations or (before.relations if not moved else ()),
+                        ordinal=after.ordinal if moved else before.ordinal,
+                        ordinal_from=after.ordinal_from if moved else before.ordinal_from,
+                        unmatched=after.unmatched or before.unmatched)
 
 
 def _is_number(t: Tag) -> bool:
