@@ -6,6 +6,9 @@ first) and then reads the tags: the first intent is the command (a greeting only
 is asked), colour/class/spatial/deictic words before a destination marker describe the object, and
 what follows a destination marker ("on", "in", "there", a named place) describes where it goes.
 A motion verb with a direction or an amount and no object is a motion ("go forward ten meters").
+A relation word splits the object phrase: the words before it name the object (the head noun decides the kind:
+"the bottle next to the bowl" is a bottle), the words after it the anchor ("next to the bowl"); ordinals ("the
+second bottle from the left") and modifiers nothing can check ("the soap bottle", said back) are kept too.
 A correction word after something was said ("the red, no, the blue cup") replaces what came before
 it. An unknown word in a noun's place ("the blue pitcher") is kept as the noun, so the robot can say
 it does not know it. Words the language does not know are matched fuzzily against its vocabulary

@@ -45,6 +45,7 @@ FAR_BOTTLE = Obj("bottle_far", "bottle", "green", (560, 200), (40, 110))
 ROW = [Obj("cup_1", "cup", "white", (120, 300)), Obj("cup_2", "cup", "white", (320, 300)),
        Obj("cup_3", "cup", "white", (520, 300))]
 WOMAN = Obj("person_1", "person", None, (520, 220), (150, 420))
+MAN = Obj("person_2", "person", None, (110, 220), (150, 420))
 STACKED = [Obj("cup_a", "cup", "red", (300, 200), (60, 80)), Obj("cup_b", "cup", "red", (320, 230), (60, 80)),
            Obj("laptop_s", "laptop", "grey", (200, 190), (100, 70)), Obj("sink_s", "sink", "white", (400, 260),
                                                                            (80, 60))]
@@ -272,6 +273,11 @@ SCENARIOS: list[Scenario] = [
       [cmd("look_at", "laptop_t")], ("touch", "pointing")),
     S("people: give it to her", normal([WOMAN, RED_CUP], "Give it to her."), [cmd("bring", "person_1")],
       ("people", "language")),
+    S("people: give it to her, pointing at one of two", normal([WOMAN, MAN, RED_CUP], "Give it to her.",
+                                                               WOMAN.center), [cmd("bring", "person_1")],
+      ("people", "pointing")),
+    S("people: look at the man on the left", normal([WOMAN, MAN, RED_CUP], "Look at the man on the left."),
+      [cmd("look_at", "person_2")], ("people", "position")),
     S("language: the stool is a chair", normal([CHAIR, WOMAN], "Go to the stool."), [cmd("go_to", "chair_1")],
       ("language",)),
     S("dialogue: yes to a confirmation, Whisper style", normal(TWO_CUPS, "Pick up the red cup.", conf=0.2) +
