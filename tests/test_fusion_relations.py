@@ -228,24 +228,6 @@ def test_colours_and_positions_still_tell_apart_when_they_can():
     assert candidate_phrases(objs[:2], objs) == ["the red one on the left", "the white one on the right"]
 
 
-def test_the_vectorised_pointing_agrees_with_the_rule_object_by_object():
-    import random
-
-    from services.fusion.ground import pointing_arrays, pointing_score, under_fingertip
-    rng = random.Random(7)
-    objs = _scene([Obj(f"o{i}", "cup", "red", (rng.uniform(0, 640), rng.uniform(0, 480)),
-                       (rng.uniform(5, 200), rng.uniform(5, 200))) for i in range(300)])
-    for p in (_body_ray_at((320.0, 470.0), (0.3, -0.95)), _hand_ray((320.0, 470.0), (0.0, -1.0),
-                                                                     (300.0, 440.0, 340.0, 480.0)),
-              _body_ray_at((320.0, 240.0), (1.0, 0.0))):
-        g, angle, under = pointing_arrays(p, objs)
-        for i, o in enumerate(objs):
-            want_g, want_angle = pointing_score(p, o)
-            assert g[i] == pytest.approx(want_g, abs=1e-9), o
-            assert (want_angle is None and angle[i] != angle[i]) or angle[i] == pytest.approx(want_angle, abs=1e-6)
-            assert bool(under[i]) == (want_angle is not None and want_g > 0 and under_fingertip(p, o)), o
-
-
 @pytest.mark.parametrize("text,label,relations,spatial,place", [
     ("bring the cup next to the bowl to the kitchen", "cup", ["next to the bowl"], (), "kitchen"),
     ("bring me the plant on the table", "potted plant", ["on the dining table"], (), None),
@@ -263,25 +245,15 @@ def test_the_parser_splits_head_relations_and_places(text, label, relations, spa
         label, relations, spatial, place), u
 
 
-def test_a_body_ray_in_a_hands_frame_touches_from_its_own_origin():
-    """A body ray may arrive in a Hands frame with the hand's landmarks: its origin already is the fingertip."""
+def test_a_ray_from_the_tip_touches_from_there_and_a_blob_on_the_hand_is_never_touched():
+    """A body ray in a Hands frame starts at the fingertip, on the edge of the hand's box: the tip stays there."""
     objs = _scene([Obj("cup", "cup", "white", (300, 300), (50, 60)), Obj("tray", "box", "grey", (300, 330),
                                                                           (240, 160))])
-    body = Pointing(stamp=BASE_STAMP, cam="cam0", hand="right", origin=(300.0, 300.0), direction=(0.0, 1.0),
-                    confidence=0.9, stability=1.0, spread_deg=0.0, n=5, width=640, height=480,
-                    hand_box=(290.0, 240.0, 310.0, 290.0), source="body")
-    assert deictic_scores(body, objs)[("cam0", "cup")][0] == 1.0
+    ray = _hand_ray((300.0, 290.0), (0.0, 1.0), (290.0, 240.0, 310.0, 290.0))
+    assert touch.fingertip(ray.origin, ray.direction, ray.hand_box) == pytest.approx((300.0, 290.0))
+    assert deictic_scores(ray, objs)[("cam0", "cup")][0] == 1.0
     blob = _scene([Obj("finger", "candy", "orange", (300, 280), (12, 12))])  # a skin blob on the hand itself
-    assert deictic_scores(body, objs + blob)[("cam0", "finger")][0] == 0.0
-    from services.fusion.evidence import pointing_from_event, pointing_from_hands
-    from common.schema import GestureEvent, Hand, Hands, Ray
-    ray = Ray(origin=[300.0, 300.0], direction=[0.0, 1.0], source="body")
-    hands = Hands(stamp=1.0, source="gesture/cam0", seq=1, cam="cam0", width=640, height=480,
-                  hands=[Hand(hand="right", score=0.9, landmarks=[[300.0, 280.0]] * 21, gesture="point", ray=ray)])
-    assert pointing_from_hands(hands)[0].source == "body"
-    ev = GestureEvent(stamp=1.0, source="gesture/cam0", cam="cam0", width=640, height=480, gesture="point",
-                      phase="start", start=0.5, end=1.0, score=0.9, hand="right", ray=ray)
-    assert pointing_from_event(ev)[0].source == "body"
+    assert deictic_scores(ray, objs + blob)[("cam0", "finger")][0] == 0.0
 
 
 def test_a_self_correction_keeps_the_kind_and_takes_the_new_relation():

@@ -15,7 +15,6 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.language import ANY_OBJECT
 from common.schema import Detections, GestureEvent, Hands, Location, Transcript
 from services.fusion import describe
 from services.fusion.dialogue import Dialogue, Draft
@@ -146,7 +145,7 @@ class FusionCore:
             if reply is not None:
                 return reply
             # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
-            if u.obj.label not in (None, ANY_OBJECT) and u.answer is None and not u.other:
+            if u.obj.names_kind and u.answer is None and not u.other:
                 self.count("bare_reference")
                 self.dialogue.supersede()
                 return self.command_for(t, replace(u, intent="look_at"), ctx)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
 from common.schema import Location
-from services.fusion import relations
 from services.fusion.evidence import Pointing
 from services.fusion.ground import Scored, SceneObject
 from services.fusion.parse import Motion, ObjectPhrase
+from services.fusion.relations import fit_matrix
 
 PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
 
@@ -61,7 +61,7 @@ def landmarks(objs: list[SceneObject], scene: list[SceneObject]) -> list[str] | 
     others = [o for o in scene if o.key not in keys and o.label not in kinds and o.label != "person"]
     if not others:
         return None
-    fits = relations.fit_matrix("next_to", [o.bbox for o in objs], [o.bbox for o in others])
+    fits = fit_matrix("next_to", [o.bbox for o in objs], [o.bbox for o in others])
     out = []
     for i, o in enumerate(objs):
         same_cam = [j for j, x in enumerate(others) if x.cam == o.cam]

@@ -66,7 +66,6 @@ class PointingObs:
     width: int
     height: int
     hand_box: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of the hand's landmarks
-    source: str | None = None  # the ray's `source`: "hand" (origin at the index knuckle), "body" (at the fingertip)
 
 
 @dataclass(frozen=True)
@@ -84,7 +83,6 @@ class Pointing:
     width: int
     height: int
     hand_box: tuple[float, float, float, float] | None = None  # the pointing hand itself: never its target
-    source: str | None = None  # "body": the origin is the fingertip; else (hand, nil) the index knuckle
 
     @property
     def reliability(self) -> float:
@@ -99,7 +97,7 @@ def pointing_from_hands(hands: Hands) -> list[PointingObs]:
         xs, ys = [p[0] for p in h.landmarks], [p[1] for p in h.landmarks]
         out.append(PointingObs(hands.stamp, hands.cam, h.hand, tuple(h.ray.origin), tuple(h.ray.direction),
                                h.ray.confidence * h.score, hands.width, hands.height,
-                               (min(xs), min(ys), max(xs), max(ys)), h.ray.source))
+                               (min(xs), min(ys), max(xs), max(ys))))
     return out
 
 
@@ -107,7 +105,7 @@ def pointing_from_event(ev: GestureEvent) -> list[PointingObs]:
     if ev.gesture != "point" or ev.ray is None:
         return []
     return [PointingObs(ev.stamp, ev.cam, ev.hand, tuple(ev.ray.origin), tuple(ev.ray.direction),
-                        ev.ray.confidence * ev.score, ev.width, ev.height, source=ev.ray.source)]
+                        ev.ray.confidence * ev.score, ev.width, ev.height)]
 
 
 def _angle_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -141,7 +139,7 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
                 max(b[3] for b in boxes)) if boxes else None
     return Pointing(stamp=nearest.stamp, cam=nearest.cam, hand=nearest.hand, origin=(ox, oy), direction=direction,
                     confidence=confidence, stability=stability, spread_deg=spread, n=len(cluster),
-                    width=nearest.width, height=nearest.height, hand_box=hand_box, source=nearest.source)
+                    width=nearest.width, height=nearest.height, hand_box=hand_box)
 
 
 def modality_weights(mode: str, reliabilities: dict[str, float | None]) -> Weights:

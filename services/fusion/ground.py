@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
@@ -64,8 +63,8 @@ class SceneObject:
         return Target(id=self.id, label=self.raw_label, color=self.color, bbox=list(self.bbox),
                       center=list(self.center), score=self.score, cam=self.cam)
 
-    @cached_property
-    def key(self) -> tuple[str, str]:  # read many times per decision: computed once
+    @property
+    def key(self) -> tuple[str, str]:
         return self.cam, self.id
 
     def name(self) -> str:
@@ -205,69 +204,20 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     """The objects the fingertip touches (services/fusion/touch.py): the smallest box that contains it wins over
     the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip; nor is
     a blob on the pointing hand itself."""
-    tip = touch.fingertip(p.origin, p.direction, None if p.source == "body" else p.hand_box)
+    tip = touch.fingertip(p.origin, p.direction, p.hand_box)
     mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)]
     hit, _ = touch.touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
-
-
-def pointing_arrays(p: Pointing, objects: list[SceneObject]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`pointing_score` and `under_fingertip` for all objects at once (numpy; the same rules, one pass instead of
-    a Python loop per object): (G, angle in degrees with NaN where `pointing_score` gives None, under the tip)."""
-    n = len(objects)
-    b = np.array([o.bbox for o in objects], dtype=float).reshape(n, 4)
-    c = np.array([o.center for o in objects], dtype=float).reshape(n, 2)
-    counted = np.array([o.cam == p.cam for o in objects], dtype=bool)
-    if p.hand_box is not None:
-        x0, y0, x1, y1 = p.hand_box
-        counted &= ~((x0 <= c[:, 0]) & (c[:, 0] <= x1) & (y0 <= c[:, 1]) & (c[:, 1] <= y1))
-    ox, oy = p.origin
-    dx, dy = p.direction
-    vx, vy = c[:, 0] - ox, c[:, 1] - oy
-    dist = np.hypot(vx, vy)
-    at_origin = dist <= 1e-6
-    safe = np.where(at_origin, 1.0, dist)
-    cos = np.clip((vx * dx + vy * dy) / safe, -1.0, 1.0)
-    angle = np.degrees(np.arccos(cos))
-    radius = 0.5 * np.hypot(b[:, 2], b[:, 3]) * 0.5
-    covered = np.degrees(np.arctan2(radius, safe))
-    sigma = max(POINTING_SIGMA_DEG, p.spread_deg)
-    g = np.exp(-0.5 * (np.maximum(0.0, angle - covered) / sigma) ** 2)
-    g = np.where(cos <= 0, 0.0, g)
-    g = np.where(at_origin, 1.0, g)
-    angle = np.where(at_origin, 0.0, angle)
-    g = np.where(counted, g, 0.0)
-    angle = np.where(counted, angle, np.nan)
-    # under the fingertip: where the ray enters the box (slab method), within reach of the tip
-    t_near, t_far = np.zeros(n), np.full(n, np.inf)
-    hit = np.ones(n, dtype=bool)
-    for o, d, lo, hi in ((ox, dx, b[:, 0], b[:, 0] + b[:, 2]), (oy, dy, b[:, 1], b[:, 1] + b[:, 3])):
-        if abs(d) < 1e-9:
-            hit &= (lo <= o) & (o <= hi)
-            continue
-        t0, t1 = (lo - o) / d, (hi - o) / d
-        t_near = np.maximum(t_near, np.minimum(t0, t1))
-        t_far = np.minimum(t_far, np.maximum(t0, t1))
-    hit &= t_near <= t_far
-    reach = UNDER_TIP_GAP * np.hypot(b[:, 2], b[:, 3])
-    if p.hand_box is not None:
-        reach = reach + 0.5 * math.hypot(p.hand_box[2] - p.hand_box[0], p.hand_box[3] - p.hand_box[1])
-    under = counted & (g > 0) & hit & (t_near <= reach)
-    return g, angle, under
 
 
 def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], tuple[float, float | None]]:
     """(G, angle) per object: `pointing_score`; then an object the fingertip touches gets G = 1 (even when its
     centre lies behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what
     lies further along the ray."""
-    if not objects:
-        return {}
-    g, angle, under = pointing_arrays(p, objects)
-    keys = [o.key for o in objects]
-    out = {k: (float(gi), None if ai != ai else float(ai)) for k, gi, ai in zip(keys, g.tolist(), angle.tolist())}
+    out = {o.key: pointing_score(p, o) for o in objects}
     near = touched_objects(p, objects)
     if not near:
-        near = {k for k, u in zip(keys, under.tolist()) if u}
+        near = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
     if near:
         out = {k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
                for k, (g, a) in out.items()}
@@ -277,17 +227,16 @@ def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, s
 RELATION_FLOOR = 0.05  # below this fit nobody is in that relation to the anchor: the words are not matched
 
 
+ANCHOR_WEIGHTS = Weights(speech=1.0, vision=0.0, gesture=0.0)
+
+
 def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[SceneObject, float]]:
-    """The objects the anchor's words fit, with how well (its own spatial words chosen among them)."""
+    """The objects the anchor's words fit (>= 0.5), with how well: scored like any phrase, by the words alone, so
+    the anchor's colour and spatial words count exactly as they would for the object itself."""
     if anchor.unknown_nouns or (anchor.label is None and not anchor.color):
         return []
-    fits = {o.key: _attribute_match(anchor, o) for o in scene}
-    group = [o for o in scene if fits[o.key] >= 0.5]
-    for word in anchor.spatial:
-        prefs = _spatial_scores(word, group) if group else {}
-        for o in group:
-            fits[o.key] *= prefs.get(o.key, 1.0)
-    return [(o, fits[o.key]) for o in group if fits[o.key] > 0]
+    return [(s.obj, s.match) for s in score(anchor, scene, None, ANCHOR_WEIGHTS, adaptive=False)
+            if s.match >= 0.5]
 
 
 def _relation_scores(relation: Relation, group: list[SceneObject],
@@ -356,6 +305,21 @@ def _ordinal_scores(ordinal: int, counted_from: str | None,
     return {o.key: 1.0 if i == index else ORDINAL_OTHERS for i, o in enumerate(order)}
 
 
+def _relations_and_order(phrase: ObjectPhrase, objects: list[SceneObject], match: dict[tuple[str, str], float],
+                         scene: list[SceneObject]) -> None:
+    """Relations ("next to the bowl"), then the ordinal ("the second … from the left"), each choosing among the
+    objects the other words fit (match >= 0.5); `match` is updated in place."""
+    for relation in phrase.relations:
+        prefs = _relation_scores(relation, [o for o in objects if match[o.key] >= 0.5], scene)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 0.0)
+    if phrase.ordinal:
+        fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
+        prefs = _ordinal_scores(phrase.ordinal, phrase.ordinal_from, fitting)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 0.0)
+
+
 def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, weights: Weights,
           *, adaptive: bool = True, ref: float | None = None, scene: list[SceneObject] | None = None) -> list[Scored]:
     """All objects scored and ranked (best first; ties broken by camera and id for determinism). `scene`: every
@@ -364,21 +328,13 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
     if not objects:
         return []
     match = {o.key: _attribute_match(phrase, o) for o in objects}
-    for relation in phrase.relations:  # relations choose among the objects the words fit
-        fitting = [o for o in objects if match[o.key] >= 0.5]
-        prefs = _relation_scores(relation, fitting, scene if scene is not None else objects)
-        for o in objects:
-            match[o.key] *= prefs.get(o.key, 0.0 if phrase.relations else 1.0)
     fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
     for word in phrase.spatial:  # spatial words choose among the objects that fit the other words
         prefs = _spatial_scores(word, fitting)
         for o in objects:
             match[o.key] *= prefs.get(o.key, 1.0)
-    if phrase.ordinal:
-        fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
-        prefs = _ordinal_scores(phrase.ordinal, phrase.ordinal_from, fitting)
-        for o in objects:
-            match[o.key] *= prefs.get(o.key, 0.0)
+
+    _relations_and_order(phrase, objects, match, scene if scene is not None else objects)
     use_gesture = pointing is not None and weights.gesture > 0
     ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
     if ws + wg <= 0:

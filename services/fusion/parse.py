@@ -137,6 +137,11 @@ class ObjectPhrase:
         return bool(self.color or (self.label and self.label != L.ANY_OBJECT) or self.spatial or self.relations
                     or self.ordinal)
 
+    @property
+    def names_kind(self) -> bool:
+        """A kind of thing is named ("the bottle", "the fruit"), not just "one"/"it"."""
+        return self.label not in (None, L.ANY_OBJECT)
+
     def describe(self) -> str:
         noun = self.noun or (self.label if self.label and self.label != L.ANY_OBJECT else "one")
         ordinal = ORDINAL_NAMES.get(self.ordinal or 0, "")
@@ -285,6 +290,9 @@ def tag(tokens: list[str], labels: tuple[str, ...] = ()) -> tuple[list[Tag], lis
                 unknown.append(word)
                 tags.append(Tag("unknown", word, i, (word,)))
             i += 1
+    tags = _person_pronouns(tags)  # "give it to her"
+    unknown = [w for w in unknown if w not in L.PERSON_PRONOUNS or any(
+        t.kind == "unknown" and t.value == w for t in tags)]
     return tags, corrections, unknown
 
 
@@ -518,9 +526,6 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     """Read `text`. `labels`: labels of the objects in view, so a user's own label ("widget") is a noun."""
     tokens = tuple(tokenize(text))
     tags, corrections, unknown = tag(list(tokens), labels)
-    tags = _person_pronouns(tags)
-    unknown = [w for w in unknown if w not in L.PERSON_PRONOUNS or any(
-        t.kind == "unknown" and t.value == w for t in tags)]
     split = _split_correction(tags)
     before: list[Tag] = []
     if split is not None:
