@@ -184,7 +184,8 @@ class Dialogue:
             pool = [o for o in ctx.objects if label_matches(kind, o.label)]
         remaining = [o for o in pool if excluded is None or o.key != excluded.key]
         if u.obj.specific:
-            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False, scene=ctx.objects) if s.match >= 0.5]
+            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False, scene=ctx.objects)
+                   if s.match >= 0.5]
             remaining = fit or remaining
         if excluded is not None and len(remaining) == 1:
             q.draft.target = remaining[0]

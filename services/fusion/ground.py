@@ -25,10 +25,10 @@ import numpy as np
 
 from common.language import canonical_label, label_matches
 from common.schema import Detections, Location, Target, Weights
-from services.fusion import relations as rel
-from services.fusion import touch
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase, Relation
+from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
+from services.fusion.touch import fingertip, touched
 
 POINTING_SIGMA_DEG = 8.0  # angular noise of a pointing ray from hand landmarks
 SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
@@ -204,9 +204,9 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     """The objects the fingertip touches (services/fusion/touch.py): the smallest box that contains it wins over
     the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip; nor is
     a blob on the pointing hand itself."""
-    tip = touch.fingertip(p.origin, p.direction, p.hand_box)
+    tip = fingertip(p.origin, p.direction, p.hand_box)
     mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)]
-    hit, _ = touch.touched(tip, [o.bbox for o in mine])
+    hit, _ = touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
 
 
@@ -256,14 +256,14 @@ def _relation_scores(relation: Relation, group: list[SceneObject],
     cand_id, cand_cam = index(group)
     boxes = [o.bbox for o in group]
     if relation.kind == "between":
-        first = sorted(anchor_sets[0], key=lambda f: -f[1])[:rel.BETWEEN_MAX_ANCHORS]
-        second = sorted(anchor_sets[1], key=lambda f: -f[1])[:rel.BETWEEN_MAX_ANCHORS] if len(anchor_sets) > 1 \
+        first = sorted(anchor_sets[0], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS]
+        second = sorted(anchor_sets[1], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS] if len(anchor_sets) > 1 \
             else first
         if not first or not second:
             return {o.key: 0.0 for o in group}
         a_id, a_cam = index([a for a, _ in first])
         b_id, b_cam = index([b for b, _ in second])
-        m = rel.between_matrix(boxes, [a.bbox for a, _ in first], [b.bbox for b, _ in second])
+        m = between_matrix(boxes, [a.bbox for a, _ in first], [b.bbox for b, _ in second])
         m = m * np.array([w for _, w in first])[None, :, None] * np.array([w for _, w in second])[None, None, :]
         ok = ((cand_id[:, None, None] != a_id[None, :, None]) & (cand_id[:, None, None] != b_id[None, None, :])
               & (a_id[None, :, None] != b_id[None, None, :]) & (cand_cam[:, None, None] == a_cam[None, :, None])
@@ -279,7 +279,7 @@ def _relation_scores(relation: Relation, group: list[SceneObject],
             return {o.key: 0.0 for o in group}
         chosen = list(best.values())
         a_id, a_cam = index([a for a, _ in chosen])
-        m = rel.fit_matrix(relation.kind, boxes, [a.bbox for a, _ in chosen]) * np.array([w for _, w in chosen])[None]
+        m = fit_matrix(relation.kind, boxes, [a.bbox for a, _ in chosen]) * np.array([w for _, w in chosen])[None]
         ok = (cand_id[:, None] != a_id[None, :]) & (cand_cam[:, None] == a_cam[None, :])
         raw = np.where(ok, m, 0.0).max(axis=1)
     top = float(raw.max())
