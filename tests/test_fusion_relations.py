@@ -260,3 +260,14 @@ def test_a_self_correction_keeps_the_kind_and_takes_the_new_relation():
     u = parse("pick up the red cup, no, the one next to the bowl")
     assert (u.obj.label, u.obj.color, [r.describe() for r in u.obj.relations]) == ("cup", None, ["next to the bowl"])
     assert parse("pick up the red cup, no, the second one").obj.ordinal == 2
+
+
+def test_a_second_box_on_part_of_an_object_is_not_another_candidate():
+    """The detector boxes a chair and, again, its upper half (IoU under its NMS threshold): one chair, not two."""
+    front = Obj("front", "chair", "green", (252, 444), (286, 462))
+    top_half = Obj("top_half", "chair", "green", (235, 335), (262, 218))
+    right = Obj("right", "chair", "green", (435, 340), (154, 325))
+    choice = _pick("bring me the green chair", _scene([front, top_half, right]))
+    assert choice.kind == "ambiguous" and {c.obj.id for c in choice.candidates} == {"front", "right"}
+    choice = _pick("bring me the green chair", _scene([front, top_half]))
+    assert choice.kind == "target" and choice.winner.obj.id == "front"

@@ -356,6 +356,29 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
     return scored
 
 
+PART_OF = 0.9  # a box this much inside a bigger box of the same label is the detector boxing part of that object
+
+
+def _inside(small: tuple[float, float, float, float], big: tuple[float, float, float, float]) -> float:
+    ix = max(0.0, min(small[0] + small[2], big[0] + big[2]) - max(small[0], big[0]))
+    iy = max(0.0, min(small[1] + small[3], big[1] + big[3]) - max(small[1], big[1]))
+    return ix * iy / max(small[2] * small[3], 1e-6)
+
+
+def _whole_objects(candidates: list[Scored]) -> list[Scored]:
+    """The candidates without those that are part of another candidate of the same label (a chair's upper half
+    boxed again beside the whole chair, IoU under the detector's NMS threshold): asking "this chair or this
+    chair's top?" helps nobody. Stacked objects of one kind fall under the rule too: the stack is taken whole."""
+    out = []
+    for c in candidates:
+        o = c.obj
+        if not any(d is not c and d.obj.label == o.label and d.obj.cam == o.cam
+                   and d.obj.bbox[2] * d.obj.bbox[3] > o.bbox[2] * o.bbox[3]
+                   and _inside(o.bbox, d.obj.bbox) >= PART_OF for d in candidates):
+            out.append(c)
+    return out
+
+
 @dataclass(frozen=True)
 class Choice:
     kind: str  # "target", "ambiguous", "conflict", "not_found", "low_confidence"
@@ -397,7 +420,12 @@ def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAUL
                     or len(close) == MAX_CANDIDATES:
                 break
             close.append(c)
-        return Choice("ambiguous", None, tuple(close), speech_best, gesture_best, runner_up=runner_up)
+        whole = _whole_objects(close)
+        if len(whole) == 1:  # one object boxed twice by the detector: it is the whole one
+            if check_evidence and whole[0].evidence < MIN_EVIDENCE:
+                return Choice("low_confidence", whole[0], (whole[0],), speech_best, gesture_best, runner_up=runner_up)
+            return Choice("target", whole[0], (whole[0],), speech_best, gesture_best, None, runner_up)
+        return Choice("ambiguous", None, tuple(whole), speech_best, gesture_best, runner_up=runner_up)
     if check_evidence and winner.evidence < MIN_EVIDENCE:
         return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
     overruled = None
