@@ -333,7 +333,6 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
         prefs = _spatial_scores(word, fitting)
         for o in objects:
             match[o.key] *= prefs.get(o.key, 1.0)
-
     _relations_and_order(phrase, objects, match, scene if scene is not None else objects)
     use_gesture = pointing is not None and weights.gesture > 0
     ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
