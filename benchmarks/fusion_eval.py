@@ -11,7 +11,8 @@ degraded trials, once with `--weights adaptive` and once with `--weights fixed`:
 - clear gesture: "that cup" + a steady point -> the pointed object;
 - clear both, disagreeing: says one, points at the other -> expected: a conflict question.
 With ../shared/ present it also scores the scenes made from the real YOLOX-Nano detections on real photos
-(tests/scenarios/real.py: "the cup", "the person", "the fruit" -> question, "the banana" -> not found …).
+(tests/scenarios/real.py: "the cup", "the person", "the fruit" -> question, "the banana" -> not found …) and the
+real indoor scenes of ../shared/data/scenes/ line by line (tests/scenarios/indoor.py).
 An outcome counts as correct only if it is exactly the expected command or question.
 
 Run: .venv/bin/python benchmarks/fusion_eval.py [--trials N]
@@ -109,6 +110,24 @@ def real_photo_scenarios() -> list[Scenario]:
         return []
 
 
+def indoor_scenes() -> None:
+    """The real indoor scenes (../shared/data/scenes/: 12 photos, 30 sentences with the right answers) through
+    vision's own pipeline and the fusion core, line by line (tests/scenarios/indoor.py)."""
+    import os
+    shared = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
+    folder = shared / "data" / "scenes"
+    model = Path(os.environ.get("HRI_YOLOX_MODEL") or shared / "models" / "yolox_nano.onnx")
+    if not (folder / "scenes.json").is_file() or not model.is_file():
+        print(f"indoor scenes: skipped, no {folder / 'scenes.json'} or no model at {model}", file=sys.stderr)
+        return
+    try:
+        from tests.scenarios.indoor import evaluate as evaluate_lines, load_lines, report, vision_pipeline
+        print("indoor scenes (real photos, YOLOX-Nano + vision's colours, adaptive weights)")
+        print(report(evaluate_lines(load_lines(folder), vision_pipeline(model), folder)))
+    except ImportError as exc:
+        print(f"indoor scenes: skipped ({exc})", file=sys.stderr)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--trials", type=int, default=40, help="degraded trials per kind (default 40)")
@@ -130,6 +149,7 @@ def main() -> None:
             a, f = sum(adaptive[group]) / n, sum(fixed[group]) / n
             print(f"  {group:32s} {n:4d} {a:9.0%} {f:9.0%}")
         print()
+    indoor_scenes()
 
 
 if __name__ == "__main__":

@@ -85,6 +85,15 @@ OBJECT_SYNONYMS: dict[str, str] = {
     "dish": "bowl",
     "package": "box", "carton": "box", "cube": "box", "brick": "box", "parcel": "box",
     "sweet": "candy", "smartie": "candy", "smarties": "candy", "candies": "candy", "sweets": "candy",
+    "stool": "chair", "armchair": "chair", "arm chair": "chair", "office chair": "chair", "rocking chair": "chair",
+    "tumbler": "cup", "teacup": "cup", "coffee glass": "cup",
+    "settee": "couch", "loveseat": "couch", "love seat": "couch", "sectional": "couch",
+    "stove": "oven", "range": "oven", "cooker": "oven", "cooktop": "oven", "hob": "oven",
+    "basin": "sink", "washbasin": "sink", "wash basin": "sink", "microwave oven": "microwave",
+    "kitchen table": "dining table", "coffee table": "dining table",
+    "houseplant": "potted plant", "house plant": "potted plant", "pot plant": "potted plant",
+    "telly": "tv", "computer screen": "tv", "laptop computer": "laptop",
+    "him": "person", "gentleman": "person",
     "human": "person", "man": "person", "woman": "person", "guy": "person", "lady": "person", "boy": "person",
     "girl": "person", "child": "person", "kid": "person", "someone": "person", "somebody": "person",
     "people": "person", "men": "person", "women": "person", "children": "person", "kids": "person",
@@ -109,6 +118,8 @@ OBJECT_CATEGORIES: dict[str, tuple[str, ...]] = {
     "vehicle": ("bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat"),
     "furniture": ("chair", "couch", "bed", "dining table", "bench"),
     "seat": ("chair", "couch", "bench"),
+    "flower": ("potted plant", "vase"),  # cut flowers stand in a vase; the detector boxes either
+    "greenery": ("potted plant", "vase"),
     "electronics": ("tv", "laptop", "mouse", "remote", "keyboard", "cell phone"),
     "device": ("tv", "laptop", "mouse", "remote", "keyboard", "cell phone"),
     "bag": ("handbag", "backpack", "suitcase"),
@@ -161,6 +172,49 @@ SPATIAL_PHRASES: dict[str, tuple[str, ...]] = {
     "farthest": ("farthest", "furthest", "far"),
     "biggest": ("biggest", "largest", "big", "large", "bigger", "larger"),
     "smallest": ("smallest", "tiniest", "small", "little", "smaller", "tiny"),
+}
+
+# Relations between objects: canonical name (services/fusion/relations.py) -> phrases. Followed by an object
+# ("the bottle next to the bowl") the phrase relates the head noun to that anchor; said alone ("the chair in
+# front") it is the spatial word of RELATION_ALONE.
+RELATION_PHRASES: dict[str, tuple[str, ...]] = {
+    "next_to": ("next to", "beside", "besides", "by", "near", "near to", "close to", "nearby", "alongside",
+                "by the side of", "at the side of", "right next to", "right by", "just by"),
+    "behind": ("behind", "in back of", "at the back of", "further back than"),
+    "in_front_of": ("in front of", "in front", "at the front of"),
+    "left_of": ("left of", "to the left of", "on the left of", "on the left side of", "left from"),
+    "right_of": ("right of", "to the right of", "on the right of", "on the right side of", "right from"),
+    "on": ("on", "on top of", "onto", "upon", "sitting on", "standing on", "lying on"),
+    "in": ("in", "inside", "inside of", "within", "in the middle of"),
+    "under": ("under", "underneath", "below", "beneath"),
+    "above": ("above",),
+    "between": ("between", "in between"),
+}
+RELATION_ALONE: dict[str, str] = {"next_to": "nearest", "behind": "farthest", "in_front_of": "nearest",
+                                  "left_of": "left", "right_of": "right", "between": "middle", "under": "bottom",
+                                  "above": "top"}
+# Ordinals: "the second bottle from the left", "the last one". Counted from the left unless said otherwise.
+ORDINAL_WORDS: dict[str, int] = {"first": 1, "second": 2, "third": 3, "fourth": 4, "fifth": 5, "last": -1,
+                                 "second last": -2, "second to last": -2, "next to last": -2}
+ORDINAL_FROM_PHRASES: dict[str, tuple[str, ...]] = {
+    "left": ("from the left", "from left", "counting from the left"),
+    "right": ("from the right", "from right", "counting from the right"),
+    "top": ("from the top", "from top"), "bottom": ("from the bottom", "from bottom"),
+    "nearest": ("from the front", "from me"), "farthest": ("from the back",),
+}
+# Place words that are also objects the detector names, when they are a relation's anchor ("the cup on the table").
+PLACE_AS_OBJECT: dict[str, str] = {"table": "dining table"}
+# Pronouns for a person when nothing follows them ("give it to her"); "her cup" keeps "her" a determiner.
+PERSON_PRONOUNS: tuple[str, ...] = ("her", "him", "them")
+
+# More spatial phrases for the parser only (like REQUEST_PHRASES, kept out of the closed speech grammar, whose
+# measured accuracy is for SPATIAL_PHRASES as they are). "In front" / "behind" with no object after them are in
+# RELATION_ALONE.
+SPATIAL_EXTRA_PHRASES: dict[str, tuple[str, ...]] = {
+    "left": ("far left", "on the far left", "furthest left"),
+    "right": ("far right", "on the far right", "furthest right"),
+    "nearest": ("front", "at the front", "in the front", "frontmost", "in the foreground"),
+    "farthest": ("at the back", "in the back", "rearmost", "in the background"),
 }
 
 # Words that need a gesture (or the dialogue) to resolve.

@@ -149,6 +149,11 @@ class FusionCore:
             reply = self.dialogue.reply(t, u, ctx)
             if reply is not None:
                 return reply
+            # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
+            if u.obj.names_kind and u.answer is None and not u.other:
+                self.count("bare_reference")
+                self.dialogue.supersede()
+                return self.command_for(t, replace(u, intent="look_at"), ctx)
             self.count("ignored_no_intent")
             self.log.info("'%s' is not a command I know; ignored", t.text)
             return []
@@ -218,6 +223,8 @@ class FusionCore:
             expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
             if u.obj.noun is not None:
                 expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
+            if u.obj.unmatched:  # said back, never silently dropped
+                expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
             self.dialogue.acted(t, intent, t.text, target.obj, u.obj, u.place)
             return [self.outputs.target_command(t, intent, target, location, ctx, expl, place=u.place)]
         expl = f"'{t.text}' -> {intent}" + (f" to the {u.place}" if u.place else "") + (

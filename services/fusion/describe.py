@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from common.language import OBJECT_CATEGORIES, plural
+from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
 from common.schema import Location
 from services.fusion import space
 from services.fusion.evidence import Pointing
 from services.fusion.ground import Scored, SceneObject
 from services.fusion.parse import Motion, ObjectPhrase
+from services.fusion.relations import fit_matrix
 
 PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
 
@@ -39,11 +40,50 @@ def relative_positions(objs: list[SceneObject]) -> list[str]:
     return [region(o) for o in objs]
 
 
-def candidate_phrases(objs: list[SceneObject]) -> list[str]:
-    """'the red one on the left', 'the blue cup on the right' … enough words to tell them apart."""
+def positions_clear(objs: list[SceneObject], where: list[str]) -> bool:
+    """Do the position words tell the objects apart at a glance? Not when two share a word, nor when two objects
+    stand so close (centres less than half their size apart) that "left" and "right" are a guess."""
+    if len(set(where)) < len(where):
+        return False
+    for i, a in enumerate(objs):
+        for b in objs[i + 1:]:
+            dx, dy = abs(a.center[0] - b.center[0]), abs(a.center[1] - b.center[1])
+            if dx < 0.5 * (a.bbox[2] + b.bbox[2]) / 2 and dy < 0.5 * (a.bbox[3] + b.bbox[3]) / 2:
+                return False
+    return True
+
+
+def landmarks(objs: list[SceneObject], scene: list[SceneObject]) -> list[str] | None:
+    """'next to the laptop', 'next to the sink' …: for each candidate the nearest other thing in view (not a
+    candidate, not of the candidates' kinds, not a person), when those differ between all the candidates; else None.
+    People answer such a question with the same words ("the one next to the laptop"), and grounding reads them."""
+    kinds = {o.label for o in objs}
+    keys = {o.key for o in objs}
+    others = [o for o in scene if o.key not in keys and o.label not in kinds and o.label != "person"]
+    if not others:
+        return None
+    fits = fit_matrix("next_to", [o.bbox for o in objs], [o.bbox for o in others])
+    out = []
+    for i, o in enumerate(objs):
+        same_cam = [j for j, x in enumerate(others) if x.cam == o.cam]
+        if not same_cam:
+            return None
+        j = max(same_cam, key=lambda j: (fits[i, j], -j))
+        if fits[i, j] < 0.3:  # nothing close enough to be "next to" it
+            return None
+        out.append(f"next to the {others[j].label}")
+    return out if len(set(out)) == len(out) else None
+
+
+def candidate_phrases(objs: list[SceneObject], scene: list[SceneObject] | None = None) -> list[str]:
+    """'the red one on the left', 'the blue cup on the right', 'the one next to the laptop' … enough words to tell
+    them apart: colour when colours differ, the kind when kinds differ, and where each is — relative positions when
+    they differ, else the thing each one stands next to, else the image region."""
     colors_differ = len({o.color for o in objs}) > 1
     labels_differ = len({o.label for o in objs}) > 1
     where = relative_positions(objs)
+    if scene and not positions_clear(objs, where):
+        where = landmarks(objs, scene) or where
     out = []
     for o, pos in zip(objs, where):
         words = ["the"]
@@ -67,14 +107,16 @@ def or_list(items: list[str]) -> str:
     return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
 
-def ambiguous_question(phrase: ObjectPhrase, candidates: list[Scored]) -> str:
+def ambiguous_question(phrase: ObjectPhrase, candidates: list[Scored], scene: list[SceneObject] | None = None) -> str:
     objs = [c.obj for c in candidates]
     labels = {o.label for o in objs}
     what = next(iter(labels)) if len(labels) == 1 else phrase.label if phrase.label in OBJECT_CATEGORIES else "one"
-    if len(objs) > 3 and len({o.color for o in objs}) == 1 and len(set(relative_positions(objs))) < len(objs):
+    if len(objs) > 3 and len({o.color for o in objs}) == 1 and len(set(relative_positions(objs))) < len(objs) \
+            and not (scene and landmarks(objs, scene)):
         return (f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{plural(what)} that fit. "
                 f"Which one? Point at it, or say where it is (left, right, top, bottom).")
-    return f"Which {what}: {or_list(candidate_phrases(objs))}?"
+    unchecked = f"I can't tell {' '.join(phrase.unmatched)} by sight. " if phrase.unmatched else ""
+    return f"{unchecked}Which {what}: {or_list(candidate_phrases(objs, scene))}?"
 
 
 def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> str:
@@ -86,8 +128,9 @@ def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> st
 def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
     """What I could not find, what I can see instead, and the question. An unknown noun is said as such:
     "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?"."""
-    if phrase.noun:
-        lead = f"I don't know what {a(phrase.noun)} is."
+    unknown = phrase.unknown_nouns
+    if unknown:
+        lead = " ".join(f"I don't know what {a(n)} is." for n in unknown)
         what = f"the {phrase.describe()}"
     else:
         what = f"the {phrase.describe()}" if phrase.specific else "what you mean"
@@ -97,6 +140,13 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
             f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
     if not visible:
         return f"{lead} I don't see any objects. Can you show me?"
+    if phrase.relations and not unknown and phrase.label:
+        kind = [o for o in visible if label_matches(phrase.label, o.label)]
+        if kind:  # the thing is there, the relation is not: say which part did not fit
+            where = " and ".join(r.describe() for r in phrase.relations)
+            noun = phrase.label if phrase.label != ANY_OBJECT else "one"
+            return f"I can see {and_list([a(o.name()) for o in kind[:3]])}, but no {noun} {where}. " \
+                f"Which one do you mean?"
     shown = sorted(visible[:4], key=lambda o: (o.cam, o.center[0], o.id))  # read left to right, like the scene
     names = [o.name() for o in shown]
     if len(set(names)) < len(names):  # two of a kind: say where each is

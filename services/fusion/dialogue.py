@@ -99,7 +99,7 @@ class Dialogue:
             question = describe.conflict_question(u.obj, choice.speech_best, choice.gesture_best)
             candidates = [c.obj for c in choice.candidates]
         elif choice.kind == "ambiguous":
-            question = describe.ambiguous_question(u.obj, list(choice.candidates))
+            question = describe.ambiguous_question(u.obj, list(choice.candidates), ctx.objects)
             candidates = [c.obj for c in choice.candidates]
         elif choice.kind == "low_confidence":
             question = describe.confirm_question(t.text, None if heard else choice.winner)
@@ -123,10 +123,11 @@ class Dialogue:
         self.count(f"clarification_{reason}")
         return out
 
-    def _reask(self, t: Transcript, q: Question, candidates: list[SceneObject]) -> Output:
+    def _reask(self, t: Transcript, q: Question, candidates: list[SceneObject],
+               scene: list[SceneObject] | None = None) -> Output:
         self.count("dialogue_unresolved")
         scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
-        question = describe.ambiguous_question(q.phrase, scored) if len(candidates) > 1 else q.question
+        question = describe.ambiguous_question(q.phrase, scored, scene) if len(candidates) > 1 else q.question
         out = self.outputs.clarification(t, q.reason, question, candidates)
         self.question = Question(out.sample.id, q.reason, q.draft, q.phrase, candidates, t.end + self.timeout,
                                  question)
@@ -158,7 +159,7 @@ class Dialogue:
                     draft.target = q.candidates[0]
                 return [self._from_draft(t, draft, ctx, f"confirmed by '{t.text}' (question {q.clarification_id})",
                                          phrase=q.phrase)]
-            return [self._reask(t, q, q.candidates)]
+            return [self._reask(t, q, q.candidates, ctx.objects)]
         pool = q.candidates if q.candidates and q.reason != "not_found" else ctx.objects or q.candidates
         choice = ctx.choose(u.obj, pool, ctx.pointing, None, check_evidence=False)
         if choice.kind == "target" and choice.winner is not None:
@@ -166,7 +167,7 @@ class Dialogue:
             why = f"'{t.text}' answered question {q.clarification_id}: " + describe.explain_target(
                 choice.winner, choice.runner_up, ctx.weights.to_dict(), u.obj, None)
             return [self._from_draft(t, q.draft, ctx, why, confidence=choice.winner.total, phrase=q.phrase)]
-        return [self._reask(t, q, [c.obj for c in choice.candidates] or q.candidates)]
+        return [self._reask(t, q, [c.obj for c in choice.candidates] or q.candidates, ctx.objects)]
 
     def _other_answer(self, t: Transcript, u: Utterance, ctx: Context, q: Question) -> list[Output]:
         """"The other one" / "not that one": every candidate but the one proposed, pointed at or acted on."""
@@ -183,7 +184,8 @@ class Dialogue:
             pool = [o for o in ctx.objects if label_matches(kind, o.label)]
         remaining = [o for o in pool if excluded is None or o.key != excluded.key]
         if u.obj.specific:
-            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False) if s.match >= 0.5]
+            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False, scene=ctx.objects)
+                   if s.match >= 0.5]
             remaining = fit or remaining
         if excluded is not None and len(remaining) == 1:
             q.draft.target = remaining[0]
@@ -191,7 +193,7 @@ class Dialogue:
                    f"so the other candidate {remaining[0].id} ({remaining[0].name()})")
             return [self._from_draft(t, q.draft, ctx, why, phrase=q.phrase)]
         q.draft.target = None
-        return [self._reask(t, q, remaining if excluded is not None and remaining else pool)]
+        return [self._reask(t, q, remaining if excluded is not None and remaining else pool, ctx.objects)]
 
     def _correct_last(self, t: Transcript, u: Utterance, ctx: Context, last: LastCommand) -> list[Output]:
         """"No, the other one" / "not that one" / "no, the blue one" just after a command: the same command on

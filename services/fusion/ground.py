@@ -21,11 +21,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from common.language import canonical_label, label_matches
 from common.schema import Detections, Location, Target, Weights
 from services.fusion import space
 from services.fusion.evidence import Pointing, image_quality
-from services.fusion.parse import ObjectPhrase
+from services.fusion.parse import ObjectPhrase, Relation
+from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
+from services.fusion.touch import fingertip, touched
 
 POINTING_SIGMA_DEG = 8.0  # angular noise of a pointing ray from hand landmarks
 SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
@@ -208,19 +212,139 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     return gap <= reach
 
 
+def _on_the_hand(p: Pointing, o: SceneObject) -> bool:
+    """The object's centre lies on the pointing hand (a skin-coloured blob of the finger): never its target."""
+    if p.hand_box is None:
+        return False
+    x0, y0, x1, y1 = p.hand_box
+    return x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1
+
+
+def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, str]]:
+    """The objects the fingertip touches (services/fusion/touch.py): the smallest box that contains it wins over
+    the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip; nor is
+    a blob on the pointing hand itself."""
+    tip = fingertip(p.origin, p.direction, p.hand_box)
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)]
+    hit, _ = touched(tip, [o.bbox for o in mine])
+    return {mine[i].key for i in hit}
+
+
 def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], tuple[float, float | None]]:
-    """(G, angle) per object: `pointing_score`, then what lies under the fingertip wins over what lies further
-    along the ray."""
+    """(G, angle) per object: `pointing_score`; then an object the fingertip touches gets G = 1 (even when its
+    centre lies behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what
+    lies further along the ray."""
     out = {o.key: pointing_score(p, o) for o in objects}
-    under = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
-    if under:
-        out = {k: ((1.0, a) if k in under else (g * FARTHER_ALONG, a)) for k, (g, a) in out.items()}
+    near = touched_objects(p, objects)
+    if not near:
+        near = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
+    if near:
+        out = {k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
+               for k, (g, a) in out.items()}
     return out
 
 
+RELATION_FLOOR = 0.05  # below this fit nobody is in that relation to the anchor: the words are not matched
+
+
+ANCHOR_WEIGHTS = Weights(speech=1.0, vision=0.0, gesture=0.0)
+
+
+def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[SceneObject, float]]:
+    """The objects the anchor's words fit (>= 0.5), with how well: scored like any phrase, by the words alone, so
+    the anchor's colour and spatial words count exactly as they would for the object itself."""
+    if anchor.unknown_nouns or (anchor.label is None and not anchor.color):
+        return []
+    return [(s.obj, s.match) for s in score(anchor, scene, None, ANCHOR_WEIGHTS, adaptive=False)
+            if s.match >= 0.5]
+
+
+def _relation_scores(relation: Relation, group: list[SceneObject],
+                     scene: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """Preference in [0, 1] for each object of `group` (1 for the best fit; 0 for all when no anchor is seen or
+    nothing is in that relation to one). An object is never its own anchor; anchors in another camera do not count.
+    Vectorised over candidates x anchors (services/fusion/relations.py): 1000 objects stay within milliseconds."""
+    if not group:
+        return {}
+    anchor_sets = [_anchor_fits(a, scene) for a in relation.anchors]
+    ids: dict[tuple[str, str], int] = {}
+    cams: dict[str, int] = {}
+
+    def index(objs: list[SceneObject]) -> tuple[np.ndarray, np.ndarray]:
+        return (np.array([ids.setdefault(o.key, len(ids)) for o in objs]),
+                np.array([cams.setdefault(o.cam, len(cams)) for o in objs]))
+    cand_id, cand_cam = index(group)
+    boxes = [o.bbox for o in group]
+    if relation.kind == "between":
+        first = sorted(anchor_sets[0], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS]
+        second = sorted(anchor_sets[1], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS] if len(anchor_sets) > 1 \
+            else first
+        if not first or not second:
+            return {o.key: 0.0 for o in group}
+        a_id, a_cam = index([a for a, _ in first])
+        b_id, b_cam = index([b for b, _ in second])
+        m = between_matrix(boxes, [a.bbox for a, _ in first], [b.bbox for b, _ in second])
+        m = m * np.array([w for _, w in first])[None, :, None] * np.array([w for _, w in second])[None, None, :]
+        ok = ((cand_id[:, None, None] != a_id[None, :, None]) & (cand_id[:, None, None] != b_id[None, None, :])
+              & (a_id[None, :, None] != b_id[None, None, :]) & (cand_cam[:, None, None] == a_cam[None, :, None])
+              & (cand_cam[:, None, None] == b_cam[None, None, :]))
+        raw = np.where(ok, m, 0.0).reshape(len(group), -1).max(axis=1)
+    else:
+        best: dict[tuple[str, str], tuple[SceneObject, float]] = {}
+        for anchors in anchor_sets:
+            for a, w in anchors:
+                if a.key not in best or best[a.key][1] < w:
+                    best[a.key] = (a, w)
+        if not best:
+            return {o.key: 0.0 for o in group}
+        chosen = list(best.values())
+        a_id, a_cam = index([a for a, _ in chosen])
+        m = fit_matrix(relation.kind, boxes, [a.bbox for a, _ in chosen]) * np.array([w for _, w in chosen])[None]
+        ok = (cand_id[:, None] != a_id[None, :]) & (cand_cam[:, None] == a_cam[None, :])
+        raw = np.where(ok, m, 0.0).max(axis=1)
+    top = float(raw.max())
+    if top < RELATION_FLOOR:
+        return {o.key: 0.0 for o in group}
+    return {o.key: float(v) / top for o, v in zip(group, raw)}
+
+
+ORDINAL_OTHERS = 0.2  # preference of the objects that are not in the said place of the order
+
+
+def _ordinal_scores(ordinal: int, counted_from: str | None,
+                    group: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """"The second bottle from the left": 1 for the object in that place of the order, ORDINAL_OTHERS for the rest
+    (all 0 when there are fewer objects than the ordinal)."""
+    key = {"left": lambda o: o.center[0], "right": lambda o: -o.center[0], "top": lambda o: o.center[1],
+           "bottom": lambda o: -o.center[1], "nearest": lambda o: -(o.bbox[1] + o.bbox[3]),
+           "farthest": lambda o: o.bbox[1] + o.bbox[3]}[counted_from or "left"]
+    order = sorted(group, key=lambda o: (o.cam, key(o), o.id))
+    index = ordinal - 1 if ordinal > 0 else len(order) + ordinal
+    if not 0 <= index < len(order):
+        return {o.key: 0.0 for o in group}
+    return {o.key: 1.0 if i == index else ORDINAL_OTHERS for i, o in enumerate(order)}
+
+
+def _relations_and_order(phrase: ObjectPhrase, objects: list[SceneObject], match: dict[tuple[str, str], float],
+                         scene: list[SceneObject]) -> None:
+    """Relations ("next to the bowl"), then the ordinal ("the second … from the left"), each choosing among the
+    objects the other words fit (match >= 0.5); `match` is updated in place."""
+    for relation in phrase.relations:
+        prefs = _relation_scores(relation, [o for o in objects if match[o.key] >= 0.5], scene)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 0.0)
+    if phrase.ordinal:
+        fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
+        prefs = _ordinal_scores(phrase.ordinal, phrase.ordinal_from, fitting)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 0.0)
+
+
 def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, weights: Weights,
-          *, adaptive: bool = True, ref: float | None = None) -> list[Scored]:
-    """All objects scored and ranked (best first; ties broken by camera and id for determinism)."""
+          *, adaptive: bool = True, ref: float | None = None, scene: list[SceneObject] | None = None) -> list[Scored]:
+    """All objects scored and ranked (best first; ties broken by camera and id for determinism). `scene`: every
+    object in view, where a relation's anchors are looked for (default: `objects`; the dialogue scores only the
+    candidates of its question, but "the one next to the laptop" may name a laptop that is not one of them)."""
     if not objects:
         return []
     match = {o.key: _attribute_match(phrase, o) for o in objects}
@@ -229,6 +353,7 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
         prefs = _spatial_scores(word, fitting)
         for o in objects:
             match[o.key] *= prefs.get(o.key, 1.0)
+    _relations_and_order(phrase, objects, match, scene if scene is not None else objects)
     use_gesture = pointing is not None and weights.gesture > 0
     ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
     if ws + wg <= 0:
@@ -248,6 +373,29 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
         scored.append(Scored(o, m, trust, s, g, angle, total))
     scored.sort(key=lambda c: (-round(c.total, 9), c.obj.cam, c.obj.id))
     return scored
+
+
+PART_OF = 0.9  # a box this much inside a bigger box of the same label is the detector boxing part of that object
+
+
+def _inside(small: tuple[float, float, float, float], big: tuple[float, float, float, float]) -> float:
+    ix = max(0.0, min(small[0] + small[2], big[0] + big[2]) - max(small[0], big[0]))
+    iy = max(0.0, min(small[1] + small[3], big[1] + big[3]) - max(small[1], big[1]))
+    return ix * iy / max(small[2] * small[3], 1e-6)
+
+
+def _whole_objects(candidates: list[Scored]) -> list[Scored]:
+    """The candidates without those that are part of another candidate of the same label (a chair's upper half
+    boxed again beside the whole chair, IoU under the detector's NMS threshold): asking "this chair or this
+    chair's top?" helps nobody. Stacked objects of one kind fall under the rule too: the stack is taken whole."""
+    out = []
+    for c in candidates:
+        o = c.obj
+        if not any(d is not c and d.obj.label == o.label and d.obj.cam == o.cam
+                   and d.obj.bbox[2] * d.obj.bbox[3] > o.bbox[2] * o.bbox[3]
+                   and _inside(o.bbox, d.obj.bbox) >= PART_OF for d in candidates):
+            out.append(c)
+    return out
 
 
 @dataclass(frozen=True)
@@ -291,7 +439,12 @@ def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAUL
                     or len(close) == MAX_CANDIDATES:
                 break
             close.append(c)
-        return Choice("ambiguous", None, tuple(close), speech_best, gesture_best, runner_up=runner_up)
+        whole = _whole_objects(close)
+        if len(whole) == 1:  # one object boxed twice by the detector: it is the whole one
+            if check_evidence and whole[0].evidence < MIN_EVIDENCE:
+                return Choice("low_confidence", whole[0], (whole[0],), speech_best, gesture_best, runner_up=runner_up)
+            return Choice("target", whole[0], (whole[0],), speech_best, gesture_best, None, runner_up)
+        return Choice("ambiguous", None, tuple(whole), speech_best, gesture_best, runner_up=runner_up)
     if check_evidence and winner.evidence < MIN_EVIDENCE:
         return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
     overruled = None

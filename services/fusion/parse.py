@@ -6,6 +6,9 @@ first) and then reads the tags: the first intent is the command (a greeting only
 is asked), colour/class/spatial/deictic words before a destination marker describe the object, and
 what follows a destination marker ("on", "in", "there", a named place) describes where it goes.
 A motion verb with a direction or an amount and no object is a motion ("go forward ten meters").
+A relation word splits the object phrase: the words before it name the object (the head noun decides the kind:
+"the bottle next to the bowl" is a bottle), the words after it the anchor ("next to the bowl"); ordinals ("the
+second bottle from the left") and modifiers nothing can check ("the soap bottle", said back) are kept too.
 A correction word after something was said ("the red, no, the blue cup") replaces what came before
 it. An unknown word in a noun's place ("the blue pitcher") is kept as the noun, so the robot can say
 it does not know it. Words the language does not know are matched fuzzily against its vocabulary
@@ -37,7 +40,11 @@ _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
     ("filler", {p: "filler" for p in (*L.POLITENESS_PHRASES, *L.DISFLUENCY_WORDS)}),
     ("amount", {p: p for p in L.VAGUE_AMOUNTS}),
     ("motion", L.phrases(L.MOTION_PHRASES)),
+    ("relation", L.phrases(L.RELATION_PHRASES)),
+    ("ordinal_from", L.phrases(L.ORDINAL_FROM_PHRASES)),
+    ("ordinal", {w: str(n) for w, n in L.ORDINAL_WORDS.items()}),
     ("spatial", L.phrases(L.SPATIAL_PHRASES)),
+    ("spatial", L.phrases(L.SPATIAL_EXTRA_PHRASES)),
     ("place", L.phrases(L.PLACE_PHRASES)),
     ("object", {**{p: L.canonical_label(key) for p, key in L.phrases(L.OBJECT_PHRASES).items()},
                 **L.phrases(L.LABEL_PHRASES), **{p: lab for p, lab in L.OBJECT_SYNONYMS.items()
@@ -95,6 +102,23 @@ class Tag:
     words: tuple[str, ...]  # the tokens as heard
 
 
+RELATION_WORDS = {"next_to": "next to", "behind": "behind", "in_front_of": "in front of", "left_of": "left of",
+                  "right_of": "right of", "on": "on", "in": "in", "under": "under", "above": "above",
+                  "between": "between"}
+ORDINAL_NAMES = {1: "first", 2: "second", 3: "third", 4: "fourth", 5: "fifth", -1: "last", -2: "second last"}
+
+
+@dataclass(frozen=True)
+class Relation:
+    """"next to the bowl": `kind` (common.language.RELATION_PHRASES) and the anchor(s) it relates the head to
+    (one phrase, or two for "between the cup and the bowl"; "between the two bottles" is one phrase)."""
+    kind: str
+    anchors: tuple["ObjectPhrase", ...]
+
+    def describe(self) -> str:
+        return f"{RELATION_WORDS[self.kind]} " + " and ".join(f"the {a.describe()}" for a in self.anchors)
+
+
 @dataclass(frozen=True)
 class ObjectPhrase:
     color: str | None = None
@@ -102,17 +126,37 @@ class ObjectPhrase:
     spatial: tuple[str, ...] = ()
     deictic: bool = False  # "this", "that", "it": a gesture (or the dialogue) should say which
     noun: str | None = None  # a noun the language does not know ("pitcher"), singular
+    relations: tuple[Relation, ...] = ()  # "next to the bowl", "on the table"
+    ordinal: int | None = None  # "the second …" (1-based), -1 "the last …"
+    ordinal_from: str | None = None  # counted from: left (default), right, top, bottom, nearest, farthest
+    unmatched: tuple[str, ...] = ()  # modifiers nothing can check ("the soap bottle"): said back, never dropped
 
     @property
     def specific(self) -> bool:
         """True if the words constrain which object (not just "it"/"that one")."""
-        return bool(self.color or (self.label and self.label != L.ANY_OBJECT) or self.spatial)
+        return bool(self.color or (self.label and self.label != L.ANY_OBJECT) or self.spatial or self.relations
+                    or self.ordinal)
+
+    @property
+    def names_kind(self) -> bool:
+        """A kind of thing is named ("the bottle", "the fruit"), not just "one"/"it"."""
+        return self.label not in (None, L.ANY_OBJECT)
 
     def describe(self) -> str:
         noun = self.noun or (self.label if self.label and self.label != L.ANY_OBJECT else "one")
-        words = [*self.spatial, self.color or "", noun]
+        ordinal = ORDINAL_NAMES.get(self.ordinal or 0, "")
+        words = [ordinal, *self.spatial, self.color or "", *self.unmatched, noun]
+        if self.ordinal and self.ordinal_from:
+            words.append(f"from the {self.ordinal_from}")
+        words.extend(r.describe() for r in self.relations)
         return " ".join(w for w in words if w) if self.specific or self.noun else (
             "that one" if self.deictic else "it")
+
+    @property
+    def unknown_nouns(self) -> tuple[str, ...]:
+        """Nouns nothing can name, in the phrase and its anchors ("next to the kettle")."""
+        own = (self.noun,) if self.noun else ()
+        return own + tuple(n for r in self.relations for a in r.anchors for n in a.unknown_nouns)
 
 
 @dataclass(frozen=True)
@@ -246,6 +290,9 @@ def tag(tokens: list[str], labels: tuple[str, ...] = ()) -> tuple[list[Tag], lis
                 unknown.append(word)
                 tags.append(Tag("unknown", word, i, (word,)))
             i += 1
+    tags = _person_pronouns(tags)  # "give it to her"
+    unknown = [w for w in unknown if w not in L.PERSON_PRONOUNS or any(
+        t.kind == "unknown" and t.value == w for t in tags)]
     return tags, corrections, unknown
 
 
@@ -290,15 +337,95 @@ def _object_phrase(tags: list[Tag], tokens: tuple[str, ...] = ()) -> ObjectPhras
     return ObjectPhrase(color=color, label=label, spatial=spatial, deictic=deictic, noun=noun)
 
 
+_NOUN_KINDS = ("object", "unknown")
+
+
+def _anchor_tags(segment: list[Tag]) -> list[Tag]:
+    """A relation's anchor as object tags: a place the detector names ("the table") becomes its label."""
+    out = []
+    for t in segment:
+        if t.kind == "place" and " ".join(t.words) in L.PLACE_AS_OBJECT:
+            out.append(Tag("object", L.PLACE_AS_OBJECT[" ".join(t.words)], t.index, t.words))
+        elif t.kind != "place":
+            out.append(t)
+    return out
+
+
+def _read_object(tags: list[Tag], tokens: tuple[str, ...]) -> ObjectPhrase:
+    """The object phrase with its relations ("the bottle next to the bowl"), ordinal ("the second bottle from the
+    left") and modifiers nothing checks ("the soap bottle"). The head noun is read from the words before the
+    first relation: "the bottle next to the bowl" is a bottle. Words after an anchor's noun ("… next to the sink
+    on the left") describe the head again."""
+    cuts = [k for k, t in enumerate(tags) if t.kind == "relation"]
+    head = list(tags[:cuts[0]] if cuts else tags)
+    relations: list[Relation] = []
+    spatial_alone: list[str] = []
+    for n, k in enumerate(cuts):
+        segment = _anchor_tags(list(tags[k + 1:cuts[n + 1]] if n + 1 < len(cuts) else tags[k + 1:]))
+        kind = tags[k].value
+        nouns = [j for j, t in enumerate(segment) if t.kind in _NOUN_KINDS and not (
+            t.kind == "object" and t.value == L.ANY_OBJECT and t.words != ("one",))]
+        if not nouns:  # "the chair in front", "the cup behind": a position, no anchor
+            if kind in L.RELATION_ALONE:
+                spatial_alone.append(L.RELATION_ALONE[kind])
+            head.extend(t for t in segment if t.kind != "place")
+            continue
+        last = nouns[-1]
+        anchor_part, after = segment[:last + 1], segment[last + 1:]
+        head.extend(t for t in after if t.kind in ("spatial", "ordinal", "ordinal_from"))
+        named = [j for j in nouns if segment[j].kind == "object" and segment[j].value != L.ANY_OBJECT]
+        if kind == "between" and len(named) >= 2:  # "between the cup and the bowl"
+            parts, start = [], 0
+            for j in named:
+                parts.append(_object_phrase(anchor_part[start:j + 1], tokens))
+                start = j + 1
+            anchors = tuple(parts)
+        else:
+            anchors = (_object_phrase(anchor_part, tokens),)
+        relations.append(Relation(kind, anchors))
+    if relations:  # "the bottle that is next to the bowl": "that" is not pointing
+        head = [t for t in head if t.kind != "deictic_object" or not any(
+            x.kind == "object" and x.index < t.index for x in head)]
+    head = [t for t in head if t.kind != "place"]
+    phrase = _object_phrase(head, tokens)
+    ordinal = next((int(t.value) for t in head if t.kind == "ordinal"), None)
+    ordinal_from = next((t.value for t in head if t.kind == "ordinal_from"), None)
+    spatial = tuple(dict.fromkeys((*phrase.spatial, *spatial_alone)))
+    head_noun = next((t for t in reversed(head) if t.kind == "object" and t.value == phrase.label), None)
+    unmatched = tuple(t.value for t in head if t.kind == "unknown" and head_noun is not None
+                      and t.index < head_noun.index and phrase.noun is None)
+    if ordinal is not None and phrase.label is None:
+        phrase = replace(phrase, label=L.ANY_OBJECT)
+    return replace(phrase, spatial=spatial, relations=tuple(relations), ordinal=ordinal,
+                   ordinal_from=ordinal_from if ordinal is not None else None, unmatched=unmatched)
+
+
+def _person_pronouns(tags: list[Tag]) -> list[Tag]:
+    """"give it to her": "her" with no noun after it is the person; "her cup" keeps it a determiner."""
+    out = []
+    for k, t in enumerate(tags):
+        nxt = tags[k + 1] if k + 1 < len(tags) else None
+        if t.kind == "unknown" and t.value in L.PERSON_PRONOUNS and (
+                nxt is None or nxt.kind not in ("object", "unknown", "color", "spatial")):
+            t = Tag("object", "person", t.index, t.words)
+        out.append(t)
+    return out
+
+
 def _merge(before: ObjectPhrase, after: ObjectPhrase) -> ObjectPhrase:
     """A self-correction: what is said after "no" replaces what was said before; what it leaves out
     ("the red cup, no, the blue one") is kept when the correction names no other kind of thing."""
     names_kind = (after.label not in (None, L.ANY_OBJECT)) or after.noun is not None
     if names_kind:
         return after
-    return ObjectPhrase(color=after.color or (before.color if not after.spatial else None),
-                        label=before.label, spatial=after.spatial or before.spatial,
-                        deictic=after.deictic or before.deictic, noun=before.noun)
+    moved = bool(after.spatial or after.relations or after.ordinal)  # a new position replaces the old colour too
+    return ObjectPhrase(color=after.color or (before.color if not moved else None),
+                        label=before.label, spatial=after.spatial or (before.spatial if not moved else ()),
+                        deictic=after.deictic or before.deictic, noun=before.noun,
+                        relations=after.relations or (before.relations if not moved else ()),
+                        ordinal=after.ordinal if moved else before.ordinal,
+                        ordinal_from=after.ordinal_from if moved else before.ordinal_from,
+                        unmatched=after.unmatched or before.unmatched)
 
 
 def _is_number(t: Tag) -> bool:
@@ -419,18 +546,22 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     start = chosen.index + len(chosen.words) if chosen else 0
     rest = [t for t in tags if t.index >= start and t.kind not in ("intent", "answer")]
     if intent == "put_down":  # "put <object> on|in|there <destination>"
-        split_at = next((k for k, t in enumerate(rest) if t.kind in ("dest", "deictic_place", "place")), len(rest))
+        split_at = next((k for k, t in enumerate(rest) if t.kind in ("dest", "deictic_place", "place", "relation")),
+                        len(rest))
         obj_tags, dest_tags = rest[:split_at], rest[split_at:]
     else:  # the object phrase *is* the destination of go_to / look_at
-        obj_tags, dest_tags = [t for t in rest if t.kind not in ("dest", "place", "deictic_place")], rest
-    obj = _object_phrase(obj_tags, tokens)
+        obj_tags, dest_tags = [t for t in rest if t.kind not in ("dest", "deictic_place")], rest
+    obj = _read_object(obj_tags, tokens)
     if before:
-        obj = _merge(_object_phrase([t for t in before if t.index >= start], tokens), obj)
-    place = next((t.value for t in dest_tags if t.kind == "place"), None)
+        obj = _merge(_read_object([t for t in before if t.index >= start], tokens), obj)
+    first_relation = next((t.index for t in obj_tags if t.kind == "relation"), None)
+    anchored = {t.index for t in obj_tags if t.kind == "place" and " ".join(t.words) in L.PLACE_AS_OBJECT
+                and first_relation is not None and t.index > first_relation and obj.relations}  # "on the table"
+    place = next((t.value for t in dest_tags if t.kind == "place" and t.index not in anchored), None)
     deictic_place = next((t.value for t in dest_tags if t.kind == "deictic_place"), None)
     dest_obj = None
     if intent == "put_down":
-        after_marker = [t for t in dest_tags if t.kind != "dest"]
+        after_marker = [t for t in dest_tags if t.kind not in ("dest", "relation")]
         candidate = _object_phrase(after_marker)
         if candidate.specific:
             dest_obj = candidate

@@ -50,7 +50,7 @@ class Context:
     def choose(self, phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, ref: float | None,
                check_evidence: bool = True) -> Choice:
         """Score `objects` against the words (and `pointing`) with this window's weights, and decide."""
-        scored = score(phrase, objects, pointing, self.weights, adaptive=self.adaptive, ref=ref)
+        scored = score(phrase, objects, pointing, self.weights, adaptive=self.adaptive, ref=ref, scene=self.objects)
         return choose(phrase, scored, margin=self.margin, check_evidence=check_evidence)
 
 

@@ -36,6 +36,20 @@ CANDIES = [
     Obj("candy_07", "candy", "green", (520, 250), (40, 40)), Obj("candy_08", "candy", "orange", (200, 320), (40, 40)),
 ]
 
+# Issue 22: relations, touch, people. A desk: the table under a laptop the finger rests on (the hand is at (320, 470)).
+TABLE = Obj("table_1", "dining table", "brown", (320, 400), (640, 180))
+DESK_LAPTOP = Obj("laptop_t", "laptop", "black", (330, 430), (200, 120))
+CHAIR = Obj("chair_1", "chair", "white", (60, 300), (110, 200))
+NEAR_BOTTLE = Obj("bottle_near", "bottle", "green", (250, 300), (40, 110))  # beside BOWL
+FAR_BOTTLE = Obj("bottle_far", "bottle", "green", (560, 200), (40, 110))
+ROW = [Obj("cup_1", "cup", "white", (120, 300)), Obj("cup_2", "cup", "white", (320, 300)),
+       Obj("cup_3", "cup", "white", (520, 300))]
+WOMAN = Obj("person_1", "person", None, (520, 220), (150, 420))
+MAN = Obj("person_2", "person", None, (110, 220), (150, 420))
+STACKED = [Obj("cup_a", "cup", "red", (300, 200), (60, 80)), Obj("cup_b", "cup", "red", (320, 230), (60, 80)),
+           Obj("laptop_s", "laptop", "grey", (200, 190), (100, 70)), Obj("sink_s", "sink", "white", (400, 260),
+                                                                           (80, 60))]
+
 ANSWER_AT = 6.0  # follow-up utterances start here (well inside the 10 s dialogue timeout)
 
 
@@ -243,6 +257,29 @@ SCENARIOS: list[Scenario] = [
     S("dialogue: not that one, to a confirmation", normal(TWO_CUPS, "Pick up the red cup.", conf=0.2) +
       answer(TWO_CUPS, "Not that one."), [ask("low_confidence"), cmd("pick_up", "cup_blue")],
       ("dialogue", "language")),
+    S("relation: the bottle next to the bowl is a bottle", normal([BOWL, NEAR_BOTTLE, FAR_BOTTLE],
+                                                                   "Pick up the bottle next to the bowl."),
+      [cmd("pick_up", "bottle_near")], ("relation", "language")),
+    S("relation: the second cup from the left", normal(ROW, "Bring me the second cup from the left."),
+      [cmd("bring", "cup_2")], ("relation", "position")),
+    S("relation: a bare reference is looked at", normal([BOWL, NEAR_BOTTLE, FAR_BOTTLE], "The bottle by the bowl."),
+      [cmd("look_at", "bottle_near")], ("relation", "language")),
+    S("relation: the question names landmarks and the answer uses them",
+      normal(STACKED, "Pick up the red cup.") + answer(STACKED, "The one by the sink."),
+      [ask("ambiguous", ["cup_a", "cup_b"], "the one next to the laptop or the one next to the sink"),
+       cmd("pick_up", "cup_b")], ("relation", "dialogue")),
+    S("touch: a finger on the laptop is the laptop, not the table", normal([TABLE, DESK_LAPTOP, CHAIR],
+                                                                          "Look at that.", (330.0, 479.0)),
+      [cmd("look_at", "laptop_t")], ("touch", "pointing")),
+    S("people: give it to her", normal([WOMAN, RED_CUP], "Give it to her."), [cmd("bring", "person_1")],
+      ("people", "language")),
+    S("people: give it to her, pointing at one of two", normal([WOMAN, MAN, RED_CUP], "Give it to her.",
+                                                               WOMAN.center), [cmd("bring", "person_1")],
+      ("people", "pointing")),
+    S("people: look at the man on the left", normal([WOMAN, MAN, RED_CUP], "Look at the man on the left."),
+      [cmd("look_at", "person_2")], ("people", "position")),
+    S("language: the stool is a chair", normal([CHAIR, WOMAN], "Go to the stool."), [cmd("go_to", "chair_1")],
+      ("language",)),
     S("dialogue: yes to a confirmation, Whisper style", normal(TWO_CUPS, "Pick up the red cup.", conf=0.2) +
       answer(TWO_CUPS, "Yes, please."), [ask("low_confidence"), cmd("pick_up", "cup_red")],
       ("dialogue", "language")),
