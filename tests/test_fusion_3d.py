@@ -127,6 +127,19 @@ def test_the_object_under_the_fingertip_wins_over_the_one_farther_along_the_ray(
     assert pointed(objects, pointing_hand(target)) == "touched"
 
 
+def test_a_box_around_the_fingertip_pixel_far_behind_the_person_is_not_touched():
+    """The 2-D touch rule (the smallest box holding the fingertip's pixel) is for objects without depth: a TV on the
+    wall behind the person holds the fingertip's pixel, but in metres it is 1.5 m behind the finger."""
+    target = np.array([-0.3, 0.2, 1.6])
+    tip = EYES + 0.7 * unit(target - EYES)
+    tv = thing("tv", "tv", [tip[0], tip[1], EYES[2] + 1.5], size=(0.9, 0.6, 0.1))
+    x, y, w, h = tv.bbox
+    tip_px = project(tip)
+    assert x <= tip_px[0] <= x + w and y <= tip_px[1] <= y + h
+    objects = [tv, thing("cup", "cup", target)]
+    assert pointed(objects, pointing_hand(target)) == "cup"
+
+
 def test_a_ray_in_another_frame_is_compared_in_two_d():
     target = np.array([-0.7, 0.45, 1.6])
     d = unit(target - EYES)

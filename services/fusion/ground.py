@@ -225,7 +225,10 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip; nor is
     a blob on the pointing hand itself."""
     tip = fingertip(p.origin, p.direction, p.hand_box)
-    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)]
+    # Objects in metres are judged by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may
+    # lie far behind it.
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)
+            and not in_3d(p, o)]
     hit, _ = touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
 
