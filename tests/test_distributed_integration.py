@@ -97,3 +97,49 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         assert stats["other"].get("handler_error", 0) == 0, stats
     finally:
         client.close()
+
+
+def consumer_lines(proc: Proc) -> list[dict]:
+    return [json.loads(line) for line in proc.output().splitlines() if line.startswith("{")]
+
+
+def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once(netns_group):
+    g = netns_group
+    g.router()
+    g.service("fusion", host="speech")
+    consumer = g.start("consumer", "tests.recovering_echo", g.net.endpoint("perception"), "hri/fusion/command",
+                       connect=False, host="perception")
+    client = Client(g.endpoint)
+    try:
+        client.wait_alive("fusion", timeout=90)
+        wait_until(lambda: "ready" in consumer.output(), 30, "the consumer subscribed")
+        plain = client.collect("hri/fusion/command")  # a plain zenoh subscriber still gets every command
+        words = iter(["turn left", "turn right"] * 20)
+
+        def command() -> None:
+            say(client, next(words))
+
+        time.sleep(1.0)
+        for _ in range(3):
+            command()
+            time.sleep(0.3)
+        plain.wait(3)
+        wait_until(lambda: len(consumer_lines(consumer)) >= 3, 10, "the consumer got the first commands")
+
+        g.net.set_link("perception", up=False)
+        time.sleep(3.5)  # past the 3 s lease: the consumer's session is gone, not merely slow
+        for _ in range(5):
+            command()
+            time.sleep(0.2)
+        time.sleep(max(0.0, OUTAGE_S - 4.5))
+        g.net.set_link("perception", up=True)
+        for _ in range(2):
+            time.sleep(0.5)
+            command()
+        sent = [s.id for _, s in plain.wait(10, timeout=20)]
+        wait_until(lambda: len(consumer_lines(consumer)) >= 10, 20, "every command at the consumer")
+        time.sleep(1.0)  # anything more would be a duplicate
+        got = [line["id"] for line in consumer_lines(consumer)]
+        assert got == sent, f"consumer got {got}, fusion sent {sent}\n{g.logs()}"
+    finally:
+        client.close()
