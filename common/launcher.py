@@ -166,7 +166,8 @@ class Launcher:
         if self.start_router:
             self._start("router", [*ROUTER_ARGV, self.listen[0],
                                    *[a for ep in self.listen[1:] for a in ("--listen", ep)]])
-        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure)
+        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure,
+                                       prefix=self.prefix)
         for spec in specs:
             self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)
         self.wait_live([s.name for s in specs], live_timeout)
@@ -208,11 +209,11 @@ class Launcher:
 
 
 def _client_session(endpoint: str, router_starting: bool, timeout: float,
-                    secure: str | None = None) -> zenoh.Session:
+                    secure: str | None = None, prefix: str = "hri") -> zenoh.Session:
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return open_client(endpoint, secure)
+            return open_client(endpoint, secure, prefix=prefix)
         except zenoh.ZError:
             if time.monotonic() > deadline:
                 hint = "the router did not start" if router_starting else "is `hri router` running there?"

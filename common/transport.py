@@ -102,7 +102,7 @@ def link_defaults(conf: zenoh.Config) -> None:
 
 def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
     """A router: users/passwords and the access rules of the secrets folder. Anything else: log in as --user."""
-    from common.security import SecurityError, access_control, password_for, read_secrets, tls_files
+    from common.security import SecurityError, access_control, login_user, password_for, read_secrets, tls_files
     tls = tls_files(args.secure)  # used on tls/ endpoints only
     if "ca" in tls:
         conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(str(tls["ca"])))
@@ -115,7 +115,7 @@ def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
             conf.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(str(sec.passwords_file)))
             conf.insert_json5("access_control", json.dumps(access_control(sec, args.prefix)))
         else:
-            user = args.user or "cli"
+            user = login_user(args.secure, args.user or "cli", args.prefix)
             conf.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
             conf.insert_json5("transport/auth/usrpwd/password", json.dumps(password_for(args.secure, user)))
     except SecurityError as exc:
@@ -183,22 +183,24 @@ def _router_listening(endpoints: list[str]) -> bool:
     return False
 
 
-def client_config(endpoint: str, secure: str | None = None, user: str = "cli") -> zenoh.Config:
+def client_config(endpoint: str, secure: str | None = None, user: str = "cli",
+                  prefix: str = DEFAULT_PREFIX) -> zenoh.Config:
     """A client of the router at `endpoint`, no multicast scouting: what tools and tests open.
-    `secure`: a secrets folder; log in as `user`."""
+    `secure`: a secrets folder; log in as `user` (`PREFIX-user` where the folder has robot users of `prefix`)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     conf.insert_json5("scouting/multicast/enabled", "false")
     link_defaults(conf)
     if secure:
-        add_security(conf, argparse.Namespace(mode="client", secure=secure, user=user, prefix=DEFAULT_PREFIX))
+        add_security(conf, argparse.Namespace(mode="client", secure=secure, user=user, prefix=prefix))
     return conf
 
 
-def open_client(endpoint: str, secure: str | None = None, user: str = "cli") -> zenoh.Session:
+def open_client(endpoint: str, secure: str | None = None, user: str = "cli",
+                prefix: str = DEFAULT_PREFIX) -> zenoh.Session:
     init_zenoh_logging()
-    return zenoh.open(client_config(endpoint, secure, user))
+    return zenoh.open(client_config(endpoint, secure, user, prefix))
 
 
 def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*",
