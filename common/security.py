@@ -277,10 +277,28 @@ def _robot_rules(roles: dict[str, Role], users: dict[str, list[str]], prefix: st
             continue
         ids = []
         if role.publish:
-            ids.append(allow(f"{name}-publish", "ingress", ["put", "delete"], role.publish))
+            # "reply": a recovering publisher answers from its cache with the samples' own keys
+            ids.append(allow(f"{name}-publish", "ingress", ["put", "delete", "reply"], role.publish))
+            # a recovering publisher (zenoh.ext AdvancedPublisher: fusion's commands) keeps its cache, heartbeat and
+            # liveliness under KEY/@adv/pub/..., which no wildcard reaches: allowed for its own keys only
+            adv = tuple(f"{e}/@adv/**" for e in role.publish)
+            ids.append(allow(f"{name}-recovering", "ingress", ["put", "declare_queryable", "reply", "liveliness_token",
+                                                               "declare_liveliness_subscriber", "liveliness_query"],
+                             adv))
+            ids.append(allow(f"{name}-recovering-peers", "egress", ["query", "declare_subscriber",
+                                                                    "liveliness_token"], adv))
         if role.subscribe:
             ids.append(allow(f"{name}-subscribe", "ingress", ["declare_subscriber"], role.subscribe))
-            ids.append(allow(f"{name}-receive", "egress", ["put", "delete"], role.subscribe))
+            ids.append(allow(f"{name}-receive", "egress", ["put", "delete", "reply"], role.subscribe))
+            # ... and a recovering subscriber of what it may read asks for what it missed there
+            # (the recovery query asks KEY/@adv/*/ZID/EID/**)
+            ids.append(allow(f"{name}-recover", "ingress", ["declare_subscriber", "query", "liveliness_query",
+                                                            "declare_liveliness_subscriber"],
+                             tuple(f"{e}/@adv/**" for e in role.subscribe)))
+            ids.append(allow(f"{name}-recover-announce", "ingress", ["liveliness_token"],
+                             tuple(f"{e}/@adv/sub/**" for e in role.subscribe)))
+            ids.append(allow(f"{name}-recovered", "egress", ["put", "reply", "liveliness_token", "declare_queryable"],
+                             tuple(f"{e}/@adv/**" for e in role.subscribe)))
         if role.service:
             ids.append(allow(f"{name}-service", "ingress", ["liveliness_token", "declare_queryable", "reply"],
                              (f"alive/{role.service}/*", f"stats/{role.service}/*")))

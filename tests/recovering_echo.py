@@ -1,6 +1,7 @@
 """A consumer across a link that drops: prints every sample on KEY as a JSON line, including those it fetched
 from a recovering publisher's cache after its link came back (common/transport.py). For the distributed tests:
-`python -m tests.recovering_echo ENDPOINT KEY` (prints `ready` once subscribed)."""
+`python -m tests.recovering_echo ENDPOINT KEY [SECRETS_FOLDER]` (prints `ready` once subscribed; with a secrets
+folder it logs in as the read-only user cli)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from common.transport import declare_recovering_subscriber, open_client
 def main() -> None:
     endpoint, key = sys.argv[1], sys.argv[2]
     keys = Keys(key.split("/")[0])
-    session = open_client(endpoint)
+    session = open_client(endpoint, sys.argv[3] if len(sys.argv) > 3 else None)
     lock = threading.Lock()
 
     def on_sample(s) -> None:

@@ -103,13 +103,18 @@ def consumer_lines(proc: Proc) -> list[dict]:
     return [json.loads(line) for line in proc.output().splitlines() if line.startswith("{")]
 
 
-def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once(netns_group):
+@pytest.mark.parametrize("secured", [False, True], ids=["open", "secured"])
+def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once(netns_group, tmp_path, secured):
     g = netns_group
-    g.router()
-    g.service("fusion", host="speech")
+    secure: list[str] = []
+    if secured:  # the access rules must let the recovery through (it lives under KEY/@adv/...)
+        from common.security import init_secrets
+        secure = ["--secure", str(init_secrets(tmp_path / "secrets", {"operator": ["reader", "keyboard"]}).folder)]
+    g.router(*secure)
+    g.service("fusion", *secure, host="speech")
     consumer = g.start("consumer", "tests.recovering_echo", g.net.endpoint("perception"), "hri/fusion/command",
-                       connect=False, host="perception")
-    client = Client(g.endpoint)
+                       *secure[1:], connect=False, host="perception")
+    client = Client(g.endpoint, secure=secure[1] if secure else None, user="operator" if secure else "cli")
     try:
         client.wait_alive("fusion", timeout=90)
         wait_until(lambda: "ready" in consumer.output(), 30, "the consumer subscribed")
