@@ -358,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--robot", default=None, metavar="PREFIX",
                    help="several robots on one router: add this robot's own users (PREFIX-camera, …, PREFIX-cli), "
                         "allowed only under keys PREFIX/**; run once per robot on the router's folder, and give "
-                        "each robot's machines its lines of the passwords file (docs/security.md)")
+                        "each robot's machines its lines of the passwords file (docs/foundation.md, Across machines)")
     p.add_argument("--tls", action="store_true",
                    help="also make a private CA and a router certificate (openssl) in DIR/tls/; then use tls/ "
                         "endpoints")

@@ -6,7 +6,6 @@ Needs root (network namespaces); skips with the reason elsewhere. tests/netns.py
 from __future__ import annotations
 
 import json
-import sys
 import time
 
 import pytest
@@ -26,6 +25,13 @@ OUTAGE_S = 5.0
 RECONNECT_BOUND_S = 8.0
 
 netns_group = pytest.fixture(netns_fixture)
+
+
+def rss_mb(pid: int) -> float:
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return 0.0
 
 
 def say(client: Client, text: str, seconds_per_word: float = 0.2) -> None:
@@ -64,6 +70,7 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         first = next_result(results)
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.color == "red", first
         assert first.inputs["vision"] is not None
+        rss_before = {p.name: rss_mb(p.pid) for p in (camera, vision, fusion)}
 
         t_cut = time.monotonic()
         g.net.set_link("perception", up=False)
@@ -93,6 +100,10 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
 
         for proc in (camera, vision, fusion):
             assert proc.alive(), f"{proc.name} exited\n{g.logs()}"
+            # nothing piles up while the link is down (queues are bounded); the fuzz test's allowance for growth
+            after = rss_mb(proc.pid)
+            print(f"{proc.name}: RSS {rss_before[proc.name]:.0f} -> {after:.0f} MB over the cut")
+            assert after <= rss_before[proc.name] + 150, (proc.name, rss_before[proc.name], after)
         stats = client.stats("fusion")
         assert stats["other"].get("handler_error", 0) == 0, stats
     finally:
