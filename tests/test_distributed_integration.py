@@ -59,10 +59,11 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
     g.router()
     camera = g.service("camera", "--source", str(TABLE), "--fps", "10", "--loop", host="perception")
     vision = g.service("vision", "--labels", str(LABELS), host="perception")
+    gesture = g.service("gesture", host="perception")
     fusion = g.service("fusion", host="speech")
     client = Client(g.endpoint)
     try:
-        for name in ("camera", "vision", "fusion"):
+        for name in ("camera", "vision", "gesture", "fusion"):
             client.wait_alive(name, timeout=90)
         results = client.collect("hri/fusion/**")
         time.sleep(1.0)
@@ -70,12 +71,12 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         first = next_result(results)
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.color == "red", first
         assert first.inputs["vision"] is not None
-        rss_before = {p.name: rss_mb(p.pid) for p in (camera, vision, fusion)}
+        rss_before = {p.name: rss_mb(p.pid) for p in (camera, vision, gesture, fusion)}
 
         t_cut = time.monotonic()
         g.net.set_link("perception", up=False)
         # the router drops the unreachable host's tokens once its lease (3 s) ran out: fusion sees vision gone
-        wait_until(lambda: not {"camera", "vision"} & {s for s, _ in client.alive(0.5)}, OUTAGE_S,
+        wait_until(lambda: not {"camera", "vision", "gesture"} & {s for s, _ in client.alive(0.5)}, OUTAGE_S,
                    "the perception host's liveliness tokens gone")
         time.sleep(max(0.0, t_cut + 4.2 - time.monotonic()))  # vision's last samples are past fusion's look-back
         say(client, "pick up the red one")
@@ -87,7 +88,8 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         time.sleep(max(0.0, t_cut + OUTAGE_S - time.monotonic()))
         g.net.set_link("perception", up=True)
         t_up, wall_up = time.monotonic(), time.time()
-        t_back = wait_until(lambda: {"camera", "vision"} <= {s for s, _ in client.alive(0.5)}, RECONNECT_BOUND_S,
+        t_back = wait_until(lambda: {"camera", "vision", "gesture"} <= {s for s, _ in client.alive(0.5)},
+                            RECONNECT_BOUND_S,
                             "the perception host's liveliness tokens back")
         print(f"reconnected {t_back - t_up:.2f} s after the link came back")
 
@@ -98,7 +100,7 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         # grounded on detections of frames taken after the link returned, not on what was in flight at the cut
         assert again.inputs["vision"] is not None and again.inputs["vision"] >= wall_up, (again.inputs, wall_up)
 
-        for proc in (camera, vision, fusion):
+        for proc in (camera, vision, gesture, fusion):
             assert proc.alive(), f"{proc.name} exited\n{g.logs()}"
             # nothing piles up while the link is down (queues are bounded); the fuzz test's allowance for growth
             after = rss_mb(proc.pid)
