@@ -71,6 +71,17 @@ def test_a_source_that_left_is_forgotten():
     assert clocks.offset("vision/a") is None and clocks.offsets() == {}
 
 
+def test_a_silent_source_expires_so_one_shot_sources_do_not_pile_up():
+    clocks = ClockOffsets(idle_s=60)
+    for i in range(100):  # `hri say` 100 times: 100 sources of one sample each
+        clocks.add(f"cli/{i}", 100.0 + i, None, 100.0 + i)
+    clocks.add("gesture/a", 200.0, None, 200.0)
+    assert len(clocks.expire(200.0)) == 40  # silent for more than 60 s
+    assert len(clocks.offsets()) == 61 and "gesture/a" in clocks.offsets()
+    clocks.expire(1000.0)
+    assert clocks.offsets() == {}
+
+
 def test_verdict_against_the_window_margins():
     assert clock_verdict(0.3, 0.15, 0.5) == "ahead"
     assert clock_verdict(0.1, 0.15, 0.5) is None

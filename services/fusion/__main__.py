@@ -102,14 +102,20 @@ def main(argv: list[str] | None = None) -> None:
     token_sub = service.session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)
     service.on_close(token_sub.undeclare)
 
-    def handler(feed):
+    # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
+    # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
+    delayed_sources: set[str] = set()
+
+    def handler(feed, delayed: bool = False):
         def handle(d: Delivery) -> None:
+            if delayed:
+                delayed_sources.add(d.sample.source)
             service.log.debug("in %s %.3f", d.key, d.sample.stamp)
             clocks.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
             emit(feed(d.key, d.sample, d.received_at))
         return handle
 
-    service.subscribe(keys.transcript("*"), Transcript, handler(core.on_transcript), maxlen=200)
+    service.subscribe(keys.transcript("*"), Transcript, handler(core.on_transcript, delayed=True), maxlen=200)
     service.subscribe(keys.objects("*"), Detections, handler(core.on_detections), maxlen=300)
     service.subscribe(keys.hands("*"), Hands, handler(core.on_hands), maxlen=600)
     service.subscribe(keys.gesture_event("*"), GestureEvent, handler(core.on_gesture_event), maxlen=200)
@@ -120,10 +126,13 @@ def main(argv: list[str] | None = None) -> None:
         if now - last_clock_report[0] < 1.0:
             return
         last_clock_report[0] = now
+        for source in clocks.expire(now):
+            service.counters.set(f"clock_offset_ms:{source}", None)
+            delayed_sources.discard(source)
         for source, offset in clocks.offsets().items():
             service.counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
             verdict = clock_verdict(offset, ahead_tol, behind_tol)
-            if verdict:
+            if verdict == "ahead" or (verdict == "behind" and source not in delayed_sources):
                 clock_log.warn(f"clock:{source}", f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
                                f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
                                f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "

@@ -256,15 +256,25 @@ class ClockOffsets:
     of a transcript, whose stamp is the utterance end) reads as its clock being that much *behind*.
     """
 
-    def __init__(self, window: int = 64):
+    def __init__(self, window: int = 64, idle_s: float = 60.0):
         self.window = window
+        self.idle_s = idle_s  # a source silent this long (wall) is dropped: `hri say` is a new source every time
         self._source: dict[str, collections.deque[float]] = {}
+        self._last: dict[str, float] = {}
         self._router: collections.deque[float] = collections.deque(maxlen=window)
 
     def add(self, source: str, stamp: float, ref: float | None, wall: float) -> None:
         ref = wall if ref is None else ref
         self._source.setdefault(source, collections.deque(maxlen=self.window)).append(stamp - ref)
+        self._last[source] = wall
         self._router.append(ref - wall)
+
+    def expire(self, wall: float) -> list[str]:
+        """Forget the sources silent for `idle_s`; returns them (so their reported offsets go too)."""
+        gone = [s for s, last in self._last.items() if wall - last > self.idle_s]
+        for source in gone:
+            self.forget(source)
+        return gone
 
     def router_offset(self) -> float:
         """The router's clock minus this machine's (0 while nothing arrived)."""
@@ -281,6 +291,7 @@ class ClockOffsets:
     def forget(self, source: str) -> None:
         """A source that left (its liveliness token went away): a new instance starts a new estimate."""
         self._source.pop(source, None)
+        self._last.pop(source, None)
 
 
 def clock_verdict(offset: float, ahead_tolerance: float, behind_tolerance: float) -> str | None:
