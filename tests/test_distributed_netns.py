@@ -9,7 +9,14 @@ import pytest
 
 from tests.netns import NAME_PREFIX, Network, cleanup_leftovers, netns_fixture, unavailable
 
-pytestmark = pytest.mark.skipif(unavailable() is not None, reason=str(unavailable()))
+needs_root = pytest.mark.skipif(unavailable() is not None, reason=str(unavailable()))
+
+
+def test_without_root_the_reason_is_given(monkeypatch):
+    monkeypatch.setattr("os.geteuid", lambda: 1000)
+    assert "needs root" in unavailable()
+    monkeypatch.setattr("shutil.which", lambda name: None)
+    assert "`ip` command" in unavailable()
 
 
 def namespaces() -> set[str]:
@@ -28,6 +35,7 @@ def carrier(ns: str | None, ifname: str) -> bool:
     return "LOWER_UP" in out and "NO-CARRIER" not in out
 
 
+@needs_root
 def test_hosts_have_a_route_to_the_router_only_and_a_link_that_can_be_cut():
     net = Network()
     try:
@@ -46,6 +54,7 @@ def test_hosts_have_a_route_to_the_router_only_and_a_link_that_can_be_cut():
     assert not set(net.namespaces.values()) & namespaces()
 
 
+@needs_root
 def test_the_fixture_tears_down_when_the_test_fails():
     gen = netns_fixture()
     group = next(gen)
@@ -56,6 +65,7 @@ def test_the_fixture_tears_down_when_the_test_fails():
     assert not made & namespaces()
 
 
+@needs_root
 def test_leftovers_of_a_killed_run_are_removed():
     dead_pid = int(open("/proc/sys/kernel/pid_max").read()) + 1  # no such process
     name = f"{NAME_PREFIX}-{dead_pid}-beef-router"
