@@ -273,7 +273,7 @@ def cmd_secure_init(args: argparse.Namespace) -> int:
             return 2
         extra[name] = [r for r in roles.split(",") if r]
     try:
-        sec = init_secrets(args.folder, extra)
+        sec = init_secrets(args.folder, extra, robot=args.robot)
         certs = make_tls(sec.folder, args.host) if args.tls else []
     except SecurityError as exc:
         print(f"hri secure init: {exc}", file=sys.stderr)
@@ -355,6 +355,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--user", action="append", metavar="NAME:ROLE[,ROLE]",
                    help="add a user with these roles, repeatable (the services and a read-only cli user are "
                         "always there)")
+    p.add_argument("--robot", default=None, metavar="PREFIX",
+                   help="several robots on one router: add this robot's own users (PREFIX-camera, …, PREFIX-cli), "
+                        "allowed only under keys PREFIX/**; run once per robot on the router's folder, and give "
+                        "each robot's machines its lines of the passwords file (docs/foundation.md, Across machines)")
     p.add_argument("--tls", action="store_true",
                    help="also make a private CA and a router certificate (openssl) in DIR/tls/; then use tls/ "
                         "endpoints")

@@ -31,6 +31,8 @@ examples:
   hri up --camera clip.mp4 --speech-input wav --wav commands/
   hri up --no-gesture --vision-backend onnx --model ../shared/models/yolox_nano.onnx   # YOLOX/v5/v8 ONNX, COCO-80
   hri up --secure ~/.hri/robot1 ...                  # secured: every service logs in (hri secure init)
+  hri up --only router,camera,gesture --listen tcp/0.0.0.0:7447     # host A: the router and part of the stack
+  hri up --only vision,speech,fusion --connect tcp/10.0.0.2:7447    # host B: the rest, against A's router
   hri echo 'hri/fusion/**'                            # in another terminal
 """
 
@@ -137,9 +139,10 @@ class Launcher:
     """Runs a set of services (and the router) as one group."""
 
     def __init__(self, endpoint: str, prefix: str, start_router: bool, out: Callable[[str], None] = print,
-                 secure: str | None = None):
+                 secure: str | None = None, listen: list[str] | None = None):
         self.secure = secure  # a secrets folder: the router enforces it, each service logs in as itself
         self.endpoint = endpoint
+        self.listen = listen or [endpoint]  # the router's endpoints (one per network it serves); we use the first
         self.prefix = prefix
         self.start_router = start_router
         self.keys = Keys(prefix)
@@ -161,8 +164,10 @@ class Launcher:
 
     def start(self, specs: list[ServiceSpec], live_timeout: float = 60.0) -> None:
         if self.start_router:
-            self._start("router", [*ROUTER_ARGV, self.endpoint])
-        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure)
+            self._start("router", [*ROUTER_ARGV, self.listen[0],
+                                   *[a for ep in self.listen[1:] for a in ("--listen", ep)]])
+        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure,
+                                       prefix=self.prefix)
         for spec in specs:
             self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)
         self.wait_live([s.name for s in specs], live_timeout)
@@ -204,11 +209,11 @@ class Launcher:
 
 
 def _client_session(endpoint: str, router_starting: bool, timeout: float,
-                    secure: str | None = None) -> zenoh.Session:
+                    secure: str | None = None, prefix: str = "hri") -> zenoh.Session:
     deadline = time.monotonic() + timeout
     while True:
         try:
-            return open_client(endpoint, secure)
+            return open_client(endpoint, secure, prefix=prefix)
         except zenoh.ZError:
             if time.monotonic() > deadline:
                 hint = "the router did not start" if router_starting else "is `hri router` running there?"
@@ -241,18 +246,41 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
                         "pocketsphinx (a grammar decoder for small machines)")
     p.add_argument("--fusion-arg", action="append", default=[], metavar="ARG",
                    help="extra argument for the fusion service, repeatable (e.g. --fusion-arg=--weights=fixed)")
+    p.add_argument("--only", type=only_list, default=None, metavar="NAME[,NAME...]",
+                   help=f"start only these of router,{','.join(STACK)} (the rest runs on other hosts); without "
+                        f"'router' in the list, the services connect to --connect ENDPOINT (default "
+                        f"{DEFAULT_ENDPOINT})")
     p.add_argument("--live-timeout", type=float, default=90.0, help="seconds to wait for each service to come up")
+
+
+def only_list(text: str) -> list[str]:
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in ("router", *STACK)]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f"unknown part(s) {unknown or [text]}: name some of "
+                                         f"router,{','.join(STACK)}, comma-separated")
+    return names
+
+
+def select(specs: list[ServiceSpec], only: list[str] | None) -> list[ServiceSpec]:
+    """The services `--only` keeps (all without it)."""
+    return specs if only is None else [s for s in specs if s.name in only]
+
+
+def starts_router(args: argparse.Namespace) -> bool:
+    """`hri up` starts the router unless told to use one (--connect) or --only leaves it out."""
+    return not args.connect and (args.only is None or "router" in args.only)
 
 
 def cmd_up(args: argparse.Namespace) -> int:
     if args.camera == "none":
         args.camera = None
-    specs = services_from_args(args)
+    specs = select(services_from_args(args), getattr(args, "only", None))
     # --connect: use a router that already runs; else start one on --listen (default tcp/127.0.0.1:7447)
     endpoint = (args.connect or args.listen or [DEFAULT_ENDPOINT])[0]
     prefix = args.prefix or os.environ.get("HRI_PREFIX") or "hri"
     secure = args.secure or os.environ.get("HRI_SECURE") or None
-    launcher = Launcher(endpoint, prefix, start_router=not args.connect, secure=secure)
+    launcher = Launcher(endpoint, prefix, start_router=starts_router(args), secure=secure, listen=args.listen)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

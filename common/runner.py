@@ -34,7 +34,7 @@ from common.keys import Keys, check_chunk
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.schema import Frame, InvalidSample, Sample, Stats
 from common.stamps import DEFAULT_MAX_SKEW_S, DEFAULT_RESET_RUN, FUTURE, OUT_OF_ORDER, RESET, StampGuard
-from common.transport import add_zenoh_arguments, open_session, resolve
+from common.transport import add_zenoh_arguments, declare_recovering_publisher, open_session, resolve
 
 LOG_FORMAT = "%(asctime)s %(name)s %(levelname)s %(message)s"
 SHUTDOWN_GRACE_S = 1.8  # the contract promises exit within 2 s of SIGTERM
@@ -135,6 +135,14 @@ class Counters:
             else:
                 self.other[name] += n
 
+    def set(self, name: str, value: int | None) -> None:
+        """A gauge among the counters of `other` (e.g. a clock offset in ms); None removes it."""
+        with self._lock:
+            if value is None:
+                self.other.pop(name, None)
+            else:
+                self.other[name] = value
+
     def reject(self, reason: str, detail: str, key: str = "") -> None:
         with self._lock:
             self.rejected[reason] += 1
@@ -153,6 +161,7 @@ class Delivery:
     sample: Any
     received_at: float  # wall time the callback ran (for lag measurement, never for joins)
     timeline_reset: bool = False  # the first sample of a stream's new timeline: per-stream state may restart
+    zenoh_time: float | None = None  # the Zenoh (HLC) timestamp the router or publisher added, UNIX seconds
 
 
 class Inbox:
@@ -214,8 +223,12 @@ class Inbox:
 class Service:
     """A running hri service: session, liveliness, stats, validated inputs, one worker thread."""
 
-    def __init__(self, name: str, args: argparse.Namespace, log: logging.Logger | None = None):
+    def __init__(self, name: str, args: argparse.Namespace, log: logging.Logger | None = None,
+                 recovering: bool = False):
+        """`recovering`: this service publishes with `publish(..., recovering=True)` (its session then stamps
+        its samples itself, which Zenoh's AdvancedPublisher needs)."""
         resolve(args)
+        self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
         self.name = check_chunk(name, "service name")
         self.instance = check_chunk(args.instance or f"{socket.gethostname()}-{os.getpid()}", "instance")
@@ -229,7 +242,7 @@ class Service:
         self._inbox = Inbox(self.counters)
         self._subscribers: list[Any] = []
         self._declared: list[Any] = []
-        self._publishers: dict[tuple[str, bool, bool], "SamplePublisher"] = {}
+        self._publishers: dict[tuple[str, bool, bool, bool], "SamplePublisher"] = {}
         self._on_close: list[Callable[[], None]] = []
         self._started = time.monotonic()
         self._channels = 0
@@ -238,7 +251,7 @@ class Service:
     def connect(self) -> bool:
         """Open the session and announce ourselves. False if asked to stop while waiting for the router."""
         self._install_signal_handlers()
-        self.session = open_session(self.args, self.log, self.stop_event)
+        self.session = open_session(self.args, self.log, self.stop_event, timestamping=self.recovering)
         if self.session is None:
             return False
         self._declared.append(self.session.liveliness().declare_token(self.keys.alive(self.name, self.instance)))
@@ -298,7 +311,9 @@ class Service:
                 self.counters.add(RESET)
                 self.counters.ratelog.warn(RESET, f"{key} went back in time: following its new timeline from "
                                            f"stamp {sample.stamp:.6f} (a clock step or a restarted replay?)")
-            delivery = Delivery(key, sample, time.time(), verdict == RESET)
+            ts = zsample.timestamp
+            delivery = Delivery(key, sample, time.time(), verdict == RESET,
+                                ts.get_time_as_ntp64().as_secs_f64() if ts is not None else None)
             if latest:
                 self._inbox.put_latest(handler, delivery)
             else:
@@ -306,12 +321,17 @@ class Service:
 
         self._subscribers.append(self.session.declare_subscriber(keyexpr, on_sample))
 
-    def publish(self, key: str, sample: Sample, *, lossless: bool = True, realtime: bool = False) -> None:
-        pub = self._publishers.get((key, lossless, realtime))
+    def publish(self, key: str, sample: Sample, *, lossless: bool = True, realtime: bool = False,
+                recovering: bool = False) -> None:
+        """`recovering`: what must not be lost across a dropped link (commands): kept in a cache that recovering
+        subscribers fetch what they missed from (common/transport.py declare_recovering_publisher)."""
+        slot = (key, lossless, realtime, recovering)
+        pub = self._publishers.get(slot)
         if pub is None:  # one declared publisher per key and QoS (a stop and a pick_up share a key, not a QoS)
             assert self.session is not None, "connect() first"
-            pub = self._publishers[(key, lossless, realtime)] = SamplePublisher(self.session, key, lossless=lossless,
-                                                                                realtime=realtime)
+            assert self.recovering or not recovering, "Service(..., recovering=True) for recovering publishers"
+            pub = self._publishers[slot] = SamplePublisher(self.session, key, lossless=lossless, realtime=realtime,
+                                                           recovering=recovering)
         pub.put(sample)
         self.counters.add("published")
 
@@ -405,14 +425,17 @@ class Service:
 class SamplePublisher:
     """A declared publisher that encodes (and so validates) every sample it sends."""
 
-    def __init__(self, session: zenoh.Session, key: str, *, lossless: bool = True, realtime: bool = False):
+    def __init__(self, session: zenoh.Session, key: str, *, lossless: bool = True, realtime: bool = False,
+                 recovering: bool = False):
         self.key = key
-        self._pub = session.declare_publisher(
-            key, encoding=zenoh.Encoding(ENCODING),
+        qos = dict(
+            encoding=zenoh.Encoding(ENCODING),
             congestion_control=zenoh.CongestionControl.BLOCK if lossless else zenoh.CongestionControl.DROP,
             priority=zenoh.Priority.REAL_TIME if realtime else (
                 zenoh.Priority.DATA_HIGH if lossless else zenoh.Priority.DATA),
             express=realtime)
+        self._pub = (declare_recovering_publisher(session, key, **qos) if recovering
+                     else session.declare_publisher(key, **qos))
 
     def put(self, sample: Sample) -> None:
         self._pub.put(encode(sample))

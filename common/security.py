@@ -10,6 +10,11 @@ fusion/**; the `reader` role (the `cli` user: hri echo/list/stats/record, a plan
 allowed is denied. A process opens its session as `--user NAME` (default: the service's own name, `cli` for
 the hri command) with the password it finds for that user in `DIR/passwords` — a machine can be given only its
 own line. Pure: nothing here opens a session.
+
+Several robots on one router (a site): `hri secure init SITE --robot robot1`, then `--robot robot2`, gives each
+robot its own users (`robot1-camera`, …, `robot1-cli`) bound to its prefix (users.json "prefixes"); the router
+(`hri router --secure SITE`) lets each user publish, subscribe and learn of subscribers only under its own
+robot's prefix. A process started with `--prefix robot1` logs in as `robot1-NAME` when the folder has that user.
 """
 
 from __future__ import annotations
@@ -69,6 +74,10 @@ class Secrets:
     folder: Path
     users: dict[str, list[str]]
     roles: dict[str, Role] = field(default_factory=lambda: dict(ROLES))
+    prefixes: dict[str, str] = field(default_factory=dict)  # user -> its robot's prefix (absent: the router's)
+
+    def prefix_of(self, user: str, default: str) -> str:
+        return self.prefixes.get(user, default)
 
     @property
     def passwords_file(self) -> Path:
@@ -89,6 +98,15 @@ def read_passwords(path: Path) -> dict[str, str]:
                 raise SecurityError(f"{path}: every line must be user:password")
             out[user.strip()] = password.strip()
     return out
+
+
+def login_user(folder: str | Path, user: str, prefix: str) -> str:
+    """The user a process of robot `prefix` logs in as: `PREFIX-USER` where the folder has it (a site's robot
+    users, `hri secure init --robot`), else `user`."""
+    robot_user = f"{prefix.replace('/', '-')}-{user}"
+    if prefix != "hri" and robot_user in read_passwords(Path(folder) / PASSWORDS):
+        return robot_user
+    return user
 
 
 def password_for(folder: str | Path, user: str) -> str:
@@ -113,23 +131,39 @@ def read_secrets(folder: str | Path) -> Secrets:
     for name, role in doc.get("roles", {}).items():
         roles[name] = Role.from_dict(role)
     users = {u: list(r) for u, r in doc.get("users", {}).items()}
+    prefixes = {u: str(p) for u, p in doc.get("prefixes", {}).items()}
     for user, their_roles in users.items():
         unknown = [r for r in their_roles if r not in roles]
         if unknown:
             raise SecurityError(f"{folder / USERS}: user {user!r} has unknown role(s) {unknown}; roles: "
                                 f"{', '.join(sorted(roles))}")
-    return Secrets(folder, users, roles)
+    return Secrets(folder, users, roles, prefixes)
 
 
-def init_secrets(folder: str | Path, extra_users: dict[str, list[str]] | None = None) -> Secrets:
-    """Create (or extend) a secrets folder: a random password for every user that has none yet."""
+def init_secrets(folder: str | Path, extra_users: dict[str, list[str]] | None = None,
+                 robot: str | None = None) -> Secrets:
+    """Create (or extend) a secrets folder: a random password for every user that has none yet.
+
+    `robot`: a prefix; the default users (and `extra_users`) are added as `ROBOT-NAME`, allowed only under it."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
-    users = dict(DEFAULT_USERS)
+    users: dict[str, list[str]] = {} if robot else dict(DEFAULT_USERS)
+    prefixes: dict[str, str] = {}
     if (folder / USERS).exists():
-        users.update(read_secrets(folder).users)
-    users.update(extra_users or {})
+        old = read_secrets(folder)
+        users.update(old.users)
+        prefixes.update(old.prefixes)
+    if robot:
+        robot = robot.strip("/")
+        if not robot or robot == "hri" or any(c in robot for c in "*$?#"):
+            raise SecurityError(f"--robot {robot!r}: give the robot's prefix (e.g. robot1), not the default 'hri'")
+        for name, their_roles in {**DEFAULT_USERS, **(extra_users or {})}.items():
+            user = f"{robot.replace('/', '-')}-{name}"
+            users[user] = list(their_roles)
+            prefixes[user] = robot
+    else:
+        users.update(extra_users or {})
     for user, their_roles in users.items():
         unknown = [r for r in their_roles if r not in ROLES]
         if unknown:
@@ -138,7 +172,10 @@ def init_secrets(folder: str | Path, extra_users: dict[str, list[str]] | None = 
     for user in users:
         passwords.setdefault(user, secrets.token_urlsafe(24))
     _write_private(folder / PASSWORDS, "".join(f"{u}:{p}\n" for u, p in passwords.items()))
-    _write_private(folder / USERS, json.dumps({"users": users}, indent=2) + "\n")
+    doc: dict[str, Any] = {"users": users}
+    if prefixes:
+        doc["prefixes"] = prefixes
+    _write_private(folder / USERS, json.dumps(doc, indent=2) + "\n")
     return read_secrets(folder)
 
 
@@ -198,16 +235,29 @@ def _write_private(path: Path, text: str) -> None:
 
 
 def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
-    """Zenoh's `access_control` section: deny by default, allow what each user's roles describe."""
+    """Zenoh's `access_control` section: deny by default, allow what each user's roles describe, under the
+    user's robot's prefix (`prefix`, the router's, unless users.json binds the user to another)."""
+    rules: list[dict[str, Any]] = []
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    robots = sorted({sec.prefix_of(u, prefix) for u in sec.users}, key=lambda p: (p != prefix, p))
+    for robot in robots:
+        members = {u: r for u, r in sec.users.items() if sec.prefix_of(u, prefix) == robot}
+        _robot_rules(sec.roles, members, robot, "" if robot == prefix else f"@{robot}", rules, subjects, policies)
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
+            "policies": policies}
+
+
+def _robot_rules(roles: dict[str, Role], users: dict[str, list[str]], prefix: str, tag: str,
+                 rules: list[dict[str, Any]], subjects: list[dict[str, Any]], policies: list[dict[str, Any]]) -> None:
+    """The rules of one robot's users (rule and subject ids end with `tag` on a site of several robots)."""
     def keys(exprs: tuple[str, ...]) -> list[str]:
         return [f"{prefix}/{e}" for e in exprs]
 
-    rules: list[dict[str, Any]] = []
-
     def allow(rule_id: str, flow: str, messages: list[str], exprs: tuple[str, ...]) -> str:
-        rules.append({"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages,
+        rules.append({"id": rule_id + tag, "permission": "allow", "flows": [flow], "messages": messages,
                       "key_exprs": keys(exprs)})
-        return rule_id
+        return rule_id + tag
 
     # every authenticated user may see who is alive and ask for stats
     common = [allow("observe", "ingress", ["liveliness_query", "declare_liveliness_subscriber", "query"],
@@ -219,30 +269,44 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
               # than one publisher's keys (hri/speech/*/transcript vs speech/kbd/transcript, hri/** vs
               # fusion/**): everyone may learn of every subscription under the prefix. Samples stay filtered.
               allow("learn-subscribers", "egress", ["declare_subscriber"], ("**",))]
-    subjects: list[dict[str, Any]] = []
-    policies: list[dict[str, Any]] = []
-    if sec.users:
-        subjects.append({"id": "everyone", "usernames": sorted(sec.users)})
-        policies.append({"rules": common, "subjects": ["everyone"]})
-    for name, role in sorted(sec.roles.items()):
-        members = sorted(u for u, r in sec.users.items() if name in r)
+    if users:
+        subjects.append({"id": "everyone" + tag, "usernames": sorted(users)})
+        policies.append({"rules": common, "subjects": ["everyone" + tag]})
+    for name, role in sorted(roles.items()):
+        members = sorted(u for u, r in users.items() if name in r)
         if not members:
             continue
         ids = []
         if role.publish:
-            ids.append(allow(f"{name}-publish", "ingress", ["put", "delete"], role.publish))
+            # "reply": a recovering publisher answers from its cache with the samples' own keys
+            ids.append(allow(f"{name}-publish", "ingress", ["put", "delete", "reply"], role.publish))
+            # a recovering publisher (zenoh.ext AdvancedPublisher: fusion's commands) keeps its cache, heartbeat and
+            # liveliness under KEY/@adv/pub/..., which no wildcard reaches: allowed for its own keys only
+            adv = tuple(f"{e}/@adv/**" for e in role.publish)
+            ids.append(allow(f"{name}-recovering", "ingress", ["put", "declare_queryable", "reply", "liveliness_token",
+                                                               "declare_liveliness_subscriber", "liveliness_query"],
+                             adv))
+            ids.append(allow(f"{name}-recovering-peers", "egress", ["query", "declare_subscriber",
+                                                                    "liveliness_token"], adv))
         if role.subscribe:
             ids.append(allow(f"{name}-subscribe", "ingress", ["declare_subscriber"], role.subscribe))
-            ids.append(allow(f"{name}-receive", "egress", ["put", "delete"], role.subscribe))
+            ids.append(allow(f"{name}-receive", "egress", ["put", "delete", "reply"], role.subscribe))
+            # ... and a recovering subscriber of what it may read asks for what it missed there
+            # (the recovery query asks KEY/@adv/*/ZID/EID/**)
+            ids.append(allow(f"{name}-recover", "ingress", ["declare_subscriber", "query", "liveliness_query",
+                                                            "declare_liveliness_subscriber"],
+                             tuple(f"{e}/@adv/**" for e in role.subscribe)))
+            ids.append(allow(f"{name}-recover-announce", "ingress", ["liveliness_token"],
+                             tuple(f"{e}/@adv/sub/**" for e in role.subscribe)))
+            ids.append(allow(f"{name}-recovered", "egress", ["put", "reply", "liveliness_token", "declare_queryable"],
+                             tuple(f"{e}/@adv/**" for e in role.subscribe)))
         if role.service:
             ids.append(allow(f"{name}-service", "ingress", ["liveliness_token", "declare_queryable", "reply"],
                              (f"alive/{role.service}/*", f"stats/{role.service}/*")))
             # queries arrive as asked, e.g. on stats/** (hri stats)
             ids.append(allow(f"{name}-stats", "egress", ["query"], ("stats/**",)))
-        subjects.append({"id": f"role-{name}", "usernames": members})
-        policies.append({"rules": ids, "subjects": [f"role-{name}"]})
-    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
-            "policies": policies}
+        subjects.append({"id": f"role-{name}{tag}", "usernames": members})
+        policies.append({"rules": ids, "subjects": [f"role-{name}{tag}"]})
 
 
 def may_publish(sec: Secrets, user: str, key: str, prefix: str) -> bool:
@@ -251,6 +315,6 @@ def may_publish(sec: Secrets, user: str, key: str, prefix: str) -> bool:
     target = zenoh.KeyExpr(key)
     for role_name in sec.users.get(user, []):
         for expr in sec.roles[role_name].publish:
-            if zenoh.KeyExpr(f"{prefix}/{expr}").includes(target):
+            if zenoh.KeyExpr(f"{sec.prefix_of(user, prefix)}/{expr}").includes(target):
                 return True
     return False

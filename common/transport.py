@@ -15,6 +15,19 @@ from common.keys import DEFAULT_PREFIX, Keys
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
+# Links that drop (docs/foundation.md, "Across machines"). A session whose peer is silent for LEASE_MS is closed:
+# the router then drops its liveliness tokens (fusion sees the modality gone) and the client reconnects by itself,
+# retrying every RETRY_* ms. Zenoh's default lease is 10 s: a 5 s Wi-Fi drop would go unnoticed and every
+# sample of it would arrive late in one burst. Keep-alives go out every LEASE_MS / KEEP_ALIVE.
+LEASE_MS = 3000
+KEEP_ALIVE = 4
+RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
+# Commands and clarifications published while a link is down: the AdvancedPublisher keeps the last
+# RECOVERY_CACHE of them, and announces its last sequence number every HEARTBEAT_S so a subscriber that was cut
+# off notices what it missed and fetches it (declare_recovering_subscriber).
+RECOVERY_CACHE = 64
+HEARTBEAT_S = 0.5
+
 _zenoh_log_started = False
 
 
@@ -69,6 +82,7 @@ def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
         conf = zenoh.Config()
         # Scouting by multicast finds strangers' routers on a shared LAN; we connect where we are told.
         conf.insert_json5("scouting/multicast/enabled", "false")
+        link_defaults(conf)
     conf.insert_json5("mode", json.dumps(args.mode))
     if args.connect:
         conf.insert_json5("connect/endpoints", json.dumps(args.connect))
@@ -79,9 +93,16 @@ def zenoh_config(args: argparse.Namespace) -> zenoh.Config:
     return conf
 
 
+def link_defaults(conf: zenoh.Config) -> None:
+    """Lease, keep-alive and reconnection of every session we configure (a --config file brings its own)."""
+    conf.insert_json5("transport/link/tx/lease", str(LEASE_MS))
+    conf.insert_json5("transport/link/tx/keep_alive", str(KEEP_ALIVE))
+    conf.insert_json5("connect/retry", json.dumps(RETRY))
+
+
 def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
     """A router: users/passwords and the access rules of the secrets folder. Anything else: log in as --user."""
-    from common.security import SecurityError, access_control, password_for, read_secrets, tls_files
+    from common.security import SecurityError, access_control, login_user, password_for, read_secrets, tls_files
     tls = tls_files(args.secure)  # used on tls/ endpoints only
     if "ca" in tls:
         conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(str(tls["ca"])))
@@ -94,7 +115,7 @@ def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
             conf.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(str(sec.passwords_file)))
             conf.insert_json5("access_control", json.dumps(access_control(sec, args.prefix)))
         else:
-            user = args.user or "cli"
+            user = login_user(args.secure, args.user or "cli", args.prefix)
             conf.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
             conf.insert_json5("transport/auth/usrpwd/password", json.dumps(password_for(args.secure, user)))
     except SecurityError as exc:
@@ -109,13 +130,18 @@ def init_zenoh_logging() -> None:
 
 
 def open_session(args: argparse.Namespace, log: logging.Logger,
-                 stop: threading.Event | None = None, max_delay: float = 2.0) -> zenoh.Session | None:
+                 stop: threading.Event | None = None, max_delay: float = 2.0,
+                 timestamping: bool = False) -> zenoh.Session | None:
     """Open a session, retrying with back-off while the router is not up yet.
 
+    `timestamping`: stamp our own samples with this session's HLC (needed by recovering publishers). Off by
+    default, so the router stamps what it receives from us with its clock (fusion's clock-offset estimate).
     Returns None if `stop` is set while waiting (the process was asked to quit).
     """
     init_zenoh_logging()
     conf = zenoh_config(args)
+    if timestamping:
+        conf.insert_json5("timestamping/enabled", "true")
     delay, attempt, refusals, started = 0.1, 0, 0, time.monotonic()
     while True:
         try:
@@ -157,21 +183,24 @@ def _router_listening(endpoints: list[str]) -> bool:
     return False
 
 
-def client_config(endpoint: str, secure: str | None = None, user: str = "cli") -> zenoh.Config:
+def client_config(endpoint: str, secure: str | None = None, user: str = "cli",
+                  prefix: str = DEFAULT_PREFIX) -> zenoh.Config:
     """A client of the router at `endpoint`, no multicast scouting: what tools and tests open.
-    `secure`: a secrets folder; log in as `user`."""
+    `secure`: a secrets folder; log in as `user` (`PREFIX-user` where the folder has robot users of `prefix`)."""
     conf = zenoh.Config()
     conf.insert_json5("mode", '"client"')
     conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
     conf.insert_json5("scouting/multicast/enabled", "false")
+    link_defaults(conf)
     if secure:
-        add_security(conf, argparse.Namespace(mode="client", secure=secure, user=user, prefix=DEFAULT_PREFIX))
+        add_security(conf, argparse.Namespace(mode="client", secure=secure, user=user, prefix=prefix))
     return conf
 
 
-def open_client(endpoint: str, secure: str | None = None, user: str = "cli") -> zenoh.Session:
+def open_client(endpoint: str, secure: str | None = None, user: str = "cli",
+                prefix: str = DEFAULT_PREFIX) -> zenoh.Session:
     init_zenoh_logging()
-    return zenoh.open(client_config(endpoint, secure, user))
+    return zenoh.open(client_config(endpoint, secure, user, prefix))
 
 
 def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*",
@@ -184,3 +213,23 @@ def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*",
             if parsed:
                 found.append(parsed)
     return found
+
+
+def declare_recovering_publisher(session: zenoh.Session, key: str, **qos) -> "zenoh.ext.AdvancedPublisher":
+    """A publisher whose samples a recovering subscriber gets even if it was cut off when they were sent: the
+    last RECOVERY_CACHE stay in a cache, a heartbeat announces the last sequence number. Plain subscribers
+    receive the same samples on the same key. The session needs timestamping (open_session(timestamping=True))."""
+    from zenoh import ext
+    return ext.declare_advanced_publisher(session, key, cache=ext.CacheConfig(max_samples=RECOVERY_CACHE),
+                                          sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT_S),
+                                          publisher_detection=True, **qos)
+
+
+def declare_recovering_subscriber(session: zenoh.Session, key: str,
+                                  handler) -> "zenoh.ext.AdvancedSubscriber":
+    """Receive `key` and fetch what a recovering publisher sent while this subscriber was cut off: in order per
+    publisher, each sample once. No history at start: a planner that starts late must not act on old commands."""
+    from zenoh import ext
+    return ext.declare_advanced_subscriber(session, key, handler,
+                                           recovery=ext.RecoveryConfig(heartbeat=True),
+                                           subscriber_detection=True)

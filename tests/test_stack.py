@@ -82,7 +82,7 @@ def test_compose_router_listens_where_the_services_connect(compose):
     assert router["environment"]["HRI_LISTEN"] == listen
     assert [compose_defaults(p).rsplit(":", 1)[1] for p in router["ports"]] == [str(ROUTER_PORT)]
     for name in STACK:
-        assert compose[name]["environment"]["HRI_CONNECT"] == f"tcp/router:{ROUTER_PORT}", name
+        assert compose_defaults(compose[name]["environment"]["HRI_CONNECT"]) == f"tcp/router:{ROUTER_PORT}", name
         assert compose[name]["depends_on"]["router"]["condition"] == "service_healthy", name
 
 

@@ -7,9 +7,10 @@ import time
 
 import zenoh
 
-from common.runner import Delivery, Service, main_exit, service_parser
+from common.runner import Delivery, RateLimitedLog, Service, main_exit, service_parser
 from common.schema import Bodies, Clarification, Detections, FusedCommand, GestureEvent, Hands, Transcript
 from services.fusion.core import Config, FusionCore
+from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
 
 EPILOG = """\
@@ -23,7 +24,14 @@ defaults: window [start - 1.0 s, end + 0.3 s] of source time, decide when every 
 latest stamp has passed the window end or 0.5 s (wall) after the transcript arrived; a clarification
 stays open 10 s; a modality is live while its service's liveliness token exists or it sent a sample
 in the last 2 s.
+
+clocks: each source's clock offset against this machine's is estimated from the router's Zenoh timestamps
+(`hri stats fusion`: other["clock_offset_ms:SOURCE"]); a warning is logged (at most every 30 s per source)
+when a source runs more than half the window after its end ahead, or half the window before its start behind.
 """
+
+
+CLOCK_WARN_SHARE = 0.5  # warn when a source's clock offset uses more than this share of the window's margin
 
 
 def positive(text: str) -> float:
@@ -55,7 +63,7 @@ def main(argv: list[str] | None = None) -> None:
                              f"(default {defaults.dialogue_timeout})")
     args = parser.parse_args(argv)
 
-    service = Service("fusion", args)
+    service = Service("fusion", args, recovering=True)
     config = Config(window_before=args.window_before, window_after=args.window_after, max_wait=args.max_wait,
                     weights=args.weights, fallback_most_confident=args.fallback_most_confident,
                     dialogue_timeout=args.dialogue_timeout)
@@ -71,11 +79,11 @@ def main(argv: list[str] | None = None) -> None:
             sample = out.sample
             if isinstance(sample, FusedCommand):
                 # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
-                service.publish(command_key, sample, lossless=True, realtime=out.realtime)
+                service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
                 service.log.info("command %s %s%s: %s", sample.id, sample.intent,
                                  f" -> {sample.target.id}" if sample.target else "", sample.explanation)
             elif isinstance(sample, Clarification):
-                service.publish(clarification_key, sample, lossless=True)
+                service.publish(clarification_key, sample, lossless=True, recovering=True)
                 service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
 
     # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
@@ -86,28 +94,64 @@ def main(argv: list[str] | None = None) -> None:
         if parsed:
             liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
 
+    clocks = ClockOffsets()
+    clock_log = RateLimitedLog(service.log, interval=30.0)
+    ahead_tol, behind_tol = CLOCK_WARN_SHARE * config.window_after, CLOCK_WARN_SHARE * config.window_before
+
     token_sub = service.session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)
     service.on_close(token_sub.undeclare)
 
-    def handler(feed):
+    # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
+    # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
+    delayed_sources: set[str] = set()
+
+    def handler(feed, delayed: bool = False):
         def handle(d: Delivery) -> None:
+            if delayed:
+                delayed_sources.add(d.sample.source)
             service.log.debug("in %s %.3f", d.key, d.sample.stamp)
+            clocks.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
             emit(feed(d.key, d.sample, d.received_at))
         return handle
 
-    service.subscribe(keys.transcript("*"), Transcript, handler(core.on_transcript), maxlen=200)
+    service.subscribe(keys.transcript("*"), Transcript, handler(core.on_transcript, delayed=True), maxlen=200)
     service.subscribe(keys.objects("*"), Detections, handler(core.on_detections), maxlen=300)
     service.subscribe(keys.hands("*"), Hands, handler(core.on_hands), maxlen=600)
     service.subscribe(keys.gesture_event("*"), GestureEvent, handler(core.on_gesture_event), maxlen=200)
     service.subscribe(keys.bodies("*"), Bodies, handler(core.on_bodies), maxlen=50)  # which way the speaker faces
 
+    last_clock_report = [0.0]
+
+    def report_clocks(now: float) -> None:
+        if now - last_clock_report[0] < 1.0:
+            return
+        last_clock_report[0] = now
+        for source in clocks.expire(now):
+            service.counters.set(f"clock_offset_ms:{source}", None)
+            delayed_sources.discard(source)
+        for source, offset in clocks.offsets().items():
+            service.counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
+            verdict = clock_verdict(offset, ahead_tol, behind_tol)
+            if verdict == "ahead" or (verdict == "behind" and source not in delayed_sources):
+                clock_log.warn(f"clock:{source}", f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
+                               f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
+                               f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
+                               f"at the wrong moment. Keep the hosts in step with chrony or PTP "
+                               f"(docs/foundation.md); `hri stats fusion` shows every source's offset")
+
     def tick() -> None:
         while True:
             try:
-                core.on_liveliness(*liveliness_events.get_nowait())
+                service_name, instance, present = liveliness_events.get_nowait()
             except queue.Empty:
                 break
-        emit(core.tick(time.time()))
+            core.on_liveliness(service_name, instance, present)
+            if not present:  # a restarted instance starts a new estimate
+                clocks.forget(f"{service_name}/{instance}")
+                service.counters.set(f"clock_offset_ms:{service_name}/{instance}", None)
+        now = time.time()
+        report_clocks(now)
+        emit(core.tick(now))
 
     service.log.info("fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s", config.window_before,
                      config.window_after, config.max_wait, config.weights,

@@ -239,3 +239,65 @@ class Join(Generic[W]):
 
     def __len__(self) -> int:
         return len(self.windows)
+
+
+class ClockOffsets:
+    """A running estimate of each source's clock offset against this machine's clock. Pure: times passed in.
+
+    Per sample: `stamp` (source clock, when the thing was observed), `ref` (the router's Zenoh HLC timestamp
+    added when the sample reached it, or None), `wall` (this machine's clock on arrival). Every delay (the
+    source's processing, the network) makes `stamp - ref` and `ref - wall` *smaller* than the true clock
+    differences, never larger, so the estimate is the classic minimum-delay filter: the maximum over a sliding
+    window of `window` samples of `stamp - ref` (source vs router), plus the maximum over the last samples of
+    all sources of `ref - wall` (router vs this machine). One slow sample cannot move it; a clock that steps
+    shows within `window` samples. Without router timestamps `ref` is `wall` and the second term is 0.
+
+    What it cannot separate: a source's fastest pipeline delay (inference time of a detection, recognition time
+    of a transcript, whose stamp is the utterance end) reads as its clock being that much *behind*.
+    """
+
+    def __init__(self, window: int = 64, idle_s: float = 60.0):
+        self.window = window
+        self.idle_s = idle_s  # a source silent this long (wall) is dropped: `hri say` is a new source every time
+        self._source: dict[str, collections.deque[float]] = {}
+        self._last: dict[str, float] = {}
+        self._router: collections.deque[float] = collections.deque(maxlen=window)
+
+    def add(self, source: str, stamp: float, ref: float | None, wall: float) -> None:
+        ref = wall if ref is None else ref
+        self._source.setdefault(source, collections.deque(maxlen=self.window)).append(stamp - ref)
+        self._last[source] = wall
+        self._router.append(ref - wall)
+
+    def expire(self, wall: float) -> list[str]:
+        """Forget the sources silent for `idle_s`; returns them (so their reported offsets go too)."""
+        gone = [s for s, last in self._last.items() if wall - last > self.idle_s]
+        for source in gone:
+            self.forget(source)
+        return gone
+
+    def router_offset(self) -> float:
+        """The router's clock minus this machine's (0 while nothing arrived)."""
+        return max(self._router, default=0.0)
+
+    def offset(self, source: str) -> float | None:
+        """Source clock minus this machine's clock, in seconds (None: nothing from it yet)."""
+        diffs = self._source.get(source)
+        return None if not diffs else max(diffs) + self.router_offset()
+
+    def offsets(self) -> dict[str, float]:
+        return {s: max(d) + self.router_offset() for s, d in self._source.items() if d}
+
+    def forget(self, source: str) -> None:
+        """A source that left (its liveliness token went away): a new instance starts a new estimate."""
+        self._source.pop(source, None)
+        self._last.pop(source, None)
+
+
+def clock_verdict(offset: float, ahead_tolerance: float, behind_tolerance: float) -> str | None:
+    """"ahead" / "behind" when an offset uses more than the join window allows, else None."""
+    if offset > ahead_tolerance:
+        return "ahead"
+    if offset < -behind_tolerance:
+        return "behind"
+    return None
