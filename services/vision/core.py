@@ -6,8 +6,10 @@ import cv2
 import numpy as np
 
 from common.language import canonical_label
-from common.schema import DetectedObject, ImageQuality
-from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, color_name
+from common.schema import ColorShare, DetectedObject, ImageQuality
+from common.colour import name_distribution
+from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, dominant_mask, illuminant_gains,
+                                   measure_lab)
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
 from services.vision.track import Tracker
@@ -20,6 +22,7 @@ from services.vision.yolo import YoloDetector
 COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
 RING = 0.25         # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
+CENTRE_WEIGHT = 2.0  # the middle half of the box (in each direction) counts this much in the main colour
 
 
 _HUE_BIN = (np.arange(256) // 10 * 2).astype(np.uint8)  # hue -> 2 × (hue // 10)
@@ -35,9 +38,11 @@ def _colour_bins(hsv: np.ndarray) -> np.ndarray:
     return bins
 
 
-def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """(HSV of the box and the ring around it, every step-th pixel so that the box's longer side is about
-    COLOR_SIDE; boolean mask of the object's own pixels among them)."""
+def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(BGR of the box and the ring around it, every step-th pixel so that the box's longer side is about
+    COLOR_SIDE; their colour bins (_colour_bins); boolean mask of the object's own pixels among them; per-pixel
+    weights, CENTRE_WEIGHT in the middle half of the box, 1 elsewhere)."""
     frame_h, frame_w = bgr.shape[:2]
     x, y, w, h = bbox
     x0, y0 = int(max(0, x - RING * w)), int(max(0, y - RING * h))
@@ -45,10 +50,9 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) ->
     step = max(1, int(max(w, h) // COLOR_SIDE))  # every step-th pixel: enough for a histogram, and cheap
     small = bgr[y0:y1:step, x0:x1:step]
     if small.size == 0:
-        return np.zeros((0, 3), np.uint8), np.zeros(0, bool)
+        return np.zeros((0, 3), np.uint8), np.zeros(0, np.uint8), np.zeros(0, bool), np.zeros(0, np.float32)
     s = 1.0 / step
-    hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
-    bins = _colour_bins(hsv)
+    bins = _colour_bins(cv2.cvtColor(small, cv2.COLOR_BGR2HSV))
     inbox = np.zeros(bins.shape, bool)
     bx0, by0 = int((x - x0) * s), int((y - y0) * s)
     bx1, by1 = max(bx0 + 1, int(np.ceil((x + w - x0) * s))), max(by0 + 1, int(np.ceil((y + h - y0) * s)))
@@ -63,13 +67,34 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) ->
     own = inbox & (in_hist > FOREGROUND_RATIO * ring_hist + 0.005)[bins]
     if own.sum() < 0.05 * inbox.sum():  # nothing stands out from the surroundings: the box is all we have
         own = inbox
-    return hsv, own
+    centre = np.ones(bins.shape, np.float32)  # the object is where the box's middle is: its pixels count double
+    cy0, cx0 = by0 + (by1 - by0) // 4, bx0 + (bx1 - bx0) // 4
+    centre[cy0:max(cy0 + 1, by1 - (by1 - by0) // 4), cx0:max(cx0 + 1, bx1 - (bx1 - bx0) // 4)] = CENTRE_WEIGHT
+    return small, bins, own, centre
 
 
-def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> str | None:
-    """The colour most of the object's own pixels in this box have (see foreground_mask)."""
-    hsv, own = foreground_mask(bgr, bbox)
-    return color_name(hsv[own])[0] if own.any() else None
+def object_colour(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
+                  ) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
+    """(CIELAB of the object's main colour, its likeliest colour names with probabilities, best first).
+    The object's own pixels (foreground_mask), of its main colour (color.dominant_mask), corrected by the
+    scene's illuminant `gains` (color.illuminant_gains of the whole frame; estimated here when not given)."""
+    if gains is None:
+        gains = illuminant_gains(bgr)
+    small, bins, own, centre = foreground_mask(bgr, bbox)
+    if not own.any():
+        return None, []
+    main = dominant_mask(bins[own], centre[own])
+    lab = measure_lab(small[own][main], gains)
+    if lab is None:
+        return None, []
+    return lab, name_distribution(lab)
+
+
+def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
+                 ) -> str | None:
+    """The likeliest colour name of the object in this box (see object_colour)."""
+    _, names = object_colour(bgr, bbox, gains)
+    return names[0][0] if names else None
 
 
 class VisionPipeline:
@@ -82,15 +107,22 @@ class VisionPipeline:
     def detections(self, bgr: np.ndarray) -> list[Detection]:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
-        # the language's class where one fits ("mug" -> "cup"), so "the cup" finds it
-        return [Detection(canonical_label(label), object_color(bgr, box), score, box)
-                for label, score, box in self.detector.detect(bgr)]
+        gains = illuminant_gains(bgr)  # one estimate of the scene's light per frame
+        out = []
+        for label, score, box in self.detector.detect(bgr):
+            lab, names = object_colour(bgr, box, gains)
+            # the language's class where one fits ("mug" -> "cup"), so "the cup" finds it
+            out.append(Detection(canonical_label(label), names[0][0] if names else None, score, box,
+                                 lab=lab, colors=tuple(names)))
+        return out
 
     def process(self, cam: str, bgr: np.ndarray) -> tuple[list[DetectedObject], ImageQuality]:
         tracker = self.trackers.setdefault(cam, Tracker(prefix=f"{cam}-o"))
         objects = [
             DetectedObject(id=obj_id, label=d.label, color=d.color, score=round(d.score, 4),
-                           bbox=[round(v, 1) for v in d.bbox], center=[round(v, 1) for v in d.center])
+                           bbox=[round(v, 1) for v in d.bbox], center=[round(v, 1) for v in d.center],
+                           lab=None if d.lab is None else [round(v, 1) for v in d.lab],
+                           colors=[ColorShare(name=n, p=round(p, 3)) for n, p in d.colors])
             for obj_id, d in tracker.update(self.detections(bgr))
         ]
         brightness, contrast, sharpness = image_quality(bgr)

@@ -1,0 +1,87 @@
+"""Colour terms as regions of CIELAB: how plausibly a person would call a measured colour by a word. Pure.
+
+Shared by vision (naming an object's measured colour: `name_distribution`) and fusion (matching a spoken colour:
+`term_fit`), so both read the same words the same way. The words and their prototypes are in
+common.language (COLOR_PHRASES, COLOR_PROTOTYPES, COLOR_MODIFIERS).
+
+Distance: CIE94 colour difference with lightness weighted half (kL = 2, the textile setting): an object's
+lightness varies with shading and exposure far more than its hue does, and a term spans a wide lightness range.
+Chroma and hue differences are scaled down for saturated colours (CIE94's S_C, S_H), so a dull real object still
+sits near a vivid prototype of its hue. A term's fit is exp(-d²/2σ²) to its nearest prototype.
+"""
+
+from __future__ import annotations
+
+import math
+
+from common.language import BASIC_COLORS, COLOR_MODIFIERS, COLOR_PHRASES, COLOR_PROTOTYPES
+
+Lab = tuple[float, float, float]
+
+SIGMA = 12.0            # ΔE94 at which a term's fit falls to exp(-1/2) ≈ 0.61
+K_L = 2.0               # lightness weight 1/K_L
+LIGHTNESS_ONLY = {"dark"}  # terms that say nothing about hue
+LIGHT_SHIFT = 0.45      # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
+LIGHT_CHROMA = 0.7
+DARK_SCALE = 0.55       # "dark X": lightness × this, chroma × DARK_CHROMA
+DARK_CHROMA = 0.8
+
+
+def delta_e94(x: Lab, y: Lab, k_l: float = K_L) -> float:
+    """CIE94 colour difference, symmetric form (S_C, S_H from the geometric mean chroma)."""
+    dl = x[0] - y[0]
+    c1, c2 = math.hypot(x[1], x[2]), math.hypot(y[1], y[2])
+    dc = c1 - c2
+    dh2 = max(0.0, (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2 - dc * dc)
+    c = math.sqrt(c1 * c2)
+    return math.sqrt((dl / k_l) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
+
+
+def modified(lab: Lab, modifier: str) -> Lab:
+    """A prototype made light or dark (chroma shrinks a little either way: pale and deep colours are duller)."""
+    l, a, b = lab
+    if modifier == "light":
+        return (l + (100 - l) * LIGHT_SHIFT, a * LIGHT_CHROMA, b * LIGHT_CHROMA)
+    if modifier == "dark":
+        return (l * DARK_SCALE, a * DARK_CHROMA, b * DARK_CHROMA)
+    raise ValueError(f"unknown colour modifier {modifier!r}: use one of {', '.join(COLOR_MODIFIERS)}")
+
+
+def prototypes(term: str) -> tuple[Lab, ...]:
+    """The prototypes of a colour term of COLOR_PHRASES ("red", "light blue", "dark grey")."""
+    if term in COLOR_PROTOTYPES:
+        return COLOR_PROTOTYPES[term]
+    modifier, _, base = term.partition(" ")
+    if modifier in COLOR_MODIFIERS and base in COLOR_PROTOTYPES:
+        return tuple(modified(p, modifier) for p in COLOR_PROTOTYPES[base])
+    raise ValueError(f"unknown colour term {term!r}: the terms are the keys of common.language.COLOR_PHRASES")
+
+
+def term_distance(term: str, lab: Lab) -> float:
+    """ΔE94 from a measured colour to the nearest prototype of the term (lightness alone for "dark")."""
+    if term in LIGHTNESS_ONLY:
+        return max(0.0, lab[0] - COLOR_PROTOTYPES[term][0][0]) / K_L
+    return min(delta_e94(lab, p) for p in prototypes(term))
+
+
+def term_fit(term: str, lab: Lab) -> float:
+    """How plausibly a person calls a colour `term`, in (0, 1]: 1 at a prototype, 0.61 at σ, 0.14 at 2σ."""
+    d = term_distance(term, lab)
+    return math.exp(-0.5 * (d / SIGMA) ** 2)
+
+
+def name_distribution(lab: Lab, names: tuple[str, ...] = BASIC_COLORS, top: int = 5) -> list[tuple[str, float]]:
+    """The likeliest basic colour names of a measured colour, best first, with probabilities (the fits
+    normalised over `names`; the `top` best are returned, so they sum to at most 1)."""
+    fits = [(n, term_fit(n, lab)) for n in names]
+    total = sum(f for _, f in fits) or 1.0
+    ranked = sorted(((n, f / total) for n, f in fits), key=lambda nf: -nf[1])
+    return ranked[:top]
+
+
+def name_similarity(term: str, name: str) -> float:
+    """How well a colour term fits an object known only by a colour name (an old sender, the colour backend):
+    the term's fit at the name's prototypes, the best one (red ~ orange partly, red ~ blue not at all)."""
+    if term == name:
+        return 1.0
+    return max(term_fit(term, p) for p in prototypes(name)) if name in COLOR_PHRASES else 0.0
