@@ -125,22 +125,40 @@ def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
     return (gains * exposure).astype(np.float32)
 
 
-def dominant_mask(bins: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
-    """The pixels of the object's main colour among its own (core._colour_bins codes): the heaviest group of
-    neighbouring bins — three adjacent 20° hue bins (any saturation), or dark+grey, or grey+white — by pixel
-    count (times `weights`, e.g. more for the box's centre, where the object is). A striped shirt is one of its
-    colours, not their purple mean; an orange couch is its orange, not the dark cushion and table in its box."""
+SECOND_COLOUR = 0.3  # a second colour group with at least this share of the object's pixels joins `colors`
+
+
+def colour_groups(bins: np.ndarray, weights: np.ndarray | None = None) -> list[tuple[np.ndarray, float]]:
+    """The object's main colours among its own pixels (core._colour_bins codes), heaviest first, each as (mask,
+    share of the pixel weight): groups of neighbouring bins — three adjacent 20° hue bins (any saturation), or
+    dark+grey, or grey+white — by pixel count (times `weights`, e.g. more for the box's centre, where the object
+    is). The main group is the heaviest; a second one that shares no bin with it is kept when it holds at least
+    SECOND_COLOUR of the weight. A striped shirt is one of its colours, not their purple mean; an orange couch is
+    its orange, not the dark cushion and table in its box; a black and white chair is both."""
     counts = np.bincount(bins, weights=weights, minlength=39)
+    total = float(counts.sum()) or 1.0
     hues = counts[0:36:2] + counts[1:36:2]
     chromatic = hues + np.roll(hues, 1) + np.roll(hues, -1)
-    groups = [*chromatic, counts[36] + counts[37], counts[37] + counts[38]]
-    best = int(np.argmax(groups))
-    if best == 18:
-        return (bins == 36) | (bins == 37)
-    if best == 19:
-        return (bins == 37) | (bins == 38)
-    near = [(best - 1) % 18, best, (best + 1) % 18]
-    return (bins < 36) & np.isin(bins // 2, near)
+    weight = np.array([*chromatic, counts[36] + counts[37], counts[37] + counts[38]])
+    members = [[(k - 1) % 18, k, (k + 1) % 18] for k in range(18)]
+
+    def mask(g: int) -> np.ndarray:
+        if g == 18:
+            return (bins == 36) | (bins == 37)
+        if g == 19:
+            return (bins == 37) | (bins == 38)
+        return (bins < 36) & np.isin(bins // 2, members[g])
+
+    def bins_of(g: int) -> set[int]:
+        return {36, 37} if g == 18 else {37, 38} if g == 19 else {2 * h + s for h in members[g] for s in (0, 1)}
+
+    first = int(np.argmax(weight))
+    out = [(mask(first), float(weight[first]) / total)]
+    taken = bins_of(first)
+    rest = [g for g in np.argsort(-weight) if not bins_of(int(g)) & taken]
+    if rest and weight[rest[0]] / total >= SECOND_COLOUR:
+        out.append((mask(int(rest[0])), float(weight[rest[0]]) / total))
+    return out
 
 
 def measure_lab(bgr_pixels: np.ndarray, gains: np.ndarray | None = None) -> tuple[float, float, float] | None:

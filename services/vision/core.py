@@ -5,10 +5,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from common.language import canonical_label
+from common.language import BASIC_COLORS, canonical_label
 from common.schema import ColorShare, DetectedObject, ImageQuality
 from common.colour import name_distribution
-from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, dominant_mask, illuminant_gains,
+from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, colour_groups, illuminant_gains,
                                    measure_lab)
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
@@ -22,6 +22,7 @@ from services.vision.yolo import YoloDetector
 COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
 RING = 0.25         # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
+MIN_OWN = 0.15      # what stands out must be at least this share of the box to be the object
 CENTRE_WEIGHT = 2.0  # the middle half of the box (in each direction) counts this much in the main colour
 
 
@@ -65,7 +66,8 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
     in_hist = np.bincount(bins[inbox], minlength=39) / max(1, int(inbox.sum()))
     ring_hist = np.bincount(bins[ring], minlength=39) / max(1, int(ring.sum()))
     own = inbox & (in_hist > FOREGROUND_RATIO * ring_hist + 0.005)[bins]
-    if own.sum() < 0.05 * inbox.sum():  # nothing stands out from the surroundings: the box is all we have
+    if own.sum() < MIN_OWN * inbox.sum():  # too little stands out to be the object (a detector boxes it tightly):
+        # a cushion on a sofa, a logo on a shirt. The box is all we have
         own = inbox
     centre = np.ones(bins.shape, np.float32)  # the object is where the box's middle is: its pixels count double
     cy0, cx0 = by0 + (by1 - by0) // 4, bx0 + (bx1 - bx0) // 4
@@ -76,18 +78,31 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
 def object_colour(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
                   ) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
     """(CIELAB of the object's main colour, its likeliest colour names with probabilities, best first).
-    The object's own pixels (foreground_mask), of its main colour (color.dominant_mask), corrected by the
-    scene's illuminant `gains` (color.illuminant_gains of the whole frame; estimated here when not given)."""
+    The object's own pixels (foreground_mask) in colour groups (color.colour_groups: the main one, and a second
+    big one), each measured (color.measure_lab, corrected by the scene's illuminant `gains`: color.illuminant_gains
+    of the whole frame, estimated here when not given) and named; the names are the groups' mixture."""
     if gains is None:
         gains = illuminant_gains(bgr)
     small, bins, own, centre = foreground_mask(bgr, bbox)
     if not own.any():
         return None, []
-    main = dominant_mask(bins[own], centre[own])
-    lab = measure_lab(small[own][main], gains)
-    if lab is None:
+    pixels = small[own]
+    groups = [(measure_lab(pixels[mask], gains), share) for mask, share in colour_groups(bins[own], centre[own])]
+    groups = [(lab, share) for lab, share in groups if lab is not None]
+    if not groups:
         return None, []
-    return lab, name_distribution(lab)
+    return groups[0][0], mixed_names(groups)
+
+
+def mixed_names(groups: list[tuple[tuple[float, float, float], float]], top: int = 5) -> list[tuple[str, float]]:
+    """The colour names of an object of one or two colour groups ((lab, share) each): the groups' name
+    distributions (common.colour.name_distribution) mixed by their shares, best first, the `top` best."""
+    total = sum(share for _, share in groups) or 1.0
+    mixed: dict[str, float] = {}
+    for lab, share in groups:
+        for name, p in name_distribution(lab, top=len(BASIC_COLORS)):
+            mixed[name] = mixed.get(name, 0.0) + p * share / total
+    return sorted(mixed.items(), key=lambda np_: -np_[1])[:top]
 
 
 def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
