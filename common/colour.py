@@ -24,7 +24,7 @@ LIGHTNESS_ONLY = {"dark"}  # terms that say nothing about hue
 LIGHT_SHIFT = 0.45      # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
 LIGHT_CHROMA = 0.7
 DARK_SCALE = 0.55       # "dark X": lightness × this, chroma × DARK_CHROMA
-DARK_CHROMA = 0.8
+DARK_CHROMA = 0.6 
 
 
 def delta_e94(x: Lab, y: Lab, k_l: float = K_L) -> float:
@@ -58,10 +58,12 @@ def prototypes(term: str) -> tuple[Lab, ...]:
 
 
 def term_distance(term: str, lab: Lab) -> float:
-    """ΔE94 from a measured colour to the nearest prototype of the term (lightness alone for "dark")."""
+    """ΔE94 from a measured colour to the nearest prototype of the term (lightness alone for "dark"). A light or
+    dark term is a claim about lightness: its lightness difference counts in full (k_L = 1)."""
     if term in LIGHTNESS_ONLY:
         return max(0.0, lab[0] - COLOR_PROTOTYPES[term][0][0]) / K_L
-    return min(delta_e94(lab, p) for p in prototypes(term))
+    k_l = 1.0 if term.partition(" ")[0] in COLOR_MODIFIERS else K_L
+    return min(delta_e94(lab, p, k_l) for p in prototypes(term))
 
 
 def term_fit(term: str, lab: Lab) -> float:

@@ -79,7 +79,7 @@ _D65 = np.array([0.95047, 1.0, 1.08883], np.float32)
 
 ILLUMINANT_SIDE = 64        # px: the frame is shrunk to about this for the illuminant estimate
 SHADES_OF_GREY_P = 6        # Minkowski norm of the estimate (1 = grey-world, ∞ = max-RGB / white-patch)
-MAX_GAIN = 1.35             # no channel is scaled by more than this (or less than its inverse) for colour
+MAX_GAIN = 1.2              # no channel is scaled by more than this (or less than its inverse) for colour
 BRIGHT_QUANTILE = 0.95      # the scene's bright surfaces: this luminance quantile of its unclipped pixels …
 BRIGHT_REFERENCE = 0.85     # … is brought up to this luminance (lightness is judged relative to the scene)
 MAX_EXPOSURE = 1.5          # at most this much brighter; never darker
