@@ -159,3 +159,12 @@ def test_colour_words_are_one_table_for_parser_and_speech():
     assert set(L.BASIC_COLORS) <= set(L.COLOR_PHRASES)
     assert {"crimson", "navy", "silver", "beige", "light", "pale", "dark", "turquoise"} <= L.vocabulary()
     assert set(L.BASIC_COLORS) <= set(L.prompt_words())
+
+
+def test_many_measured_colours_at_once_agree_with_one_at_a_time():
+    from common.colour import term_fits
+    rng = np.random.default_rng(7)
+    labs = np.column_stack([rng.uniform(0, 100, 200), rng.uniform(-80, 80, 200), rng.uniform(-80, 80, 200)])
+    for term in ("red", "light blue", "dark grey", "dark", "navy", "white"):
+        many = term_fits(term, labs)
+        assert np.allclose(many, [term_fit(term, tuple(x)) for x in labs], atol=1e-9), term

@@ -17,7 +17,9 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from common.colour import name_similarity, term_fit
+import numpy as np
+
+from common.colour import name_similarity, term_fit, term_fits
 
 PLAUSIBLE = 0.2         # a measured colour fits the term this well (ΔE94 ≈ 1.8 σ): plausibly that colour
 PLAUSIBLE_NAME = 0.5    # from a name alone: the name's prototype within ≈ 1.2 σ of the term (red/orange, grey/white)
@@ -48,16 +50,27 @@ def colour_fit(term: str, obj: Coloured) -> tuple[float, float] | None:
 
 def colour_factors(term: str, candidates: list[Coloured]) -> dict[tuple[str, str], float]:
     """Per candidate (the objects the other words fit), the factor the colour word puts on its match."""
-    fits = {o.key: colour_fit(term, o) for o in candidates}
-    known = {k: f for k, f in fits.items() if f is not None}
-    plausible = [fit for fit, threshold in known.values() if fit >= threshold]
-    best = max(plausible, default=0.0)
-    out = {}
-    for key, f in fits.items():
-        if f is None:
-            out[key] = UNKNOWN
-        elif not plausible:
-            out[key] = 0.0
-        else:
-            out[key] = min(1.0, f[0] / (ABOUT_EQUAL * best)) ** SHARPNESS
+    keys, fits, thresholds = [], [], []
+    measured = [o for o in candidates if o.lab is not None]
+    if measured:  # all measured colours in one array operation
+        keys += [o.key for o in measured]
+        fits += term_fits(term, np.array([o.lab for o in measured], np.float64)).tolist()
+        thresholds += [PLAUSIBLE] * len(measured)
+    unknown = []
+    for o in candidates:
+        if o.lab is None:
+            f = colour_fit(term, o)
+            if f is None:
+                unknown.append(o.key)
+            else:
+                keys.append(o.key)
+                fits.append(f[0])
+                thresholds.append(f[1])
+    best = max((f for f, t in zip(fits, thresholds) if f >= t), default=0.0)
+    out = dict.fromkeys(unknown, UNKNOWN)
+    if best <= 0.0:
+        out.update(dict.fromkeys(keys, 0.0))
+    else:
+        scale = 1.0 / (ABOUT_EQUAL * best)
+        out.update((k, min(1.0, f * scale) ** SHARPNESS) for k, f in zip(keys, fits))
     return out
