@@ -92,7 +92,8 @@ def test_two_that_fit_about_equally_are_asked_about_and_one_that_stands_out_is_c
 
 def test_plausible_only_relative_to_the_objects_the_other_words_fit():
     """A reddish-brown cup is the red cup when the other cup is blue, even beside a vivid red ball."""
-    objs = [obj("cup_brownish", "cup", 100, lab=(35.0, 30.0, 28.0)), obj("cup_blue", "cup", 300, lab=(40.0, 20.0, -55.0)),
+    objs = [obj("cup_brownish", "cup", 100, lab=(35.0, 30.0, 28.0)),
+            obj("cup_blue", "cup", 300, lab=(40.0, 20.0, -55.0)),
             obj("ball", "sports ball", 500, lab=(45.0, 65.0, 45.0))]
     assert picked("the red cup", objs) == "cup_brownish"
     assert picked("the red ball", objs) == "ball"

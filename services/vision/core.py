@@ -5,9 +5,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from common.colour import name_distribution
 from common.language import BASIC_COLORS, canonical_label
 from common.schema import ColorShare, DetectedObject, ImageQuality
-from common.colour import name_distribution
 from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, colour_groups, illuminant_gains,
                                    measure_lab)
 from services.vision.quality import image_quality
@@ -18,7 +18,8 @@ from services.vision.yolo import YoloDetector
 
 # Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
 # box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more
-# frequent inside the box than in the ring are the object's; the colour most of those pixels have names it.
+# frequent inside the box than in the ring are the object's; their main colour is measured (CIELAB, the scene's
+# light corrected) and named (docs/vision.md "Colour of a detection").
 COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
 RING = 0.25         # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
