@@ -131,3 +131,21 @@ def test_the_detector_path_publishes_lab_and_names(yolox):
     for o in objects:
         assert o.lab is not None and 0 <= o.lab[0] <= 100 and o.colors and o.color == o.colors[0].name
         assert [c.p for c in o.colors] == sorted((c.p for c in o.colors), reverse=True)
+
+
+# Real photos of people (../shared/data/people, HaGRID frames): what they wear, by eye.
+PEOPLE = {"call_044768ad-1709-44ba-b041-c2f8cbe4c166.jpg": ("black",),     # black hoodie
+          "rock_1bed937b-7ae4-4070-891c-daf69415da41.jpg": ("black",),     # black T-shirt
+          "four_15a73593-b13e-4a1b-99bb-51775cfdfc42.jpg": ("blue",),      # blue T-shirt
+          "rock_0cc7ad09-ae5f-45a8-b264-4216176369b6.jpg": ("white", "green", "grey")}  # pale mint T-shirt
+
+
+def test_a_person_is_the_colour_they_wear_not_their_skin(yolox):
+    """The issue: "a black T-shirt makes an orange person". Skin is left out of a person's pixels."""
+    from tests.shared import shared_path
+    folder = shared_path("data/people")
+    for name, colours in PEOPLE.items():
+        img = cv2.imread(str(folder / name))
+        objects, _ = VisionPipeline(yolox).process("cam0", img)
+        person = max((o for o in objects if o.label == "person"), key=lambda o: o.score)
+        assert person.color in colours, (name, person.lab, person.colors)

@@ -25,6 +25,10 @@ RING = 0.25         # the ring reaches this share of the box's size beyond each 
 FOREGROUND_RATIO = 1.5
 MIN_OWN = 0.15      # what stands out must be at least this share of the box to be the object
 CENTRE_WEIGHT = 2.0  # the middle half of the box (in each direction) counts this much in the main colour
+SKIN_HUE = 17                 # OpenCV hue (0–179) up to which, or from 170, a pixel may be skin
+SKIN_SATURATION = (40, 170)   # 0–255
+SKIN_VALUE = 60
+MIN_CLOTHES = 0.3             # a person's pixels left without skin must be this share of them to be used
 
 
 _HUE_BIN = (np.arange(256) // 10 * 2).astype(np.uint8)  # hue -> 2 × (hue // 10)
@@ -76,15 +80,29 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
     return small, bins, own, centre
 
 
-def object_colour(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
-                  ) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
+def skin(bgr_pixels: np.ndarray) -> np.ndarray:
+    """Pixels of skin tone (N×3 BGR): hue 0–34° or ≥ 340°, saturation 0.16–0.67, value ≥ 0.24 — a person's
+    colour is what they wear, not their face and arms."""
+    hsv = cv2.cvtColor(bgr_pixels.reshape(-1, 1, 3), cv2.COLOR_BGR2HSV).reshape(-1, 3)
+    h, s, v = hsv[:, 0], hsv[:, 1], hsv[:, 2]
+    return ((h <= SKIN_HUE) | (h >= 170)) & (s >= SKIN_SATURATION[0]) & (s <= SKIN_SATURATION[1]) & (v >= SKIN_VALUE)
+
+
+def object_colour(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None,
+                  label: str | None = None) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
     """(CIELAB of the object's main colour, its likeliest colour names with probabilities, best first).
-    The object's own pixels (foreground_mask) in colour groups (color.colour_groups: the main one, and a second
-    big one), each measured (color.measure_lab, corrected by the scene's illuminant `gains`: color.illuminant_gains
-    of the whole frame, estimated here when not given) and named; the names are the groups' mixture."""
+    The object's own pixels (foreground_mask; a person's without skin) in colour groups (color.colour_groups: the
+    main one, and a second big one), each measured (color.measure_lab, corrected by the scene's illuminant
+    `gains`: color.illuminant_gains of the whole frame, estimated here when not given) and named; the names are
+    the groups' mixture."""
     if gains is None:
         gains = illuminant_gains(bgr)
     small, bins, own, centre = foreground_mask(bgr, bbox)
+    if label == "person" and own.any():
+        clothes = own.copy()
+        clothes[own] = ~skin(small[own])
+        if clothes.sum() >= MIN_CLOTHES * own.sum():  # else: mostly skin (a hand, a face close up): keep it
+            own = clothes
     if not own.any():
         return None, []
     pixels = small[own]
@@ -126,9 +144,9 @@ class VisionPipeline:
         gains = illuminant_gains(bgr)  # one estimate of the scene's light per frame
         out = []
         for label, score, box in self.detector.detect(bgr):
-            lab, names = object_colour(bgr, box, gains)
-            # the language's class where one fits ("mug" -> "cup"), so "the cup" finds it
-            out.append(Detection(canonical_label(label), names[0][0] if names else None, score, box,
+            label = canonical_label(label)  # the language's class where one fits ("mug" -> "cup")
+            lab, names = object_colour(bgr, box, gains, label)
+            out.append(Detection(label, names[0][0] if names else None, score, box,
                                  lab=lab, colors=tuple(names)))
         return out
 
