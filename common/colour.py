@@ -98,10 +98,38 @@ def term_fits(term: str, labs: np.ndarray) -> np.ndarray:
 def name_distribution(lab: Lab, names: tuple[str, ...] = BASIC_COLORS, top: int = 5) -> list[tuple[str, float]]:
     """The likeliest basic colour names of a measured colour, best first, with probabilities (the fits
     normalised over `names`; the `top` best are returned, so they sum to at most 1)."""
-    fits = [(n, term_fit(n, lab)) for n in names]
-    total = sum(f for _, f in fits) or 1.0
-    ranked = sorted(((n, f / total) for n, f in fits), key=lambda nf: -nf[1])
+    plain = all(n in COLOR_PROTOTYPES and n not in LIGHTNESS_ONLY for n in names)
+    fits = _all_fits(names, lab) if plain else [term_fit(n, lab) for n in names]
+    total = sum(fits) or 1.0
+    ranked = sorted(((n, f / total) for n, f in zip(names, fits)), key=lambda nf: -nf[1])
     return ranked[:top]
+
+
+@lru_cache(maxsize=8)
+def _prototype_table(names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All prototypes of `names` in one array, the index of their name, and where each name's run starts."""
+    protos, owner = [], []
+    for i, n in enumerate(names):
+        for p in prototypes(n):
+            protos.append(p)
+            owner.append(i)
+    owner_arr = np.array(owner)
+    starts = np.searchsorted(owner_arr, np.arange(len(names)))
+    return np.array(protos, np.float64), owner_arr, starts
+
+
+def _all_fits(names: tuple[str, ...], lab: Lab) -> list[float]:
+    """term_fit of one colour for several terms (none lightness-only or modified): one array operation."""
+    protos, _, starts = _prototype_table(names)
+    l, a, b = lab
+    c1 = math.hypot(a, b)
+    c2 = np.hypot(protos[:, 1], protos[:, 2])
+    dc = c1 - c2
+    dh2 = np.maximum(0.0, (a - protos[:, 1]) ** 2 + (b - protos[:, 2]) ** 2 - dc * dc)
+    c = np.sqrt(c1 * c2)
+    d = np.sqrt(((l - protos[:, 0]) / K_L) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
+    nearest = np.minimum.reduceat(d, starts)
+    return np.exp(-0.5 * (nearest / SIGMA) ** 2).tolist()
 
 
 @lru_cache(maxsize=4096)

@@ -115,12 +115,14 @@ def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
     if len(small) < 16:
         return np.ones(3, np.float32)
     lin = SRGB_TO_LINEAR[small]
-    estimate = np.power(np.mean(np.power(lin, SHADES_OF_GREY_P), axis=0), 1.0 / SHADES_OF_GREY_P)
+    cubed = lin * lin * lin
+    estimate = np.power(np.mean(cubed * cubed, axis=0), 1.0 / SHADES_OF_GREY_P)  # p = 6
     if estimate.min() <= 1e-6:
         return np.ones(3, np.float32)
     gains = np.clip(estimate.mean() / estimate, 1 / MAX_GAIN, MAX_GAIN)
     luminance = (lin * gains) @ _XYZ_FROM_LINEAR_BGR[1]
-    bright = float(np.quantile(luminance, BRIGHT_QUANTILE))
+    bright = float(np.partition(luminance, int(BRIGHT_QUANTILE * (len(luminance) - 1)))[
+        int(BRIGHT_QUANTILE * (len(luminance) - 1))])
     exposure = min(MAX_EXPOSURE, max(1.0, BRIGHT_REFERENCE / max(bright, 1e-6)))
     return (gains * exposure).astype(np.float32)
 
@@ -140,25 +142,26 @@ def colour_groups(bins: np.ndarray, weights: np.ndarray | None = None) -> list[t
     hues = counts[0:36:2] + counts[1:36:2]
     chromatic = hues + np.roll(hues, 1) + np.roll(hues, -1)
     weight = np.array([*chromatic, counts[36] + counts[37], counts[37] + counts[38]])
-    members = [[(k - 1) % 18, k, (k + 1) % 18] for k in range(18)]
-
-    def mask(g: int) -> np.ndarray:
-        if g == 18:
-            return (bins == 36) | (bins == 37)
-        if g == 19:
-            return (bins == 37) | (bins == 38)
-        return (bins < 36) & np.isin(bins // 2, members[g])
-
-    def bins_of(g: int) -> set[int]:
-        return {36, 37} if g == 18 else {37, 38} if g == 19 else {2 * h + s for h in members[g] for s in (0, 1)}
-
     first = int(np.argmax(weight))
-    out = [(mask(first), float(weight[first]) / total)]
-    taken = bins_of(first)
-    rest = [g for g in np.argsort(-weight) if not bins_of(int(g)) & taken]
+    out = [(_GROUP_LUT[first][bins], float(weight[first]) / total)]
+    rest = [int(g) for g in np.argsort(-weight) if not (_GROUP_LUT[g] & _GROUP_LUT[first]).any()]
     if rest and weight[rest[0]] / total >= SECOND_COLOUR:
-        out.append((mask(int(rest[0])), float(weight[rest[0]]) / total))
+        out.append((_GROUP_LUT[rest[0]][bins], float(weight[rest[0]]) / total))
     return out
+
+
+def _group_lut() -> np.ndarray:
+    """Per group (18 hue windows, dark+grey, grey+white): which of the 39 bins belong to it."""
+    lut = np.zeros((20, 39), bool)
+    for k in range(18):
+        for h in ((k - 1) % 18, k, (k + 1) % 18):
+            lut[k, 2 * h:2 * h + 2] = True
+    lut[18, [36, 37]] = True
+    lut[19, [37, 38]] = True
+    return lut
+
+
+_GROUP_LUT = _group_lut()
 
 
 def measure_lab(bgr_pixels: np.ndarray, gains: np.ndarray | None = None) -> tuple[float, float, float] | None:
@@ -175,7 +178,8 @@ def measure_lab(bgr_pixels: np.ndarray, gains: np.ndarray | None = None) -> tupl
     if gains is not None:
         lin = np.clip(lin * gains, 0.0, 1.0)
     luminance = lin @ _XYZ_FROM_LINEAR_BGR[1]
-    lo, hi = np.quantile(luminance, TRIM)
+    ordered = np.sort(luminance)
+    lo, hi = ordered[int(TRIM[0] * (len(ordered) - 1))], ordered[int(TRIM[1] * (len(ordered) - 1))]
     kept = lin[(luminance >= lo) & (luminance <= hi)]
     if len(kept) == 0:
         kept = lin
