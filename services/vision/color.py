@@ -144,9 +144,10 @@ def colour_groups(bins: np.ndarray, weights: np.ndarray | None = None) -> list[t
     weight = np.array([*chromatic, counts[36] + counts[37], counts[37] + counts[38]])
     first = int(np.argmax(weight))
     out = [(_GROUP_LUT[first][bins], float(weight[first]) / total)]
-    rest = [int(g) for g in np.argsort(-weight) if not (_GROUP_LUT[g] & _GROUP_LUT[first]).any()]
-    if rest and weight[rest[0]] / total >= SECOND_COLOUR:
-        out.append((_GROUP_LUT[rest[0]][bins], float(weight[rest[0]]) / total))
+    apart = np.where(_GROUP_OVERLAP[first], -1.0, weight)  # the groups that share no bin with the first
+    second = int(np.argmax(apart))
+    if apart[second] / total >= SECOND_COLOUR:
+        out.append((_GROUP_LUT[second][bins], float(weight[second]) / total))
     return out
 
 
@@ -162,6 +163,7 @@ def _group_lut() -> np.ndarray:
 
 
 _GROUP_LUT = _group_lut()
+_GROUP_OVERLAP = (_GROUP_LUT.astype(np.int32) @ _GROUP_LUT.T.astype(np.int32)) > 0  # groups sharing a bin
 
 
 def measure_lab(bgr_pixels: np.ndarray, gains: np.ndarray | None = None) -> tuple[float, float, float] | None:
