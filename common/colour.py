@@ -12,7 +12,6 @@ sits near a vivid prototype of its hue. A term's fit is exp(-d²/2σ²) to its n
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 
 import numpy as np
@@ -27,17 +26,26 @@ LIGHTNESS_ONLY = {"dark"}  # terms that say nothing about hue
 LIGHT_SHIFT = 0.45      # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
 LIGHT_CHROMA = 0.7
 DARK_SCALE = 0.55       # "dark X": lightness × this, chroma × DARK_CHROMA
-DARK_CHROMA = 0.6 
+DARK_CHROMA = 0.6
+
+
+def delta_e94_grid(labs: np.ndarray, refs: np.ndarray, k_l: float = K_L) -> np.ndarray:
+    """CIE94 colour difference of every colour in `labs` (N×3) to every one in `refs` (P×3): N×P. Symmetric form
+    (S_C, S_H from the geometric mean chroma)."""
+    labs, refs = np.asarray(labs, np.float64).reshape(-1, 3), np.asarray(refs, np.float64).reshape(-1, 3)
+    c1 = np.hypot(labs[:, 1], labs[:, 2])[:, None]
+    c2 = np.hypot(refs[:, 1], refs[:, 2])[None, :]
+    dl = labs[:, None, 0] - refs[None, :, 0]
+    dc = c1 - c2
+    dh2 = np.maximum(0.0, (labs[:, None, 1] - refs[None, :, 1]) ** 2 + (labs[:, None, 2] - refs[None, :, 2]) ** 2
+                     - dc * dc)
+    c = np.sqrt(c1 * c2)
+    return np.sqrt((dl / k_l) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
 
 
 def delta_e94(x: Lab, y: Lab, k_l: float = K_L) -> float:
-    """CIE94 colour difference, symmetric form (S_C, S_H from the geometric mean chroma)."""
-    dl = x[0] - y[0]
-    c1, c2 = math.hypot(x[1], x[2]), math.hypot(y[1], y[2])
-    dc = c1 - c2
-    dh2 = max(0.0, (x[1] - y[1]) ** 2 + (x[2] - y[2]) ** 2 - dc * dc)
-    c = math.sqrt(c1 * c2)
-    return math.sqrt((dl / k_l) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
+    """CIE94 colour difference of two colours (delta_e94_grid)."""
+    return float(delta_e94_grid(np.asarray(x), np.asarray(y), k_l)[0, 0])
 
 
 def modified(lab: Lab, modifier: str) -> Lab:
@@ -61,38 +69,23 @@ def prototypes(term: str) -> tuple[Lab, ...]:
     raise ValueError(f"unknown colour term {term!r}: the terms are the keys of common.language.COLOR_PHRASES")
 
 
-def term_distance(term: str, lab: Lab) -> float:
-    """ΔE94 from a measured colour to the nearest prototype of the term (lightness alone for "dark"). A light or
-    dark term is a claim about lightness: its lightness difference counts in full (k_L = 1)."""
-    if term in LIGHTNESS_ONLY:
-        return max(0.0, lab[0] - COLOR_PROTOTYPES[term][0][0]) / K_L
-    k_l = 1.0 if term.partition(" ")[0] in COLOR_MODIFIERS else K_L
-    return min(delta_e94(lab, p, k_l) for p in prototypes(term))
-
-
-def term_fit(term: str, lab: Lab) -> float:
-    """How plausibly a person calls a colour `term`, in (0, 1]: 1 at a prototype, 0.61 at σ, 0.14 at 2σ."""
-    d = term_distance(term, lab)
-    return math.exp(-0.5 * (d / SIGMA) ** 2)
-
-
 def term_fits(term: str, labs: np.ndarray) -> np.ndarray:
-    """`term_fit` of many measured colours at once (N×3 array): one decision over a thousand objects stays cheap."""
+    """How plausibly a person calls each measured colour (N×3) `term`, in (0, 1]: exp(-d²/2σ²), d the ΔE94 to the
+    term's nearest prototype (lightness alone for "dark"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ. A light or
+    dark term is a claim about lightness: its lightness difference counts in full (k_L = 1). One array operation
+    for all, so one decision over a thousand objects stays cheap."""
     labs = np.asarray(labs, np.float64).reshape(-1, 3)
     if term in LIGHTNESS_ONLY:
         d = np.maximum(0.0, labs[:, 0] - COLOR_PROTOTYPES[term][0][0]) / K_L
     else:
         k_l = 1.0 if term.partition(" ")[0] in COLOR_MODIFIERS else K_L
-        protos = np.asarray(prototypes(term), np.float64)                     # P×3
-        c1 = np.hypot(labs[:, 1], labs[:, 2])[:, None]                        # N×1
-        c2 = np.hypot(protos[:, 1], protos[:, 2])[None, :]                    # 1×P
-        dl = labs[:, None, 0] - protos[None, :, 0]
-        dc = c1 - c2
-        dab2 = (labs[:, None, 1] - protos[None, :, 1]) ** 2 + (labs[:, None, 2] - protos[None, :, 2]) ** 2
-        dh2 = np.maximum(0.0, dab2 - dc * dc)
-        c = np.sqrt(c1 * c2)
-        d = np.sqrt((dl / k_l) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2).min(axis=1)
+        d = delta_e94_grid(labs, np.asarray(prototypes(term)), k_l).min(axis=1)
     return np.exp(-0.5 * (d / SIGMA) ** 2)
+
+
+def term_fit(term: str, lab: Lab) -> float:
+    """term_fits of one measured colour."""
+    return float(term_fits(term, np.asarray(lab))[0])
 
 
 def name_distribution(lab: Lab, names: tuple[str, ...] = BASIC_COLORS, top: int = 5) -> list[tuple[str, float]]:
@@ -119,16 +112,9 @@ def _prototype_table(names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np
 
 
 def _all_fits(names: tuple[str, ...], lab: Lab) -> list[float]:
-    """term_fit of one colour for several terms (none lightness-only or modified): one array operation."""
+    """term_fit of one colour for several plain terms (no modifier, not lightness-only): one array operation."""
     protos, _, starts = _prototype_table(names)
-    l, a, b = lab
-    c1 = math.hypot(a, b)
-    c2 = np.hypot(protos[:, 1], protos[:, 2])
-    dc = c1 - c2
-    dh2 = np.maximum(0.0, (a - protos[:, 1]) ** 2 + (b - protos[:, 2]) ** 2 - dc * dc)
-    c = np.sqrt(c1 * c2)
-    d = np.sqrt(((l - protos[:, 0]) / K_L) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
-    nearest = np.minimum.reduceat(d, starts)
+    nearest = np.minimum.reduceat(delta_e94_grid(np.asarray(lab), protos)[0], starts)
     return np.exp(-0.5 * (nearest / SIGMA) ** 2).tolist()
 
 

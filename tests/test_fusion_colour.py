@@ -162,10 +162,15 @@ def test_colour_words_are_one_table_for_parser_and_speech():
     assert set(L.BASIC_COLORS) <= set(L.prompt_words())
 
 
-def test_many_measured_colours_at_once_agree_with_one_at_a_time():
-    from common.colour import term_fits
+def test_cie94_matches_published_values_and_many_colours_at_once_match_one_at_a_time():
+    """Sharma et al.'s CIEDE2000 test pairs 1–2 have CIE94 (graphic arts, k_L = 1) differences 1.3950 and 1.9341
+    with the first colour's chroma as reference; the symmetric form here (geometric mean chroma) gives 1.380 and 1.893."""
+    from common.colour import COLOR_PROTOTYPES, delta_e94, term_fits
+    assert delta_e94((50, 2.6772, -79.7751), (50, 0, -82.7485), 1.0) == pytest.approx(1.3950, abs=0.05)
+    assert delta_e94((50, 3.1571, -77.2803), (50, 0, -82.7485), 1.0) == pytest.approx(1.9341, abs=0.05)
     rng = np.random.default_rng(7)
     labs = np.column_stack([rng.uniform(0, 100, 200), rng.uniform(-80, 80, 200), rng.uniform(-80, 80, 200)])
-    for term in ("red", "light blue", "dark grey", "dark", "navy", "white"):
-        many = term_fits(term, labs)
-        assert np.allclose(many, [term_fit(term, tuple(x)) for x in labs], atol=1e-9), term
+    for term in ("red", "blue", "grey", "white"):
+        one_by_one = [max(np.exp(-0.5 * (delta_e94(tuple(x), p) / 12.0) ** 2) for p in COLOR_PROTOTYPES[term])
+                      for x in labs]
+        assert np.allclose(term_fits(term, labs), one_by_one, atol=1e-9), term

@@ -1,9 +1,9 @@
 """A spoken colour matched by similarity, relative to the other candidates. Pure.
 
 "The red cup" is the cup that is most plausibly red among the cups (the objects the other words fit):
-- each candidate's fit to the term (common.colour.term_fit) comes from its measured colour (`lab`, vision's
-  colour model), else from its colour names (`colors`, `color`: the term's fit at the names' prototypes, so
-  red and orange partly match, red and blue do not);
+- each candidate's fit to the term comes from its measured colour (`lab`, vision's colour model:
+  common.colour.term_fits), else from its colour names (`name_fit`: `colors`, `color`; the term's fit at the
+  names' prototypes, so red and orange partly match, red and blue do not);
 - when no candidate is plausibly that colour (fit below PLAUSIBLE; from a name alone below PLAUSIBLE_NAME),
   every candidate gets 0: "I can't see the red cup";
 - otherwise each gets min(1, fit / (ABOUT_EQUAL × best fit)) ** SHARPNESS: those within ABOUT_EQUAL of the best
@@ -19,7 +19,7 @@ from typing import Protocol
 
 import numpy as np
 
-from common.colour import name_similarity, term_fit, term_fits
+from common.colour import name_similarity, term_fits
 
 PLAUSIBLE = 0.2         # a measured colour fits the term this well (ΔE94 ≈ 1.8 σ): plausibly that colour
 PLAUSIBLE_NAME = 0.5    # from a name alone: the name's prototype within ≈ 1.2 σ of the term (red/orange, grey/white)
@@ -35,42 +35,38 @@ class Coloured(Protocol):
     colors: tuple[tuple[str, float], ...]
 
 
-def colour_fit(term: str, obj: Coloured) -> tuple[float, float] | None:
-    """(fit of the object's colour to the term in [0, 1], the fit from which it is plausibly that colour), or
-    None when the object reports no colour."""
-    if obj.lab is not None:
-        return term_fit(term, obj.lab), PLAUSIBLE
+def name_fit(term: str, obj: Coloured) -> float | None:
+    """Fit of an object known only by colour names to the term: the names' similarity to it (`colors` weighted by
+    their probabilities, else `color`); None when the object reports no colour."""
     if obj.colors:
         total = sum(p for _, p in obj.colors) or 1.0
-        return sum(p * name_similarity(term, name) for name, p in obj.colors) / total, PLAUSIBLE_NAME
+        return sum(p * name_similarity(term, name) for name, p in obj.colors) / total
     if obj.color:
-        return name_similarity(term, obj.color), PLAUSIBLE_NAME
+        return name_similarity(term, obj.color)
     return None
 
 
 def colour_factors(term: str, candidates: list[Coloured]) -> dict[tuple[str, str], float]:
     """Per candidate (the objects the other words fit), the factor the colour word puts on its match."""
-    keys, fits, thresholds = [], [], []
     measured = [o for o in candidates if o.lab is not None]
-    if measured:  # all measured colours in one array operation
-        keys += [o.key for o in measured]
-        fits += term_fits(term, np.array([o.lab for o in measured], np.float64)).tolist()
-        thresholds += [PLAUSIBLE] * len(measured)
+    keys = [o.key for o in measured]
+    fits = term_fits(term, np.array([o.lab for o in measured], np.float64)).tolist() if measured else []
+    plausible = [f for f in fits if f >= PLAUSIBLE]  # all measured colours in one array operation
     unknown = []
     for o in candidates:
         if o.lab is None:
-            f = colour_fit(term, o)
+            f = name_fit(term, o)
             if f is None:
                 unknown.append(o.key)
-            else:
-                keys.append(o.key)
-                fits.append(f[0])
-                thresholds.append(f[1])
-    best = max((f for f, t in zip(fits, thresholds) if f >= t), default=0.0)
+                continue
+            keys.append(o.key)
+            fits.append(f)
+            if f >= PLAUSIBLE_NAME:
+                plausible.append(f)
     out = dict.fromkeys(unknown, UNKNOWN)
-    if best <= 0.0:
+    if not plausible:
         out.update(dict.fromkeys(keys, 0.0))
     else:
-        scale = 1.0 / (ABOUT_EQUAL * best)
+        scale = 1.0 / (ABOUT_EQUAL * max(plausible))
         out.update((k, min(1.0, f * scale) ** SHARPNESS) for k, f in zip(keys, fits))
     return out
