@@ -22,7 +22,7 @@ Lab = tuple[float, float, float]
 
 SIGMA = 12.0            # ΔE94 at which a term's fit falls to exp(-1/2) ≈ 0.61
 K_L = 2.0               # lightness weight 1/K_L
-LIGHTNESS_ONLY = {"dark"}  # terms that say nothing about hue
+LIGHTNESS_ONLY = {"dark": 1.0, "light": -1.0}  # terms that say nothing about hue: darker (lighter) than their L fits
 LIGHT_SHIFT = 0.45      # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
 LIGHT_CHROMA = 0.7
 DARK_SCALE = 0.55       # "dark X": lightness × this, chroma × DARK_CHROMA
@@ -71,12 +71,12 @@ def prototypes(term: str) -> tuple[Lab, ...]:
 
 def term_fits(term: str, labs: np.ndarray) -> np.ndarray:
     """How plausibly a person calls each measured colour (N×3) `term`, in (0, 1]: exp(-d²/2σ²), d the ΔE94 to the
-    term's nearest prototype (lightness alone for "dark"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ. A light or
+    term's nearest prototype (lightness alone for "dark" and "light"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ. A light or
     dark term is a claim about lightness: its lightness difference counts in full (k_L = 1). One array operation
     for all, so one decision over a thousand objects stays cheap."""
     labs = np.asarray(labs, np.float64).reshape(-1, 3)
     if term in LIGHTNESS_ONLY:
-        d = np.maximum(0.0, labs[:, 0] - COLOR_PROTOTYPES[term][0][0]) / K_L
+        d = np.maximum(0.0, LIGHTNESS_ONLY[term] * (labs[:, 0] - COLOR_PROTOTYPES[term][0][0])) / K_L
     else:
         k_l = 1.0 if term.partition(" ")[0] in COLOR_MODIFIERS else K_L
         d = delta_e94_grid(labs, np.asarray(prototypes(term)), k_l).min(axis=1)

@@ -65,7 +65,8 @@ _COLOR_TERMS: dict[str, tuple[str, ...]] = {
     "lime": ("lime", "lime green"),
     "magenta": ("magenta", "fuchsia", "hot pink"),
     "lilac": ("lilac", "lavender", "mauve"),
-    "dark": ("dark",),  # lightness alone: "the dark one"
+    "dark": ("dark", "darker"),  # lightness alone: "the dark one"
+    "light": ("light", "lighter", "pale", "paler", "bright", "brighter"),  # "the light one"
 }
 # What each term looks like: CIELAB (D65) prototypes of typical objects of that colour, from sRGB exemplars
 # (red: 200,30,35 and 150,25,30; brown: 120,75,40 / 160,115,75 / 80,50,30; …: docs/vision.md lists them all).
@@ -96,14 +97,17 @@ COLOR_PROTOTYPES: dict[str, tuple[tuple[float, float, float], ...]] = {
     "magenta": ((47, 71, -27),),
     "lilac": ((70, 22, -26),),
     "dark": ((15, 0, 0),),  # matched on lightness only (common.colour.LIGHTNESS_ONLY)
+    "light": ((90, 0, 0),),
 }
 # Lightness modifiers: "light blue", "pale green", "dark red", "deep purple" are terms of their own, made
 # from the base term's prototypes (common.colour.modified).
 COLOR_MODIFIERS: dict[str, tuple[str, ...]] = {"light": ("light", "pale"), "dark": ("dark", "deep")}
 MODIFIABLE_COLORS: tuple[str, ...] = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "brown", "grey",
                                       "turquoise")
+VIVID_WORDS: tuple[str, ...] = ("bright", "vivid")  # "bright red" is red: saturation, which real light varies
 COLOR_PHRASES: dict[str, tuple[str, ...]] = {
-    **_COLOR_TERMS,
+    **{term: ps + (tuple(f"{w} {ps[0]}" for w in VIVID_WORDS) if term in MODIFIABLE_COLORS else ())
+       for term, ps in _COLOR_TERMS.items()},
     **{f"{mod} {base}": tuple(f"{word} {p}" for word in words for p in _COLOR_TERMS[base][:2])
        for mod, words in COLOR_MODIFIERS.items() for base in MODIFIABLE_COLORS},
 }

@@ -112,6 +112,7 @@ def test_light_and_dark_modifiers():
     assert picked("the silver sofa", sofas) == "light"
     assert picked("the white sofa", sofas) == "light"
     assert picked("the dark sofa", sofas) == "dark"
+    assert picked("the light one", sofas) == "light"       # not "the right one" (a fuzzy fix it used to get)
 
 
 def test_without_lab_names_match_by_similarity():
@@ -140,6 +141,7 @@ def test_an_object_with_no_colour_is_neither_chosen_nor_excluded_by_one():
     ("the light grey chair", "light grey"), ("the dark red cup", "dark red"), ("the light blue bowl", "light blue"),
     ("the pink soap bottle", "pink"), ("the purple cup", "purple"), ("the brown teddy bear", "brown"),
     ("the gray sofa", "grey"), ("the deep purple cup", "dark purple"), ("the dark one", "dark"),
+    ("the light one", "light"), ("the paler one", "light"), ("the bright red cup", "red"),
 ])
 def test_the_words_people_use_are_understood(text, term):
     assert parse(text).obj.color == term
