@@ -95,6 +95,7 @@ def linear_to_lab(linear_bgr: np.ndarray) -> np.ndarray:
 
 
 def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
+    """8-bit sRGB of linear-light values (0–1, any channel order)."""
     c = np.clip(linear, 0.0, 1.0)
     s = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1 / 2.4) - 0.055)
     return np.round(s * 255).astype(np.uint8)
@@ -104,7 +105,7 @@ def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
     """Per-channel (B, G, R) gains that make the scene's light neutral: shades of grey (Finlayson & Trezzi 2004),
     the p-norm mean of each channel over the unclipped pixels of the whole frame, shrunk first. p = 6 lies
     between grey-world (fooled by one dominant colour: a wooden kitchen) and white-patch (fooled by one bright
-    coloured surface); on the benchmark sets it beats both. The colour gains keep the mean luminance and are
+    coloured surface); on the published benchmark sets it beats both (Gijsenij et al. 2011). The colour gains keep the mean luminance and are
     clamped to 1/MAX_GAIN–MAX_GAIN: a scene that is really all one colour is not turned grey. Then exposure: a
     dim scene is brightened (at most MAX_EXPOSURE×) until its bright surfaces (the BRIGHT_QUANTILE of luminance)
     reach BRIGHT_REFERENCE, as a person judges a white cup in a dim kitchen white, not grey."""
@@ -121,8 +122,8 @@ def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
         return np.ones(3, np.float32)
     gains = np.clip(estimate.mean() / estimate, 1 / MAX_GAIN, MAX_GAIN)
     luminance = (lin * gains) @ _XYZ_FROM_LINEAR_BGR[1]
-    bright = float(np.partition(luminance, int(BRIGHT_QUANTILE * (len(luminance) - 1)))[
-        int(BRIGHT_QUANTILE * (len(luminance) - 1))])
+    k = int(BRIGHT_QUANTILE * (len(luminance) - 1))
+    bright = float(np.partition(luminance, k)[k])
     exposure = min(MAX_EXPOSURE, max(1.0, BRIGHT_REFERENCE / max(bright, 1e-6)))
     return (gains * exposure).astype(np.float32)
 
