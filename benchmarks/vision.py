@@ -16,7 +16,10 @@ ONNX backend (the real YOLOX-Nano model, --model or $HRI_YOLOX_MODEL or ../share
      cv2.dnn.NMSBoxesBatched at IoU 0.45;
    - service path: VisionPipeline(YoloDetector).process = the same plus labels through the language, each
      object's colour from its own pixels, tracking, image quality and the contract objects.
-4. End-to-end lag at 30 fps for 60 s through `python -m services.vision --backend onnx --model ...`: the model
+4. The colour step's cost per frame beside the detector's: on the same frames, the detector alone
+   (YoloDetector.detect) and the colour model alone on its boxes (one illuminant estimate per frame, then
+   each box's own pixels measured and named: core.object_colour), median ms per frame.
+5. End-to-end lag at 30 fps for 60 s through `python -m services.vision --backend onnx --model ...`: the model
    runs slower than 30 fps here, so the service must drop to the latest frame (counted as skipped), not queue.
 Target for 1 and 3: service >= 0.9x the bare loop's frames/s.
 
@@ -28,7 +31,7 @@ Depth (the real YCB-Video RGB-D frames of ../shared/data/rgbd/ycb_video, 640x480
    (depth first, both latest-only) into a real vision process for --seconds; lag per slice must stay flat.
 
 Usage: python benchmarks/vision.py [--seconds 60] [--frames 300] [--backends color,onnx,depth] [--model PATH]
-       [--fps 30]
+       [--fps 30] [--skip-lag] [--colour-only]
 """
 
 from __future__ import annotations
@@ -51,7 +54,8 @@ from common.depth import depth_frame  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
 from common.schema import CameraInfo, Detections, Frame  # noqa: E402
 from services.vision.color import CHROMATIC, HUE_RANGES  # noqa: E402
-from services.vision.core import VisionPipeline  # noqa: E402
+from services.vision.color import illuminant_gains  # noqa: E402
+from services.vision.core import VisionPipeline, object_colour  # noqa: E402
 from services.vision.depth import DepthImage  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
 from services.vision.yolo import YoloDetector  # noqa: E402
@@ -261,6 +265,32 @@ def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: fl
         print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")
 
 
+def colour_cost(model: str, frames: list[np.ndarray], n: int) -> None:
+    detector = YoloDetector(model)
+    boxes = [[box for _, _, box in detector.detect(f)] for f in frames]
+
+    def colour_step(i: int) -> None:
+        gains = illuminant_gains(frames[i])
+        for box in boxes[i]:
+            object_colour(frames[i], box, gains)
+
+    detect_ms, colour_ms = [], []
+    for k in range(n):  # interleaved, so both see the same machine load
+        i = k % len(frames)
+        t0 = time.perf_counter()
+        detector.detect(frames[i])
+        t1 = time.perf_counter()
+        colour_step(i)
+        t2 = time.perf_counter()
+        detect_ms.append((t1 - t0) * 1e3)
+        colour_ms.append((t2 - t1) * 1e3)
+    per_frame = sum(len(b) for b in boxes) / len(boxes)
+    print(f"colour step vs detector on {n} frames 640x480 ({per_frame:.1f} objects per frame): detector "
+          f"{statistics.median(detect_ms):.2f} ms, colour model {statistics.median(colour_ms):.3f} ms per frame "
+          f"(p90 {np.percentile(colour_ms, 90):.3f} ms; "
+          f"{100 * statistics.median(colour_ms) / statistics.median(detect_ms):.1f} % of the detector)")
+
+
 def default_model() -> str:
     return os.environ.get("HRI_YOLOX_MODEL") or str(ROOT.parent / "shared" / "models" / "yolox_nano.onnx")
 
@@ -274,6 +304,7 @@ def main() -> None:
     parser.add_argument("--model", default=default_model(), help="YOLOX ONNX model for the onnx backend")
     parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the lag runs (default 30)")
     parser.add_argument("--skip-lag", action="store_true", help="throughput only")
+    parser.add_argument("--colour-only", action="store_true", help="onnx: only the colour step's cost per frame")
     args = parser.parse_args()
     backends = args.backends.split(",")
     if "color" in backends:
@@ -294,6 +325,9 @@ def main() -> None:
             print(f"onnx: no model at {args.model} (give --model or HRI_YOLOX_MODEL); skipped")
             return
         images = onnx_frames()
+        colour_cost(args.model, images, args.frames)
+        if args.colour_only:
+            return
         onnx_throughput(args.model, images, args.frames)
         if not args.skip_lag:
             frame_lag("vision", ["--backend", "onnx", "--model", args.model], "hri/vision/bench/objects", Detections,

@@ -36,18 +36,82 @@ ANSWER_PHRASES: dict[str, tuple[str, ...]] = {
     "deny": ("no", "nope", "wrong", "not that", "not that one", "cancel", "never mind"),
 }
 
-# Colour words. The keys are the colour names vision publishes in `color`.
-COLOR_PHRASES: dict[str, tuple[str, ...]] = {
-    "red": ("red", "crimson", "scarlet", "maroon", "cherry"),
-    "orange": ("orange", "amber", "tangerine"),
-    "yellow": ("yellow", "golden", "gold", "lemon"),
-    "green": ("green", "lime", "olive", "emerald"),
-    "blue": ("blue", "navy", "azure", "cyan", "turquoise", "teal"),
-    "purple": ("purple", "violet", "magenta", "lilac", "pink"),
-    "white": ("white", "cream", "ivory"),
-    "black": ("black", "dark"),
-    "grey": ("grey", "gray", "silver"),
+# Colour words. Each key is a colour term fusion matches by similarity (services/fusion/colour.py); the first
+# eleven are the basic colour names (Berlin & Kay) vision publishes in `color` and `colors` (docs/vision.md).
+BASIC_COLORS: tuple[str, ...] = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "brown", "white",
+                                 "grey", "black")
+_COLOR_TERMS: dict[str, tuple[str, ...]] = {
+    "red": ("red", "scarlet", "cherry"),
+    "orange": ("orange", "tangerine", "amber"),
+    "yellow": ("yellow", "lemon"),
+    "green": ("green", "emerald"),
+    "blue": ("blue", "azure", "royal blue"),
+    "purple": ("purple", "violet"),
+    "pink": ("pink", "rose", "salmon"),
+    "brown": ("brown", "chocolate", "wooden", "wood"),
+    "white": ("white", "ivory", "off white", "snow white"),
+    "grey": ("grey", "gray"),
+    "black": ("black", "jet black"),
+    "crimson": ("crimson", "ruby"),
+    "maroon": ("maroon", "burgundy", "wine red", "claret"),
+    "navy": ("navy", "navy blue", "midnight blue"),
+    "turquoise": ("turquoise", "cyan", "aqua", "aquamarine"),
+    "teal": ("teal", "petrol"),
+    "beige": ("beige", "tan", "khaki", "sand", "camel"),
+    "cream": ("cream", "eggshell"),
+    "gold": ("gold", "golden", "mustard"),
+    "silver": ("silver", "silvery", "metallic", "chrome", "steel"),
+    "olive": ("olive", "olive green"),
+    "lime": ("lime", "lime green"),
+    "magenta": ("magenta", "fuchsia", "hot pink"),
+    "lilac": ("lilac", "lavender", "mauve"),
+    "dark": ("dark", "darker"),  # lightness alone: "the dark one"
+    "light": ("light", "lighter", "pale", "paler", "bright", "brighter"),  # "the light one"
 }
+# What each term looks like: CIELAB (D65) prototypes of typical objects of that colour, from sRGB exemplars
+# (red: 200,30,35 and 150,25,30; brown: 120,75,40 / 160,115,75 / 80,50,30; …: docs/vision.md lists them all).
+# Several prototypes span a wide category (light and dark greys, browns); a term matches its nearest one.
+COLOR_PROTOTYPES: dict[str, tuple[tuple[float, float, float], ...]] = {
+    "red": ((43, 63, 43), (32, 50, 31), (35, 56, 23)),
+    "orange": ((63, 39, 64), (54, 36, 50)),
+    "yellow": ((84, -5, 79), (79, -2, 60)),
+    "green": ((55, -50, 38), (53, -32, 37), (34, -29, 18)),
+    "blue": ((40, 20, -57), (27, 15, -43), (50, 7, -47), (65, -18, -23)),
+    "purple": ((33, 57, -48), (40, 49, -39)),
+    "pink": ((72, 37, 1), (62, 52, -5)),
+    "brown": ((36, 15, 28), (52, 13, 29), (24, 11, 18)),
+    "white": ((97, 0, 0),),
+    "grey": ((54, 0, 0), (71, 0, 0), (38, 0, 0)),
+    "black": ((9, 0, 0),),
+    "crimson": ((35, 56, 23),),
+    "maroon": ((24, 38, 16),),
+    "navy": ((16, 16, -34),),
+    "turquoise": ((70, -36, -11),),
+    "teal": ((45, -28, -8),),
+    "beige": ((83, 2, 20), (75, 5, 24)),
+    "cream": ((93, -1, 16),),
+    "gold": ((71, 3, 63),),
+    "silver": ((77, 1, -3),),
+    "olive": ((49, -11, 42),),
+    "lime": ((78, -38, 68),),
+    "magenta": ((47, 71, -27),),
+    "lilac": ((70, 22, -26),),
+    "dark": ((15, 0, 0),),  # matched on lightness only (common.colour.LIGHTNESS_ONLY)
+    "light": ((90, 0, 0),),
+}
+# Lightness modifiers: "light blue", "pale green", "dark red", "deep purple" are terms of their own, made
+# from the base term's prototypes (common.colour.modified).
+COLOR_MODIFIERS: dict[str, tuple[str, ...]] = {"light": ("light", "pale"), "dark": ("dark", "deep")}
+MODIFIABLE_COLORS: tuple[str, ...] = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "brown", "grey",
+                                      "turquoise")
+VIVID_WORDS: tuple[str, ...] = ("bright", "vivid")  # "bright red" is red: saturation, which real light varies
+COLOR_PHRASES: dict[str, tuple[str, ...]] = {
+    **{term: ps + (tuple(f"{w} {ps[0]}" for w in VIVID_WORDS) if term in MODIFIABLE_COLORS else ())
+       for term, ps in _COLOR_TERMS.items()},
+    **{f"{mod} {base}": tuple(f"{word} {p}" for word in words for p in _COLOR_TERMS[base][:2])
+       for mod, words in COLOR_MODIFIERS.items() for base in MODIFIABLE_COLORS},
+}
+assert set(COLOR_PROTOTYPES) == set(_COLOR_TERMS) and set(BASIC_COLORS) <= set(COLOR_PROTOTYPES)
 
 # The detector's label set: the 80 COCO classes, in the model's class-index order (YOLOX, SSD, YOLOv5 …
 # all use it). Vision backends that run a COCO model import this list; everything here names them.
@@ -358,7 +422,7 @@ def prompt_words(limit: int = 120) -> list[str]:
                  "person", "chair", "vase", "clock", "toothbrush", "candy", "box")
     ordered: list[str] = []
     for group in ([ps[0] for ps in INTENT_PHRASES.values()], [ps[0] for ps in MOTION_PHRASES.values()],
-                  [ps[0] for ps in DIRECTION_PHRASES.values()], list(COLOR_PHRASES), list(household),
+                  [ps[0] for ps in DIRECTION_PHRASES.values()], list(BASIC_COLORS), list(household),
                   list(OBJECT_CATEGORIES), ["the other one", "not that one", "yes", "no", "meters", "degrees",
                                            "steps", "centimeters"],
                   list(PLACE_PHRASES), [label for label in COCO_LABELS if label not in household]):

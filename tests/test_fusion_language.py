@@ -55,7 +55,7 @@ CASES: list[tuple[str, dict]] = [
     ("Grab the object on the right.", dict(intent="pick_up", label="object", spatial=("right",))),
     # -- colours, positions --
     ("Pick up the red cup.", dict(intent="pick_up", label="cup", color="red")),
-    ("Grab the crimson mug.", dict(intent="pick_up", label="cup", color="red")),
+    ("Grab the crimson mug.", dict(intent="pick_up", label="cup", color="crimson")),
     ("Take the blue one on the left.", dict(intent="pick_up", color="blue", spatial=("left",))),
     ("Bring me the biggest box.", dict(intent="bring", label="box", spatial=("biggest",))),
     ("Pick up the bottle in the middle.", dict(intent="pick_up", label="bottle", spatial=("middle",))),

@@ -26,8 +26,11 @@ def test_parser_every_intent_phrase_of_the_language_is_understood():
 
 
 @pytest.mark.parametrize("text,color,label,spatial", [
-    ("pick up the crimson mug", "red", "cup", ()),
-    ("bring me the navy bottle", "blue", "bottle", ()),
+    ("pick up the crimson mug", "crimson", "cup", ()),  # its own term, matched to red by similarity
+    ("bring me the navy bottle", "navy", "bottle", ()),
+    ("bring me the light blue bowl", "light blue", "bowl", ()),
+    ("the dark grey sofa", "dark grey", "couch", ()),
+    ("the pale pink bottle", "light pink", "bottle", ()),
     ("take the blue one on the left", "blue", "object", ("left",)),
     ("the leftmost ball", None, "sports ball", ("left",)),
     ("grab the biggest box", None, "box", ("biggest",)),

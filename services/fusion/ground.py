@@ -26,6 +26,7 @@ import numpy as np
 from common.language import canonical_label, label_matches
 from common.schema import Detections, Location, Target, Weights
 from services.fusion import space
+from services.fusion.colour import colour_factors
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase, Relation
 from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
@@ -62,6 +63,8 @@ class SceneObject:
     position: tuple[float, float, float] | None = None  # metres in `frame_id` (camera optical frame), with depth
     extent: tuple[float, float, float] | None = None
     frame_id: str | None = None
+    lab: tuple[float, float, float] | None = None  # measured colour (CIELAB), when vision's colour model sent one
+    colors: tuple[tuple[str, float], ...] = ()      # likeliest colour names with probabilities
 
     def to_target(self) -> Target:
         return Target(id=self.id, label=self.raw_label, color=self.color, bbox=list(self.bbox),
@@ -87,7 +90,9 @@ def scene_objects(detections: list[Detections]) -> list[SceneObject]:
                                    bbox=tuple(o.bbox), center=tuple(o.center), score=o.score, cam=det.cam,
                                    width=det.width, height=det.height, stamp=det.stamp, quality=q,
                                    position=tuple(o.position) if o.position else None,
-                                   extent=tuple(o.extent) if o.extent else None, frame_id=det.frame_id))
+                                   extent=tuple(o.extent) if o.extent else None, frame_id=det.frame_id,
+                                   lab=None if o.lab is None else tuple(o.lab),
+                                   colors=tuple((c.name, c.p) for c in o.colors)))
     return out
 
 
@@ -111,8 +116,6 @@ def _attribute_match(phrase: ObjectPhrase, o: SceneObject) -> float:
     m = 1.0
     if not label_matches(phrase.label, o.label):  # "fruit" names the banana; "the banana" only the banana
         m = 0.0
-    if phrase.color:
-        m *= 0.5 if o.color is None else (1.0 if o.color == phrase.color else 0.0)
     return m
 
 
@@ -351,6 +354,9 @@ def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing |
     if not objects:
         return []
     match = {o.key: _attribute_match(phrase, o) for o in objects}
+    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/colour.py)
+        factors = colour_factors(phrase.color, [o for o in objects if match[o.key] > 0])
+        match = {k: m * factors.get(k, 0.0) for k, m in match.items()}
     fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
     for word in phrase.spatial:  # spatial words choose among the objects that fit the other words
         prefs = _spatial_scores(word, fitting)

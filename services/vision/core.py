@@ -5,9 +5,11 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from common.language import canonical_label
-from common.schema import DetectedObject, ImageQuality
-from services.vision.color import ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, color_name
+from common.colour import name_distribution
+from common.language import BASIC_COLORS, canonical_label
+from common.schema import ColorShare, DetectedObject, ImageQuality
+from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, colour_groups, illuminant_gains,
+                                   measure_lab)
 from services.vision.depth import DepthImage, with_depth
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
@@ -17,10 +19,17 @@ from services.vision.yolo import YoloDetector
 
 # Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
 # box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more
-# frequent inside the box than in the ring are the object's; the colour most of those pixels have names it.
+# frequent inside the box than in the ring are the object's; their main colour is measured (CIELAB, the scene's
+# light corrected) and named (docs/vision.md "Colour of a detection").
 COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
 RING = 0.25         # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
+MIN_OWN = 0.15      # what stands out must be at least this share of the box to be the object
+CENTRE_WEIGHT = 2.0  # the middle half of the box (in each direction) counts this much in the main colour
+SKIN_HUE = 17                 # OpenCV hue (0–179) up to which, or from 170, a pixel may be skin
+SKIN_SATURATION = (40, 170)   # 0–255
+SKIN_VALUE = 60
+MIN_CLOTHES = 0.3             # a person's pixels left without skin must be this share of them to be used
 
 
 _HUE_BIN = (np.arange(256) // 10 * 2).astype(np.uint8)  # hue -> 2 × (hue // 10)
@@ -36,9 +45,11 @@ def _colour_bins(hsv: np.ndarray) -> np.ndarray:
     return bins
 
 
-def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """(HSV of the box and the ring around it, every step-th pixel so that the box's longer side is about
-    COLOR_SIDE; boolean mask of the object's own pixels among them)."""
+def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(BGR of the box and the ring around it, every step-th pixel so that the box's longer side is about
+    COLOR_SIDE; their colour bins (_colour_bins); boolean mask of the object's own pixels among them; per-pixel
+    weights, CENTRE_WEIGHT in the middle half of the box, 1 elsewhere)."""
     frame_h, frame_w = bgr.shape[:2]
     x, y, w, h = bbox
     x0, y0 = int(max(0, x - RING * w)), int(max(0, y - RING * h))
@@ -46,10 +57,9 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) ->
     step = max(1, int(max(w, h) // COLOR_SIDE))  # every step-th pixel: enough for a histogram, and cheap
     small = bgr[y0:y1:step, x0:x1:step]
     if small.size == 0:
-        return np.zeros((0, 3), np.uint8), np.zeros(0, bool)
+        return np.zeros((0, 3), np.uint8), np.zeros(0, np.uint8), np.zeros(0, bool), np.zeros(0, np.float32)
     s = 1.0 / step
-    hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
-    bins = _colour_bins(hsv)
+    bins = _colour_bins(cv2.cvtColor(small, cv2.COLOR_BGR2HSV))
     inbox = np.zeros(bins.shape, bool)
     bx0, by0 = int((x - x0) * s), int((y - y0) * s)
     bx1, by1 = max(bx0 + 1, int(np.ceil((x + w - x0) * s))), max(by0 + 1, int(np.ceil((y + h - y0) * s)))
@@ -62,15 +72,64 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]) ->
     in_hist = np.bincount(bins[inbox], minlength=39) / max(1, int(inbox.sum()))
     ring_hist = np.bincount(bins[ring], minlength=39) / max(1, int(ring.sum()))
     own = inbox & (in_hist > FOREGROUND_RATIO * ring_hist + 0.005)[bins]
-    if own.sum() < 0.05 * inbox.sum():  # nothing stands out from the surroundings: the box is all we have
+    if own.sum() < MIN_OWN * inbox.sum():  # too little stands out to be the object (a detector boxes it tightly):
+        # a cushion on a sofa, a logo on a shirt. The box is all we have
         own = inbox
-    return hsv, own
+    centre = np.ones(bins.shape, np.float32)  # the object is where the box's middle is: its pixels count double
+    cy0, cx0 = by0 + (by1 - by0) // 4, bx0 + (bx1 - bx0) // 4
+    centre[cy0:max(cy0 + 1, by1 - (by1 - by0) // 4), cx0:max(cx0 + 1, bx1 - (bx1 - bx0) // 4)] = CENTRE_WEIGHT
+    return small, bins, own, centre
 
 
-def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float]) -> str | None:
-    """The colour most of the object's own pixels in this box have (see foreground_mask)."""
-    hsv, own = foreground_mask(bgr, bbox)
-    return color_name(hsv[own])[0] if own.any() else None
+def skin(bgr_pixels: np.ndarray) -> np.ndarray:
+    """Pixels of skin tone (N×3 BGR): hue 0–34° or ≥ 340°, saturation 0.16–0.67, value ≥ 0.24 — a person's
+    colour is what they wear, not their face and arms."""
+    hsv = cv2.cvtColor(bgr_pixels.reshape(-1, 1, 3), cv2.COLOR_BGR2HSV).reshape(-1, 3)
+    h, s, v = hsv[:, 0], hsv[:, 1], hsv[:, 2]
+    return ((h <= SKIN_HUE) | (h >= 170)) & (s >= SKIN_SATURATION[0]) & (s <= SKIN_SATURATION[1]) & (v >= SKIN_VALUE)
+
+
+def object_colour(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None,
+                  label: str | None = None) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
+    """(CIELAB of the object's main colour, its likeliest colour names with probabilities, best first).
+    The object's own pixels (foreground_mask; a person's without skin) in colour groups (color.colour_groups: the
+    main one, and a second big one), each measured (color.measure_lab, corrected by the scene's illuminant
+    `gains`: color.illuminant_gains of the whole frame, estimated here when not given) and named; the names are
+    the groups' mixture."""
+    if gains is None:
+        gains = illuminant_gains(bgr)
+    small, bins, own, centre = foreground_mask(bgr, bbox)
+    if label == "person" and own.any():
+        clothes = own.copy()
+        clothes[own] = ~skin(small[own])
+        if clothes.sum() >= MIN_CLOTHES * own.sum():  # else: mostly skin (a hand, a face close up): keep it
+            own = clothes
+    if not own.any():
+        return None, []
+    pixels = small[own]
+    groups = [(measure_lab(pixels[mask], gains), share) for mask, share in colour_groups(bins[own], centre[own])]
+    groups = [(lab, share) for lab, share in groups if lab is not None]
+    if not groups:
+        return None, []
+    return groups[0][0], mixed_names(groups)
+
+
+def mixed_names(groups: list[tuple[tuple[float, float, float], float]], top: int = 5) -> list[tuple[str, float]]:
+    """The colour names of an object of one or two colour groups ((lab, share) each): the groups' name
+    distributions (common.colour.name_distribution) mixed by their shares, best first, the `top` best."""
+    total = sum(share for _, share in groups) or 1.0
+    mixed: dict[str, float] = {}
+    for lab, share in groups:
+        for name, p in name_distribution(lab, top=len(BASIC_COLORS)):
+            mixed[name] = mixed.get(name, 0.0) + p * share / total
+    return sorted(mixed.items(), key=lambda np_: -np_[1])[:top]
+
+
+def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
+                 ) -> str | None:
+    """The likeliest colour name of the object in this box (see object_colour)."""
+    _, names = object_colour(bgr, bbox, gains)
+    return names[0][0] if names else None
 
 
 class VisionPipeline:
@@ -83,9 +142,14 @@ class VisionPipeline:
     def detections(self, bgr: np.ndarray) -> list[Detection]:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
-        # the language's class where one fits ("mug" -> "cup"), so "the cup" finds it
-        return [Detection(canonical_label(label), object_color(bgr, box), score, box)
-                for label, score, box in self.detector.detect(bgr)]
+        gains = illuminant_gains(bgr)  # one estimate of the scene's light per frame
+        out = []
+        for label, score, box in self.detector.detect(bgr):
+            label = canonical_label(label)  # the language's class where one fits ("mug" -> "cup")
+            lab, names = object_colour(bgr, box, gains, label)
+            out.append(Detection(label, names[0][0] if names else None, score, box,
+                                 lab=lab, colors=tuple(names)))
+        return out
 
     def process(self, cam: str, bgr: np.ndarray, depth: DepthImage | None = None
                 ) -> tuple[list[DetectedObject], ImageQuality]:
@@ -93,7 +157,9 @@ class VisionPipeline:
         tracker = self.trackers.setdefault(cam, Tracker(prefix=f"{cam}-o"))
         objects = [
             DetectedObject(id=obj_id, label=d.label, color=d.color, score=round(d.score, 4),
-                           bbox=[round(v, 1) for v in d.bbox], center=[round(v, 1) for v in d.center])
+                           bbox=[round(v, 1) for v in d.bbox], center=[round(v, 1) for v in d.center],
+                           lab=None if d.lab is None else [round(v, 1) for v in d.lab],
+                           colors=[ColorShare(name=n, p=round(p, 3)) for n, p in d.colors])
             for obj_id, d in tracker.update(self.detections(bgr))
         ]
         if depth is not None:  # positions in metres (services/vision/depth.py)

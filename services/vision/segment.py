@@ -31,8 +31,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from common.language import COLOR_PHRASES, OBJECT_PHRASES, canonical_label
-from services.vision.color import ACHROMATIC_SATURATION, CHROMATIC, DARK_VALUE, HUE_RANGES, WHITE_VALUE, hue_name
+from common.language import OBJECT_PHRASES, canonical_label
+from services.vision.color import (ACHROMATIC_SATURATION, CHROMATIC, DARK_VALUE, HUE_RANGES, PALETTE, WHITE_VALUE,
+                                   hue_name)
 
 
 @dataclass
@@ -42,6 +43,8 @@ class Detection:
     color: str | None
     score: float
     bbox: tuple[float, float, float, float]  # x, y, w, h (px)
+    lab: tuple[float, float, float] | None = None  # CIELAB of the object's own pixels (the ONNX path's colour model)
+    colors: tuple[tuple[str, float], ...] = ()     # likeliest colour names with probabilities, best first
 
     @property
     def center(self) -> tuple[float, float]:
@@ -256,9 +259,10 @@ def read_labels(path: str | Path) -> tuple[dict[str, str], list[str]]:
     if not isinstance(raw, dict) or not all(isinstance(k, str) and isinstance(v, str) and v.strip()
                                             for k, v in raw.items()):
         raise ValueError(f'--labels file {path} must be a JSON object of colour -> label, e.g. {{"*": "candy"}}')
-    unknown = sorted(set(raw) - set(COLOR_PHRASES) - {"*"})
+    unknown = sorted(set(raw) - set(PALETTE) - {"*"})
     if unknown:
-        raise ValueError(f"--labels file {path}: {unknown} are not colours; use {', '.join(COLOR_PHRASES)} or \"*\"")
+        raise ValueError(f"--labels file {path}: {unknown} are not colours of this backend; use {', '.join(PALETTE)} "
+                         f"or \"*\"")
     labels = {colour: canonical_label(label) for colour, label in raw.items()}
     warnings = [f"label {label!r} is not a class of common.language: speech cannot name it"
                 for label in sorted(set(labels.values())) if label not in OBJECT_PHRASES]
