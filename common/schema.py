@@ -162,6 +162,8 @@ class Struct(msgspec.Struct, kw_only=True):
 
 
 def _check(ok: bool, reason: str, detail: str) -> None:
+    """For rare checks only: `detail` is built even when `ok` (rules run on every encode and decode, so the
+    hot ones raise directly and format their message only when they fail)."""
     if not ok:
         raise InvalidSample(reason, detail)
 
@@ -194,7 +196,8 @@ class Ray(Struct, kw_only=True):
 
     def __post_init__(self) -> None:
         norm = math.hypot(*self.direction)
-        _check(abs(norm - 1.0) <= 1e-3, "bad_value", f"direction: not a unit vector (norm {norm:.4f})")
+        if not abs(norm - 1.0) <= 1e-3:
+            raise InvalidSample("bad_value", f"direction: not a unit vector (norm {norm:.4f})")
 
 
 class Hand(Struct, kw_only=True):
@@ -269,14 +272,16 @@ class Sample(Struct, kw_only=True):
     source: described(NonEmpty, "the producing instance, `service/instance`")
 
     def __post_init__(self) -> None:
-        _check(self.v == SCHEMA_VERSION, "bad_version", f"v: v={self.v}, this build speaks v{SCHEMA_VERSION}")
+        if self.v != SCHEMA_VERSION:
+            raise InvalidSample("bad_version", f"v: v={self.v}, this build speaks v{SCHEMA_VERSION}")
         self._check_sample()
 
     def _check_sample(self) -> None:
         """Schema-specific cross-field rules (raise InvalidSample)."""
 
     def _check_span(self) -> None:
-        _check(self.start <= self.end, "bad_value", f"start: start {self.start} is after end {self.end}")
+        if not self.start <= self.end:
+            raise InvalidSample("bad_value", f"start: start {self.start} is after end {self.end}")
 
 
 class Frame(Sample, kw_only=True):
@@ -290,8 +295,9 @@ class Frame(Sample, kw_only=True):
 
     def _check_sample(self) -> None:
         if self.encoding == "bgr8":
-            _check(len(self.data) == self.width * self.height * 3, "bad_value",
-                   f"data: bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}")
+            if len(self.data) != self.width * self.height * 3:
+                raise InvalidSample("bad_value", f"data: bgr8 needs {self.width * self.height * 3} bytes, "
+                                                 f"got {len(self.data)}")
 
 
 class AudioChunk(Sample, kw_only=True):
@@ -303,8 +309,8 @@ class AudioChunk(Sample, kw_only=True):
     data: described(bytes, "whole frames only")
 
     def _check_sample(self) -> None:
-        _check(len(self.data) % (2 * self.channels) == 0, "bad_value",
-               f"data: {len(self.data)} bytes is not whole s16le frames")
+        if len(self.data) % (2 * self.channels):
+            raise InvalidSample("bad_value", f"data: {len(self.data)} bytes is not whole s16le frames")
 
 
 class Detections(Sample, kw_only=True):
@@ -369,9 +375,9 @@ class Transcript(Sample, kw_only=True):
         self._check_span()
         lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
         for i, w in enumerate(self.words):
-            _check(lo <= w.start <= w.end <= hi, "bad_value",
-                   f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside the utterance "
-                   f"{self.start}–{self.end}")
+            if not lo <= w.start <= w.end <= hi:
+                raise InvalidSample("bad_value", f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside "
+                                                 f"the utterance {self.start}–{self.end}")
 
 
 class FusedCommand(Sample, kw_only=True):
