@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import re
+from functools import lru_cache
 from typing import Annotated, Any, ClassVar, Literal, Optional, get_args
 
 import msgspec
@@ -138,6 +139,40 @@ def rejection(error: Exception, payload: bytes | None = None, data: Any = None) 
     return InvalidSample("invalid", text)
 
 
+# The one validation path: a sample is packed and decoded with its schema (types, ranges, cross-field rules in
+# C and `__post_init__`). It lives here, beside the rules and `rejection()`, so that `Struct.to_dict` needs no
+# import of the codec (the codec imports the contract, never the other way round).
+_encoder = msgspec.msgpack.Encoder()
+
+
+@lru_cache(maxsize=None)
+def typed_decoder(schema: type) -> msgspec.msgpack.Decoder:
+    return msgspec.msgpack.Decoder(schema)
+
+
+def pack_sample(obj: Struct) -> bytes:
+    """`obj` as MessagePack bytes, unchecked. Raises InvalidSample for a value MessagePack has no form for."""
+    try:
+        return _encoder.encode(obj)
+    except (TypeError, OverflowError) as exc:  # np.float32, an int past 64 bits, …
+        raise InvalidSample("wrong_type", f"{type(obj).__name__}: {exc}") from None
+
+
+def unpack_sample(payload: bytes | bytearray | memoryview, schema: type) -> Any:
+    """Bytes -> validated `schema` object. Raises InvalidSample, never anything else (no size cap: the codec's)."""
+    try:
+        return typed_decoder(schema).decode(payload)
+    except (msgspec.DecodeError, InvalidSample, RecursionError) as exc:  # ValidationError is a DecodeError
+        raise rejection(exc, bytes(payload)) from None
+    except Exception as exc:  # a rule's bug must still not escape as a crash
+        raise InvalidSample("invalid", f"{type(exc).__name__}: {exc}") from None
+
+
+def validate(obj: Any) -> Any:
+    """`obj` checked against its schema as a receiver would check it (types, ranges, cross-field rules)."""
+    return unpack_sample(pack_sample(obj), type(obj))
+
+
 class Struct(msgspec.Struct, kw_only=True):
     """Base of every wire map: keyword-only, compared by value, extra keys on the wire ignored."""
 
@@ -153,7 +188,6 @@ class Struct(msgspec.Struct, kw_only=True):
 
     def to_dict(self) -> dict[str, Any]:
         """This object as a plain map (what goes on the wire); validated like a received sample."""
-        from common.codec import validate  # the codec owns the one validation path
         return msgspec.to_builtins(validate(self), builtin_types=(bytes, bytearray, memoryview))
 
     @classmethod
@@ -378,6 +412,18 @@ class Transcript(Sample, kw_only=True):
             if not lo <= w.start <= w.end <= hi:
                 raise InvalidSample("bad_value", f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside "
                                                  f"the utterance {self.start}–{self.end}")
+
+
+def make_transcript(text: str, *, mic: str, end: float, confidence: float, source: str,
+                    seconds_per_word: float = 0.3) -> Transcript:
+    """A Transcript as a recogniser would make it, with evenly spaced word times ending at `end` (typed text:
+    the speech service's `--backend text`, `hri say`, tests)."""
+    tokens = text.split()
+    start = end - seconds_per_word * max(len(tokens), 1)
+    words = [Word(word=w, start=start + i * seconds_per_word, end=start + (i + 1) * seconds_per_word,
+                  confidence=confidence) for i, w in enumerate(tokens)]
+    return Transcript(stamp=end, source=source, mic=mic, start=start, end=end, text=text,
+                      confidence=confidence, words=words, final=True, backend="text")
 
 
 class FusedCommand(Sample, kw_only=True):

@@ -23,7 +23,7 @@ from common.keys import Keys
 from common.schema import (
     Clarification, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats, Transcript,
 )
-from common.view.command import DEFAULT_MAX_FPS
+from common.view import DEFAULT_MAX_FPS
 
 TIMELINE_MAX = 500  # entries kept; the oldest go first
 # Caps on what a stream of odd keys could make the server remember (memory stays bounded whatever arrives).
