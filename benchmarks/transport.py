@@ -32,9 +32,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import msgpack  # noqa: E402
 import zenoh  # noqa: E402
 
+from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.codec import ENCODING, decode, encode  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
-from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.transport import open_client  # noqa: E402
 from tests.harness import ProcessGroup  # noqa: E402
 
@@ -116,10 +116,11 @@ def main() -> None:
                                               priority=zenoh.Priority.DATA_HIGH)
             contract_pub = SamplePublisher(pub_s, contract_key, lossless=True)
             n = max(200, args.n // 10) if size > 10_000 else args.n
-            raw_send = lambda: raw_pub.put(msgpack.packb(as_dict, use_bin_type=True))  # noqa: E731
-            raw_recv = lambda b: msgpack.unpackb(b, raw=False)  # noqa: E731
-            contract_send = lambda: contract_pub.put(sample)  # noqa: E731
-            contract_recv = lambda b: decode(b, schema)  # noqa: E731
+            # (the lambdas are used within this iteration only: B023 does not apply)
+            raw_send = lambda: raw_pub.put(msgpack.packb(as_dict, use_bin_type=True))  # noqa: E731, B023
+            raw_recv = lambda b: msgpack.unpackb(b, raw=False)  # noqa: E731, B023
+            contract_send = lambda: contract_pub.put(sample)  # noqa: E731, B023
+            contract_recv = lambda b: decode(b, schema)  # noqa: E731, B023
             figures = {}
             for modes, measure in ((("latency",), run_latency), (("burst", "burst_cpu"), run_once)):
                 raw_runs, contract_runs = [], []
@@ -132,8 +133,9 @@ def main() -> None:
                     figures[mode] = (statistics.median(raw_t) * 1e6, statistics.median(contract_t) * 1e6, ratio)
             payload = encode(sample)
             raw_payload = msgpack.packb(as_dict, use_bin_type=True)
-            raw_codec = codec_us(lambda: msgpack.packb(as_dict, use_bin_type=True), raw_recv, raw_payload, n)
-            contract_codec = codec_us(lambda: encode(sample), contract_recv, payload, n)
+            raw_codec = codec_us(lambda: msgpack.packb(as_dict, use_bin_type=True),  # noqa: B023
+                                 raw_recv, raw_payload, n)
+            contract_codec = codec_us(lambda: encode(sample), contract_recv, payload, n)  # noqa: B023
             figures["codec"] = (raw_codec, contract_codec, contract_codec / raw_codec)
             for mode in worst:
                 worst[mode] = max(worst[mode], figures[mode][2])
