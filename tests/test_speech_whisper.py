@@ -36,7 +36,7 @@ T0 = 1_700_000_000.0
 # piper 0.045, 0.055/0.91 clean, 0.091/0.84 at 10 dB; espeak-ng en-us 0.23, 0.227/0.72, 0.75 clean, 0.54, 0.509/
 # 0.47 at 10 dB; en-us+f3 0.22, 0.227/0.63 clean, 0.40, 0.436, 0.482 (a fresh clone's CI)/0.44 at 10 dB: that
 # condition spread 0.08 WER, so its margin is 0.08 WER and 3 commands (tiny.en hears espeak-ng's formant speech
-# far worse than a neural voice, and its decodes there depend on the speculative decode's timing)
+# far worse than a neural voice; what moved the CI run is not known: this code gave identical figures 3 times)
 BOUNDS = {
     (PIPER_VOICE, None): (0.11, 0.84), (PIPER_VOICE, 10): (0.15, 0.78),
     ("en-us", None): (0.28, 0.65), ("en-us", 10): (0.59, 0.40),
