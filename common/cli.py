@@ -18,7 +18,7 @@ import zenoh
 from common.codec import decode, unpack
 from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
-from common.schema import InvalidSample, Stats, Transcript, Word
+from common.schema import InvalidSample, Stats, make_transcript
 from common.transport import (
     add_zenoh_arguments, init_zenoh_logging, live_tokens, open_session, resolve, zenoh_config,
 )
@@ -204,17 +204,6 @@ def cmd_pub(args: argparse.Namespace) -> int:
         print(f"hri pub: not a valid {schema.__name__}: {exc}", file=sys.stderr)
         return 2
     return _publish_once(args, args.key, sample)
-
-
-def make_transcript(text: str, *, mic: str, end: float, confidence: float, source: str,
-                    seconds_per_word: float = 0.3) -> Transcript:
-    """A Transcript as a recogniser would make it, with evenly spaced word times ending at `end`."""
-    tokens = text.split()
-    start = end - seconds_per_word * max(len(tokens), 1)
-    words = [Word(word=w, start=start + i * seconds_per_word, end=start + (i + 1) * seconds_per_word,
-                  confidence=confidence) for i, w in enumerate(tokens)]
-    return Transcript(stamp=end, source=source, mic=mic, start=start, end=end, text=text,
-                      confidence=confidence, words=words, final=True, backend="text")
 
 
 def cmd_say(args: argparse.Namespace) -> int:

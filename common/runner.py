@@ -249,12 +249,12 @@ class Service:
 
     # -- set-up ------------------------------------------------------------
     def connect(self) -> bool:
-        """Open the session and announce ourselves. False if asked to stop while waiting for the router."""
+        """Open the session and answer stats. False if asked to stop while waiting for the router. The liveliness
+        token comes in `run()`, after the service's subscriptions: "alive" means listening."""
         self._install_signal_handlers()
         self.session = open_session(self.args, self.log, self.stop_event, timestamping=self.recovering)
         if self.session is None:
             return False
-        self._declared.append(self.session.liveliness().declare_token(self.keys.alive(self.name, self.instance)))
         self._declared.append(self.session.declare_queryable(self.keys.stats(self.name, self.instance),
                                                              self._answer_stats))
         return True
@@ -355,6 +355,8 @@ class Service:
         """Run until SIGINT/SIGTERM (or until `loop` returns). Returns the process exit code."""
         if self.session is None and not self.connect():
             return 0
+        assert self.session is not None
+        self._declared.append(self.session.liveliness().declare_token(self.keys.alive(self.name, self.instance)))
         worker = threading.Thread(target=self._work, args=(loop, tick, tick_interval),
                                   name=f"{self.name}-worker", daemon=True)
         worker.start()

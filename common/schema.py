@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import re
+from functools import lru_cache
 from typing import Annotated, Any, ClassVar, Literal, Optional, get_args
 
 import msgspec
@@ -144,6 +145,40 @@ def rejection(error: Exception, payload: bytes | None = None, data: Any = None) 
     return InvalidSample("invalid", text)
 
 
+# The one validation path: a sample is packed and decoded with its schema (types, ranges, cross-field rules in
+# C and `__post_init__`). It lives here, beside the rules and `rejection()`, so that `Struct.to_dict` needs no
+# import of the codec (the codec imports the contract, never the other way round).
+_encoder = msgspec.msgpack.Encoder()
+
+
+@lru_cache(maxsize=None)
+def typed_decoder(schema: type) -> msgspec.msgpack.Decoder:
+    return msgspec.msgpack.Decoder(schema)
+
+
+def pack_sample(obj: Struct) -> bytes:
+    """`obj` as MessagePack bytes, unchecked. Raises InvalidSample for a value MessagePack has no form for."""
+    try:
+        return _encoder.encode(obj)
+    except (TypeError, OverflowError) as exc:  # np.float32, an int past 64 bits, …
+        raise InvalidSample("wrong_type", f"{type(obj).__name__}: {exc}") from None
+
+
+def unpack_sample(payload: bytes | bytearray | memoryview, schema: type) -> Any:
+    """Bytes -> validated `schema` object. Raises InvalidSample, never anything else (no size cap: the codec's)."""
+    try:
+        return typed_decoder(schema).decode(payload)
+    except (msgspec.DecodeError, InvalidSample, RecursionError) as exc:  # ValidationError is a DecodeError
+        raise rejection(exc, bytes(payload)) from None
+    except Exception as exc:  # a rule's bug must still not escape as a crash
+        raise InvalidSample("invalid", f"{type(exc).__name__}: {exc}") from None
+
+
+def validate(obj: Any) -> Any:
+    """`obj` checked against its schema as a receiver would check it (types, ranges, cross-field rules)."""
+    return unpack_sample(pack_sample(obj), type(obj))
+
+
 class Struct(msgspec.Struct, kw_only=True):
     """Base of every wire map: keyword-only, compared by value, extra keys on the wire ignored."""
 
@@ -159,7 +194,6 @@ class Struct(msgspec.Struct, kw_only=True):
 
     def to_dict(self) -> dict[str, Any]:
         """This object as a plain map (what goes on the wire); validated like a received sample."""
-        from common.codec import validate  # the codec owns the one validation path
         return msgspec.to_builtins(validate(self), builtin_types=(bytes, bytearray, memoryview))
 
     @classmethod
@@ -168,6 +202,8 @@ class Struct(msgspec.Struct, kw_only=True):
 
 
 def _check(ok: bool, reason: str, detail: str) -> None:
+    """For rare checks only: `detail` is built even when `ok` (rules run on every encode and decode, so the
+    hot ones raise directly and format their message only when they fail)."""
     if not ok:
         raise InvalidSample(reason, detail)
 
@@ -204,12 +240,15 @@ class DetectedObject(Struct, kw_only=True):
     def check_measurements(self, where: str) -> None:
         """The v1-extension fields' cross-field rules (called by Detections, once per object that has them)."""
         if self.lab is not None:
-            _check(0.0 <= self.lab[0] <= 100.0, "out_of_range", f"{where}.lab: L {self.lab[0]} is outside 0–100")
+            if not (0.0 <= self.lab[0] <= 100.0):
+                raise InvalidSample("out_of_range", f"{where}.lab: L {self.lab[0]} is outside 0–100")
         if self.position is not None:
-            _check(self.position[2] > 0.0, "bad_value",
-                   f"{where}.position: z {self.position[2]} m is not in front of the camera")
+            if not (self.position[2] > 0.0):
+                raise InvalidSample("bad_value",
+                                    f"{where}.position: z {self.position[2]} m is not in front of the camera")
         if self.extent is not None:
-            _check(min(self.extent) >= 0.0, "bad_value", f"{where}.extent: a negative size")
+            if not (min(self.extent) >= 0.0):
+                raise InvalidSample("bad_value", f"{where}.extent: a negative size")
 
 
 class CameraInfo(Struct, kw_only=True):
@@ -225,9 +264,11 @@ class CameraInfo(Struct, kw_only=True):
 
     def __post_init__(self) -> None:
         k = self.k
-        _check(k[0] > 0.0 and k[4] > 0.0, "bad_value", f"k: focal lengths must be > 0 (fx {k[0]}, fy {k[4]})")
-        _check(k[3] == 0.0 and k[6:] == [0.0, 0.0, 1.0], "bad_value",
-               "k: not a camera matrix (rows 2 and 3 must be [0, fy, cy] and [0, 0, 1])")
+        if not (k[0] > 0.0 and k[4] > 0.0):
+            raise InvalidSample("bad_value", f"k: focal lengths must be > 0 (fx {k[0]}, fy {k[4]})")
+        if not (k[3] == 0.0 and k[6:] == [0.0, 0.0, 1.0]):
+            raise InvalidSample("bad_value",
+                                "k: not a camera matrix (rows 2 and 3 must be [0, fy, cy] and [0, 0, 1])")
 
     @property
     def fx(self) -> float:
@@ -247,9 +288,10 @@ class CameraInfo(Struct, kw_only=True):
 
     def check_size(self, width: int, height: int, what: str = "camera_info") -> None:
         """Intrinsics belong to one resolution: refuse them with an image of another size."""
-        _check((self.width, self.height) == (width, height), "bad_value",
-               f"{what}: intrinsics are for {self.width}x{self.height}, the image is {width}x{height} "
-               f"(scale K with the image, or send the intrinsics of this resolution)")
+        if not ((self.width, self.height) == (width, height)):
+            raise InvalidSample("bad_value",
+                                f"{what}: intrinsics are for {self.width}x{self.height}, the image is {width}x{height} "
+                                f"(scale K with the image, or send the intrinsics of this resolution)")
 
 
 class ImageQuality(Struct, kw_only=True):
@@ -271,7 +313,8 @@ class Ray3D(Struct, kw_only=True):
 
     def __post_init__(self) -> None:
         norm = math.sqrt(sum(c * c for c in self.direction))
-        _check(abs(norm - 1.0) <= 1e-3, "bad_value", f"direction: not a unit vector (norm {norm:.4f})")
+        if not (abs(norm - 1.0) <= 1e-3):
+            raise InvalidSample("bad_value", f"direction: not a unit vector (norm {norm:.4f})")
 
 
 class Ray(Struct, kw_only=True):
@@ -285,7 +328,8 @@ class Ray(Struct, kw_only=True):
 
     def __post_init__(self) -> None:
         norm = math.hypot(*self.direction)
-        _check(abs(norm - 1.0) <= 1e-3, "bad_value", f"direction: not a unit vector (norm {norm:.4f})")
+        if not abs(norm - 1.0) <= 1e-3:
+            raise InvalidSample("bad_value", f"direction: not a unit vector (norm {norm:.4f})")
 
 
 class Hand(Struct, kw_only=True):
@@ -367,14 +411,16 @@ class Sample(Struct, kw_only=True):
     source: described(NonEmpty, "the producing instance, `service/instance`")
 
     def __post_init__(self) -> None:
-        _check(self.v == SCHEMA_VERSION, "bad_version", f"v: v={self.v}, this build speaks v{SCHEMA_VERSION}")
+        if self.v != SCHEMA_VERSION:
+            raise InvalidSample("bad_version", f"v: v={self.v}, this build speaks v{SCHEMA_VERSION}")
         self._check_sample()
 
     def _check_sample(self) -> None:
         """Schema-specific cross-field rules (raise InvalidSample)."""
 
     def _check_span(self) -> None:
-        _check(self.start <= self.end, "bad_value", f"start: start {self.start} is after end {self.end}")
+        if not self.start <= self.end:
+            raise InvalidSample("bad_value", f"start: start {self.start} is after end {self.end}")
 
 
 class Frame(Sample, kw_only=True):
@@ -390,8 +436,9 @@ class Frame(Sample, kw_only=True):
 
     def _check_sample(self) -> None:
         if self.encoding == "bgr8":
-            _check(len(self.data) == self.width * self.height * 3, "bad_value",
-                   f"data: bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}")
+            if len(self.data) != self.width * self.height * 3:
+                raise InvalidSample("bad_value", f"data: bgr8 needs {self.width * self.height * 3} bytes, "
+                                                 f"got {len(self.data)}")
         if self.camera_info is not None:
             self.camera_info.check_size(self.width, self.height)
 
@@ -418,10 +465,12 @@ class DepthFrame(Sample, kw_only=True):
         self.camera_info.check_size(self.width, self.height)
         if self.compression == "none":
             need = self.width * self.height * (2 if self.encoding == "16UC1" else 4)
-            _check(len(self.data) == need, "bad_value",
-                   f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, got {len(self.data)}")
+            if not (len(self.data) == need):
+                raise InvalidSample("bad_value", f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, "
+                                                 f"got {len(self.data)}")
         else:
-            _check(self.encoding == "16UC1", "bad_value", "compression: png carries 16UC1 depth only")
+            if not (self.encoding == "16UC1"):
+                raise InvalidSample("bad_value", "compression: png carries 16UC1 depth only")
 
 
 class AudioChunk(Sample, kw_only=True):
@@ -433,8 +482,8 @@ class AudioChunk(Sample, kw_only=True):
     data: described(bytes, "whole frames only")
 
     def _check_sample(self) -> None:
-        _check(len(self.data) % (2 * self.channels) == 0, "bad_value",
-               f"data: {len(self.data)} bytes is not whole s16le frames")
+        if len(self.data) % (2 * self.channels):
+            raise InvalidSample("bad_value", f"data: {len(self.data)} bytes is not whole s16le frames")
 
 
 class Detections(Sample, kw_only=True):
@@ -506,9 +555,21 @@ class Transcript(Sample, kw_only=True):
         self._check_span()
         lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
         for i, w in enumerate(self.words):
-            _check(lo <= w.start <= w.end <= hi, "bad_value",
-                   f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside the utterance "
-                   f"{self.start}–{self.end}")
+            if not lo <= w.start <= w.end <= hi:
+                raise InvalidSample("bad_value", f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside "
+                                                 f"the utterance {self.start}–{self.end}")
+
+
+def make_transcript(text: str, *, mic: str, end: float, confidence: float, source: str,
+                    seconds_per_word: float = 0.3) -> Transcript:
+    """A Transcript as a recogniser would make it, with evenly spaced word times ending at `end` (typed text:
+    the speech service's `--backend text`, `hri say`, tests)."""
+    tokens = text.split()
+    start = end - seconds_per_word * max(len(tokens), 1)
+    words = [Word(word=w, start=start + i * seconds_per_word, end=start + (i + 1) * seconds_per_word,
+                  confidence=confidence) for i, w in enumerate(tokens)]
+    return Transcript(stamp=end, source=source, mic=mic, start=start, end=end, text=text,
+                      confidence=confidence, words=words, final=True, backend="text")
 
 
 class FusedCommand(Sample, kw_only=True):

@@ -190,6 +190,20 @@ class Client:
             time.sleep(0.1)
         raise TimeoutError(f"service {service!r} never declared its liveliness token")
 
+    def wait_matched(self, keys: list[str], timeout: float = 30.0) -> None:
+        """Block until the router knows a subscriber for each key. A service declares its liveliness token
+        before its subscriptions, so samples put right after `wait_alive` can still be lost."""
+        pubs = [self.session.declare_publisher(k) for k in keys]
+        deadline = time.monotonic() + timeout
+        try:
+            while not all(p.matching_status.matching for p in pubs):
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"no subscriber matched {keys} within {timeout} s")
+                time.sleep(0.05)
+        finally:
+            for p in pubs:
+                p.undeclare()
+
     def close(self) -> None:
         for sub in self._subs:
             sub.undeclare()

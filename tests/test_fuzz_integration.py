@@ -26,8 +26,8 @@ pytestmark = pytest.mark.integration
 SAMPLES = 10_000
 SERVICES = ("vision", "gesture", "speech", "fusion")
 PHOTO = DATA / "images" / "tabletop" / "smarties.png"
-FRESH_WITHIN_S = 1.0
-MAX_GROWTH_MB = 150  # peak RSS over the RSS after warm-up: bounded, not growing with the flood
+FRESH_WITHIN_S = 1.0  # measured 0.01-0.11 s under load (docs/foundation.md): a backlog, not jitter, fails
+MAX_GROWTH_MB = 150  # peak RSS over the RSS after warm-up: bounded, not growing with the flood (measured 32-43 MB)
 
 
 def jpeg_frame(seq: int, stamp: float) -> Frame:
@@ -170,6 +170,7 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
         for name in SERVICES:
             assert procs[name].alive(), group.logs()
             f = figures[name]
+            # measured 0.92-0.98 of what each service received (a fuzzed sample can be valid); margin 0.3
             assert sum(f["rejected"].values()) >= 0.6 * expected[name], (name, f)
             # speech: a second beyond what recognising the utterance takes when nothing floods it
             assert f["fresh_s"] <= FRESH_WITHIN_S + (normal_speech_s if name == "speech" else 0.0), (name, f)

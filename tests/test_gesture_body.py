@@ -222,7 +222,7 @@ def test_real_people_with_relaxed_arms_point_with_neither_arm(poser):
         found += 1
         for side in ("left", "right"):
             assert not arm(skeleton, side, img.shape[1], img.shape[0]).pointing, (photo.name, side)
-    assert found >= 0.9 * len(photos)
+    assert found >= 0.9 * len(photos)  # measured 29 of 30 in 2 runs (same each run); margin 2 photos
 
 
 def test_real_raised_palms_stay_a_stop_with_the_body(poser):

@@ -30,13 +30,21 @@ VOICES = (PIPER_VOICE, "en-us", "en-us+f3")
 CONDITIONS = [(voice, snr) for voice in VOICES for snr in (None, 10)]
 GAP = 1.0  # s of silence between the sentences of a test stream
 T0 = 1_700_000_000.0
-# bound asserted: (max WER, min meaning accuracy) = measured (docs/speech.md) + ~0.05 WER and ~2 commands.
-# Measured: piper 0.045/0.91 clean, 0.091/0.84 at 10 dB; espeak-ng en-us 0.23/0.72, 0.54/0.47;
-# en-us+f3 0.22/0.63, 0.40/0.44 (tiny.en hears espeak-ng's formant speech far worse than a neural voice)
+# The module fixture synthesises 32 sentences in six conditions and decodes them: 3-4 min on the 2 shared cores, over
+# pytest's default 300 s once under load average ~10 (the first test is charged for it). A hang guard, not a speed
+# check: 900 s.
+pytestmark = pytest.mark.timeout(900)
+# bound asserted: (max WER, min meaning accuracy) = the worst run's figure + a margin of the larger of the spread
+# seen between runs and 0.05 WER (5 of 110 words) / 2 of 32 commands (docs/foundation.md, "Tests that cannot
+# flake"). Runs (WER/meaning): docs/speech.md, then 3 runs on 2026-11-24 that gave identical figures:
+# piper 0.045, 0.055/0.91 clean, 0.091/0.84 at 10 dB; espeak-ng en-us 0.23, 0.227/0.72, 0.75 clean, 0.54, 0.509/
+# 0.47 at 10 dB; en-us+f3 0.22, 0.227/0.63 clean, 0.40, 0.436, 0.482 (a fresh clone's CI)/0.44 at 10 dB: that
+# condition spread 0.08 WER, so its margin is 0.08 WER and 3 commands (tiny.en hears espeak-ng's formant speech
+# far worse than a neural voice; what moved the CI run is not known: this code gave identical figures 3 times)
 BOUNDS = {
-    (PIPER_VOICE, None): (0.09, 0.84), (PIPER_VOICE, 10): (0.14, 0.78),
-    ("en-us", None): (0.28, 0.65), ("en-us", 10): (0.60, 0.40),
-    ("en-us+f3", None): (0.27, 0.56), ("en-us+f3", 10): (0.46, 0.37),
+    (PIPER_VOICE, None): (0.11, 0.84), (PIPER_VOICE, 10): (0.15, 0.78),
+    ("en-us", None): (0.28, 0.65), ("en-us", 10): (0.59, 0.40),
+    ("en-us+f3", None): (0.28, 0.56), ("en-us+f3", 10): (0.57, 0.34),
 }
 
 

@@ -25,6 +25,8 @@ MESSI = DATA / "images" / "messi5.jpg"        # OpenCV's footballer and ball (op
 COFFEE_CUP = (170, 18, 245, 285)   # rim top to handle bottom, left rim edge to the spoon's top
 MESSI_PLAYER = (68, 62, 390, 272)  # raised left hand to right boot, hair to the left boot's sole
 MESSI_BALL = (338, 290, 50, 48)
+# Measured (2 runs, identical): cup score 0.90, IoU 0.92; player 0.85, 0.92; ball 0.89, 0.94. Asserted: score
+# > 0.6 and IoU > 0.7, a margin of >= 0.2 for another onnxruntime build or CPU; a wrong box still fails.
 
 
 @pytest.fixture(scope="module")

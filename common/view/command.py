@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-DEFAULT_MAX_FPS = 10.0  # frames per second per camera sent to the page
+from common.view import DEFAULT_MAX_FPS
 
 VIEW_EXAMPLES = """\
 examples:

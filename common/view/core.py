@@ -24,7 +24,7 @@ from common.schema import (
     Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats,
     Transcript,
 )
-from common.view.command import DEFAULT_MAX_FPS
+from common.view import DEFAULT_MAX_FPS
 
 TIMELINE_MAX = 500  # entries kept; the oldest go first
 # Caps on what a stream of odd keys could make the server remember (memory stays bounded whatever arrives).

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from common.runner import Delivery, Service, main_exit, service_parser
-from common.schema import AudioChunk
+from common.schema import AudioChunk, make_transcript
 from common.transport import live_tokens
 from services.speech.audio import RATE, AudioError, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
@@ -294,7 +294,6 @@ def run_zenoh(service: Service, new_stream, publish) -> None:
 
 def read_stdin(service: Service, args, stop: threading.Event) -> None:
     """--backend text: each non-empty line of stdin becomes a final Transcript."""
-    from common.cli import make_transcript
     key = service.keys.transcript(args.mic)
     service.log.info("type commands, one per line (Ctrl-D ends)")
     for line in sys.stdin:
