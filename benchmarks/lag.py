@@ -59,6 +59,11 @@ def frame_lag(service: str, service_args: list[str], out_key: str, schema: type,
         group.close()
     print(f"end-to-end lag at {fps:.0f} fps for {seconds:.0f} s: {sent} frames sent, {len(lags)} outputs received, "
           f"{stats['skipped']} stale frames skipped by the service")
+    print_lag_slices(lags, seconds)
+
+
+def print_lag_slices(lags: list[tuple[float, float]], seconds: float) -> None:
+    """p50/p99 of (time since start, lag) pairs per sixth of the run, then overall: a lag that grows is a backlog."""
     slice_s = max(seconds / 6, 1.0)
     for k in range(int(seconds // slice_s)):
         part = [lag for t, lag in lags if k * slice_s <= t < (k + 1) * slice_s]

@@ -48,7 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks.lag import frame_lag, print_throughput  # noqa: E402
+from benchmarks.lag import frame_lag, print_lag_slices, print_throughput  # noqa: E402
 from common.codec import decode  # noqa: E402
 from common.depth import depth_frame  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
@@ -254,15 +254,7 @@ def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: fl
     print(f"depth: end-to-end lag at {fps:.0f} fps with depth for {seconds:.0f} s: {sent} RGB-D captures sent, "
           f"{len(lags)} Detections received ({positioned[0]} with positions), {stats['skipped']} stale samples "
           f"skipped by the service")
-    slice_s = max(seconds / 6, 1.0)
-    for k in range(int(seconds // slice_s)):
-        part = [lag for t, lag in lags if k * slice_s <= t < (k + 1) * slice_s]
-        if part:
-            p50, p99 = np.percentile(part, [50, 99]) * 1000
-            print(f"  {k * slice_s:4.0f}-{(k + 1) * slice_s:3.0f} s  p50 {p50:6.1f} ms  p99 {p99:6.1f} ms  n={len(part)}")
-    if lags:
-        p50, p99 = np.percentile([lag for _, lag in lags], [50, 99]) * 1000
-        print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")
+    print_lag_slices(lags, seconds)
 
 
 def colour_cost(model: str, frames: list[np.ndarray], n: int) -> None:

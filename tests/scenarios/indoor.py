@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from common.schema import Clarification, DetectedObject, Detections, FusedCommand, ImageQuality
+from services.vision.track import iou
 from tests.scenarios import KEYS, Scenario, Step, by_time, pointing, run_in_process, say
 
 IOU_MATCH = 0.5
@@ -79,16 +80,6 @@ def scenario(line: Line, seen: Seen) -> Scenario:
         return Step(t, build, f"see {len(seen.objects)} objects")
     steps = [frame(round(-1.5 + 0.2 * i, 6)) for i in range(21)] + pointing(None) + [say(0.0, 1.5, line.say)]
     return Scenario(line.name, by_time(steps), [])
-
-
-def iou(a: list[float], b: list[float]) -> float:
-    ax, ay, aw, ah = a
-    bx, by, bw, bh = b
-    ix = max(0.0, min(ax + aw, bx + bw) - max(ax, bx))
-    iy = max(0.0, min(ay + ah, by + bh) - max(ay, by))
-    inter = ix * iy
-    union = aw * ah + bw * bh - inter
-    return inter / union if union > 0 else 0.0
 
 
 def judge(line: Line, outputs: list[Any]) -> tuple[bool, str]:
