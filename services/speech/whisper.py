@@ -218,6 +218,10 @@ class CommandChoice:
     def changed(self) -> bool:
         return self.word != self.heard
 
+    def describe(self) -> str:
+        return (f"heard {self.heard!r} p {self.heard_probability:.3f}, likeliest command {self.best_command!r} "
+                f"p {self.best_probability:.3f}")
+
 
 def choose_command(heard: str, heard_probability: float, command_probabilities: dict[str, float],
                    prior: float) -> CommandChoice:
@@ -344,10 +348,13 @@ class WhisperRecognizer:
             # it is counted, and there is no fallback to re-run at higher temperatures
             no_speech_threshold=None, log_prob_threshold=None, compression_ratio_threshold=None)
         words: list[RecognisedWord] = []
+        silent_words: list[RecognisedWord] = []
         logprob_sum, tokens, silent = 0.0, 0, 0
         for seg in segments:
             if seg.no_speech_prob > s.no_speech_prob and seg.avg_logprob < s.no_speech_logprob:
                 silent += 1
+                silent_words += [RecognisedWord(token, float(w.start), float(w.end), float(w.probability))
+                                 for w in seg.words or [] for token in normalise_words(w.word)]
                 continue
             n = max(1, len(seg.tokens))
             logprob_sum += seg.avg_logprob * n
@@ -357,6 +364,15 @@ class WhisperRecognizer:
                     words.append(RecognisedWord(token, float(w.start), float(w.end), float(w.probability)))
         heard = len(words)
         words = drop_improbable_tail(words, s.tail_min_probability)
+        if not words and len(silent_words) == 1 and self._is_short(audio):
+            # a quiet short word Whisper calls no speech: kept only if the short-utterance decode makes it a
+            # command (a quiet "stop" was heard as " store." with no_speech_prob 0.77: dropped, a missed stop)
+            choice = self.choose_command(audio, silent_words[0])
+            if choice.word in self._command_tokens:
+                return Recognition(choice.word, choice.probability,
+                                   [replace(silent_words[0], word=choice.word, confidence=choice.probability)],
+                                   detail=f"judged no speech, one word: {choice.describe()}",
+                                   short_command=f"{choice.heard} (no speech) -> {choice.word}")
         if not words:
             return Recognition("", 0.0, dropped="no_speech" if silent else "no_words")
         kept = remove_loops(words, key=lambda w: w.word, repeatable=REPEATABLE)
@@ -364,10 +380,9 @@ class WhisperRecognizer:
         confidence = math.exp(logprob_sum / tokens) if tokens else 0.0
         detail = f"avg_logprob {logprob_sum / max(tokens, 1):.2f}"
         short_command = ""
-        if len(kept) == 1 and self._command_tokens and len(audio) <= SHORT_SECONDS * RATE:
+        if len(kept) == 1 and self._is_short(audio):
             choice = self.choose_command(audio, kept[0])
-            detail += (f"; one word: heard {choice.heard!r} p {choice.heard_probability:.3f}, likeliest command "
-                       f"{choice.best_command!r} p {choice.best_probability:.3f}")
+            detail += f"; one word: {choice.describe()}"
             if choice.changed:
                 short_command = f"{choice.heard} -> {choice.word}"
                 kept = [replace(kept[0], word=choice.word, confidence=choice.probability)]
@@ -375,6 +390,10 @@ class WhisperRecognizer:
         return Recognition(" ".join(w.word for w in kept), confidence, kept, detail=detail,
                            repeats_removed=len(words) - len(kept), tail_removed=heard - len(words),
                            short_command=short_command)
+
+    def _is_short(self, audio: np.ndarray) -> bool:
+        """An utterance the short-utterance decode is for (it is on and the audio is about a second)."""
+        return bool(self._command_tokens) and len(audio) <= SHORT_SECONDS * RATE
 
     def choose_command(self, audio: np.ndarray, heard: RecognisedWord) -> CommandChoice:
         """The short-utterance decode of a one-word utterance (choose_command; docs/speech.md)."""
