@@ -333,7 +333,8 @@ class WhisperRecognizer:
     def describe(self) -> str:
         which = f"tiny.en from {MODEL_PIP} (sha256 checked)" if self.packaged else str(self.folder)
         return (f"whisper {which}, beam {self.settings.beam_size}, {self.settings.threads} threads, "
-                f"prompt {self.settings.prompt}")
+                f"prompt {self.settings.prompt}, short-utterance decode "
+                f"{'off' if not self._command_tokens else f'on (prior {self.settings.command_prior:g})'}")
 
     def recognise(self, audio: np.ndarray) -> Recognition | None:
         s = self.settings
