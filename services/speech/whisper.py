@@ -14,6 +14,11 @@ invented words are timed inside the speech, not after it, so the VAD's end of sp
 What Whisper heard is returned whether or not it is a command; only its known inventions are
 dropped: a segment Whisper itself judges to be no speech (no_speech_prob high AND avg_logprob low,
 its own rule) and phrases repeated in a loop ("turn right turn right").
+
+Short words (`choose_command`, `--command-prior`): an utterance of about a second heard as one word that is not
+a command word is scored again against the command words (common.language.one_word_commands) with the model's
+own first-token probabilities, and the likeliest command is taken when it is not far less likely than the word
+heard ("of" -> "off", "now" -> "no"). Utterances of two words or more are decoded exactly as without it.
 """
 
 from __future__ import annotations
