@@ -71,6 +71,22 @@ def test_a_doubted_near_miss_of_a_stop_word_stops_and_a_sure_one_does_not():
     assert all(stop_near_miss([(w, 0.1)]) is None for w in ("want", "step", "top", "what", "shop", "start"))
 
 
+@pytest.mark.parametrize("conf, stops", [(0.3, True), (0.9, False)])
+def test_fusion_stops_at_once_on_a_doubted_near_miss_and_says_why(conf, stops):
+    from services.fusion.core import Config, FusionCore
+    from tests.scenarios import BASE_STAMP, say
+    core = FusionCore(Config(), "fusion/test")
+    key, t = say(0.2, 0.6, "stap", conf=conf).build(BASE_STAMP)
+    out = core.on_transcript(key, t, 1000.0)
+    if stops:
+        (output,) = out
+        command = output.sample
+        assert command.intent == "stop" and output.realtime
+        assert "'stap'" in command.explanation and "'stop'" in command.explanation
+    else:
+        assert all(getattr(o.sample, "intent", None) != "stop" for o in out + core.tick(1010.0))
+
+
 # -- the real clips -----------------------------------------------------------------------------------
 
 def clips() -> list[tuple[str, np.ndarray, int]]:
