@@ -7,12 +7,17 @@
   pocketsphinx  the same pipeline with --backend pocketsphinx (open grammar)
 
 For each: real-time factor, WER and meaning accuracy (fusion's parse of the transcript equals the parse of
-the sentence), clean and with pink noise at 10 dB. Then the whole pipeline on loopback (router, speech and
+the sentence), clean and with pink noise at 10 dB; the whisper pipeline also without the short-utterance decode
+(`--command-prior 0`), with stops missed / made when none was meant over the sentence lists
+(tests/data/speech/*.txt). Short words: the 100 real one-second command-word clips of ../shared/data/speech_commands/
+(when present), each cut by the VAD and decoded with and without the short-utterance decode: words heard right,
+stops missed and false stops, and the decode time per utterance beside that of the longer commands. Then the whole pipeline on loopback (router, speech and
 fusion processes; AudioChunks published at real-time pace): end of the last spoken word -> Transcript
 received, and -> fusion's answer (FusedCommand or Clarification) received, p50/p99, per backend.
 
     .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|short|vocabulary]
-                                          [--tail-probability P]
+                                          [--tail-probability P] [--command-prior F]
+                                          [--skip-short-words]
                                           [--skip-latency] [--latency-only]
 
 Audio: the 32 test commands (tests/data/speech/commands*.txt), spoken by the piper neural voice
@@ -43,7 +48,9 @@ from services.speech.vad import make_segmenter  # noqa: E402
 from services.speech.whisper import (MIN_TOKENS, PROMPTS, TOKENS_PER_SECOND, WhisperRecognizer,  # noqa: E402
                                     WhisperSettings, normalise_words)
 from tests.harness import Client, ProcessGroup  # noqa: E402
-from tests.speech_scoring import COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
+from services.fusion.parse import parse  # noqa: E402
+from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
+from tests.shared import shared_dir  # noqa: E402
 
 GAP = 1.0
 
@@ -95,8 +102,71 @@ def pipeline(rec, stream_path: Path, spans, texts: list[str]) -> dict:
     heard += stream.flush()
     seconds = time.perf_counter() - t
     result = score(texts, spans, [h.transcript for h in heard], t0)
+    said = [parse(text).intent == "stop" for text in texts]
+    stopped = [parse(h).intent == "stop" for h in result["heard"]]
     return {"rtf": seconds / wav.seconds, "wer": result["wer"], "meaning": result["meaning"],
-            "wrong": result["wrong"]}
+            "wrong": result["wrong"], "stops": sum(said), "missed": sum(a and not b for a, b in zip(said, stopped)),
+            "false": sum(b and not a for a, b in zip(said, stopped)),
+            "false_of": [h for a, b, h in zip(said, stopped, result["heard"]) if b and not a]}
+
+
+def vad_cut(samples: np.ndarray) -> list:
+    """The utterances the service's VAD cuts from `samples` (0.6 s of silence added either side)."""
+    segmenter = make_segmenter()
+    pad = np.zeros(int(0.6 * RATE), np.float32)
+    return segmenter.feed(np.concatenate([pad, samples.astype(np.float32), pad])) + segmenter.flush()
+
+
+def decode_times(rec, utterances: list) -> tuple[list[str], list[float]]:
+    """Each utterance decoded alone: (text, ms)."""
+    texts, ms = [], []
+    for utt in utterances:
+        t = time.perf_counter()
+        result = rec.recognise(utt.audio)
+        ms.append((time.perf_counter() - t) * 1000)
+        texts.append(result.text if result is not None else "")
+    return texts, ms
+
+
+def short_words(recognisers: dict) -> None:
+    """The real command-word clips, each recogniser side by side on the same VAD cuts."""
+    folder = shared_dir() / "data" / "speech_commands"
+    paths = sorted(folder.glob("*.wav"))
+    if not paths:
+        print(f"short words: no clips in {folder} (../shared/ absent): skipped\n")
+        return
+    clips = [(p.name.split("_")[0], vad_cut(read_wav(p).samples)) for p in paths]  # the clips are 16 kHz
+    print(f"short words: {len(clips)} real one-second clips ({folder}); each VAD cut decoded alone")
+    print(f"{'decode':26s} {'right':>7s} {'stop missed':>12s} {'false stops':>12s} {'ms p50':>7s} {'ms p99':>7s}")
+    for name, rec in recognisers.items():
+        right = missed = false = 0
+        ms_all: list[float] = []
+        wrong = []
+        for word, utts in clips:
+            texts, ms = decode_times(rec, utts)
+            ms_all += ms
+            texts = [t for t in texts if t]
+            right += texts == [word]
+            stops = any(parse(t).intent == "stop" for t in texts)
+            missed += word == "stop" and not stops
+            false += word != "stop" and stops
+            if texts != [word]:
+                wrong.append((word, " ".join(texts)))
+        n_stop = sum(w == "stop" for w, _ in clips)
+        print(f"{name:26s} {right:3d}/{len(clips):<3d} {missed:5d}/{n_stop:<6d} {false:5d}/{len(clips) - n_stop:<6d} "
+              f"{pct(ms_all, 50):7.0f} {pct(ms_all, 99):7.0f}", flush=True)
+        print(f"{'':26s} wrong: {wrong}")
+    print()
+
+
+def long_decode_times(recognisers: dict, stream_path: Path) -> None:
+    """The decode time of each utterance of the command stream (the same VAD cuts), per recogniser."""
+    utts = vad_cut(read_wav(stream_path).samples)
+    for name, rec in recognisers.items():
+        texts, ms = decode_times(rec, utts)
+        longer = [m for t, m in zip(texts, ms) if len(t.split()) > 1]
+        print(f"{'':10s} {name:26s} decode per utterance p50 {pct(ms, 50):4.0f} ms p99 {pct(ms, 99):4.0f} ms; "
+              f"of the {len(longer)} heard as 2+ words p50 {pct(longer, 50):4.0f} ms", flush=True)
 
 
 def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dict:
@@ -172,6 +242,9 @@ def main() -> None:
     parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt, help="whisper's prompt")
     parser.add_argument("--tail-probability", type=float, default=None, metavar="P",
                         help="whisper: drop a last word or two Whisper doubts (probability < P; default off)")
+    parser.add_argument("--command-prior", type=float, default=WhisperSettings.command_prior, metavar="F",
+                        help="whisper's short-utterance decode (0: off); the in-process rows show both")
+    parser.add_argument("--skip-short-words", action="store_true", help="no real command-word clips part")
     parser.add_argument("--skip-latency", action="store_true", help="no process/zenoh latency part")
     parser.add_argument("--latency-only", action="store_true", help="only the process/zenoh latency part")
     args = parser.parse_args()
@@ -180,29 +253,49 @@ def main() -> None:
         cache = AudioCache(Path(tmp))
         print(f"synthesising {len(texts)} commands ({args.voice}) ...", flush=True)
         whisper = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt,
-                                                            tail_min_probability=args.tail_probability))
-        whisper.recognise(np.zeros(RATE // 2, np.float32))
+                                                            tail_min_probability=args.tail_probability,
+                                                            command_prior=args.command_prior or None))
+        plain = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt,
+                                                          tail_min_probability=args.tail_probability,
+                                                          command_prior=None))
+        for rec in (whisper, plain):
+            rec.recognise(np.zeros(RATE // 2, np.float32))
         sphinx = PocketsphinxRecognizer()
         print(f"whisper: {whisper.describe()}\n")
+        both = {"short-utterance decode on": whisper, "short-utterance decode off": plain}
+        if not (args.latency_only or args.skip_short_words):
+            short_words(both)
         print(f"{'condition':10s} {'path':14s} {'RTF':>6s} {'WER':>6s} {'meaning':>8s}")
         for snr in () if args.latency_only else (None, 10):
             files = [cache.speech(t, args.voice, snr, seed=i) for i, t in enumerate(texts)]
             stream_path, spans = cache.stream(texts, args.voice, snr, GAP)
             cond = "clean" if snr is None else f"{snr} dB"
             rows = [("bare", bare_whisper(whisper, files, texts)), ("whisper", pipeline(whisper, stream_path, spans, texts)),
+                    ("whisper, no short dec.", pipeline(plain, stream_path, spans, texts)),
                     ("pocketsphinx", pipeline(sphinx, stream_path, spans, texts))]
             for name, r in rows:
-                print(f"{cond:10s} {name:14s} {r['rtf']:6.3f} {r['wer']:6.3f} {r['meaning']:8.3f}", flush=True)
+                stops = (f"  stops missed {r['missed']}/{r['stops']}, false stops {r['false']}/{len(texts) - r['stops']}"
+                         if "stops" in r else "")
+                print(f"{cond:10s} {name:14s} {r['rtf']:6.3f} {r['wer']:6.3f} {r['meaning']:8.3f}{stops}", flush=True)
             print(f"{'':10s} service/bare RTF: {rows[1][1]['rtf'] / rows[0][1]['rtf']:.2f}x; whisper misread: "
-                  f"{rows[1][1]['wrong']}\n", flush=True)
+                  f"{rows[1][1]['wrong']}", flush=True)
+            long_decode_times(both, stream_path)
+            print()
+        if not args.latency_only:
+            stream_path, spans = cache.stream(NON_COMMANDS, args.voice, None, GAP)
+            for name, rec in both.items():
+                r = pipeline(rec, stream_path, spans, NON_COMMANDS)
+                print(f"non-commands ({len(NON_COMMANDS)} sentences, clean), {name}: false stops {r['false']} "
+                      f"{r['false_of']}", flush=True)
+            print()
         if args.skip_latency:
             return
         files = [cache.speech(t, args.voice, None, seed=i) for i, t in enumerate(texts)]
         print("end of the last spoken word -> received, whole pipeline on loopback (router + speech + fusion "
               "processes, real-time audio)")
         for backend in ("whisper",) if args.latency_only else ("whisper", "pocketsphinx"):
-            extra = ("--prompt", args.prompt) + (("--tail-probability", str(args.tail_probability))
-                                                 if args.tail_probability is not None else ())
+            extra = ("--prompt", args.prompt, "--command-prior", str(args.command_prior or 0)) + (
+                ("--tail-probability", str(args.tail_probability)) if args.tail_probability is not None else ())
             r = latency(backend, files, extra if backend == "whisper" else ())
             print(f"  {backend:12s} -> Transcript   p50 {pct(r['transcript'], 50):4.0f} ms  p99 "
                   f"{pct(r['transcript'], 99):4.0f} ms  ({len(r['transcript'])}/{r['n']} utterances)")

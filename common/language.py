@@ -23,6 +23,30 @@ INTENT_PHRASES: dict[str, tuple[str, ...]] = {
     "greet": ("hello", "hi", "hey", "good morning", "good afternoon", "say hello"),
 }
 
+# -- safety: stop words and the words said alone ---------------------------------------------------
+# Any of these anywhere in an utterance stops the robot at once (a false stop is cheap, a missed one is not).
+# "stay" is a stop intent too, but only when it is the command ("stay there"), not wherever it appears.
+STOP_WORDS: tuple[str, ...] = ("stop", "halt", "freeze", "wait")
+# "no no no": this word said at least STOP_REPEATS times in a row is a stop too ("no" once is an answer).
+STOP_REPEATED_WORD = "no"
+STOP_REPEATS = 3
+# Words people say alone to a machine besides the language's one-word intents, answers and directions:
+# raise / lower, switch on / off (the classic command-word set of Speech Commands). Heard as commands when
+# said alone (speech's short-utterance decode); fusion gives them no meaning yet.
+ONE_WORD_EXTRAS: tuple[str, ...] = ("up", "down", "on", "off")
+
+
+def one_word_commands() -> tuple[str, ...]:
+    """The words a person says alone as a command or an answer: every one-word phrase of the intents (stop
+    words included), the answers and the directions, then ONE_WORD_EXTRAS. The speech service favours these
+    when an utterance of about a second is one word."""
+    words: list[str] = []
+    for table in (INTENT_PHRASES, ANSWER_PHRASES, DIRECTION_PHRASES):
+        words.extend(p for ps in table.values() for p in ps if " " not in p and p not in words)
+    words.extend(w for w in ONE_WORD_EXTRAS if w not in words)
+    return tuple(words)
+
+
 # Requests that name no verb ("I'd like the banana"): an intent for the parser only. Kept out of INTENT_PHRASES,
 # which the closed speech grammar reads, so that grammar (and its measured accuracy) stays as it was.
 REQUEST_PHRASES: dict[str, tuple[str, ...]] = {

@@ -146,3 +146,30 @@ def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_sp
         client.close()
     code, _ = speech.terminate()
     assert code == 0, speech.output()
+
+
+def test_a_real_spoken_stop_goes_through_speech_and_fusion_to_a_stop_command(group):
+    """A real person's "stop" (Speech Commands clip) as AudioChunks over Zenoh -> the default whisper service ->
+    fusion -> a `stop` FusedCommand, at once (stopping never waits for the join window)."""
+    from tests.shared import shared_path
+    clip = shared_path("data/speech_commands/stop_0ea0e2f4_nohash_0.wav")
+    group.router()
+    group.service("speech", "--input", "zenoh", "--instance", "s1")
+    group.service("fusion")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("speech", timeout=120)
+        client.wait_alive("fusion", timeout=60)
+        transcripts = client.collect("hri/speech/*/transcript")
+        commands = client.collect("hri/fusion/command")
+        pause = np.zeros(16000, np.int16)
+        audio = np.concatenate([pause, read_wav_int16(clip), pause])
+        t0 = time.time() - len(audio) / 16000 - 0.5  # published faster than real time: stamped in the past
+        for chunk in chunks_of(audio, "desk", t0):
+            client.publish(client.keys.audio("desk"), chunk)
+        (_, heard), = transcripts.wait(1, timeout=60)
+        (_, command), = commands.wait(1, timeout=20)
+        assert heard.text == "stop" and command.intent == "stop", (heard.text, command)
+        assert "stop" in command.explanation
+    finally:
+        client.close()

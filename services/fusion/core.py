@@ -22,7 +22,7 @@ from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
 from services.fusion.join import Join, Ready, SeenOnce
 from services.fusion.outputs import Output, Outputs
-from services.fusion.parse import ObjectPhrase, Utterance, parse
+from services.fusion.parse import ObjectPhrase, Utterance, parse, stop_near_miss
 from services.fusion.window import Context, PendingTranscript, gather
 
 TARGET_INTENTS = ("pick_up", "bring")  # must name an object
@@ -109,9 +109,13 @@ class FusionCore:
             self.count("duplicate")
             return []
         u = parse(t.text)
-        if u.intent == "stop":  # no window to wait for: stop now
+        near = None if u.intent == "stop" else stop_near_miss(
+            [(w.word, w.confidence) for w in t.words] or [(t.text, t.confidence)])
+        if u.intent == "stop" or near:  # no window to wait for: stop now
             self.dialogue.close()
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
+            if near:
+                why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
             return [self.outputs.command(t, "stop", None, confidence=t.confidence, explanation=why, realtime=True)]
         self.join.open(PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before,
                                          t.end + self.cfg.window_after))

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field, replace
 
 from common import language as L
 
-# Stop words win wherever they appear: a false stop is cheap, a missed one is not.
-SAFETY_STOP_WORDS = ("stop", "halt", "freeze")
+# Stop words win wherever they appear: a false stop is cheap, a missed one is not (stop_requested).
+SAFETY_STOP_WORDS = L.STOP_WORDS
 # Prepositions that start the destination of put_down ("put the cup ON the table").
 DESTINATION_MARKERS = ("on", "in", "into", "onto", "next to", "near to", "inside", "at", "to")
 FUZZY_MIN_LEN = 4  # shorter words are too easy to mis-correct ("a" -> "at")
@@ -522,10 +522,53 @@ def _split_correction(tags: list[Tag]) -> int | None:
     return split
 
 
+def stop_requested(tags: list[Tag], tokens: tuple[str, ...]) -> Tag | None:
+    """The stop an utterance asks for wherever it is said, or None: a stop word (common.language.STOP_WORDS:
+    "please stop", "put it wait no"), "no no no" (STOP_REPEATED_WORD said STOP_REPEATS times in a row), or a
+    correction that holds "wait" with nothing after it ("no wait"). "no wait, the blue one" is a correction."""
+    for t in tags:
+        if t.kind == "intent" and t.value == "stop" and t.words[0] in SAFETY_STOP_WORDS:
+            return t
+    run = 0
+    for i, token in enumerate(tokens):
+        run = run + 1 if token == L.STOP_REPEATED_WORD else 0
+        if run == L.STOP_REPEATS:
+            return Tag("intent", "stop", i - run + 1, tokens[i - run + 1:i + 1])
+    for k, t in enumerate(tags):
+        if t.kind == "correction" and any(w in SAFETY_STOP_WORDS for w in t.words) and not any(
+                x.kind in CONTENT_KINDS or x.kind == "unknown" for x in tags[k + 1:]):
+            return Tag("intent", "stop", t.index, t.words)
+    return None
+
+
+# A word the language does not know, one letter or so from a stop word and starting like it ("stap", "halp",
+# "freez"), is taken as that stop word when the recogniser doubted it (its word confidence below
+# NEAR_STOP_MAX_CONFIDENCE): a false stop is cheap.
+NEAR_STOP_CUTOFF = 0.75  # difflib ratio: "stap" 0.75, "stopp" 0.89; "start" 0.44
+NEAR_STOP_MAX_CONFIDENCE = 0.5
+
+
+def stop_near_miss(words: list[tuple[str, float]]) -> tuple[str, str] | None:
+    """(word heard, stop word) for the first doubted near-miss of a stop word in (word, confidence) pairs, or None.
+    Words the language knows never count ("want" is not "wait", "step" not "stop", "top" not "stop")."""
+    for heard, confidence in words:
+        for word in tokenize(heard):
+            if confidence >= NEAR_STOP_MAX_CONFIDENCE or len(word) < 4 or word in SAFETY_STOP_WORDS \
+                    or (word,) in PHRASES or word in _FILLER or word in DESTINATION_MARKERS:
+                continue
+            # the same onset: a recogniser slips on a vowel or an ending ("stap"), and "what" is not "wait"
+            match = difflib.get_close_matches(word, [w for w in SAFETY_STOP_WORDS if w[:2] == word[:2]], n=1,
+                                              cutoff=NEAR_STOP_CUTOFF)
+            if match:
+                return word, match[0]
+    return None
+
+
 def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     """Read `text`. `labels`: labels of the objects in view, so a user's own label ("widget") is a noun."""
     tokens = tuple(tokenize(text))
     tags, corrections, unknown = tag(list(tokens), labels)
+    heard_tags = tags
     split = _split_correction(tags)
     before: list[Tag] = []
     if split is not None:
@@ -538,8 +581,9 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     intents = [t for t in tags if t.kind == "intent"]
     chosen = next((t for t in intents if t.value != "greet"), intents[0] if intents else None)
     intent = chosen.value if chosen else None
-    if any(t.kind == "intent" and t.value == "stop" and t.words[0] in SAFETY_STOP_WORDS for t in tags):
-        intent, chosen = "stop", next(t for t in tags if t.kind == "intent" and t.value == "stop")
+    stop = stop_requested(heard_tags, tokens)
+    if stop is not None:
+        intent, chosen = "stop", stop
     answer_tag = next((t for t in tags if t.kind == "answer"), None)
     other = any(t.kind == "other" for t in tags)
     # Everything after the intent phrase; split object vs destination at the first marker.

@@ -67,6 +67,11 @@ def build_parser():
                         help="whisper: drop the last word or two when Whisper gives the first of them a probability "
                              "below P (0.1 removes most of a prompt's invented '... thank you', and sometimes a real "
                              "last word; default off, docs/speech.md)")
+    parser.add_argument("--command-prior", type=float, default=WhisperSettings.command_prior, metavar="F",
+                        help="whisper: an utterance of about a second heard as one word outside the one-word commands "
+                             "(common/language.py) becomes the likeliest command when its probability times F is at "
+                             f"least the heard word's (default {WhisperSettings.command_prior:g}; 0 turns this "
+                             "short-utterance decode off; docs/speech.md)")
     parser.add_argument("--threads", type=int, default=WhisperSettings.threads,
                         help=f"whisper: CPU threads (default {WhisperSettings.threads})")
     parser.add_argument("--min-confidence", type=float, default=None,
@@ -98,6 +103,8 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--min-confidence must be within 0–1")
     if args.beam < 1 or args.threads < 1:
         parser.error("--beam and --threads must be at least 1")
+    if args.command_prior < 0:
+        parser.error("--command-prior must be 0 (off) or more (e.g. 20)")
     if args.tail_probability is not None and not 0.0 < args.tail_probability < 1.0:
         parser.error("--tail-probability must be between 0 and 1 (e.g. 0.1)")
     if args.partials is not None and args.partials <= 0:
@@ -152,7 +159,8 @@ def make_recogniser(args, service: Service):
     if args.backend == "whisper":
         rec = WhisperRecognizer(args.model, args.min_confidence, commands or (),
                                 WhisperSettings(beam_size=args.beam, threads=args.threads, prompt=args.prompt,
-                                                tail_min_probability=args.tail_probability))
+                                                tail_min_probability=args.tail_probability,
+                                                command_prior=args.command_prior or None))
         rec.recognise(np.zeros(RATE // 2, np.float32))  # the first decode allocates; not on a person's time
         service.log.info("%s ready in %.1f s", rec.describe(), time.monotonic() - started)
         return rec

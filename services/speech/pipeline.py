@@ -216,6 +216,9 @@ class MicStream:
                                           f"loop at {at}")
         if result is not None and result.tail_removed:
             self.count("tail_removed", f"{self.mic}: {result.tail_removed} doubted last word(s) dropped at {at}")
+        if result is not None and result.short_command:
+            self.count("short_command", f"{self.mic}: one word heard as a command ({result.short_command}; "
+                                        f"{result.detail}) at {at}")
         if result is None or not result.text:
             if result is not None and result.dropped:
                 self.count(result.dropped, f"{self.mic}: no words in the utterance at {at} ({result.dropped})")

@@ -47,6 +47,7 @@ class Recognition:
     dropped: str = ""  # with no text: the counter saying why (e.g. "no_speech")
     repeats_removed: int = 0  # words dropped as a hallucinated loop
     tail_removed: int = 0  # last words dropped because Whisper doubted the first of them (--tail-probability)
+    short_command: str = ""  # "heard -> command" when the short-utterance decode replaced a one-word utterance
 
 
 def derive_pronunciation(word: str, lookup: Callable[[str], str | None]) -> str | None:

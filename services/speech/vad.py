@@ -22,7 +22,7 @@ class VadConfig:
     threshold: float = 0.5  # a window at or above this is speech
     release: float = 0.35  # ... and speech goes on until windows fall below this (hysteresis)
     min_silence: float = 0.30  # seconds below `release` that end an utterance
-    min_speech: float = 0.15  # shorter bursts are noise (a cough, a click)
+    min_speech: float = 0.09  # shorter bursts (under 3 windows) are noise: a click; real "no"/"on" measured 96-128 ms
     pre_pad: float = 0.20  # seconds of audio kept before the first speech window
     post_pad: float = 0.15  # ... and after the last one (must not exceed min_silence)
     max_utterance: float = 10.0  # force an end so a never-ending noise cannot hold the decoder

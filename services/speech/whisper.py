@@ -14,6 +14,11 @@ invented words are timed inside the speech, not after it, so the VAD's end of sp
 What Whisper heard is returned whether or not it is a command; only its known inventions are
 dropped: a segment Whisper itself judges to be no speech (no_speech_prob high AND avg_logprob low,
 its own rule) and phrases repeated in a loop ("turn right turn right").
+
+Short words (`choose_command`, `--command-prior`): an utterance of about a second heard as one word that is not
+a command word is scored again against the command words (common.language.one_word_commands) with the model's
+own first-token probabilities, and the likeliest command is taken when it is not far less likely than the word
+heard ("of" -> "off", "now" -> "no"). Utterances of two words or more are decoded exactly as without it.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ import importlib.util
 import logging
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Iterable, Sequence, TypeVar
 
@@ -53,6 +58,21 @@ MIN_TOKENS = 12
 
 PROMPTS = ("none", "short", "vocabulary")
 
+# The short-utterance decode (docs/speech.md): an utterance of at most SHORT_SECONDS of audio (the VAD's
+# padding included, ~0.35 s) that Whisper hears as one word outside the one-word commands is scored again
+# against those commands (common.language.one_word_commands) with the model's own probabilities; the best
+# command is taken when its probability times COMMAND_PRIOR is at least that of the word heard.
+SHORT_SECONDS = 2.0
+COMMAND_PRIOR = 20.0
+
+
+def _repeatable() -> frozenset[str]:
+    from common.language import STOP_REPEATED_WORD
+    return frozenset({STOP_REPEATED_WORD})
+
+
+REPEATABLE = _repeatable()  # "no no no" is a stop: its repeats are kept
+
 
 @dataclass(frozen=True)
 class WhisperSettings:
@@ -63,6 +83,8 @@ class WhisperSettings:
     tail_min_probability: float | None = None
     no_speech_prob: float = NO_SPEECH_PROB
     no_speech_logprob: float = NO_SPEECH_LOGPROB
+    # the short-utterance decode: a one-word utterance favours the command words (None: off)
+    command_prior: float | None = COMMAND_PRIOR
 
 
 def packaged_model_dir() -> Path:
@@ -187,10 +209,49 @@ def short_prompt(commands: Iterable[str] = ()) -> str:
 T = TypeVar("T")
 
 
-def remove_loops(words: Sequence[T], key: Callable[[T], str] = str) -> list[T]:
+@dataclass(frozen=True)
+class CommandChoice:
+    """The short-utterance decode's verdict on a one-word utterance."""
+    word: str  # what the utterance is taken to be: the command, or the word heard
+    probability: float  # the model's probability of that word as the utterance's first word
+    heard: str  # the free decode's word
+    heard_probability: float
+    best_command: str
+    best_probability: float
+
+    @property
+    def changed(self) -> bool:
+        return self.word != self.heard
+
+    def describe(self) -> str:
+        return (f"heard {self.heard!r} p {self.heard_probability:.3f}, likeliest command {self.best_command!r} "
+                f"p {self.best_probability:.3f}")
+
+
+def choose_command(heard: str, heard_probability: float, command_probabilities: dict[str, float],
+                   prior: float) -> CommandChoice:
+    """The word a one-word utterance is taken to be. A word heard that is itself a command stays; otherwise the
+    likeliest command replaces it when that command's probability times `prior` is at least the heard word's.
+    Whisper's probabilities carry its English prior ("of", "now", "good" are far commoner than "off", "no",
+    "go"); a robot that knows its few commands should expect them, so they get a fixed head start."""
+    best = max(command_probabilities, key=command_probabilities.__getitem__)
+    p_best = command_probabilities[best]
+    take = heard not in command_probabilities and p_best * prior >= heard_probability
+    word, p = (best, p_best) if take else (heard, heard_probability)
+    return CommandChoice(word, p, heard, heard_probability, best, p_best)
+
+
+def spellings(word: str) -> tuple[str, ...]:
+    """How Whisper may write a word said alone at the start of a transcript: ' stop', ' Stop', ' STOP'."""
+    return tuple(dict.fromkeys((f" {word}", f" {word.capitalize()}", f" {word.upper()}")))
+
+
+def remove_loops(words: Sequence[T], key: Callable[[T], str] = str, repeatable: Iterable[str] = ()) -> list[T]:
     """A phrase said again right after itself, once or more, is kept once ("turn right turn right" ->
     "turn right", "yes yes" -> "yes"). Whisper's best-known failure is looping on a phrase; for a spoken
-    command, a phrase repeated back to back never means more than the phrase once."""
+    command, a phrase repeated back to back never means more than the phrase once, except a word in
+    `repeatable` ("no no no" is a stop, "no" an answer)."""
+    repeatable = set(repeatable)
     out = list(words)
     changed = True
     while changed:
@@ -198,7 +259,7 @@ def remove_loops(words: Sequence[T], key: Callable[[T], str] = str) -> list[T]:
         keys = [key(w) for w in out]
         for n in range(len(out) // 2, 0, -1):  # longest phrase first, so "a b a b" is not read as words
             for i in range(len(out) - 2 * n + 1):
-                if keys[i:i + n] == keys[i + n:i + 2 * n]:
+                if keys[i:i + n] == keys[i + n:i + 2 * n] and not (n == 1 and keys[i] in repeatable):
                     j = i + n
                     while keys[j:j + n] == keys[i:i + n]:
                         j += n
@@ -242,11 +303,43 @@ class WhisperRecognizer:
         self.prompt = (vocabulary_prompt(commands) if settings.prompt == "vocabulary" else
                        short_prompt(commands) if settings.prompt == "short" else None)
         self.min_confidence = min_confidence
+        from faster_whisper.tokenizer import Tokenizer
+        tokenizer = Tokenizer(self.model.hf_tokenizer, self.model.model.is_multilingual, task="transcribe",
+                              language="en")
+        self._score_start = [*tokenizer.sot_sequence, tokenizer.no_timestamps]
+        self._command_tokens: dict[str, list[int]] = {}
+        if settings.command_prior is not None:
+            from common.language import one_word_commands
+            self._command_tokens = {w: ids for w in one_word_commands() if (ids := self._single_tokens(w))}
+
+    def _single_tokens(self, word: str) -> list[int]:
+        """The ids of the spellings of `word` that are one token each (a command word's spellings are: the rest
+        would need a decode step per token, and are left out)."""
+        encode = self.model.hf_tokenizer.encode
+        ids = [encode(s, add_special_tokens=False).ids for s in spellings(word)]
+        return sorted({i[0] for i in ids if len(i) == 1})
+
+    def first_word_probabilities(self, audio: np.ndarray, words: Iterable[str]) -> dict[str, float]:
+        """For each word, the model's probability that the transcript of `audio` starts with it (its one-token
+        spellings summed): one encode and one decoder step, no timestamps, nothing suppressed."""
+        from faster_whisper.audio import pad_or_trim
+        encoded = self.model.encode(pad_or_trim(self.model.feature_extractor(audio.astype(np.float32, copy=False))))
+        start = self._score_start
+        result = self.model.model.generate(encoded, [start], max_length=3, beam_size=1, return_logits_vocab=True,
+                                           suppress_tokens=[], suppress_blank=False)
+        logits = np.asarray(result[0].logits[0], dtype=np.float64).reshape(-1)
+        logp = logits - np.logaddexp.reduce(logits)
+        out = {}
+        for w in words:
+            ids = self._command_tokens.get(w) or self._single_tokens(w)
+            out[w] = float(np.exp(logp[ids]).sum()) if ids else 0.0
+        return out
 
     def describe(self) -> str:
         which = f"tiny.en from {MODEL_PIP} (sha256 checked)" if self.packaged else str(self.folder)
         return (f"whisper {which}, beam {self.settings.beam_size}, {self.settings.threads} threads, "
-                f"prompt {self.settings.prompt}")
+                f"prompt {self.settings.prompt}, short-utterance decode "
+                f"{'off' if not self._command_tokens else f'on (prior {self.settings.command_prior:g})'}")
 
     def recognise(self, audio: np.ndarray) -> Recognition | None:
         s = self.settings
@@ -261,10 +354,13 @@ class WhisperRecognizer:
             # it is counted, and there is no fallback to re-run at higher temperatures
             no_speech_threshold=None, log_prob_threshold=None, compression_ratio_threshold=None)
         words: list[RecognisedWord] = []
+        silent_words: list[RecognisedWord] = []
         logprob_sum, tokens, silent = 0.0, 0, 0
         for seg in segments:
             if seg.no_speech_prob > s.no_speech_prob and seg.avg_logprob < s.no_speech_logprob:
                 silent += 1
+                silent_words += [RecognisedWord(token, float(w.start), float(w.end), float(w.probability))
+                                 for w in seg.words or [] for token in normalise_words(w.word)]
                 continue
             n = max(1, len(seg.tokens))
             logprob_sum += seg.avg_logprob * n
@@ -274,11 +370,42 @@ class WhisperRecognizer:
                     words.append(RecognisedWord(token, float(w.start), float(w.end), float(w.probability)))
         heard = len(words)
         words = drop_improbable_tail(words, s.tail_min_probability)
+        if not words and len(silent_words) == 1 and self._is_short(audio):
+            # a quiet short word Whisper calls no speech: kept only if the short-utterance decode makes it a
+            # command (a quiet "stop" was heard as " store." with no_speech_prob 0.77: dropped, a missed stop)
+            choice = self.choose_command(audio, silent_words[0])
+            if choice.word in self._command_tokens:
+                return Recognition(choice.word, choice.probability,
+                                   [replace(silent_words[0], word=choice.word, confidence=choice.probability)],
+                                   detail=f"judged no speech, one word: {choice.describe()}",
+                                   short_command=f"{choice.heard} (no speech) -> {choice.word}")
         if not words:
             return Recognition("", 0.0, dropped="no_speech" if silent else "no_words")
-        kept = remove_loops(words, key=lambda w: w.word)
+        kept = remove_loops(words, key=lambda w: w.word, repeatable=REPEATABLE)
         # confidence: the mean token probability of the decoded text (exp of the mean log-probability)
         confidence = math.exp(logprob_sum / tokens) if tokens else 0.0
-        return Recognition(" ".join(w.word for w in kept), confidence, kept,
-                           detail=f"avg_logprob {logprob_sum / max(tokens, 1):.2f}",
-                           repeats_removed=len(words) - len(kept), tail_removed=heard - len(words))
+        detail = f"avg_logprob {logprob_sum / max(tokens, 1):.2f}"
+        short_command = ""
+        if len(kept) == 1 and self._is_short(audio):
+            choice = self.choose_command(audio, kept[0])
+            detail += f"; one word: {choice.describe()}"
+            if choice.changed:
+                short_command = f"{choice.heard} -> {choice.word}"
+                kept = [replace(kept[0], word=choice.word, confidence=choice.probability)]
+                confidence = choice.probability
+        return Recognition(" ".join(w.word for w in kept), confidence, kept, detail=detail,
+                           repeats_removed=len(words) - len(kept), tail_removed=heard - len(words),
+                           short_command=short_command)
+
+    def _is_short(self, audio: np.ndarray) -> bool:
+        """An utterance the short-utterance decode is for (it is on and the audio is about a second)."""
+        return bool(self._command_tokens) and len(audio) <= SHORT_SECONDS * RATE
+
+    def choose_command(self, audio: np.ndarray, heard: RecognisedWord) -> CommandChoice:
+        """The short-utterance decode of a one-word utterance (choose_command; docs/speech.md)."""
+        assert self.settings.command_prior is not None
+        probabilities = self.first_word_probabilities(audio, [*self._command_tokens, heard.word])
+        heard_p = probabilities.pop(heard.word) if heard.word not in self._command_tokens else probabilities[heard.word]
+        if not self._single_tokens(heard.word):  # no one-token spelling: Whisper's own word probability
+            heard_p = heard.confidence
+        return choose_command(heard.word, heard_p, probabilities, self.settings.command_prior)
