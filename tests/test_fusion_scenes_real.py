@@ -7,9 +7,9 @@ answers), judged by tests/scenarios/indoor.py: a command's target must overlap t
 - over Zenoh: camera -> vision -> fusion as real processes, each sentence published the way `hri say` publishes it;
   every line must get the same verdict as in process.
 
-Measured: 23/30 right (the 7 wrong lines all hinge on colour words the detector's colour names do not match yet:
-pink/purple, white/grey, dark grey, green/yellow ×2, grey/red, "grey stone pot"; see docs/fusion.md). The bound
-below sits under that with a margin. Skipped with the reason when ../shared/ or onnxruntime is absent.
+Measured: 29/30 right with the colour model and the relations (the one wrong line: "the plant in the grey stone
+pot" — the pot is no detection of its own; see docs/fusion.md). The bound below sits under that with a margin.
+Skipped with the reason when ../shared/ or onnxruntime is absent.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from tests.scenarios.indoor import SCENES, evaluate, judge, load_lines, report, 
 from tests.shared import shared_path, yolox_model
 
 DIALOGUE_TIMEOUT = 0.5  # s: each line is judged on its own, as in process
-MIN_RIGHT = 20  # of 30; measured 23 (every wrong line is a colour word, item 1-2 of issue 22)
+MIN_RIGHT = 27  # of 30; measured 29 (in process and over Zenoh, relations + colour model merged), margin 2 lines
 
 
 @pytest.fixture(scope="module")
