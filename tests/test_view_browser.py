@@ -101,6 +101,10 @@ def test_page_shows_the_transcript_the_command_and_highlights_the_target(live):
     assert tab.js("document.querySelectorAll('#timeline li.command .weights .bar').length") == 3
     assert tab.js("document.querySelector('#timeline li.command .explanation').innerText.length") > 10
     assert "red" in tab.js("document.querySelector('#timeline li.command pre.prompt').innerText")
+    # fusion's estimate of each source's clock offset (docs/foundation.md) in the services table
+    clocks = tab.wait_for("(document.querySelector('#services tr[data-service=fusion] td.clocks') || {}).innerText",
+                          30, "fusion's clock offsets")
+    assert "vision/" in clocks and " ms" in clocks, clocks
 
     target = tab.wait_for("hriView.state.cameras.table.target", 10, "the target in the overlay")
     assert target["color"] == "red"

@@ -289,8 +289,15 @@ function updateServices(services) {
       : s.alive === false ? el("span", { class: "bad" }, "gone") : el("span", { class: "dim" }, "seen");
     return el("tr", { "data-service": s.service }, el("td", {}, s.service), el("td", {}, s.instance),
       el("td", {}, live), el("td", {}, st.received ?? ""), el("td", {}, st.published ?? ""),
-      el("td", {}, st.skipped ?? ""), el("td", { title: JSON.stringify(st.rejected || {}) }, s.stats ? rejected : ""));
+      el("td", {}, st.skipped ?? ""), el("td", { title: JSON.stringify(st.rejected || {}) }, s.stats ? rejected : ""),
+      el("td", { class: "clocks" }, clockOffsets(st.other || {})));
   }));
+}
+
+// fusion's estimate of each source's clock against its own (other["clock_offset_ms:SOURCE"]; docs/foundation.md)
+function clockOffsets(other) {
+  return Object.entries(other).filter(([k]) => k.startsWith("clock_offset_ms:"))
+    .map(([k, ms]) => `${k.slice("clock_offset_ms:".length)} ${ms >= 0 ? "+" : ""}${ms} ms`).join(", ");
 }
 
 function updateIgnored(state) {
