@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from common.cli import make_transcript  # noqa: E402
 from tests.harness import DATA, Client, ProcessGroup  # noqa: E402
-from tests.netns import Network, NetnsGroup, cleanup_leftovers, unavailable  # noqa: E402
+from tests.netns import NetnsGroup, Network, cleanup_leftovers, unavailable  # noqa: E402
 
 WORDS = ["turn left", "turn right"]
 
@@ -112,7 +112,7 @@ def distributed(args) -> dict:
                     reconnect.append(time.monotonic() - t_up)
                 expected = len(consumer_ids(consumer)) + args.per_outage
                 sent.drain(0.0)
-                if not wait(lambda: len(consumer_ids(consumer)) >= expected, 10):
+                if not wait(lambda expected=expected: len(consumer_ids(consumer)) >= expected, 10):
                     late += 1
                 time.sleep(0.5)
                 sent.drain(0.0)
@@ -121,7 +121,8 @@ def distributed(args) -> dict:
                 lost = len(set(want) - set(got))
                 duplicated = len(got) - len(set(got))
                 took = f"{reconnect[-1]:.2f} s" if back else "not within 30 s"
-                print(f"  outage {k + 1}/{args.outages}: reconnected {took} after the link returned; commands sent {len(want)}, at the consumer {len(got)}, lost {lost},"
+                print(f"  outage {k + 1}/{args.outages}: reconnected {took} after the link returned; "
+                      f"commands sent {len(want)}, at the consumer {len(got)}, lost {lost},"
                       f" duplicated {duplicated}, in order {got == want}", flush=True)
             return {"latency": lat, "reconnect": reconnect, "lost": lost, "duplicated": duplicated,
                     "in_order": consumer_ids(consumer)[base:] == [s.id for _, s in sent.seen],
@@ -159,7 +160,8 @@ def main() -> None:
     rec = d["reconnect"]
     if rec:
         print(f"reconnection after a {args.outage:g} s cut, {len(rec)} outages: "
-              f"p50 {1000 * statistics.median(rec):.0f} ms, max {1000 * max(rec):.0f} ms (link up -> liveliness token back)")
+              f"p50 {1000 * statistics.median(rec):.0f} ms, max {1000 * max(rec):.0f} ms "
+              "(link up -> liveliness token back)")
     print(f"commands over {args.outages} outages ({d['commands']} sent, {args.per_outage} per outage while cut): "
           f"lost {d['lost']}, duplicated {d['duplicated']}, in order {d['in_order']}; outages after which the "
           f"consumer needed more than 10 s to catch up: {d['late']}")

@@ -69,7 +69,8 @@ def print_lag_slices(lags: list[tuple[float, float]], seconds: float) -> None:
         part = [lag for t, lag in lags if k * slice_s <= t < (k + 1) * slice_s]
         if part:
             p50, p99 = np.percentile(part, [50, 99]) * 1000
-            print(f"  {k * slice_s:4.0f}-{(k + 1) * slice_s:3.0f} s  p50 {p50:6.1f} ms  p99 {p99:6.1f} ms  n={len(part)}")
+            print(f"  {k * slice_s:4.0f}-{(k + 1) * slice_s:3.0f} s  p50 {p50:6.1f} ms  p99 {p99:6.1f} ms  "
+                  f"n={len(part)}")
     if lags:
         p50, p99 = np.percentile([lag for _, lag in lags], [50, 99]) * 1000
         print(f"  overall    p50 {p50:6.1f} ms  p99 {p99:6.1f} ms")

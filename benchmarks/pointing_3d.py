@@ -28,7 +28,14 @@ import numpy as np  # noqa: E402
 
 from common.depth import depth_frame, depth_metres  # noqa: E402
 from common.schema import (  # noqa: E402
-    CameraInfo, DetectedObject, Detections, Hand, Hands, ImageQuality, Ray, Ray3D,
+    CameraInfo,
+    DetectedObject,
+    Detections,
+    Hand,
+    Hands,
+    ImageQuality,
+    Ray,
+    Ray3D,
 )
 from services.fusion.evidence import pointing_from_hands, select_pointing  # noqa: E402
 from services.fusion.ground import best_pointed, scene_objects  # noqa: E402

@@ -31,12 +31,12 @@ import zenoh  # noqa: E402
 from mcap.reader import make_reader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
+from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.codec import ENCODING, encode  # noqa: E402
 from common.keys import Keys  # noqa: E402
 from common.recording import SessionWriter  # noqa: E402
-from tests.harness import ProcessGroup, Proc  # noqa: E402
-from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.transport import open_client  # noqa: E402
+from tests.harness import Proc, ProcessGroup  # noqa: E402
 
 
 def payloads() -> dict[str, tuple[str, bytes]]:

@@ -11,9 +11,10 @@ the sentence), clean and with pink noise at 10 dB; the whisper pipeline also wit
 (`--command-prior 0`), with stops missed / made when none was meant over the sentence lists
 (tests/data/speech/*.txt). Short words: the 100 real one-second command-word clips of ../shared/data/speech_commands/
 (when present), each cut by the VAD and decoded with and without the short-utterance decode: words heard right,
-stops missed and false stops, and the decode time per utterance beside that of the longer commands. Then the whole pipeline on loopback (router, speech and
-fusion processes; AudioChunks published at real-time pace): end of the last spoken word -> Transcript
-received, and -> fusion's answer (FusedCommand or Clarification) received, p50/p99, per backend.
+stops missed and false stops, and the decode time per utterance beside that of the longer commands. Then the
+whole pipeline on loopback (router, speech and fusion processes; AudioChunks published at real-time pace): end of
+the last spoken word -> Transcript received, and -> fusion's answer (FusedCommand or Clarification) received,
+p50/p99, per backend.
 
     .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|short|vocabulary]
                                           [--tail-probability P] [--command-prior F]
@@ -40,17 +41,23 @@ import numpy as np  # noqa: E402
 
 from common.codec import decode  # noqa: E402
 from common.schema import AudioChunk, Clarification, FusedCommand, Transcript  # noqa: E402
+from services.fusion.parse import parse  # noqa: E402
 from services.speech.audio import RATE, read_wav  # noqa: E402
 from services.speech.pipeline import MicStream  # noqa: E402
 from services.speech.recognizers import PocketsphinxRecognizer  # noqa: E402
 from services.speech.synth import PIPER_VOICE, read_wav_int16  # noqa: E402
 from services.speech.vad import make_segmenter  # noqa: E402
-from services.speech.whisper import (MIN_TOKENS, PROMPTS, TOKENS_PER_SECOND, WhisperRecognizer,  # noqa: E402
-                                    WhisperSettings, normalise_words)
+from services.speech.whisper import (  # noqa: E402
+    MIN_TOKENS,
+    PROMPTS,
+    TOKENS_PER_SECOND,
+    WhisperRecognizer,
+    WhisperSettings,
+    normalise_words,
+)
 from tests.harness import Client, ProcessGroup  # noqa: E402
-from services.fusion.parse import parse  # noqa: E402
-from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
 from tests.shared import shared_dir  # noqa: E402
+from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
 
 GAP = 1.0
 
@@ -274,8 +281,8 @@ def main() -> None:
                     ("whisper, no short dec.", pipeline(plain, stream_path, spans, texts)),
                     ("pocketsphinx", pipeline(sphinx, stream_path, spans, texts))]
             for name, r in rows:
-                stops = (f"  stops missed {r['missed']}/{r['stops']}, false stops {r['false']}/{len(texts) - r['stops']}"
-                         if "stops" in r else "")
+                stops = (f"  stops missed {r['missed']}/{r['stops']}, "
+                         f"false stops {r['false']}/{len(texts) - r['stops']}" if "stops" in r else "")
                 print(f"{cond:10s} {name:14s} {r['rtf']:6.3f} {r['wer']:6.3f} {r['meaning']:8.3f}{stops}", flush=True)
             print(f"{'':10s} service/bare RTF: {rows[1][1]['rtf'] / rows[0][1]['rtf']:.2f}x; whisper misread: "
                   f"{rows[1][1]['wrong']}", flush=True)

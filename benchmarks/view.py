@@ -24,7 +24,7 @@ from common.schema import Detections, Frame  # noqa: E402
 from services.vision.core import VisionPipeline  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
 from tests.browser import CHROMIUM, Browser  # noqa: E402
-from tests.harness import DATA, ROOT, Client, ProcessGroup, Proc  # noqa: E402
+from tests.harness import DATA, ROOT, Client, Proc, ProcessGroup  # noqa: E402
 
 BARE_SUBSCRIBER = """
 import sys, threading, zenoh

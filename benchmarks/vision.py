@@ -53,8 +53,7 @@ from common.codec import decode  # noqa: E402
 from common.depth import depth_frame  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
 from common.schema import CameraInfo, Detections, Frame  # noqa: E402
-from services.vision.color import CHROMATIC, HUE_RANGES  # noqa: E402
-from services.vision.color import illuminant_gains  # noqa: E402
+from services.vision.color import CHROMATIC, HUE_RANGES, illuminant_gains  # noqa: E402
 from services.vision.core import VisionPipeline, object_colour  # noqa: E402
 from services.vision.depth import DepthImage  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402

@@ -20,7 +20,12 @@ from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
 from common.schema import InvalidSample, Stats, make_transcript
 from common.transport import (
-    add_zenoh_arguments, init_zenoh_logging, live_tokens, open_session, resolve, zenoh_config,
+    add_zenoh_arguments,
+    init_zenoh_logging,
+    live_tokens,
+    open_session,
+    resolve,
+    zenoh_config,
 )
 
 EXAMPLES = """\

@@ -50,11 +50,11 @@ def delta_e94(x: Lab, y: Lab, k_l: float = K_L) -> float:
 
 def modified(lab: Lab, modifier: str) -> Lab:
     """A prototype made light or dark (chroma shrinks a little either way: pale and deep colours are duller)."""
-    l, a, b = lab
+    lightness, a, b = lab
     if modifier == "light":
-        return (l + (100 - l) * LIGHT_SHIFT, a * LIGHT_CHROMA, b * LIGHT_CHROMA)
+        return (lightness + (100 - lightness) * LIGHT_SHIFT, a * LIGHT_CHROMA, b * LIGHT_CHROMA)
     if modifier == "dark":
-        return (l * DARK_SCALE, a * DARK_CHROMA, b * DARK_CHROMA)
+        return (lightness * DARK_SCALE, a * DARK_CHROMA, b * DARK_CHROMA)
     raise ValueError(f"unknown colour modifier {modifier!r}: use one of {', '.join(COLOR_MODIFIERS)}")
 
 
@@ -71,9 +71,9 @@ def prototypes(term: str) -> tuple[Lab, ...]:
 
 def term_fits(term: str, labs: np.ndarray) -> np.ndarray:
     """How plausibly a person calls each measured colour (N×3) `term`, in (0, 1]: exp(-d²/2σ²), d the ΔE94 to the
-    term's nearest prototype (lightness alone for "dark" and "light"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ. A light or
-    dark term is a claim about lightness: its lightness difference counts in full (k_L = 1). One array operation
-    for all, so one decision over a thousand objects stays cheap."""
+    term's nearest prototype (lightness alone for "dark" and "light"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ.
+    A light or dark term is a claim about lightness: its lightness difference counts in full (k_L = 1). One array
+    operation for all, so one decision over a thousand objects stays cheap."""
     labs = np.asarray(labs, np.float64).reshape(-1, 3)
     if term in LIGHTNESS_ONLY:
         d = np.maximum(0.0, LIGHTNESS_ONLY[term] * (labs[:, 0] - COLOR_PROTOTYPES[term][0][0])) / K_L

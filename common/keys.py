@@ -3,7 +3,18 @@
 from __future__ import annotations
 
 from common.schema import (
-    AudioChunk, Bodies, Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, Sample, Stats, Transcript,
+    AudioChunk,
+    Bodies,
+    Clarification,
+    DepthFrame,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    Sample,
+    Stats,
+    Transcript,
 )
 
 DEFAULT_PREFIX = "hri"

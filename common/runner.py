@@ -30,8 +30,8 @@ from typing import Any, Callable
 import zenoh
 
 from common.codec import ENCODING, decode, encode
-from common.keys import Keys, check_chunk
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
+from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
 from common.stamps import DEFAULT_MAX_SKEW_S, DEFAULT_RESET_RUN, FUTURE, OUT_OF_ORDER, RESET, StampGuard
 from common.transport import add_zenoh_arguments, declare_recovering_publisher, open_session, resolve
@@ -179,7 +179,7 @@ class Inbox:
         with self._cond:
             if self._fifo_len[channel] >= maxlen:
                 # drop the oldest of this channel: count it, keep the stream moving
-                for i, (_, old, ch) in enumerate(self._fifo):
+                for i, (_, _, ch) in enumerate(self._fifo):
                     if ch == channel:
                         del self._fifo[i]
                         self._fifo_len[channel] -= 1

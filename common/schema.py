@@ -466,8 +466,9 @@ class DepthFrame(Sample, kw_only=True):
         if self.compression == "none":
             need = self.width * self.height * (2 if self.encoding == "16UC1" else 4)
             if not (len(self.data) == need):
-                raise InvalidSample("bad_value", f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, "
-                                                 f"got {len(self.data)}")
+                raise InvalidSample("bad_value",
+                                    f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, "
+                                    f"got {len(self.data)}")
         else:
             if not (self.encoding == "16UC1"):
                 raise InvalidSample("bad_value", "compression: png carries 16UC1 depth only")

@@ -157,7 +157,7 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
                 raise SystemExit(
                     f"hri: the router at {', '.join(args.connect or [])} refused user {args.user or 'cli'!r}: wrong "
                     f"password or unknown user. Check that {args.secure}/passwords has this user's line as the "
-                    f"router has it (same secrets folder), or pass --user NAME")
+                    f"router has it (same secrets folder), or pass --user NAME") from None
             if attempt == 1 or attempt % 10 == 0:
                 log.warning("waiting for the zenoh router at %s (%s); start it with `hri router` "
                             "or pass --connect ENDPOINT", ", ".join(args.connect or ["?"]), str(exc).split(" at ")[0])

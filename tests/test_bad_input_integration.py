@@ -6,8 +6,8 @@ import cv2
 import msgpack
 import pytest
 
-from common.codec import encode
 from common.cli import make_transcript
+from common.codec import encode
 from common.schema import Frame
 from tests.harness import DATA, Client, requires_services
 

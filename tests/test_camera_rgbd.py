@@ -11,9 +11,17 @@ import numpy as np
 import pytest
 
 from common.depth import metres
-from services.camera.rgbd import (Capture, RgbdFolderSource, find_pairs, import_realsense, mirror_capture,
-                                  parse_intrinsics, read_intrinsics, realsense_capture)
 from services.camera.opener import open_source
+from services.camera.rgbd import (
+    Capture,
+    RgbdFolderSource,
+    find_pairs,
+    import_realsense,
+    mirror_capture,
+    parse_intrinsics,
+    read_intrinsics,
+    realsense_capture,
+)
 from services.camera.source import SourceError
 from services.vision.depth import object_depth
 from tests.shared import shared_path

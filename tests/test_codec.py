@@ -9,9 +9,32 @@ import pytest
 from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import (
-    ALL_SAMPLES, AudioChunk, Bodies, Body, CameraInfo, Clarification, ColorShare, DepthFrame, DetectedObject, Detections,
-    Frame, FusedCommand, GestureEvent, Hand, Hands, ImageQuality, InvalidSample, Location, Motion, Ray, Ray3D, Stats,
-    Target, Transcript, Weights, Word,
+    ALL_SAMPLES,
+    AudioChunk,
+    Bodies,
+    Body,
+    CameraInfo,
+    Clarification,
+    ColorShare,
+    DepthFrame,
+    DetectedObject,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hand,
+    Hands,
+    ImageQuality,
+    InvalidSample,
+    Location,
+    Motion,
+    Ray,
+    Ray3D,
+    Stats,
+    Target,
+    Transcript,
+    Weights,
+    Word,
 )
 
 T = 1_790_000_000.0

@@ -66,7 +66,7 @@ def test_compose_stack_builds_starts_and_answers_from_the_host(tmp_path: Path) -
     assert "all docker checks passed" in output, tail(output)
     left_out = [ln for ln in output.splitlines() if "not in this checkout yet" in ln]
     if left_out:  # visible in the warnings summary: the stack ran without some services
-        warnings.warn(left_out[0].split("] ", 1)[-1])
+        warnings.warn(left_out[0].split("] ", 1)[-1], stacklevel=1)  # the test itself is the place to report
 
 
 # -- the helpers, without Docker ------------------------------------------------------------------------

@@ -10,7 +10,16 @@ import numpy as np
 import pytest
 
 from common.schema import (
-    Bodies, Body, DetectedObject, Detections, Hand, Hands, ImageQuality, Ray, Ray3D, Weights,
+    Bodies,
+    Body,
+    DetectedObject,
+    Detections,
+    Hand,
+    Hands,
+    ImageQuality,
+    Ray,
+    Ray3D,
+    Weights,
 )
 from services.fusion import space
 from services.fusion.evidence import pointing_from_hands, select_pointing

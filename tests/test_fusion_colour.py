@@ -166,7 +166,8 @@ def test_colour_words_are_one_table_for_parser_and_speech():
 
 def test_cie94_matches_published_values_and_many_colours_at_once_match_one_at_a_time():
     """Sharma et al.'s CIEDE2000 test pairs 1–2 have CIE94 (graphic arts, k_L = 1) differences 1.3950 and 1.9341
-    with the first colour's chroma as reference; the symmetric form here (geometric mean chroma) gives 1.380 and 1.893."""
+    with the first colour's chroma as reference; the symmetric form here (geometric mean chroma) gives 1.380 and
+    1.893."""
     from common.colour import COLOR_PROTOTYPES, delta_e94, term_fits
     assert delta_e94((50, 2.6772, -79.7751), (50, 0, -82.7485), 1.0) == pytest.approx(1.3950, abs=0.05)
     assert delta_e94((50, 3.1571, -77.2803), (50, 0, -82.7485), 1.0) == pytest.approx(1.9341, abs=0.05)

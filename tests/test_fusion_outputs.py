@@ -34,9 +34,9 @@ def test_one_builder_for_commands_and_questions():
     from common.schema import Clarification, Location
     from services.fusion.ground import MAX_CANDIDATES
     from services.fusion.outputs import Outputs
+    from tests.scenarios.suite import CANDIES
     from tests.test_fusion_dialogue import utterance, window
     from tests.test_fusion_ground import _scene
-    from tests.scenarios.suite import CANDIES
     build = Outputs("fusion/test")
     t, _ = utterance(0.0, "put it there")
     ctx = window(_scene(CANDIES))

@@ -9,8 +9,7 @@ import pytest
 
 from common import language as L
 from common.schema import Weights
-from services.fusion import relations as R
-from services.fusion import touch
+from services.fusion import relations as R, touch
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, choose, deictic_scores, score
 from services.fusion.parse import parse

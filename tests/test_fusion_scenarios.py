@@ -14,7 +14,16 @@ import pytest
 from common.schema import Clarification, FusedCommand
 from tests.harness import Client, ProcessGroup
 from tests.scenarios import (
-    BASE_STAMP, SCENARIO_SPACING, Scenario, check, describe, gesture, hands, run_in_process, say, see,
+    BASE_STAMP,
+    SCENARIO_SPACING,
+    Scenario,
+    check,
+    describe,
+    gesture,
+    hands,
+    run_in_process,
+    say,
+    see,
 )
 from tests.scenarios.suite import SCENARIOS
 

@@ -50,7 +50,7 @@ def test_the_indoor_scenes_in_process(in_process):
 def test_relation_lines_pick_the_head_noun_not_the_anchor(in_process):
     """"the bottle next to the sink" is a bottle: no line with a relation acts on its anchor's kind."""
     from services.fusion.parse import parse
-    for line, ok, got in in_process:
+    for line, _ok, got in in_process:
         phrase = parse(line.say).obj
         if phrase.relations and got.split()[0] in ("pick_up", "bring", "look_at", "go_to"):
             assert phrase.label in got, (line.say, got)

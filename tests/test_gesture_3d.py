@@ -12,7 +12,14 @@ import pytest
 
 from common.schema import CameraInfo, DepthFrame
 from services.gesture.space import (
-    DepthView, FrameRays, arm_ray3d, depth_view, fit_plane, hand_ray3d, surface_hit, torso_point,
+    DepthView,
+    FrameRays,
+    arm_ray3d,
+    depth_view,
+    fit_plane,
+    hand_ray3d,
+    surface_hit,
+    torso_point,
 )
 from tests.shared import shared_path
 

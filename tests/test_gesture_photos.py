@@ -154,8 +154,8 @@ def test_the_27_real_hand_photos():
 
 def test_the_shared_people_photos_per_class():
     """HaGRID people at 1-3 m: every raised 'four' hand MediaPipe finds is a stop; 'call me', rock and other signs
-    start no stop and no point. Measured: four 8 of 8 stops (four_25bb…: no hand found at 4 m, the raised arm stops), call/rock/none 0 stops,
-    0 points in 22."""
+    start no stop and no point. Measured: four 8 of 8 stops (four_25bb…: no hand found at 4 m, the raised arm
+    stops), call/rock/none 0 stops, 0 points in 22."""
     folder = shared_path("data/people")
     photos = [("people", p.name, PEOPLE_EXPECTED[p.name.split("_")[0]], None) for p in sorted(folder.glob("*.jpg"))]
     assert len(photos) == 30

@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
+from services.gesture.body import arm, raised_hand
 from services.gesture.rules import classify, finger_states, palm_size
 from services.gesture.temporal import GestureTracker, body_scale, close_up, fuse_arms
-from services.gesture.body import arm, raised_hand
 from tests.test_gesture import fold_index, real, rotate
 from tests.test_gesture_body import RIGHT_OUT, H, W, hand_at, person, run, starts
 

@@ -7,8 +7,8 @@ import json
 import threading
 import time
 
-import msgpack
 import mcap.reader
+import msgpack
 import pytest
 from mcap.reader import make_reader
 
@@ -448,7 +448,7 @@ def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_command
                         "--only", "hri/gesture/**", timeout=180)
         assert res.returncode == 0, res.stderr
         replayed = []
-        for i, scenario in enumerate(chosen):
+        for i in range(len(chosen)):
             base = base0 + i * SCENARIO_SPACING
             got = decided(since, base)
             replayed.append([outcome(s) for s in got])

@@ -134,7 +134,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
         group.start("replay", "common.cli", "replay", str(path), "--loop")
         got = {}
         for seq in (0, 1):
-            _, det = out.wait(1, timeout=30, where=lambda k, s: s.seq == seq and s.frame_id is not None)[0]
+            _, det = out.wait(1, timeout=30, where=lambda k, s, seq=seq: s.seq == seq and s.frame_id is not None)[0]
             got[seq] = det
     finally:
         client.close()

@@ -6,7 +6,13 @@ import stat
 import pytest
 
 from common.security import (
-    SecurityError, access_control, init_secrets, may_publish, password_for, read_passwords, read_secrets,
+    SecurityError,
+    access_control,
+    init_secrets,
+    may_publish,
+    password_for,
+    read_passwords,
+    read_secrets,
 )
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from common.language import ONE_WORD_EXTRAS, STOP_WORDS, one_word_commands
 from services.fusion.parse import parse, stop_near_miss
-from services.speech.audio import RATE, read_wav
+from services.speech.audio import read_wav
 from services.speech.pipeline import MicStream
 from services.speech.vad import make_segmenter
 from services.speech.whisper import WhisperRecognizer, choose_command, remove_loops

@@ -9,7 +9,7 @@ from common import language
 from services.speech.audio import AudioError, Resampler, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import build_grammar, normalise
 from services.speech.pipeline import MicStream
-from services.speech.recognizers import Recognition, RecognisedWord, derive_pronunciation
+from services.speech.recognizers import RecognisedWord, Recognition, derive_pronunciation
 from services.speech.synth import synthesize
 from services.speech.vad import Segmenter, VadConfig, make_segmenter
 

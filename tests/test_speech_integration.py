@@ -1,6 +1,9 @@
 """The speech service as a real process over Zenoh: AudioChunks in -> Transcripts out (hri echo),
 WAV playback, bad input counted and survived, the text backend."""
 
+import subprocess
+import sys
+import threading
 import time
 
 import numpy as np
@@ -8,10 +11,6 @@ import pytest
 
 from common.schema import AudioChunk
 from services.speech.synth import concatenate, read_wav_int16, synthesize
-import subprocess
-import sys
-import threading
-
 from tests.harness import DATA, ROOT, Client
 
 pytestmark = pytest.mark.integration

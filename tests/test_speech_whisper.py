@@ -18,10 +18,9 @@ import pytest
 from services.speech import whisper
 from services.speech.audio import RATE, read_wav
 from services.speech.pipeline import MicStream
-from services.speech.recognizers import BackendError
+from services.speech.recognizers import BackendError, RecognisedWord
 from services.speech.synth import PIPER_VOICE, pink_noise
 from services.speech.vad import make_segmenter
-from services.speech.recognizers import RecognisedWord
 from services.speech.whisper import WhisperRecognizer, drop_improbable_tail, remove_loops, short_prompt_words
 from tests.harness import ROOT
 from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score

@@ -17,7 +17,16 @@ from common.codec import encode
 from common.keys import Keys
 from common.recording import NS, SessionWriter
 from common.schema import (
-    Clarification, Detections, Frame, FusedCommand, GestureEvent, Hand, Ray, Stats, Target, Weights,
+    Clarification,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hand,
+    Ray,
+    Stats,
+    Target,
+    Weights,
 )
 from common.view.core import ViewState
 from common.view.draw import CANDIDATE, TARGET, render

@@ -154,8 +154,9 @@ def test_bad_input_on_any_key_is_ignored_counted_and_the_page_goes_on(live):
 def test_many_tabs_and_a_tab_that_never_reads_do_not_grow_the_server(live):
     url, pid = live["url"], live["view"].pid
     host, port = re.match(r"http://([^:/]+):(\d+)/", url).groups()
-    import aiohttp
     import asyncio
+
+    import aiohttp
 
     async def tab(stop: asyncio.Event) -> int:
         """A tab as the page behaves: long-poll state and frames in a loop."""

@@ -61,6 +61,7 @@ def test_a_missing_model_is_a_clear_error_and_exit_code_2():
 
 def _frame(img, seq: int, stamp: float, encoding: str = "jpeg", data: bytes | None = None, cam: str = "cam0"):
     import cv2
+
     from common.schema import Frame
     if data is None:
         data = cv2.imencode(".jpg" if encoding == "jpeg" else ".png", img)[1].tobytes()
@@ -92,7 +93,8 @@ def test_undecodable_frames_are_counted_and_the_service_goes_on(group):
         stats = client.stats("vision")
         # the truncated JPEG fails to decode; the PNG's header (100x80) contradicts its frame: rejected unread
         assert stats["rejected"].get("undecodable", 0) == 1 and stats["rejected"].get("bad_value", 0) == 1, stats
-        assert proc.alive() and "does not decode" in proc.output() and "png header says 100x80, the frame declares 506x460" in proc.output()
+        assert proc.alive() and "does not decode" in proc.output()
+        assert "png header says 100x80, the frame declares 506x460" in proc.output()
     finally:
         client.close()
 

@@ -12,8 +12,16 @@ import pytest
 from services.vision.color import color_name
 from services.vision.core import VisionPipeline, object_color
 from services.vision.track import iou
-from services.vision.yolo import (Letterbox, ModelError, YoloDetector, decode, grid_cells, identify_family,
-                                  letterbox, read_names)
+from services.vision.yolo import (
+    Letterbox,
+    ModelError,
+    YoloDetector,
+    decode,
+    grid_cells,
+    identify_family,
+    letterbox,
+    read_names,
+)
 from tests.harness import DATA, ROOT
 from tests.shared import yolox_model
 from tests.test_vision import tiny_yolo

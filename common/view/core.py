@@ -21,7 +21,16 @@ from common.codec import decode
 from common.image import UndecodableFrame, frame_image
 from common.keys import Keys
 from common.schema import (
-    Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats,
+    Clarification,
+    DepthFrame,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    InvalidSample,
+    Sample,
+    Stats,
     Transcript,
 )
 from common.view import DEFAULT_MAX_FPS

@@ -12,8 +12,8 @@ import numpy as np
 from common.depth import depth_frame
 from common.runner import Service, main_exit, service_parser
 from common.schema import Frame
-from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.opener import open_source
+from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.source import SourceError, encode_image
 
 EPILOG = """\

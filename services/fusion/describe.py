@@ -6,7 +6,7 @@ from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
 from common.schema import Location
 from services.fusion import space
 from services.fusion.evidence import Pointing
-from services.fusion.ground import Scored, SceneObject
+from services.fusion.ground import SceneObject, Scored
 from services.fusion.parse import Motion, ObjectPhrase
 from services.fusion.relations import fit_matrix
 

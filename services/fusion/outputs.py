@@ -7,7 +7,14 @@ import hashlib
 from dataclasses import dataclass
 
 from common.schema import (
-    Clarification, FusedCommand, GestureEvent, Location, Motion as WireMotion, Sample, Transcript, Weights,
+    Clarification,
+    FusedCommand,
+    GestureEvent,
+    Location,
+    Motion as WireMotion,
+    Sample,
+    Transcript,
+    Weights,
 )
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, SceneObject, Scored

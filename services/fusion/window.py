@@ -9,7 +9,12 @@ from dataclasses import dataclass
 from common.language import DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS
 from common.schema import Detections, Hands, Transcript, Weights
 from services.fusion.evidence import (
-    Pointing, modality_weights, pointing_from_event, pointing_from_hands, select_pointing, speech_reliability,
+    Pointing,
+    modality_weights,
+    pointing_from_event,
+    pointing_from_hands,
+    select_pointing,
+    speech_reliability,
     vision_reliability,
 )
 from services.fusion.ground import Choice, SceneObject, choose, scene_objects, score

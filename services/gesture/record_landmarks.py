@@ -1,7 +1,8 @@
 """Record the real landmark arrays the rule tests turn every way (tests/data/landmarks/real_hands.json).
 
 Runs the service's own HandLandmarker on real photos, one still image at a time, with the full model (the more
-accurate one: these arrays stand for "a real hand") and writes each hand's 21 [x, y] pixel landmarks. Usage: python -m services.gesture.record_landmarks [--out FILE]
+accurate one: these arrays stand for "a real hand") and writes each hand's 21 [x, y] pixel landmarks.
+Usage: python -m services.gesture.record_landmarks [--out FILE]
 """
 
 from __future__ import annotations

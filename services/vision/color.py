@@ -102,13 +102,13 @@ def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
 
 
 def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
-    """Per-channel (B, G, R) gains that make the scene's light neutral: shades of grey (Finlayson & Trezzi 2004),
-    the p-norm mean of each channel over the unclipped pixels of the whole frame, shrunk first. p = 6 lies
-    between grey-world (fooled by one dominant colour: a wooden kitchen) and white-patch (fooled by one bright
-    coloured surface); on the published benchmark sets it beats both (Gijsenij et al. 2011). The colour gains keep the mean luminance and are
-    clamped to 1/MAX_GAIN–MAX_GAIN: a scene that is really all one colour is not turned grey. Then exposure: a
-    dim scene is brightened (at most MAX_EXPOSURE×) until its bright surfaces (the BRIGHT_QUANTILE of luminance)
-    reach BRIGHT_REFERENCE, as a person judges a white cup in a dim kitchen white, not grey."""
+    """Per-channel (B, G, R) gains that make the scene's light neutral: shades of grey (Finlayson & Trezzi 2004), the
+    p-norm mean of each channel over the unclipped pixels of the whole frame, shrunk first. p = 6 lies between
+    grey-world (fooled by one dominant colour: a wooden kitchen) and white-patch (fooled by one bright coloured
+    surface); on the published benchmark sets it beats both (Gijsenij et al. 2011). The colour gains keep the mean
+    luminance and are clamped to 1/MAX_GAIN–MAX_GAIN: a scene that is really all one colour is not turned grey. Then
+    exposure: a dim scene is brightened (at most MAX_EXPOSURE×) until its bright surfaces (the BRIGHT_QUANTILE of
+    luminance) reach BRIGHT_REFERENCE, as a person judges a white cup in a dim kitchen white, not grey."""
     h, w = bgr.shape[:2]
     step = max(1, max(h, w) // ILLUMINANT_SIDE)
     small = bgr[::step, ::step].reshape(-1, 3)

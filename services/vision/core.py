@@ -8,14 +8,19 @@ import numpy as np
 from common.colour import name_distribution
 from common.language import BASIC_COLORS, canonical_label
 from common.schema import ColorShare, DetectedObject, ImageQuality
-from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, colour_groups, illuminant_gains,
-                                   measure_lab)
+from services.vision.color import (
+    ACHROMATIC_SATURATION,
+    DARK_VALUE,
+    WHITE_VALUE,
+    colour_groups,
+    illuminant_gains,
+    measure_lab,
+)
 from services.vision.depth import DepthImage, with_depth
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
 from services.vision.track import Tracker
 from services.vision.yolo import YoloDetector
-
 
 # Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
 # box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more

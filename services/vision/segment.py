@@ -32,8 +32,15 @@ import cv2
 import numpy as np
 
 from common.language import OBJECT_PHRASES, canonical_label
-from services.vision.color import (ACHROMATIC_SATURATION, CHROMATIC, DARK_VALUE, HUE_RANGES, PALETTE, WHITE_VALUE,
-                                   hue_name)
+from services.vision.color import (
+    ACHROMATIC_SATURATION,
+    CHROMATIC,
+    DARK_VALUE,
+    HUE_RANGES,
+    PALETTE,
+    WHITE_VALUE,
+    hue_name,
+)
 
 
 @dataclass

@@ -18,8 +18,18 @@ from typing import Any, Callable
 
 from common.keys import Keys
 from common.schema import (
-    Clarification, DetectedObject, Detections, FusedCommand, GestureEvent, Hand, Hands, ImageQuality, Ray, Sample,
-    Transcript, Word,
+    Clarification,
+    DetectedObject,
+    Detections,
+    FusedCommand,
+    GestureEvent,
+    Hand,
+    Hands,
+    ImageQuality,
+    Ray,
+    Sample,
+    Transcript,
+    Word,
 )
 
 BASE_STAMP = 1_700_000_000.0

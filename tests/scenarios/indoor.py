@@ -53,6 +53,7 @@ class Seen:
 def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
     """photo -> what the vision service publishes (its own pipeline on the upright photo, longest side <= 960)."""
     import cv2
+
     from services.vision.core import VisionPipeline
     from services.vision.yolo import YoloDetector
     pipeline = VisionPipeline(YoloDetector(str(model)))

@@ -24,6 +24,7 @@ def yolox_detector(model: Path) -> Callable[[Path], tuple[Found, int, int]]:
     """A function photo -> (detections, width, height): the vision service's own ONNX backend
     (services/vision/yolo.py, which reads the YOLOX family from the model's output) on the CPU."""
     import cv2
+
     from services.vision.yolo import YoloDetector
     detector = YoloDetector(str(model), conf_threshold=MIN_SCORE, iou_threshold=NMS_IOU)
     assert detector.family == "yolox", detector.describe()

@@ -10,7 +10,17 @@ from __future__ import annotations
 import random
 
 from tests.scenarios import (
-    DARK, Expect, Obj, Scenario, Step, by_time, gesture, hands, pointing, say, scene, see,
+    DARK,
+    Expect,
+    Obj,
+    Scenario,
+    Step,
+    by_time,
+    gesture,
+    hands,
+    pointing,
+    say,
+    scene,
 )
 
 RED_CUP = Obj("cup_red", "cup", "red", (150, 300))
