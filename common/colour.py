@@ -20,12 +20,12 @@ from common.language import BASIC_COLORS, COLOR_MODIFIERS, COLOR_PHRASES, COLOR_
 
 Lab = tuple[float, float, float]
 
-SIGMA = 12.0            # ΔE94 at which a term's fit falls to exp(-1/2) ≈ 0.61
-K_L = 2.0               # lightness weight 1/K_L
+SIGMA = 12.0  # ΔE94 at which a term's fit falls to exp(-1/2) ≈ 0.61
+K_L = 2.0  # lightness weight 1/K_L
 LIGHTNESS_ONLY = {"dark": 1.0, "light": -1.0}  # terms that say nothing about hue: darker (lighter) than their L fits
-LIGHT_SHIFT = 0.45      # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
+LIGHT_SHIFT = 0.45  # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
 LIGHT_CHROMA = 0.7
-DARK_SCALE = 0.55       # "dark X": lightness × this, chroma × DARK_CHROMA
+DARK_SCALE = 0.55  # "dark X": lightness × this, chroma × DARK_CHROMA
 DARK_CHROMA = 0.6
 
 
@@ -37,8 +37,9 @@ def delta_e94_grid(labs: np.ndarray, refs: np.ndarray, k_l: float = K_L) -> np.n
     c2 = np.hypot(refs[:, 1], refs[:, 2])[None, :]
     dl = labs[:, None, 0] - refs[None, :, 0]
     dc = c1 - c2
-    dh2 = np.maximum(0.0, (labs[:, None, 1] - refs[None, :, 1]) ** 2 + (labs[:, None, 2] - refs[None, :, 2]) ** 2
-                     - dc * dc)
+    dh2 = np.maximum(
+        0.0, (labs[:, None, 1] - refs[None, :, 1]) ** 2 + (labs[:, None, 2] - refs[None, :, 2]) ** 2 - dc * dc
+    )
     c = np.sqrt(c1 * c2)
     return np.sqrt((dl / k_l) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
 

@@ -46,21 +46,24 @@ OPENCV_PHOTOS = [
     ("opencv-doc", "frame.jpg", None, None),  # fingers holding a bottle cap up to the camera
     ("opencv-doc", "screen_charuco.jpg", None, None),  # hands holding a calibration board
 ]
-POINTING_PHOTOS = [("pointing", name, "point", side) for name, side in [
-    ("lowcam_man_image3_left_arm_to_image_left.jpeg", "left"),
-    ("lowcam_man_image4_left_arm_to_image_right.jpeg", "left"),
-    ("lowcam_man_image5_left_arm_raised_forward.jpeg", "left"),
-    ("lowcam_man_image7_right_arm_to_floor.jpeg", "right"),
-    ("lowcam_man_image8_right_arm_at_camera.jpeg", "right"),
-    ("nico_table_f01_red_cube.jpg", "right"),
-    ("nico_table_f05_yellow_cube.jpg", "right"),
-    ("nico_table_f06_row_middle_yellow.jpg", "right"),
-    ("nico_table_f07_green_cube.jpg", "right"),
-    ("nico_table_f10_row_right_green.jpg", "right"),
-    ("room_woman_0126_t2_right_arm_to_image_right.png", "right"),
-    ("room_woman_0126_t3_right_arm_to_image_left.png", "right"),
-    ("room_woman_0219_t6_left_arm_to_image_right.png", "left"),
-]]
+POINTING_PHOTOS = [
+    ("pointing", name, "point", side)
+    for name, side in [
+        ("lowcam_man_image3_left_arm_to_image_left.jpeg", "left"),
+        ("lowcam_man_image4_left_arm_to_image_right.jpeg", "left"),
+        ("lowcam_man_image5_left_arm_raised_forward.jpeg", "left"),
+        ("lowcam_man_image7_right_arm_to_floor.jpeg", "right"),
+        ("lowcam_man_image8_right_arm_at_camera.jpeg", "right"),
+        ("nico_table_f01_red_cube.jpg", "right"),
+        ("nico_table_f05_yellow_cube.jpg", "right"),
+        ("nico_table_f06_row_middle_yellow.jpg", "right"),
+        ("nico_table_f07_green_cube.jpg", "right"),
+        ("nico_table_f10_row_right_green.jpg", "right"),
+        ("room_woman_0126_t2_right_arm_to_image_right.png", "right"),
+        ("room_woman_0126_t3_right_arm_to_image_left.png", "right"),
+        ("room_woman_0219_t6_left_arm_to_image_right.png", "left"),
+    ]
+]
 HAND_PHOTOS_27 = REPO_PHOTOS + OPENCV_PHOTOS + POINTING_PHOTOS
 # HaGRID label (file prefix, README in ../shared/data/people) -> the start the robot should see
 PEOPLE_EXPECTED = {"four": "open_palm", "call": None, "rock": None, "none": None}
@@ -121,12 +124,20 @@ def count(results, key) -> int:
 
 # -- the judging rule itself --------------------------------------------------------------------------------
 def test_judge_counts_a_second_point_stream_and_a_wrong_arm_as_phantom_points():
-    assert judge([("point", "right")], "point", "right") == {"right": True, "missed_stop": False,
-                                                             "phantom_point": False, "false_stop": False}
+    assert judge([("point", "right")], "point", "right") == {
+        "right": True,
+        "missed_stop": False,
+        "phantom_point": False,
+        "false_stop": False,
+    }
     assert judge([("point", "right"), ("point", "right")], "point", "right")["phantom_point"]
     assert judge([("point", "left")], "point", "right")["phantom_point"]
-    assert judge([("point", "right")], "open_palm", None) == {"right": False, "missed_stop": True,
-                                                              "phantom_point": True, "false_stop": False}
+    assert judge([("point", "right")], "open_palm", None) == {
+        "right": False,
+        "missed_stop": True,
+        "phantom_point": True,
+        "false_stop": False,
+    }
     assert judge([("fist", "left")], None, None)["right"]
 
 

@@ -41,8 +41,12 @@ def record(sources: dict[str, str] = SOURCES, data: Path = ROOT / "data") -> dic
             hands = landmarker.detect(img)
             if len(hands) != 1:
                 raise ValueError(f"{rel}: expected one hand, MediaPipe found {len(hands)}")
-            out[name] = {"source": Path(rel).name, "width": img.shape[1], "height": img.shape[0],
-                         "landmarks": [[round(x, 2), round(y, 2)] for x, y in hands[0].landmarks.tolist()]}
+            out[name] = {
+                "source": Path(rel).name,
+                "width": img.shape[1],
+                "height": img.shape[0],
+                "landmarks": [[round(x, 2), round(y, 2)] for x, y in hands[0].landmarks.tolist()],
+            }
         return out
     finally:
         landmarker.close()
