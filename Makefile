@@ -1,7 +1,9 @@
 # The single entry point. `make demo` and `make test` set up everything they need on a fresh machine.
-.PHONY: setup demo test test-fast bench clean
+.PHONY: setup demo test test-fast lint fix bench clean
 
 PY := .venv/bin/python
+RUFF := .venv/bin/ruff
+LINT_HINT := run 'make fix' (or: $(RUFF) check --fix . && $(RUFF) format .), then fix by hand what ruff still reports
 
 setup:
 	@bash scripts/setup.sh
@@ -9,13 +11,29 @@ setup:
 demo: setup
 	@$(PY) -m demo $(DEMO_ARGS)
 
+# lint and format are checked first: a finding fails the run before the (slow) tests start
 test:
 	@bash scripts/setup.sh --test
+	@$(MAKE) --no-print-directory _lint
 	@$(PY) -m pytest -q $(PYTEST_ARGS)
 
 test-fast:
 	@bash scripts/setup.sh --test
+	@$(MAKE) --no-print-directory _lint
 	@$(PY) -m pytest -q -m "not integration and not docker" $(PYTEST_ARGS)
+
+lint:
+	@bash scripts/setup.sh --test
+	@$(MAKE) --no-print-directory _lint
+
+_lint:
+	@$(RUFF) check . || { echo "make: ruff check found the problems above: $(LINT_HINT)" >&2; exit 1; }
+	@$(RUFF) format --check . || { echo "make: the files above are not formatted: $(LINT_HINT)" >&2; exit 1; }
+
+fix:
+	@bash scripts/setup.sh --test
+	@$(RUFF) check --fix .
+	@$(RUFF) format .
 
 BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view
 

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from common.cli import make_transcript  # noqa: E402
 from tests.harness import DATA, Client, ProcessGroup  # noqa: E402
-from tests.netns import Network, NetnsGroup, cleanup_leftovers, unavailable  # noqa: E402
+from tests.netns import NetnsGroup, Network, cleanup_leftovers, unavailable  # noqa: E402
 
 WORDS = ["turn left", "turn right"]
 
@@ -40,8 +40,10 @@ def latencies(client: Client, n: int) -> list[float]:
     for i in range(n):
         before = len(out.seen)
         t0 = time.time()
-        client.publish("hri/speech/kbd/transcript", make_transcript(WORDS[i % 2], mic="kbd", end=t0, confidence=0.95,
-                                                                    source="bench/kbd", seconds_per_word=0.2))
+        client.publish(
+            "hri/speech/kbd/transcript",
+            make_transcript(WORDS[i % 2], mic="kbd", end=t0, confidence=0.95, source="bench/kbd", seconds_per_word=0.2),
+        )
         out.wait(before + 1, timeout=10)
         result.append(time.time() - t0)
         time.sleep(0.05)
@@ -83,8 +85,14 @@ def distributed(args) -> dict:
         g.router()
         g.service("fusion", host="speech")
         g.service("camera", "--source", str(DATA / "demo" / "table.png"), "--fps", "5", "--loop", host="perception")
-        consumer = g.start("consumer", "tests.recovering_echo", net.endpoint("perception"), "hri/fusion/command",
-                           connect=False, host="perception")
+        consumer = g.start(
+            "consumer",
+            "tests.recovering_echo",
+            net.endpoint("perception"),
+            "hri/fusion/command",
+            connect=False,
+            host="perception",
+        )
         client = Client(g.endpoint)
         try:
             client.wait_alive("fusion", timeout=60)
@@ -100,9 +108,17 @@ def distributed(args) -> dict:
                 t_cut = time.monotonic()
                 time.sleep(min(3.5, args.outage * 0.7))  # past the lease: the consumer's session is gone
                 for i in range(args.per_outage):
-                    client.publish("hri/speech/kbd/transcript", make_transcript(
-                        WORDS[i % 2], mic="kbd", end=time.time(), confidence=0.95, source="bench/kbd",
-                        seconds_per_word=0.2))
+                    client.publish(
+                        "hri/speech/kbd/transcript",
+                        make_transcript(
+                            WORDS[i % 2],
+                            mic="kbd",
+                            end=time.time(),
+                            confidence=0.95,
+                            source="bench/kbd",
+                            seconds_per_word=0.2,
+                        ),
+                    )
                     time.sleep(0.1)
                 time.sleep(max(0.0, t_cut + args.outage - time.monotonic()))
                 net.set_link("perception", up=True)
@@ -112,7 +128,7 @@ def distributed(args) -> dict:
                     reconnect.append(time.monotonic() - t_up)
                 expected = len(consumer_ids(consumer)) + args.per_outage
                 sent.drain(0.0)
-                if not wait(lambda: len(consumer_ids(consumer)) >= expected, 10):
+                if not wait(lambda expected=expected: len(consumer_ids(consumer)) >= expected, 10):
                     late += 1
                 time.sleep(0.5)
                 sent.drain(0.0)
@@ -121,11 +137,21 @@ def distributed(args) -> dict:
                 lost = len(set(want) - set(got))
                 duplicated = len(got) - len(set(got))
                 took = f"{reconnect[-1]:.2f} s" if back else "not within 30 s"
-                print(f"  outage {k + 1}/{args.outages}: reconnected {took} after the link returned; commands sent {len(want)}, at the consumer {len(got)}, lost {lost},"
-                      f" duplicated {duplicated}, in order {got == want}", flush=True)
-            return {"latency": lat, "reconnect": reconnect, "lost": lost, "duplicated": duplicated,
-                    "in_order": consumer_ids(consumer)[base:] == [s.id for _, s in sent.seen],
-                    "commands": len(sent.seen), "late": late}
+                print(
+                    f"  outage {k + 1}/{args.outages}: reconnected {took} after the link returned; "
+                    f"commands sent {len(want)}, at the consumer {len(got)}, lost {lost},"
+                    f" duplicated {duplicated}, in order {got == want}",
+                    flush=True,
+                )
+            return {
+                "latency": lat,
+                "reconnect": reconnect,
+                "lost": lost,
+                "duplicated": duplicated,
+                "in_order": consumer_ids(consumer)[base:] == [s.id for _, s in sent.seen],
+                "commands": len(sent.seen),
+                "late": late,
+            }
         finally:
             client.close()
     finally:
@@ -158,11 +184,16 @@ def main() -> None:
     print(f"  ratio (p50)              {statistics.median(lat) / statistics.median(loop):7.2f}x")
     rec = d["reconnect"]
     if rec:
-        print(f"reconnection after a {args.outage:g} s cut, {len(rec)} outages: "
-              f"p50 {1000 * statistics.median(rec):.0f} ms, max {1000 * max(rec):.0f} ms (link up -> liveliness token back)")
-    print(f"commands over {args.outages} outages ({d['commands']} sent, {args.per_outage} per outage while cut): "
-          f"lost {d['lost']}, duplicated {d['duplicated']}, in order {d['in_order']}; outages after which the "
-          f"consumer needed more than 10 s to catch up: {d['late']}")
+        print(
+            f"reconnection after a {args.outage:g} s cut, {len(rec)} outages: "
+            f"p50 {1000 * statistics.median(rec):.0f} ms, max {1000 * max(rec):.0f} ms "
+            "(link up -> liveliness token back)"
+        )
+    print(
+        f"commands over {args.outages} outages ({d['commands']} sent, {args.per_outage} per outage while cut): "
+        f"lost {d['lost']}, duplicated {d['duplicated']}, in order {d['in_order']}; outages after which the "
+        f"consumer needed more than 10 s to catch up: {d['late']}"
+    )
 
 
 if __name__ == "__main__":

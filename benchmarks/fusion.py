@@ -47,8 +47,9 @@ def objects(n: int, bowls: bool = False) -> list[Obj]:
         x = 20 + (i * 37) % 600
         y = 40 + (i * 53) % 400
         label = "bowl" if bowls and i % 7 == 0 else "cup" if i % 3 else "candy"
-        out.append(Obj(f"o{i}", label, COLORS[i % len(COLORS)], (float(x), float(y)), (20.0, 20.0),
-                       0.5 + (i % 50) / 100))
+        out.append(
+            Obj(f"o{i}", label, COLORS[i % len(COLORS)], (float(x), float(y)), (20.0, 20.0), 0.5 + (i % 50) / 100)
+        )
     out.append(Obj("target", "cup", "red", (500.0, 120.0), (50.0, 60.0), 0.95))
     if bowls:
         out.append(Obj("target_bowl", "bowl", "white", (560.0, 125.0), (60.0, 40.0), 0.95))
@@ -102,6 +103,7 @@ def decision_latency(n: int, reps: int, text: str = PLAIN) -> tuple[list[float],
 
 def core_pending_stub(base: float, text: str = PLAIN):
     from services.fusion.window import PendingTranscript
+
     key, t = say(0.0, 1.4, text).build(base)
     return PendingTranscript(key, t, parse(t.text), 0.0, t.start - 1.0, t.end + 0.3)
 
@@ -148,6 +150,7 @@ def warm_up(client, timeout: float = 30.0) -> None:
 def over_zenoh(reps: int) -> tuple[list[float], list[float]] | None:
     from tests.harness import Client, ProcessGroup
     from tests.scenarios import scene
+
     group = ProcessGroup()
     client = None
     try:
@@ -193,7 +196,7 @@ def main() -> None:
 
     print("== decision latency after the last needed input (in process)")
     for text in (PLAIN, RELATION):
-        print(f"  \"{text}\" + pointing")
+        print(f'  "{text}" + pointing')
         for n, r in reps.items():
             print(f"  {n:5d} objects, {r} decisions", flush=True)
             bare, core = decision_latency(n, r, text)
@@ -208,8 +211,11 @@ def main() -> None:
         print(f"     transcript -> command       : {fmt(commands)}")
 
     seconds = 300 if args.quick else 1800
-    print(f"== memory over a {seconds} s synthetic stream (10 Hz detections x 21 objects, 30 Hz hands, "
-          f"an utterance every 5 s)", flush=True)
+    print(
+        f"== memory over a {seconds} s synthetic stream (10 Hz detections x 21 objects, 30 Hz hands, "
+        f"an utterance every 5 s)",
+        flush=True,
+    )
     t0 = time.perf_counter()
     rows = memory_stream(seconds)
     for s, items, mb in rows:

@@ -63,8 +63,9 @@ def trial(kind: str, rng: random.Random) -> Scenario:
         steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.8, 0.95)))
         expect = [cmd(truth.id)]
     elif kind == "shaky gesture":
-        steps = scene([a, b]) + pointing(other.center, jitter_deg=rng.uniform(12, 25), score=rng.uniform(0.4, 0.7),
-                                         ray_conf=rng.uniform(0.4, 0.7))
+        steps = scene([a, b]) + pointing(
+            other.center, jitter_deg=rng.uniform(12, 25), score=rng.uniform(0.4, 0.7), ray_conf=rng.uniform(0.4, 0.7)
+        )
         steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.85, 0.97)))
         expect = [cmd(truth.id)]
     elif kind == "clear gesture":
@@ -96,6 +97,7 @@ def real_photo_scenarios() -> list[Scenario]:
     """The scenes of tests/scenarios/real.py, when ../shared/ (the YOLOX-Nano model, photos) and onnxruntime are
     there; else none, said on stderr."""
     import os
+
     shared = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
     model = Path(os.environ.get("HRI_YOLOX_MODEL") or shared / "models" / "yolox_nano.onnx")
     if not model.is_file():
@@ -103,8 +105,10 @@ def real_photo_scenarios() -> list[Scenario]:
         return []
     try:
         from tests.scenarios.real import real_scenarios, yolox_detector
-        return real_scenarios(yolox_detector(model),
-                              lambda name: ROOT / name[5:] if name.startswith("repo:") else shared / name)
+
+        return real_scenarios(
+            yolox_detector(model), lambda name: ROOT / name[5:] if name.startswith("repo:") else shared / name
+        )
     except (ImportError, FileNotFoundError) as exc:
         print(f"real photos: skipped ({exc})", file=sys.stderr)
         return []
@@ -114,6 +118,7 @@ def indoor_scenes() -> None:
     """The real indoor scenes (../shared/data/scenes/: 12 photos, 30 sentences with the right answers) through
     vision's own pipeline and the fusion core, line by line (tests/scenarios/indoor.py)."""
     import os
+
     shared = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
     folder = shared / "data" / "scenes"
     model = Path(os.environ.get("HRI_YOLOX_MODEL") or shared / "models" / "yolox_nano.onnx")
@@ -122,6 +127,7 @@ def indoor_scenes() -> None:
         return
     try:
         from tests.scenarios.indoor import evaluate as evaluate_lines, load_lines, report, vision_pipeline
+
         print("indoor scenes (real photos, YOLOX-Nano + vision's colours, adaptive weights)")
         print(report(evaluate_lines(load_lines(folder), vision_pipeline(model), folder)))
     except ImportError as exc:
@@ -135,8 +141,10 @@ def main() -> None:
     args = parser.parse_args()
     rng = random.Random(args.seed)
     sweep = [trial(kind, rng) for kind in KINDS for _ in range(args.trials)]
-    print(f"scenario suite: {len(SCENARIOS)} scenarios; degraded sweep: {len(sweep)} trials "
-          f"({args.trials} per kind, seed {args.seed})\n")
+    print(
+        f"scenario suite: {len(SCENARIOS)} scenarios; degraded sweep: {len(sweep)} trials "
+        f"({args.trials} per kind, seed {args.seed})\n"
+    )
     sets = [("scenario suite (by first tag)", SCENARIOS), ("degraded sweep", sweep)]
     real = real_photo_scenarios()
     if real:

@@ -6,7 +6,8 @@ accuracy on real pointing photos.
    - hands only: bare `Hands.process` vs HandLandmarker.detect + GestureTracker.update;
    - body only: bare `Pose.process` vs PoseLandmarker.detect + GestureTracker.update (arm rules, fusion);
    - both: bare `Hands.process` + `Pose.process` vs the service's whole per-frame path.
-   Lite hand model, full pose model (the only one in the wheel), video mode. Target: service >= 0.9x the bare loop's frames/s in each.
+   Lite hand model, full pose model (the only one in the wheel), video mode. Target: service >= 0.9x the bare
+   loop's frames/s in each.
 2. End-to-end lag at 30 fps input into a real gesture process (body stage on): p50/p99 per slice (flat).
 3. `--rays`: angular error of the two body rays (eyes -> fingertip vs forearm elbow -> fingertip) to the target
    pixels of ../shared/data/pointing (README there), on the arm that points.
@@ -56,7 +57,11 @@ POINTING_TARGETS = {
 
 
 def frames() -> list:
-    paths = [DATA / "demo" / "pointing.png", DATA / "demo" / "stop.png", *sorted((DATA / "images" / "hands").glob("*.jpg"))]
+    paths = [
+        DATA / "demo" / "pointing.png",
+        DATA / "demo" / "stop.png",
+        *sorted((DATA / "images" / "hands").glob("*.jpg")),
+    ]
     paths += sorted((SHARED / "data" / "people").glob("*.jpg"))[:12]
     return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
 
@@ -69,47 +74,61 @@ def _loop(n: int, step) -> float:
 
 
 def throughput(images: list, n: int, repeats: int = 3) -> None:
-    from mediapipe.python.solutions import hands as mp_hands
-    from mediapipe.python.solutions import pose as mp_pose
     # each photo is shown for 10 frames in a row, as a camera would: MediaPipe tracks between frames
     sequence = [f for f in images for _ in range(10)]
+    results: dict[str, tuple[list, list]] = {"hands only": ([], []), "body only": ([], []), "both": ([], [])}
+    for _ in range(repeats):  # alternate so drift hits both alike
+        _throughput_round(sequence, n, results)
+    for name, (bare, service) in results.items():
+        print_throughput(
+            f"{name}: {n} frames 640x480 of real people and hands",
+            "bare MediaPipe",
+            bare,
+            "gesture service path",
+            service,
+        )
+
+
+def _throughput_round(sequence: list, n: int, results: dict[str, tuple[list, list]]) -> None:
+    """One round of each pair (bare MediaPipe, the service path); appends frames per second to `results`."""
+    from mediapipe.python.solutions import hands as mp_hands, pose as mp_pose
+
     size = (sequence[0].shape[1], sequence[0].shape[0])
     rgb = lambda i: cv2.cvtColor(sequence[i % len(sequence)], cv2.COLOR_BGR2RGB)  # noqa: E731
     bgr = lambda i: sequence[i % len(sequence)]  # noqa: E731
-    results: dict[str, tuple[list, list]] = {"hands only": ([], []), "body only": ([], []), "both": ([], [])}
-    for _ in range(repeats):  # alternate so drift hits both alike
-        hands = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0)
-        results["hands only"][0].append(_loop(n, lambda i: hands.process(rgb(i))))
-        hands.close()
-        landmarker, tracker = HandLandmarker("lite", 2), GestureTracker()
-        results["hands only"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, landmarker.detect(bgr(i)))))
-        landmarker.close()
+    hands = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0)
+    results["hands only"][0].append(_loop(n, lambda i: hands.process(rgb(i))))
+    hands.close()
+    landmarker, tracker = HandLandmarker("lite", 2), GestureTracker()
+    results["hands only"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, landmarker.detect(bgr(i)))))
+    landmarker.close()
 
-        pose = mp_pose.Pose(static_image_mode=False, model_complexity=1)
-        results["body only"][0].append(_loop(n, lambda i: pose.process(rgb(i))))
-        pose.close()
-        poser, tracker = PoseLandmarker(), GestureTracker()
-        results["body only"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, [], poser.detect(bgr(i)), size)))
-        poser.close()
+    pose = mp_pose.Pose(static_image_mode=False, model_complexity=1)
+    results["body only"][0].append(_loop(n, lambda i: pose.process(rgb(i))))
+    pose.close()
+    poser, tracker = PoseLandmarker(), GestureTracker()
+    results["body only"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, [], poser.detect(bgr(i)), size)))
+    poser.close()
 
-        hands, pose = mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0), \
-            mp_pose.Pose(static_image_mode=False, model_complexity=1)
+    hands, pose = (
+        mp_hands.Hands(static_image_mode=False, max_num_hands=2, model_complexity=0),
+        mp_pose.Pose(static_image_mode=False, model_complexity=1),
+    )
 
-        def bare_both(i: int) -> None:
-            image = rgb(i)
-            hands.process(image)
-            pose.process(image)
-        results["both"][0].append(_loop(n, bare_both))
-        hands.close()
-        pose.close()
-        landmarker, poser, tracker = HandLandmarker("lite", 2), PoseLandmarker(), GestureTracker()
-        results["both"][1].append(_loop(n, lambda i: tracker.update(i / 30.0, landmarker.detect(bgr(i)),
-                                                                     poser.detect(bgr(i)), size)))
-        landmarker.close()
-        poser.close()
-    for name, (bare, service) in results.items():
-        print_throughput(f"{name}: {n} frames 640x480 of real people and hands", "bare MediaPipe", bare,
-                         "gesture service path", service)
+    def bare_both(i: int) -> None:
+        image = rgb(i)
+        hands.process(image)
+        pose.process(image)
+
+    results["both"][0].append(_loop(n, bare_both))
+    hands.close()
+    pose.close()
+    landmarker, poser, tracker = HandLandmarker("lite", 2), PoseLandmarker(), GestureTracker()
+    results["both"][1].append(
+        _loop(n, lambda i: tracker.update(i / 30.0, landmarker.detect(bgr(i)), poser.detect(bgr(i)), size))
+    )
+    landmarker.close()
+    poser.close()
 
 
 def angle_to(origin, direction, target) -> float:
@@ -148,34 +167,42 @@ def print_rays() -> None:
         if not errors:
             print(f"no pointing photos under {SHARED / 'data' / 'pointing'}: set HRI_SHARED")
             return
-        print(f"body ray error to the target, pose model full (degrees; '-' = no skeleton)")
+        print("body ray error to the target, pose model full (degrees; '-' = no skeleton)")
         for name, row in errors.items():
             fmt = lambda v: "   -" if v is None else f"{v:5.1f}"  # noqa: E731
-            print(f"  {name:50s} eyes->tip {fmt(row['eyes'])} ({'eyes' if row['eyes_used'] else 'forearm fallback'})"
-                  f"  forearm {fmt(row['forearm'])}  arm rules: {'pointing' if row['pointing'] else 'not pointing'}")
+            print(
+                f"  {name:50s} eyes->tip {fmt(row['eyes'])} ({'eyes' if row['eyes_used'] else 'forearm fallback'})"
+                f"  forearm {fmt(row['forearm'])}  arm rules: {'pointing' if row['pointing'] else 'not pointing'}"
+            )
         both = [r for r in errors.values() if r["eyes"] is not None and r["forearm"] is not None]
         if both:
             for how in ("eyes", "forearm"):
                 vals = [r[how] for r in both]
-                print(f"  {how:8s} mean {statistics.mean(vals):5.1f}  median {statistics.median(vals):5.1f}  "
-                      f"over {len(vals)} photos")
+                print(
+                    f"  {how:8s} mean {statistics.mean(vals):5.1f}  median {statistics.median(vals):5.1f}  "
+                    f"over {len(vals)} photos"
+                )
 
 
 def print_photos() -> None:
     from tests.test_gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
+
     people = sorted((SHARED / "data" / "people").glob("*.jpg"))
     sets = {"27 hand photos": HAND_PHOTOS_27}
     for label in PEOPLE_EXPECTED:
-        sets[f"people {label}"] = [("people", p.name, PEOPLE_EXPECTED[label], None) for p in people
-                                   if p.name.startswith(label + "_")]
+        sets[f"people {label}"] = [
+            ("people", p.name, PEOPLE_EXPECTED[label], None) for p in people if p.name.startswith(label + "_")
+        ]
     for title, photos in sets.items():
         results = evaluate(photos)
         for name, (starts, judged) in results.items():
             flags = [k for k, v in judged.items() if v and k != "right"]
             print(f"  {'ok   ' if judged['right'] else 'WRONG'} {name[:48]:48s} {starts} {' '.join(flags)}")
-        print(f"{title}: {count(results, 'right')} of {len(results)} right, {count(results, 'missed_stop')} stops "
-              f"missed, {count(results, 'phantom_point')} phantom points, {count(results, 'false_stop')} false stops"
-              f" ({len(photos) - len(results)} photos not found)")
+        print(
+            f"{title}: {count(results, 'right')} of {len(results)} right, {count(results, 'missed_stop')} stops "
+            f"missed, {count(results, 'phantom_point')} phantom points, {count(results, 'false_stop')} false stops"
+            f" ({len(photos) - len(results)} photos not found)"
+        )
 
 
 def main() -> None:

@@ -28,7 +28,14 @@ import numpy as np  # noqa: E402
 
 from common.depth import depth_frame, depth_metres  # noqa: E402
 from common.schema import (  # noqa: E402
-    CameraInfo, DetectedObject, Detections, Hand, Hands, ImageQuality, Ray, Ray3D,
+    CameraInfo,
+    DetectedObject,
+    Detections,
+    Hand,
+    Hands,
+    ImageQuality,
+    Ray,
+    Ray3D,
 )
 from services.fusion.evidence import pointing_from_hands, select_pointing  # noqa: E402
 from services.fusion.ground import best_pointed, scene_objects  # noqa: E402
@@ -42,17 +49,32 @@ def real_frames() -> list[tuple[str, np.ndarray, CameraInfo, float, list[tuple[i
     out = []
     ycb = SHARED / "ycb_video" / "000002-depth.png"
     if ycb.exists():
-        info = CameraInfo(width=640, height=480, k=[1066.778, 0, 312.9869, 0, 1067.487, 241.3109, 0, 0, 1],
-                          frame_id="ycb")
-        out.append(("YCB-Video 640x480", cv2.imread(str(ycb), cv2.IMREAD_UNCHANGED), info, 1e-4,
-                    [(600, 440), (60, 420), (560, 330), (120, 300), (400, 400), (500, 460), (20, 470)]))
+        info = CameraInfo(
+            width=640, height=480, k=[1066.778, 0, 312.9869, 0, 1067.487, 241.3109, 0, 0, 1], frame_id="ycb"
+        )
+        out.append(
+            (
+                "YCB-Video 640x480",
+                cv2.imread(str(ycb), cv2.IMREAD_UNCHANGED),
+                info,
+                1e-4,
+                [(600, 440), (60, 420), (560, 330), (120, 300), (400, 400), (500, 460), (20, 470)],
+            )
+        )
     rs = SHARED / "realsense_tabletop" / "realsense_frame.npz"
     if rs.exists():
         data = np.load(rs)
         fx, fy, cx, cy = (float(v) for v in data["intrinsics"])
         info = CameraInfo(width=1280, height=720, k=[fx, 0, cx, 0, fy, cy, 0, 0, 1], frame_id="rs")
-        out.append(("RealSense 1280x720", data["depth"].reshape(720, 1280), info, 1e-3,
-                    [(1000, 400), (200, 500), (900, 600), (150, 150), (1200, 100), (700, 300), (300, 650)]))
+        out.append(
+            (
+                "RealSense 1280x720",
+                data["depth"].reshape(720, 1280),
+                info,
+                1e-3,
+                [(1000, 400), (200, 500), (900, 600), (150, 150), (1200, 100), (700, 300), (300, 650)],
+            )
+        )
     return out
 
 
@@ -88,9 +110,11 @@ def cost(repeats: int) -> None:
             assert ray is not None and ray.hit is not None, name
             bare.append((t1 - t0) * 1e3)
             full.append((t2 - t1) * 1e3)
-        print(f"   {name}: decode {statistics.median(bare):.1f} ms; decode + lift + planes + hit "
-              f"{statistics.median(full):.1f} ms wall (p90 {sorted(full)[int(0.9 * len(full))]:.1f}), "
-              f"{statistics.median(cpu):.1f} ms CPU (numpy may use both cores)")
+        print(
+            f"   {name}: decode {statistics.median(bare):.1f} ms; decode + lift + planes + hit "
+            f"{statistics.median(full):.1f} ms wall (p90 {sorted(full)[int(0.9 * len(full))]:.1f}), "
+            f"{statistics.median(cpu):.1f} ms CPU (numpy may use both cores)"
+        )
 
 
 def accuracy() -> None:
@@ -134,9 +158,17 @@ def grounding(rooms: int, noise_deg: float, seed: int = 0) -> None:
             size = rng.uniform(0.06, 0.25)
             w, h = size * F / p[2], size * 1.5 * F / p[2]
             c = project(p)
-            objects.append(DetectedObject(id=f"o{i}", label="bottle", score=0.9,
-                                          bbox=[c[0] - w / 2, c[1] - h / 2, w, h], center=c.tolist(),
-                                          position=p.tolist(), extent=[size, size * 1.5, size]))
+            objects.append(
+                DetectedObject(
+                    id=f"o{i}",
+                    label="bottle",
+                    score=0.9,
+                    bbox=[c[0] - w / 2, c[1] - h / 2, w, h],
+                    center=c.tolist(),
+                    position=p.tolist(),
+                    extent=[size, size * 1.5, size],
+                )
+            )
         if len(objects) < 2:
             continue
         k = int(rng.integers(0, len(objects)))
@@ -150,26 +182,56 @@ def grounding(rooms: int, noise_deg: float, seed: int = 0) -> None:
         tip = eyes + 0.7 * d
         tip_px, eye_px = project(tip), project(eyes)
         d2 = (tip_px - eye_px) / np.linalg.norm(tip_px - eye_px)
-        hand = Hand(hand="right", score=0.95, landmarks=[tip_px.tolist()] * 21, gesture="point",
-                    ray=Ray(origin=tip_px.tolist(), direction=d2.tolist(), confidence=0.9, source="body",
-                            ray3d=Ray3D(origin=eyes.tolist(), direction=(d / np.linalg.norm(d)).tolist(),
-                                        method="eye_fingertip", frame_id="cam")))
-        p = select_pointing(pointing_from_hands(Hands(stamp=1.0, source="b", seq=0, cam="cam0", width=W, height=H,
-                                                      hands=[hand])), 1.0)
+        hand = Hand(
+            hand="right",
+            score=0.95,
+            landmarks=[tip_px.tolist()] * 21,
+            gesture="point",
+            ray=Ray(
+                origin=tip_px.tolist(),
+                direction=d2.tolist(),
+                confidence=0.9,
+                source="body",
+                ray3d=Ray3D(
+                    origin=eyes.tolist(),
+                    direction=(d / np.linalg.norm(d)).tolist(),
+                    method="eye_fingertip",
+                    frame_id="cam",
+                ),
+            ),
+        )
+        p = select_pointing(
+            pointing_from_hands(Hands(stamp=1.0, source="b", seq=0, cam="cam0", width=W, height=H, hands=[hand])), 1.0
+        )
         picks = {}
         for mode in ("2-D", "3-D"):
-            objs = objects if mode == "3-D" else [DetectedObject(id=o.id, label=o.label, score=o.score, bbox=o.bbox,
-                                                                 center=o.center) for o in objects]
-            det = Detections(stamp=1.0, source="b", seq=0, cam="cam0", width=W, height=H, objects=objs,
-                             quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5),
-                             frame_id="cam" if mode == "3-D" else None)
+            objs = (
+                objects
+                if mode == "3-D"
+                else [
+                    DetectedObject(id=o.id, label=o.label, score=o.score, bbox=o.bbox, center=o.center) for o in objects
+                ]
+            )
+            det = Detections(
+                stamp=1.0,
+                source="b",
+                seq=0,
+                cam="cam0",
+                width=W,
+                height=H,
+                objects=objs,
+                quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5),
+                frame_id="cam" if mode == "3-D" else None,
+            )
             picks[mode] = best_pointed(p, scene_objects([det])).obj.id
             right[mode] += picks[mode] == objects[k].id
         disagree += picks["2-D"] != picks["3-D"]
         done += 1
-    print(f"3. grounding by the gesture alone, {rooms} random rooms, {noise_deg:g}° pointing error (seed {seed}): "
-          f"2-D {100 * right['2-D'] / rooms:.1f} %, 3-D {100 * right['3-D'] / rooms:.1f} % right; "
-          f"they disagree in {100 * disagree / rooms:.1f} %")
+    print(
+        f"3. grounding by the gesture alone, {rooms} random rooms, {noise_deg:g}° pointing error (seed {seed}): "
+        f"2-D {100 * right['2-D'] / rooms:.1f} %, 3-D {100 * right['3-D'] / rooms:.1f} % right; "
+        f"they disagree in {100 * disagree / rooms:.1f} %"
+    )
 
 
 def main() -> None:

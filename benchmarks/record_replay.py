@@ -23,27 +23,32 @@ import threading
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent if (Path(__file__).resolve().parent.parent / "common").exists() \
+ROOT = (
+    Path(__file__).resolve().parent.parent
+    if (Path(__file__).resolve().parent.parent / "common").exists()
     else Path("/work/main")
+)
 sys.path.insert(0, str(ROOT))
 
 import zenoh  # noqa: E402
 from mcap.reader import make_reader  # noqa: E402
 from mcap.writer import CompressionType, Writer  # noqa: E402
 
+from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.codec import ENCODING, encode  # noqa: E402
 from common.keys import Keys  # noqa: E402
 from common.recording import SessionWriter  # noqa: E402
-from tests.harness import ProcessGroup, Proc  # noqa: E402
-from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.transport import open_client  # noqa: E402
+from tests.harness import Proc, ProcessGroup  # noqa: E402
 
 
 def payloads() -> dict[str, tuple[str, bytes]]:
     samples, keys = realistic_samples(), Keys()
-    return {"Transcript": (keys.transcript("mic0"), encode(samples["Transcript"])),
-            "Detections x12": (keys.objects("cam0"), encode(samples["Detections x12"])),
-            "Frame 640x480 jpeg": (keys.frame("cam0"), encode(samples["Frame 640x480 jpeg"]))}
+    return {
+        "Transcript": (keys.transcript("mic0"), encode(samples["Transcript"])),
+        "Detections x12": (keys.objects("cam0"), encode(samples["Detections x12"])),
+        "Frame 640x480 jpeg": (keys.frame("cam0"), encode(samples["Frame 640x480 jpeg"])),
+    }
 
 
 # -- the bare-library child processes ------------------------------------------------------------
@@ -85,8 +90,11 @@ def bare_replayer(endpoint: str, path: str) -> None:
             pub = pubs.get(channel.topic)
             if pub is None:
                 pub = pubs[channel.topic] = s.declare_publisher(
-                    channel.topic, encoding=zenoh.Encoding(ENCODING),
-                    congestion_control=zenoh.CongestionControl.BLOCK, priority=zenoh.Priority.DATA_HIGH)
+                    channel.topic,
+                    encoding=zenoh.Encoding(ENCODING),
+                    congestion_control=zenoh.CongestionControl.BLOCK,
+                    priority=zenoh.Priority.DATA_HIGH,
+                )
             pub.put(message.data)
     time.sleep(0.3)
     s.close()
@@ -108,14 +116,19 @@ def wait_matched(s: zenoh.Session, key: str) -> None:
     pub.undeclare()
 
 
-def measure_record(group: ProcessGroup, pub_s: zenoh.Session, key: str, payload: bytes, n: int,
-                   argv: list[str], out: Path) -> float:
+def measure_record(
+    group: ProcessGroup, pub_s: zenoh.Session, key: str, payload: bytes, n: int, argv: list[str], out: Path
+) -> float:
     proc = Proc("recorder", [sys.executable, *argv])
     group.procs.append(proc)
     wait_line(proc, "recording")
     wait_matched(pub_s, key)
-    pub = pub_s.declare_publisher(key, encoding=zenoh.Encoding(ENCODING),
-                                  congestion_control=zenoh.CongestionControl.BLOCK, priority=zenoh.Priority.DATA_HIGH)
+    pub = pub_s.declare_publisher(
+        key,
+        encoding=zenoh.Encoding(ENCODING),
+        congestion_control=zenoh.CongestionControl.BLOCK,
+        priority=zenoh.Priority.DATA_HIGH,
+    )
     t0 = time.perf_counter()
     for _ in range(n):
         pub.put(payload)
@@ -187,26 +200,55 @@ def main() -> None:
     me = str(Path(__file__).resolve())
     tmp = Path(tempfile.mkdtemp(prefix="bench-record-"))
     try:
-        print(f"{'payload':20s} {'bytes':>7s} | {'core µs/sample':^22s} | {'record samples/s':^24s} | "
-              f"{'replay samples/s':^24s}")
-        print(f"{'':20s} {'':7s} | {'mcap':>7s} {'hri':>7s} {'ratio':>6s} | {'bare':>8s} {'hri':>8s} {'ratio':>6s} | "
-              f"{'bare':>8s} {'hri':>8s} {'ratio':>6s}")
+        print(
+            f"{'payload':20s} {'bytes':>7s} | {'core µs/sample':^22s} | {'record samples/s':^24s} | "
+            f"{'replay samples/s':^24s}"
+        )
+        print(
+            f"{'':20s} {'':7s} | {'mcap':>7s} {'hri':>7s} {'ratio':>6s} | {'bare':>8s} {'hri':>8s} {'ratio':>6s} | "
+            f"{'bare':>8s} {'hri':>8s} {'ratio':>6s}"
+        )
         for label, (key, payload) in payloads().items():
             n = max(100, args.n // 10) if len(payload) > 10_000 else args.n
             cb, cc = core_costs(key, payload, n)
             bare_out, hri_out = tmp / f"bare-{n}.mcap", tmp / f"hri-{n}.mcap"
             for p in (bare_out, hri_out):
                 p.unlink(missing_ok=True)
-            rb = measure_record(group, pub_s, key, payload, n,
-                                [me, "--bare-recorder", group.endpoint, str(bare_out), str(n)], bare_out)
-            rh = measure_record(group, pub_s, key, payload, n,
-                                ["-m", "common.cli", "record", "-o", str(hri_out), "hri/**", "--count", str(n),
-                                 "--connect", group.endpoint], hri_out)
+            rb = measure_record(
+                group, pub_s, key, payload, n, [me, "--bare-recorder", group.endpoint, str(bare_out), str(n)], bare_out
+            )
+            rh = measure_record(
+                group,
+                pub_s,
+                key,
+                payload,
+                n,
+                [
+                    "-m",
+                    "common.cli",
+                    "record",
+                    "-o",
+                    str(hri_out),
+                    "hri/**",
+                    "--count",
+                    str(n),
+                    "--connect",
+                    group.endpoint,
+                ],
+                hri_out,
+            )
             pb = measure_replay(group, sub_s, n, [me, "--bare-replayer", group.endpoint, str(hri_out)])
-            ph = measure_replay(group, sub_s, n, ["-m", "common.cli", "replay", str(hri_out), "--speed", "0",
-                                                  "--connect", group.endpoint])
-            print(f"{label:20s} {len(payload):7d} | {cb:7.1f} {cc:7.1f} {cc / cb:5.2f}x | {rb:8.0f} {rh:8.0f} "
-                  f"{rb / rh:5.2f}x | {pb:8.0f} {ph:8.0f} {pb / ph:5.2f}x", flush=True)
+            ph = measure_replay(
+                group,
+                sub_s,
+                n,
+                ["-m", "common.cli", "replay", str(hri_out), "--speed", "0", "--connect", group.endpoint],
+            )
+            print(
+                f"{label:20s} {len(payload):7d} | {cb:7.1f} {cc:7.1f} {cc / cb:5.2f}x | {rb:8.0f} {rh:8.0f} "
+                f"{rb / rh:5.2f}x | {pb:8.0f} {ph:8.0f} {pb / ph:5.2f}x",
+                flush=True,
+            )
         print("ratios: > 1 means the hri path is slower than the bare library by that factor")
     finally:
         pub_s.close()

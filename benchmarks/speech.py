@@ -11,9 +11,10 @@ the sentence), clean and with pink noise at 10 dB; the whisper pipeline also wit
 (`--command-prior 0`), with stops missed / made when none was meant over the sentence lists
 (tests/data/speech/*.txt). Short words: the 100 real one-second command-word clips of ../shared/data/speech_commands/
 (when present), each cut by the VAD and decoded with and without the short-utterance decode: words heard right,
-stops missed and false stops, and the decode time per utterance beside that of the longer commands. Then the whole pipeline on loopback (router, speech and
-fusion processes; AudioChunks published at real-time pace): end of the last spoken word -> Transcript
-received, and -> fusion's answer (FusedCommand or Clarification) received, p50/p99, per backend.
+stops missed and false stops, and the decode time per utterance beside that of the longer commands. Then the
+whole pipeline on loopback (router, speech and fusion processes; AudioChunks published at real-time pace): end of
+the last spoken word -> Transcript received, and -> fusion's answer (FusedCommand or Clarification) received,
+p50/p99, per backend.
 
     .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|short|vocabulary]
                                           [--tail-probability P] [--command-prior F]
@@ -40,17 +41,23 @@ import numpy as np  # noqa: E402
 
 from common.codec import decode  # noqa: E402
 from common.schema import AudioChunk, Clarification, FusedCommand, Transcript  # noqa: E402
+from services.fusion.parse import parse  # noqa: E402
 from services.speech.audio import RATE, read_wav  # noqa: E402
 from services.speech.pipeline import MicStream  # noqa: E402
 from services.speech.recognizers import PocketsphinxRecognizer  # noqa: E402
 from services.speech.synth import PIPER_VOICE, read_wav_int16  # noqa: E402
 from services.speech.vad import make_segmenter  # noqa: E402
-from services.speech.whisper import (MIN_TOKENS, PROMPTS, TOKENS_PER_SECOND, WhisperRecognizer,  # noqa: E402
-                                    WhisperSettings, normalise_words)
+from services.speech.whisper import (  # noqa: E402
+    MIN_TOKENS,
+    PROMPTS,
+    TOKENS_PER_SECOND,
+    WhisperRecognizer,
+    WhisperSettings,
+    normalise_words,
+)
 from tests.harness import Client, ProcessGroup  # noqa: E402
-from services.fusion.parse import parse  # noqa: E402
-from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
 from tests.shared import shared_dir  # noqa: E402
+from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
 
 GAP = 1.0
 
@@ -64,7 +71,7 @@ def speech_end(samples: np.ndarray) -> float:
     within 40 dB of the loudest frame's (independent of any recogniser or VAD)."""
     frame = RATE // 100
     n = len(samples) // frame
-    rms = np.sqrt(np.mean(samples[:n * frame].astype(np.float64).reshape(n, frame) ** 2, axis=1))
+    rms = np.sqrt(np.mean(samples[: n * frame].astype(np.float64).reshape(n, frame) ** 2, axis=1))
     loud = np.nonzero(rms >= rms.max() * 10 ** (-40 / 20))[0]
     return float((loud[-1] + 1) * frame / RATE)
 
@@ -78,16 +85,27 @@ def bare_whisper(rec: WhisperRecognizer, files: list[Path], texts: list[str]) ->
         audio_s += len(audio) / RATE
         t = time.perf_counter()
         segments, _ = rec.model.transcribe(
-            audio, language="en", beam_size=s.beam_size, best_of=1, temperature=0.0,
-            condition_on_previous_text=False, initial_prompt=rec.prompt, word_timestamps=True,
-            without_timestamps=False, vad_filter=False,
-            max_new_tokens=int(MIN_TOKENS + TOKENS_PER_SECOND * len(audio) / RATE))
+            audio,
+            language="en",
+            beam_size=s.beam_size,
+            best_of=1,
+            temperature=0.0,
+            condition_on_previous_text=False,
+            initial_prompt=rec.prompt,
+            word_timestamps=True,
+            without_timestamps=False,
+            vad_filter=False,
+            max_new_tokens=int(MIN_TOKENS + TOKENS_PER_SECOND * len(audio) / RATE),
+        )
         text = " ".join(normalise_words(" ".join(seg.text for seg in segments)))
         seconds += time.perf_counter() - t
         hyps.append(text)
     ref = " ".join(texts).split()
-    return {"rtf": seconds / audio_s, "wer": word_errors(ref, spelled(" ".join(hyps).split())) / len(ref),
-            "meaning": sum(meaning(h) == meaning(t) for h, t in zip(hyps, texts)) / len(texts)}
+    return {
+        "rtf": seconds / audio_s,
+        "wer": word_errors(ref, spelled(" ".join(hyps).split())) / len(ref),
+        "meaning": sum(meaning(h) == meaning(t) for h, t in zip(hyps, texts)) / len(texts),
+    }
 
 
 def pipeline(rec, stream_path: Path, spans, texts: list[str]) -> dict:
@@ -98,16 +116,22 @@ def pipeline(rec, stream_path: Path, spans, texts: list[str]) -> dict:
     heard = []
     t = time.perf_counter()
     for off in range(0, len(wav.samples), 320):
-        heard += stream.feed(wav.samples[off:off + 320], RATE, t0 + off / RATE)
+        heard += stream.feed(wav.samples[off : off + 320], RATE, t0 + off / RATE)
     heard += stream.flush()
     seconds = time.perf_counter() - t
     result = score(texts, spans, [h.transcript for h in heard], t0)
     said = [parse(text).intent == "stop" for text in texts]
     stopped = [parse(h).intent == "stop" for h in result["heard"]]
-    return {"rtf": seconds / wav.seconds, "wer": result["wer"], "meaning": result["meaning"],
-            "wrong": result["wrong"], "stops": sum(said), "missed": sum(a and not b for a, b in zip(said, stopped)),
-            "false": sum(b and not a for a, b in zip(said, stopped)),
-            "false_of": [h for a, b, h in zip(said, stopped, result["heard"]) if b and not a]}
+    return {
+        "rtf": seconds / wav.seconds,
+        "wer": result["wer"],
+        "meaning": result["meaning"],
+        "wrong": result["wrong"],
+        "stops": sum(said),
+        "missed": sum(a and not b for a, b in zip(said, stopped)),
+        "false": sum(b and not a for a, b in zip(said, stopped)),
+        "false_of": [h for a, b, h in zip(said, stopped, result["heard"]) if b and not a],
+    }
 
 
 def vad_cut(samples: np.ndarray) -> list:
@@ -153,8 +177,11 @@ def short_words(recognisers: dict) -> None:
             if texts != [word]:
                 wrong.append((word, " ".join(texts)))
         n_stop = sum(w == "stop" for w, _ in clips)
-        print(f"{name:26s} {right:3d}/{len(clips):<3d} {missed:5d}/{n_stop:<6d} {false:5d}/{len(clips) - n_stop:<6d} "
-              f"{pct(ms_all, 50):7.0f} {pct(ms_all, 99):7.0f}", flush=True)
+        print(
+            f"{name:26s} {right:3d}/{len(clips):<3d} {missed:5d}/{n_stop:<6d} {false:5d}/{len(clips) - n_stop:<6d} "
+            f"{pct(ms_all, 50):7.0f} {pct(ms_all, 99):7.0f}",
+            flush=True,
+        )
         print(f"{'':26s} wrong: {wrong}")
     print()
 
@@ -165,8 +192,11 @@ def long_decode_times(recognisers: dict, stream_path: Path) -> None:
     for name, rec in recognisers.items():
         texts, ms = decode_times(rec, utts)
         longer = [m for t, m in zip(texts, ms) if len(t.split()) > 1]
-        print(f"{'':10s} {name:26s} decode per utterance p50 {pct(ms, 50):4.0f} ms p99 {pct(ms, 99):4.0f} ms; "
-              f"of the {len(longer)} heard as 2+ words p50 {pct(longer, 50):4.0f} ms", flush=True)
+        print(
+            f"{'':10s} {name:26s} decode per utterance p50 {pct(ms, 50):4.0f} ms p99 {pct(ms, 99):4.0f} ms; "
+            f"of the {len(longer)} heard as 2+ words p50 {pct(longer, 50):4.0f} ms",
+            flush=True,
+        )
 
 
 def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dict:
@@ -180,6 +210,7 @@ def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dic
             now = time.time()
             with lock:
                 arrivals.append((kind, now, decode(s.payload.to_bytes(), schema)))
+
         return callback
 
     group = ProcessGroup()
@@ -192,9 +223,11 @@ def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dic
         client = Client(group.endpoint)
         client.wait_alive("speech", timeout=120)
         client.wait_alive("fusion", timeout=120)
-        subs = [client.session.declare_subscriber("hri/speech/*/transcript", on("transcript", Transcript)),
-                client.session.declare_subscriber("hri/fusion/command", on("command", FusedCommand)),
-                client.session.declare_subscriber("hri/fusion/clarification", on("clarification", Clarification))]
+        subs = [
+            client.session.declare_subscriber("hri/speech/*/transcript", on("transcript", Transcript)),
+            client.session.declare_subscriber("hri/fusion/command", on("command", FusedCommand)),
+            client.session.declare_subscriber("hri/fusion/clarification", on("clarification", Clarification)),
+        ]
         time.sleep(1.0)
         silence = np.zeros(int(1.5 * RATE), np.int16)
         for f in files:
@@ -207,9 +240,18 @@ def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dic
                 due = t0 + off / RATE
                 if due > time.time():
                     time.sleep(due - time.time())
-                client.publish(client.keys.audio("bench"), AudioChunk(
-                    stamp=due, source="bench/mic", mic="bench", rate=RATE, channels=1, format="s16le",
-                    data=samples[off:off + 320].astype("<i2").tobytes()))
+                client.publish(
+                    client.keys.audio("bench"),
+                    AudioChunk(
+                        stamp=due,
+                        source="bench/mic",
+                        mic="bench",
+                        rate=RATE,
+                        channels=1,
+                        format="s16le",
+                        data=samples[off : off + 320].astype("<i2").tobytes(),
+                    ),
+                )
         time.sleep(2.0)
         for sub in subs:
             sub.undeclare()
@@ -230,9 +272,14 @@ def latency(backend: str, files: list[Path], extra: tuple[str, ...] = ()) -> dic
             to_fusion.append((answered[0] - end) * 1000)
         if commanded:
             to_command.append((commanded[0] - end) * 1000)
-    return {"transcript": to_transcript, "fusion": to_fusion, "command": to_command, "n": len(files),
-            "commands": sum(k == "command" for k, _, _ in arrivals),
-            "clarifications": sum(k == "clarification" for k, _, _ in arrivals)}
+    return {
+        "transcript": to_transcript,
+        "fusion": to_fusion,
+        "command": to_command,
+        "n": len(files),
+        "commands": sum(k == "command" for k, _, _ in arrivals),
+        "clarifications": sum(k == "clarification" for k, _, _ in arrivals),
+    }
 
 
 def main() -> None:
@@ -240,24 +287,36 @@ def main() -> None:
     parser.add_argument("--voice", default=PIPER_VOICE, help=f"synthesis voice (default {PIPER_VOICE})")
     parser.add_argument("--utterances", type=int, default=len(COMMANDS), help=f"commands (default {len(COMMANDS)})")
     parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt, help="whisper's prompt")
-    parser.add_argument("--tail-probability", type=float, default=None, metavar="P",
-                        help="whisper: drop a last word or two Whisper doubts (probability < P; default off)")
-    parser.add_argument("--command-prior", type=float, default=WhisperSettings.command_prior, metavar="F",
-                        help="whisper's short-utterance decode (0: off); the in-process rows show both")
+    parser.add_argument(
+        "--tail-probability",
+        type=float,
+        default=None,
+        metavar="P",
+        help="whisper: drop a last word or two Whisper doubts (probability < P; default off)",
+    )
+    parser.add_argument(
+        "--command-prior",
+        type=float,
+        default=WhisperSettings.command_prior,
+        metavar="F",
+        help="whisper's short-utterance decode (0: off); the in-process rows show both",
+    )
     parser.add_argument("--skip-short-words", action="store_true", help="no real command-word clips part")
     parser.add_argument("--skip-latency", action="store_true", help="no process/zenoh latency part")
     parser.add_argument("--latency-only", action="store_true", help="only the process/zenoh latency part")
     args = parser.parse_args()
-    texts = (COMMANDS * (args.utterances // len(COMMANDS) + 1))[:args.utterances]
+    texts = (COMMANDS * (args.utterances // len(COMMANDS) + 1))[: args.utterances]
     with tempfile.TemporaryDirectory(prefix="hri-bench-speech-") as tmp:
         cache = AudioCache(Path(tmp))
         print(f"synthesising {len(texts)} commands ({args.voice}) ...", flush=True)
-        whisper = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt,
-                                                            tail_min_probability=args.tail_probability,
-                                                            command_prior=args.command_prior or None))
-        plain = WhisperRecognizer(settings=WhisperSettings(prompt=args.prompt,
-                                                          tail_min_probability=args.tail_probability,
-                                                          command_prior=None))
+        whisper = WhisperRecognizer(
+            settings=WhisperSettings(
+                prompt=args.prompt, tail_min_probability=args.tail_probability, command_prior=args.command_prior or None
+            )
+        )
+        plain = WhisperRecognizer(
+            settings=WhisperSettings(prompt=args.prompt, tail_min_probability=args.tail_probability, command_prior=None)
+        )
         for rec in (whisper, plain):
             rec.recognise(np.zeros(RATE // 2, np.float32))
         sphinx = PocketsphinxRecognizer()
@@ -270,40 +329,62 @@ def main() -> None:
             files = [cache.speech(t, args.voice, snr, seed=i) for i, t in enumerate(texts)]
             stream_path, spans = cache.stream(texts, args.voice, snr, GAP)
             cond = "clean" if snr is None else f"{snr} dB"
-            rows = [("bare", bare_whisper(whisper, files, texts)), ("whisper", pipeline(whisper, stream_path, spans, texts)),
-                    ("whisper, no short dec.", pipeline(plain, stream_path, spans, texts)),
-                    ("pocketsphinx", pipeline(sphinx, stream_path, spans, texts))]
+            rows = [
+                ("bare", bare_whisper(whisper, files, texts)),
+                ("whisper", pipeline(whisper, stream_path, spans, texts)),
+                ("whisper, no short dec.", pipeline(plain, stream_path, spans, texts)),
+                ("pocketsphinx", pipeline(sphinx, stream_path, spans, texts)),
+            ]
             for name, r in rows:
-                stops = (f"  stops missed {r['missed']}/{r['stops']}, false stops {r['false']}/{len(texts) - r['stops']}"
-                         if "stops" in r else "")
+                stops = (
+                    f"  stops missed {r['missed']}/{r['stops']}, false stops {r['false']}/{len(texts) - r['stops']}"
+                    if "stops" in r
+                    else ""
+                )
                 print(f"{cond:10s} {name:14s} {r['rtf']:6.3f} {r['wer']:6.3f} {r['meaning']:8.3f}{stops}", flush=True)
-            print(f"{'':10s} service/bare RTF: {rows[1][1]['rtf'] / rows[0][1]['rtf']:.2f}x; whisper misread: "
-                  f"{rows[1][1]['wrong']}", flush=True)
+            print(
+                f"{'':10s} service/bare RTF: {rows[1][1]['rtf'] / rows[0][1]['rtf']:.2f}x; whisper misread: "
+                f"{rows[1][1]['wrong']}",
+                flush=True,
+            )
             long_decode_times(both, stream_path)
             print()
         if not args.latency_only:
             stream_path, spans = cache.stream(NON_COMMANDS, args.voice, None, GAP)
             for name, rec in both.items():
                 r = pipeline(rec, stream_path, spans, NON_COMMANDS)
-                print(f"non-commands ({len(NON_COMMANDS)} sentences, clean), {name}: false stops {r['false']} "
-                      f"{r['false_of']}", flush=True)
+                print(
+                    f"non-commands ({len(NON_COMMANDS)} sentences, clean), {name}: false stops {r['false']} "
+                    f"{r['false_of']}",
+                    flush=True,
+                )
             print()
         if args.skip_latency:
             return
         files = [cache.speech(t, args.voice, None, seed=i) for i, t in enumerate(texts)]
-        print("end of the last spoken word -> received, whole pipeline on loopback (router + speech + fusion "
-              "processes, real-time audio)")
+        print(
+            "end of the last spoken word -> received, whole pipeline on loopback (router + speech + fusion "
+            "processes, real-time audio)"
+        )
         for backend in ("whisper",) if args.latency_only else ("whisper", "pocketsphinx"):
             extra = ("--prompt", args.prompt, "--command-prior", str(args.command_prior or 0)) + (
-                ("--tail-probability", str(args.tail_probability)) if args.tail_probability is not None else ())
+                ("--tail-probability", str(args.tail_probability)) if args.tail_probability is not None else ()
+            )
             r = latency(backend, files, extra if backend == "whisper" else ())
-            print(f"  {backend:12s} -> Transcript   p50 {pct(r['transcript'], 50):4.0f} ms  p99 "
-                  f"{pct(r['transcript'], 99):4.0f} ms  ({len(r['transcript'])}/{r['n']} utterances)")
-            print(f"  {backend:12s} -> fusion answer p50 {pct(r['fusion'], 50):4.0f} ms  p99 "
-                  f"{pct(r['fusion'], 99):4.0f} ms  ({r['commands']} FusedCommand, {r['clarifications']} "
-                  f"Clarification)")
-            print(f"  {backend:12s} -> FusedCommand p50 {pct(r['command'], 50):4.0f} ms  p99 "
-                  f"{pct(r['command'], 99):4.0f} ms  (the utterances fusion answered with a command)", flush=True)
+            print(
+                f"  {backend:12s} -> Transcript   p50 {pct(r['transcript'], 50):4.0f} ms  p99 "
+                f"{pct(r['transcript'], 99):4.0f} ms  ({len(r['transcript'])}/{r['n']} utterances)"
+            )
+            print(
+                f"  {backend:12s} -> fusion answer p50 {pct(r['fusion'], 50):4.0f} ms  p99 "
+                f"{pct(r['fusion'], 99):4.0f} ms  ({r['commands']} FusedCommand, {r['clarifications']} "
+                f"Clarification)"
+            )
+            print(
+                f"  {backend:12s} -> FusedCommand p50 {pct(r['command'], 50):4.0f} ms  p99 "
+                f"{pct(r['command'], 99):4.0f} ms  (the utterances fusion answered with a command)",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

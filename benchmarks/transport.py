@@ -93,6 +93,7 @@ def run_latency(pub_session, sub_session, key: str, n: int, send, on_payload) ->
 def codec_us(encode_one, decode_one, payload: bytes, n: int) -> float:
     """Best-of-5 µs for one encode plus one decode."""
     import timeit
+
     enc = min(timeit.repeat(encode_one, number=n, repeat=5)) / n
     dec = min(timeit.repeat(lambda: decode_one(payload), number=n, repeat=5)) / n
     return (enc + dec) * 1e6
@@ -106,17 +107,32 @@ def depth_samples() -> dict:
 
     from common.depth import depth_frame
     from common.schema import CameraInfo
+
     shared = Path(os.environ.get("HRI_SHARED") or Path(__file__).resolve().parent.parent.parent / "shared")
     path = shared / "data" / "rgbd" / "ycb_video" / "000002-depth.png"
     if not path.is_file():
         print(f"(no {path}: the depth rows are skipped; set HRI_SHARED)")
         return {}
     depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    info = CameraInfo(width=640, height=480, k=[1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0],
-                      frame_id="ycb_camera_optical_frame")
-    return {f"DepthFrame 640x480 {c}": depth_frame(depth, stamp=time.time(), source="bench/cam", seq=0, cam="bench",
-                                                   depth_scale=0.0001, camera_info=info, compression=c)
-            for c in ("none", "png")}
+    info = CameraInfo(
+        width=640,
+        height=480,
+        k=[1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0],
+        frame_id="ycb_camera_optical_frame",
+    )
+    return {
+        f"DepthFrame 640x480 {c}": depth_frame(
+            depth,
+            stamp=time.time(),
+            source="bench/cam",
+            seq=0,
+            cam="bench",
+            depth_scale=0.0001,
+            camera_info=info,
+            compression=c,
+        )
+        for c in ("none", "png")
+    }
 
 
 def png_cost(samples: dict) -> None:
@@ -124,14 +140,17 @@ def png_cost(samples: dict) -> None:
     import timeit
 
     from common.depth import depth_units, encode_depth
+
     if not samples:
         return
     raw, png = samples["DepthFrame 640x480 none"], samples["DepthFrame 640x480 png"]
     depth = depth_units(raw)
     enc = min(timeit.repeat(lambda: encode_depth(depth, "png"), number=20, repeat=5)) / 20
     dec = min(timeit.repeat(lambda: depth_units(png), number=20, repeat=5)) / 20
-    print(f"depth 640x480: raw {len(raw.data)} bytes, PNG {len(png.data)} bytes "
-          f"({len(png.data) / len(raw.data):.2f}x); PNG encode {enc * 1000:.1f} ms, decode {dec * 1000:.1f} ms")
+    print(
+        f"depth 640x480: raw {len(raw.data)} bytes, PNG {len(png.data)} bytes "
+        f"({len(png.data) / len(raw.data):.2f}x); PNG encode {enc * 1000:.1f} ms, decode {dec * 1000:.1f} ms"
+    )
 
 
 def main() -> None:
@@ -154,9 +173,12 @@ def main() -> None:
             as_dict = sample.to_dict()
             size = len(msgpack.packb(as_dict, use_bin_type=True))
             raw_key, contract_key = f"bench/raw/{i}", f"bench/contract/{i}"
-            raw_pub = pub_s.declare_publisher(raw_key, encoding=zenoh.Encoding(ENCODING),
-                                              congestion_control=zenoh.CongestionControl.BLOCK,
-                                              priority=zenoh.Priority.DATA_HIGH)
+            raw_pub = pub_s.declare_publisher(
+                raw_key,
+                encoding=zenoh.Encoding(ENCODING),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+                priority=zenoh.Priority.DATA_HIGH,
+            )
             contract_pub = SamplePublisher(pub_s, contract_key, lossless=True)
             n = max(200, args.n // 10) if size > 10_000 else args.n
             # (the lambdas are used within this iteration only: B023 does not apply)
@@ -176,19 +198,30 @@ def main() -> None:
                     figures[mode] = (statistics.median(raw_t) * 1e6, statistics.median(contract_t) * 1e6, ratio)
             payload = encode(sample)
             raw_payload = msgpack.packb(as_dict, use_bin_type=True)
-            raw_codec = codec_us(lambda: msgpack.packb(as_dict, use_bin_type=True),  # noqa: B023
-                                 raw_recv, raw_payload, n)
+            raw_codec = codec_us(
+                lambda: msgpack.packb(as_dict, use_bin_type=True),  # noqa: B023
+                raw_recv,
+                raw_payload,
+                n,
+            )
             contract_codec = codec_us(lambda: encode(sample), contract_recv, payload, n)  # noqa: B023
             figures["codec"] = (raw_codec, contract_codec, contract_codec / raw_codec)
             for mode in worst:
                 worst[mode] = max(worst[mode], figures[mode][2])
-            print(f"{label:22s} {size:8d}" + "".join(
-                f" {r:9.1f} {c:12.1f} {x:5.2f}x " for r, c, x in
-                (figures[m] for m in ("latency", "burst", "burst_cpu", "codec"))), flush=True)
+            print(
+                f"{label:22s} {size:8d}"
+                + "".join(
+                    f" {r:9.1f} {c:12.1f} {x:5.2f}x "
+                    for r, c, x in (figures[m] for m in ("latency", "burst", "burst_cpu", "codec"))
+                ),
+                flush=True,
+            )
             raw_pub.undeclare()
             contract_pub.undeclare()
-        print(f"worst ratio: latency {worst['latency']:.2f}x, burst {worst['burst']:.2f}x, "
-              f"burst CPU {worst['burst_cpu']:.2f}x (target <= 1.30x)")
+        print(
+            f"worst ratio: latency {worst['latency']:.2f}x, burst {worst['burst']:.2f}x, "
+            f"burst CPU {worst['burst_cpu']:.2f}x (target <= 1.30x)"
+        )
         png_cost(depth)
     finally:
         pub_s.close()

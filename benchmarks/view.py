@@ -24,7 +24,7 @@ from common.schema import Detections, Frame  # noqa: E402
 from services.vision.core import VisionPipeline  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
 from tests.browser import CHROMIUM, Browser  # noqa: E402
-from tests.harness import DATA, ROOT, Client, ProcessGroup, Proc  # noqa: E402
+from tests.harness import DATA, ROOT, Client, Proc, ProcessGroup  # noqa: E402
 
 BARE_SUBSCRIBER = """
 import sys, threading, zenoh
@@ -79,12 +79,36 @@ def main() -> int:
             next_at = time.monotonic()
             while not stop.is_set():
                 stamp = time.time()
-                client.session.put("hri/camera/bench/frame", encode(Frame(
-                    stamp=stamp, source="bench/cam", seq=sent[0], cam="bench", width=640, height=480,
-                    encoding="jpeg", data=jpeg)))
-                client.session.put("hri/vision/bench/objects", encode(Detections(
-                    stamp=stamp, source="bench/vision", seq=sent[0], cam="bench", width=640, height=480,
-                    objects=objects, quality=quality)))
+                client.session.put(
+                    "hri/camera/bench/frame",
+                    encode(
+                        Frame(
+                            stamp=stamp,
+                            source="bench/cam",
+                            seq=sent[0],
+                            cam="bench",
+                            width=640,
+                            height=480,
+                            encoding="jpeg",
+                            data=jpeg,
+                        )
+                    ),
+                )
+                client.session.put(
+                    "hri/vision/bench/objects",
+                    encode(
+                        Detections(
+                            stamp=stamp,
+                            source="bench/vision",
+                            seq=sent[0],
+                            cam="bench",
+                            width=640,
+                            height=480,
+                            objects=objects,
+                            quality=quality,
+                        )
+                    ),
+                )
                 sent[0] += 1
                 next_at += 1.0 / args.fps
                 time.sleep(max(0.0, next_at - time.monotonic()))
@@ -115,14 +139,20 @@ def main() -> int:
     def pct(p: float) -> float:
         return delays[min(len(delays) - 1, int(p * len(delays)))] * 1000
 
-    print(f"input: {frames_in / elapsed:.1f} frames/s of 640x480 JPEG ({len(jpeg) / 1000:.0f} kB) + Detections "
-          f"({len(objects)} objects) each, for {elapsed:.0f} s; one headless Chromium tab")
+    print(
+        f"input: {frames_in / elapsed:.1f} frames/s of 640x480 JPEG ({len(jpeg) / 1000:.0f} kB) + Detections "
+        f"({len(objects)} objects) each, for {elapsed:.0f} s; one headless Chromium tab"
+    )
     print(f"{'process':34s} {'CPU (% of one core)':>20s}")
     print(f"{'hri view (validates, serves page)':34s} {cpu['view']:20.1f}")
     print(f"{'bare zenoh subscriber, same keys':34s} {cpu['bare']:20.1f}")
-    print(f"page: {drawn / elapsed:.1f} frames/s drawn (budget 10 per camera); frame delay camera stamp -> drawn: "
-          f"p50 {pct(0.5):.0f} ms, p95 {pct(0.95):.0f} ms, max {delays[-1] * 1000:.0f} ms "
-          f"({len(delays)} frames)" if delays else "page: no frames drawn")
+    print(
+        f"page: {drawn / elapsed:.1f} frames/s drawn (budget 10 per camera); frame delay camera stamp -> drawn: "
+        f"p50 {pct(0.5):.0f} ms, p95 {pct(0.95):.0f} ms, max {delays[-1] * 1000:.0f} ms "
+        f"({len(delays)} frames)"
+        if delays
+        else "page: no frames drawn"
+    )
     return 0
 
 

@@ -53,8 +53,7 @@ from common.codec import decode  # noqa: E402
 from common.depth import depth_frame  # noqa: E402
 from common.runner import SamplePublisher  # noqa: E402
 from common.schema import CameraInfo, Detections, Frame  # noqa: E402
-from services.vision.color import CHROMATIC, HUE_RANGES  # noqa: E402
-from services.vision.color import illuminant_gains  # noqa: E402
+from services.vision.color import CHROMATIC, HUE_RANGES, illuminant_gains  # noqa: E402
 from services.vision.core import VisionPipeline, object_colour  # noqa: E402
 from services.vision.depth import DepthImage  # noqa: E402
 from services.vision.segment import ColorSegmenter  # noqa: E402
@@ -108,16 +107,28 @@ def throughput(frames: list[np.ndarray], n: int) -> None:
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
     lut = hue_lut()
     pipeline = VisionPipeline(ColorSegmenter())
-    bare_fps, service_fps = interleaved([lambda f: bare_segmentation(f, kernel, lut),
-                                         lambda f: pipeline.process("cam0", f)], frames, n)
-    print_throughput(f"throughput on {n} frames 640x480, rounds of 20", "bare OpenCV segmentation", bare_fps,
-                     "vision service path", service_fps)
+    bare_fps, service_fps = interleaved(
+        [lambda f: bare_segmentation(f, kernel, lut), lambda f: pipeline.process("cam0", f)], frames, n
+    )
+    print_throughput(
+        f"throughput on {n} frames 640x480, rounds of 20",
+        "bare OpenCV segmentation",
+        bare_fps,
+        "vision service path",
+        service_fps,
+    )
 
 
 def onnx_frames() -> list[np.ndarray]:
     """Photos with things a COCO detector knows (a cup, a player and a ball, fruit), 640x480."""
-    names = ["coffee.png", "messi5.jpg", "apple.jpg", "tabletop/fruits.jpg", "tabletop/smarties.png",
-             "tabletop/stuff.jpg"]
+    names = [
+        "coffee.png",
+        "messi5.jpg",
+        "apple.jpg",
+        "tabletop/fruits.jpg",
+        "tabletop/smarties.png",
+        "tabletop/stuff.jpg",
+    ]
     return [cv2.resize(cv2.imread(str(DATA / "images" / n)), (640, 480)) for n in names]
 
 
@@ -126,6 +137,7 @@ class BareYolox:
 
     def __init__(self, model: str, size: int = 416, conf: float = 0.3, iou: float = 0.45, spinning: bool = False):
         import onnxruntime as ort
+
         options = ort.SessionOptions()
         if not spinning:  # the service's session option; onnxruntime's default spins between runs
             options.add_session_config_entry("session.intra_op.allow_spinning", "0")
@@ -133,7 +145,7 @@ class BareYolox:
         self.size, self.conf, self.iou = size, conf, iou
         grids = []
         for s in (8, 16, 32):
-            gy, gx = np.mgrid[0:size // s, 0:size // s]
+            gy, gx = np.mgrid[0 : size // s, 0 : size // s]
             grids.append(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, s)], 1))
         self.grid = np.concatenate(grids).astype(np.float32)
 
@@ -141,7 +153,7 @@ class BareYolox:
         h, w = bgr.shape[:2]
         r = min(self.size / h, self.size / w)
         canvas = np.full((self.size, self.size, 3), 114, np.uint8)
-        canvas[:int(h * r), :int(w * r)] = cv2.resize(bgr, (int(w * r), int(h * r)), interpolation=cv2.INTER_LINEAR)
+        canvas[: int(h * r), : int(w * r)] = cv2.resize(bgr, (int(w * r), int(h * r)), interpolation=cv2.INTER_LINEAR)
         out = self.session.run(None, {"images": canvas.transpose(2, 0, 1)[None].astype(np.float32)})[0][0]
         sel = out[:, 4] >= self.conf  # objectness first: obj × cls cannot exceed obj
         out, g = out[sel], self.grid[sel]
@@ -168,42 +180,78 @@ def onnx_throughput(model: str, frames: list[np.ndarray], n: int) -> None:
     bare_fps, service_fps = interleaved([bare.detect, lambda f: pipeline.process("cam0", f)], frames, n)
     # on its own: a spinning pool goes on burning CPU after its run and would slow whatever runs next
     (spinning_fps,) = interleaved([bare_spinning.detect], frames, n)
-    print_throughput(f"onnx throughput on {n} frames 640x480, rounds of 20", "bare onnxruntime YOLOX loop", bare_fps,
-                     "vision service onnx path", service_fps)
+    print_throughput(
+        f"onnx throughput on {n} frames 640x480, rounds of 20",
+        "bare onnxruntime YOLOX loop",
+        bare_fps,
+        "vision service onnx path",
+        service_fps,
+    )
     print(f"  (bare loop with onnxruntime's default thread spinning: {statistics.median(spinning_fps):.1f} frames/s)")
 
 
 def rgbd_frames() -> list[tuple[np.ndarray, np.ndarray]] | None:
     """The YCB-Video colour/depth pairs (640x480, 0.1 mm units), or None when ../shared is absent."""
     folder = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared") / "data" / "rgbd" / "ycb_video"
-    pairs = [(cv2.imread(str(c)), cv2.imread(str(c).replace("-color", "-depth"), cv2.IMREAD_UNCHANGED))
-             for c in sorted(folder.glob("*-color.png"))]
+    pairs = [
+        (cv2.imread(str(c)), cv2.imread(str(c).replace("-color", "-depth"), cv2.IMREAD_UNCHANGED))
+        for c in sorted(folder.glob("*-color.png"))
+    ]
     return pairs or None
 
 
-YCB_INFO = CameraInfo(width=640, height=480, k=[1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0],
-                      frame_id="ycb_camera_optical_frame")
+YCB_INFO = CameraInfo(
+    width=640,
+    height=480,
+    k=[1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0],
+    frame_id="ycb_camera_optical_frame",
+)
 
 
 def depth_throughput(pairs: list[tuple[np.ndarray, np.ndarray]], n: int) -> None:
     pipeline = VisionPipeline(ColorSegmenter())
     colours = [c for c, _ in pairs]
-    raw = [depth_frame(d, stamp=1.0, source="bench/cam", seq=0, cam="bench", depth_scale=0.0001,
-                       camera_info=YCB_INFO) for _, d in pairs]
-    png = [depth_frame(d, stamp=1.0, source="bench/cam", seq=0, cam="bench", depth_scale=0.0001,
-                       camera_info=YCB_INFO, compression="png") for _, d in pairs]
+    raw = [
+        depth_frame(d, stamp=1.0, source="bench/cam", seq=0, cam="bench", depth_scale=0.0001, camera_info=YCB_INFO)
+        for _, d in pairs
+    ]
+    png = [
+        depth_frame(
+            d,
+            stamp=1.0,
+            source="bench/cam",
+            seq=0,
+            cam="bench",
+            depth_scale=0.0001,
+            camera_info=YCB_INFO,
+            compression="png",
+        )
+        for _, d in pairs
+    ]
     index = {id(c): i for i, c in enumerate(colours)}
     objects = sum(len(pipeline.process("bench", c)[0]) for c in colours) / len(colours)
-    colour_fps, raw_fps, png_fps = interleaved([
-        lambda c: pipeline.process("bench", c),
-        lambda c: pipeline.process("bench", c, DepthImage.from_frame(raw[index[id(c)]])),
-        lambda c: pipeline.process("bench", c, DepthImage.from_frame(png[index[id(c)]])),
-    ], colours, n)
-    print_throughput(f"depth: throughput on {n} YCB-Video RGB-D frames 640x480 ({objects:.0f} objects per frame "
-                     f"on average), rounds of 20", "colour only", colour_fps, "with depth (raw 16UC1)", raw_fps)
+    colour_fps, raw_fps, png_fps = interleaved(
+        [
+            lambda c: pipeline.process("bench", c),
+            lambda c: pipeline.process("bench", c, DepthImage.from_frame(raw[index[id(c)]])),
+            lambda c: pipeline.process("bench", c, DepthImage.from_frame(png[index[id(c)]])),
+        ],
+        colours,
+        n,
+    )
+    print_throughput(
+        f"depth: throughput on {n} YCB-Video RGB-D frames 640x480 ({objects:.0f} objects per frame "
+        f"on average), rounds of 20",
+        "colour only",
+        colour_fps,
+        "with depth (raw 16UC1)",
+        raw_fps,
+    )
     p = statistics.median(png_fps)
-    print(f"  {'with depth (PNG, decode included)':32s} {p:7.1f} frames/s   ratio "
-          f"{p / statistics.median(colour_fps):.2f}x")
+    print(
+        f"  {'with depth (PNG, decode included)':32s} {p:7.1f} frames/s   ratio "
+        f"{p / statistics.median(colour_fps):.2f}x"
+    )
 
 
 def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: float) -> None:
@@ -235,10 +283,30 @@ def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: fl
             next_at += 1.0 / fps
             k = sent % len(pairs)
             stamp = time.time()
-            depth_pub.put(depth_frame(pairs[k][1], stamp=stamp, source="bench/cam", seq=sent, cam="bench",
-                                      depth_scale=0.0001, camera_info=YCB_INFO))
-            frame_pub.put(Frame(stamp=stamp, source="bench/cam", seq=sent, cam="bench", width=640, height=480,
-                                encoding="jpeg", data=jpegs[k], camera_info=YCB_INFO))
+            depth_pub.put(
+                depth_frame(
+                    pairs[k][1],
+                    stamp=stamp,
+                    source="bench/cam",
+                    seq=sent,
+                    cam="bench",
+                    depth_scale=0.0001,
+                    camera_info=YCB_INFO,
+                )
+            )
+            frame_pub.put(
+                Frame(
+                    stamp=stamp,
+                    source="bench/cam",
+                    seq=sent,
+                    cam="bench",
+                    width=640,
+                    height=480,
+                    encoding="jpeg",
+                    data=jpegs[k],
+                    camera_info=YCB_INFO,
+                )
+            )
             sent += 1
             delay = next_at - time.monotonic()
             if delay > 0:
@@ -251,9 +319,11 @@ def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: fl
     finally:
         client.close()
         group.close()
-    print(f"depth: end-to-end lag at {fps:.0f} fps with depth for {seconds:.0f} s: {sent} RGB-D captures sent, "
-          f"{len(lags)} Detections received ({positioned[0]} with positions), {stats['skipped']} stale samples "
-          f"skipped by the service")
+    print(
+        f"depth: end-to-end lag at {fps:.0f} fps with depth for {seconds:.0f} s: {sent} RGB-D captures sent, "
+        f"{len(lags)} Detections received ({positioned[0]} with positions), {stats['skipped']} stale samples "
+        f"skipped by the service"
+    )
     print_lag_slices(lags, seconds)
 
 
@@ -277,10 +347,12 @@ def colour_cost(model: str, frames: list[np.ndarray], n: int) -> None:
         detect_ms.append((t1 - t0) * 1e3)
         colour_ms.append((t2 - t1) * 1e3)
     per_frame = sum(len(b) for b in boxes) / len(boxes)
-    print(f"colour step vs detector on {n} frames 640x480 ({per_frame:.1f} objects per frame): detector "
-          f"{statistics.median(detect_ms):.2f} ms, colour model {statistics.median(colour_ms):.3f} ms per frame "
-          f"(p90 {np.percentile(colour_ms, 90):.3f} ms; "
-          f"{100 * statistics.median(colour_ms) / statistics.median(detect_ms):.1f} % of the detector)")
+    print(
+        f"colour step vs detector on {n} frames 640x480 ({per_frame:.1f} objects per frame): detector "
+        f"{statistics.median(detect_ms):.2f} ms, colour model {statistics.median(colour_ms):.3f} ms per frame "
+        f"(p90 {np.percentile(colour_ms, 90):.3f} ms; "
+        f"{100 * statistics.median(colour_ms) / statistics.median(detect_ms):.1f} % of the detector)"
+    )
 
 
 def default_model() -> str:
@@ -291,8 +363,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=60.0, help="length of each lag run (default 60)")
     parser.add_argument("--frames", type=int, default=300, help="frames per throughput measurement (default 300)")
-    parser.add_argument("--backends", default="color,onnx,depth",
-                        help="which backends to measure (default color,onnx,depth)")
+    parser.add_argument(
+        "--backends", default="color,onnx,depth", help="which backends to measure (default color,onnx,depth)"
+    )
     parser.add_argument("--model", default=default_model(), help="YOLOX ONNX model for the onnx backend")
     parser.add_argument("--fps", type=float, default=30.0, help="frame rate of the lag runs (default 30)")
     parser.add_argument("--skip-lag", action="store_true", help="throughput only")
@@ -322,8 +395,15 @@ def main() -> None:
             return
         onnx_throughput(args.model, images, args.frames)
         if not args.skip_lag:
-            frame_lag("vision", ["--backend", "onnx", "--model", args.model], "hri/vision/bench/objects", Detections,
-                      images, args.seconds, args.fps)
+            frame_lag(
+                "vision",
+                ["--backend", "onnx", "--model", args.model],
+                "hri/vision/bench/objects",
+                Detections,
+                images,
+                args.seconds,
+                args.fps,
+            )
 
 
 if __name__ == "__main__":

@@ -20,7 +20,12 @@ from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
 from common.schema import InvalidSample, Stats, make_transcript
 from common.transport import (
-    add_zenoh_arguments, init_zenoh_logging, live_tokens, open_session, resolve, zenoh_config,
+    add_zenoh_arguments,
+    init_zenoh_logging,
+    live_tokens,
+    open_session,
+    resolve,
+    zenoh_config,
 )
 
 EXAMPLES = """\
@@ -68,8 +73,7 @@ def _open(args: argparse.Namespace, stop: threading.Event) -> zenoh.Session:
 # -- router ------------------------------------------------------------------
 def cmd_router(args: argparse.Namespace) -> int:
     args.mode = "router"
-    args.listen = args.listen or [e for e in os.environ.get("HRI_LISTEN", "").split(",") if e] or [
-        "tcp/127.0.0.1:7447"]
+    args.listen = args.listen or [e for e in os.environ.get("HRI_LISTEN", "").split(",") if e] or ["tcp/127.0.0.1:7447"]
     log = setup_logging("hri.router", args.log_level)
     init_zenoh_logging()
     conf = zenoh_config(args)
@@ -79,18 +83,29 @@ def cmd_router(args: argparse.Namespace) -> int:
     try:
         session = zenoh.open(conf)
     except zenoh.ZError as exc:
-        log.error("cannot start the router on %s: %s (is another router already listening there?)",
-                  ", ".join(args.listen), str(exc).split(" at ")[0])
+        log.error(
+            "cannot start the router on %s: %s (is another router already listening there?)",
+            ", ".join(args.listen),
+            str(exc).split(" at ")[0],
+        )
         return 1
     log.info("zenoh router listening on %s (zid %s)", ", ".join(args.listen), session.zid())
     if args.secure:
         from common.security import read_secrets
+
         sec = read_secrets(args.secure)
-        log.info("secured: %d users must log in (%s), access rules from %s/users.json; everything else is denied",
-                 len(sec.users), ", ".join(sorted(sec.users)), args.secure)
+        log.info(
+            "secured: %d users must log in (%s), access rules from %s/users.json; everything else is denied",
+            len(sec.users),
+            ", ".join(sorted(sec.users)),
+            args.secure,
+        )
     else:
-        log.warning("not secured: any client that reaches %s may publish anything, commands included "
-                    "(see `hri secure init --help`)", ", ".join(args.listen))
+        log.warning(
+            "not secured: any client that reaches %s may publish anything, commands included "
+            "(see `hri secure init --help`)",
+            ", ".join(args.listen),
+        )
     stop.wait()
     session.close()
     log.info("router stopped")
@@ -133,8 +148,11 @@ def cmd_echo(args: argparse.Namespace) -> int:
         sub.undeclare()
         session.close()
     if args.count is not None and printed < args.count:
-        print(f"hri echo: timed out after {args.timeout} s with {printed}/{args.count} samples on "
-              f"{args.keyexpr!r}; is the publisher running and connected to the same router?", file=sys.stderr)
+        print(
+            f"hri echo: timed out after {args.timeout} s with {printed}/{args.count} samples on "
+            f"{args.keyexpr!r}; is the publisher running and connected to the same router?",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -154,6 +172,7 @@ def _from_json(value: Any) -> Any:
 def _publish_once(args: argparse.Namespace, key: str, sample: Any) -> int:
     if args.secure:  # the router would drop it without a word: say so here
         from common.security import SecurityError, may_publish, read_secrets
+
         user = args.user or "cli"
         try:
             sec = read_secrets(args.secure)
@@ -161,10 +180,12 @@ def _publish_once(args: argparse.Namespace, key: str, sample: Any) -> int:
             print(f"hri {args.command}: {exc}", file=sys.stderr)
             return 2
         if not may_publish(sec, user, key, args.prefix):
-            print(f"hri {args.command}: user {user!r} (roles: {', '.join(sec.users.get(user, [])) or 'none'}) may not "
-                  f"publish on {key}; the router would drop it. Use --user with a role that may (e.g. a user with "
-                  f"the keyboard role for hri say: `hri secure init {args.secure} --user operator:reader,keyboard`)",
-                  file=sys.stderr)
+            print(
+                f"hri {args.command}: user {user!r} (roles: {', '.join(sec.users.get(user, [])) or 'none'}) may not "
+                f"publish on {key}; the router would drop it. Use --user with a role that may (e.g. a user with "
+                f"the keyboard role for hri say: `hri secure init {args.secure} --user operator:reader,keyboard`)",
+                file=sys.stderr,
+            )
             return 2
     stop = threading.Event()
     session = _open(args, stop)
@@ -212,8 +233,9 @@ def cmd_say(args: argparse.Namespace) -> int:
     if not text:
         print("hri say: nothing to say", file=sys.stderr)
         return 2
-    sample = make_transcript(text, mic=args.mic, end=time.time(), confidence=args.confidence,
-                             source=f"cli/{os.getpid()}")
+    sample = make_transcript(
+        text, mic=args.mic, end=time.time(), confidence=args.confidence, source=f"cli/{os.getpid()}"
+    )
     return _publish_once(args, Keys(args.prefix).transcript(args.mic), sample)
 
 
@@ -254,6 +276,7 @@ def cmd_stats(args: argparse.Namespace) -> int:
 # -- secure --------------------------------------------------------------------
 def cmd_secure_init(args: argparse.Namespace) -> int:
     from common.security import SecurityError, init_secrets, make_tls
+
     extra: dict[str, list[str]] = {}
     for spec in args.user or []:
         name, sep, roles = spec.partition(":")
@@ -273,48 +296,66 @@ def cmd_secure_init(args: argparse.Namespace) -> int:
         print(f"wrote {cert}")
     if certs:
         print("TLS: listen and connect on tls/HOST:PORT endpoints (e.g. --listen tls/0.0.0.0:7447)")
-    print(f"secrets in {sec.folder} (passwords: {sec.passwords_file}, mode 0600). Now:\n"
-          f"  hri router --secure {sec.folder}\n  hri up --secure {sec.folder} ...\n"
-          f"  hri echo 'hri/**' --secure {sec.folder}           # as user cli, read-only")
+    print(
+        f"secrets in {sec.folder} (passwords: {sec.passwords_file}, mode 0600). Now:\n"
+        f"  hri router --secure {sec.folder}\n  hri up --secure {sec.folder} ...\n"
+        f"  hri echo 'hri/**' --secure {sec.folder}           # as user cli, read-only"
+    )
     return 0
 
 
 # -- entry point ---------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="hri", description="hri-fusion command line: route, watch, publish and inspect samples.",
-        epilog=EXAMPLES, formatter_class=argparse.RawDescriptionHelpFormatter)
+        prog="hri",
+        description="hri-fusion command line: route, watch, publish and inspect samples.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     def command(name: str, help_: str, examples: str = "") -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=help_, description=help_, epilog=examples,
-                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        p = sub.add_parser(
+            name, help=help_, description=help_, epilog=examples, formatter_class=argparse.RawDescriptionHelpFormatter
+        )
         p.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
         add_zenoh_arguments(p)
         return p
 
-    p = command("router", "run the zenoh router (listens on tcp/127.0.0.1:7447 unless --listen / HRI_LISTEN)",
-                "example:\n  hri router --listen tcp/0.0.0.0:7447")
+    p = command(
+        "router",
+        "run the zenoh router (listens on tcp/127.0.0.1:7447 unless --listen / HRI_LISTEN)",
+        "example:\n  hri router --listen tcp/0.0.0.0:7447",
+    )
     p.set_defaults(func=cmd_router)
 
-    p = command("echo", "print samples on a key expression as JSON lines (binary fields as <N bytes>)",
-                "examples:\n  hri echo 'hri/**'\n  hri echo 'hri/vision/*/objects' --count 10 --timeout 5")
+    p = command(
+        "echo",
+        "print samples on a key expression as JSON lines (binary fields as <N bytes>)",
+        "examples:\n  hri echo 'hri/**'\n  hri echo 'hri/vision/*/objects' --count 10 --timeout 5",
+    )
     p.add_argument("keyexpr", help="zenoh key expression, e.g. 'hri/**'")
     p.add_argument("--raw", action="store_true", help="print the msgpack map as is, without contract validation")
     p.add_argument("--count", type=int, default=None, help="exit 0 after N samples (1 if the timeout comes first)")
     p.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
     p.set_defaults(func=cmd_echo)
 
-    p = command("pub", "validate a JSON sample against the contract and publish it once",
-                "example:\n  hri pub hri/speech/kbd/transcript '{\"mic\":\"kbd\",\"start\":1,\"end\":2,\"text\":"
-                "\"stop\",\"confidence\":1,\"words\":[],\"final\":true,\"backend\":\"text\"}'\n"
-                "v, stamp (now) and source are filled in when absent; binary fields are {\"$b64\": \"...\"}.")
+    p = command(
+        "pub",
+        "validate a JSON sample against the contract and publish it once",
+        'example:\n  hri pub hri/speech/kbd/transcript \'{"mic":"kbd","start":1,"end":2,"text":'
+        '"stop","confidence":1,"words":[],"final":true,"backend":"text"}\'\n'
+        'v, stamp (now) and source are filled in when absent; binary fields are {"$b64": "..."}.',
+    )
     p.add_argument("key", help="a concrete key of the contract, e.g. hri/speech/kbd/transcript")
     p.add_argument("json", help="the sample as a JSON object")
     p.set_defaults(func=cmd_pub)
 
-    p = command("say", "publish a final Transcript as if the words had just been spoken",
-                "examples:\n  hri say pick up the red cup\n  hri say --confidence 0.4 \"bring me that\"")
+    p = command(
+        "say",
+        "publish a final Transcript as if the words had just been spoken",
+        'examples:\n  hri say pick up the red cup\n  hri say --confidence 0.4 "bring me that"',
+    )
     p.add_argument("text", nargs="+", help="the utterance")
     p.add_argument("--mic", default="kbd", help="microphone id in the key and sample (default kbd)")
     p.add_argument("--confidence", type=float, default=1.0, help="recogniser confidence 0–1 (default 1)")
@@ -324,53 +365,87 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
     p.set_defaults(func=cmd_list)
 
-    p = command("stats", "print each service's counters (received, published, rejected by reason, skipped)",
-                "examples:\n  hri stats\n  hri stats --service vision")
+    p = command(
+        "stats",
+        "print each service's counters (received, published, rejected by reason, skipped)",
+        "examples:\n  hri stats\n  hri stats --service vision",
+    )
     p.add_argument("--service", default=None, help="only this service")
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
     p.set_defaults(func=cmd_stats)
 
-    p = sub.add_parser("secure", help="secured robots: create the users, passwords and access rules",
-                       description="Create or extend a secrets folder: a random password per user, and which "
-                                   "roles each user has (docs/security.md).")
+    p = sub.add_parser(
+        "secure",
+        help="secured robots: create the users, passwords and access rules",
+        description="Create or extend a secrets folder: a random password per user, and which "
+        "roles each user has (docs/security.md).",
+    )
     secure_sub = p.add_subparsers(dest="secure_command", required=True, metavar="ACTION")
-    p = secure_sub.add_parser("init", help="create DIR/passwords and DIR/users.json (existing passwords kept)",
-                              epilog="examples:\n  hri secure init ~/.hri/robot1\n"
-                                     "  hri secure init ~/.hri/robot1 --user operator:reader,keyboard\n"
-                                     "  hri secure init ~/.hri/robot1 --tls --host robot1.local   # + TLS\n"
-                                     "roles: camera mic vision gesture speech fusion reader keyboard replay",
-                              formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = secure_sub.add_parser(
+        "init",
+        help="create DIR/passwords and DIR/users.json (existing passwords kept)",
+        epilog="examples:\n  hri secure init ~/.hri/robot1\n"
+        "  hri secure init ~/.hri/robot1 --user operator:reader,keyboard\n"
+        "  hri secure init ~/.hri/robot1 --tls --host robot1.local   # + TLS\n"
+        "roles: camera mic vision gesture speech fusion reader keyboard replay",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("folder", help="the secrets folder (created mode 0700)")
-    p.add_argument("--user", action="append", metavar="NAME:ROLE[,ROLE]",
-                   help="add a user with these roles, repeatable (the services and a read-only cli user are "
-                        "always there)")
-    p.add_argument("--robot", default=None, metavar="PREFIX",
-                   help="several robots on one router: add this robot's own users (PREFIX-camera, …, PREFIX-cli), "
-                        "allowed only under keys PREFIX/**; run once per robot on the router's folder, and give "
-                        "each robot's machines its lines of the passwords file (docs/foundation.md, Across machines)")
-    p.add_argument("--tls", action="store_true",
-                   help="also make a private CA and a router certificate (openssl) in DIR/tls/; then use tls/ "
-                        "endpoints")
-    p.add_argument("--host", action="append", default=[], metavar="NAME_OR_IP",
-                   help="with --tls: a name or address the router is reached at, repeatable (default localhost, "
-                        "127.0.0.1 and this machine's name)")
+    p.add_argument(
+        "--user",
+        action="append",
+        metavar="NAME:ROLE[,ROLE]",
+        help="add a user with these roles, repeatable (the services and a read-only cli user are always there)",
+    )
+    p.add_argument(
+        "--robot",
+        default=None,
+        metavar="PREFIX",
+        help="several robots on one router: add this robot's own users (PREFIX-camera, …, PREFIX-cli), "
+        "allowed only under keys PREFIX/**; run once per robot on the router's folder, and give "
+        "each robot's machines its lines of the passwords file (docs/foundation.md, Across machines)",
+    )
+    p.add_argument(
+        "--tls",
+        action="store_true",
+        help="also make a private CA and a router certificate (openssl) in DIR/tls/; then use tls/ endpoints",
+    )
+    p.add_argument(
+        "--host",
+        action="append",
+        default=[],
+        metavar="NAME_OR_IP",
+        help="with --tls: a name or address the router is reached at, repeatable (default localhost, "
+        "127.0.0.1 and this machine's name)",
+    )
     p.set_defaults(func=cmd_secure_init)
 
     from common import launcher
-    p = command("up", "start the router and every service as one group; Ctrl-C stops them all",
-                launcher.UP_EXAMPLES)
+
+    p = command("up", "start the router and every service as one group; Ctrl-C stops them all", launcher.UP_EXAMPLES)
     launcher.add_up_arguments(p)
     p.set_defaults(func=launcher.cmd_up)
     from common import recording  # imports mcap only when record/replay actually run
-    recording.add_record_arguments(command(
-        "record", "write every sample on key expressions to an MCAP file (Ctrl-C finishes it)",
-        recording.RECORD_EXAMPLES))
-    recording.add_replay_arguments(command(
-        "replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES))
+
+    recording.add_record_arguments(
+        command(
+            "record",
+            "write every sample on key expressions to an MCAP file (Ctrl-C finishes it)",
+            recording.RECORD_EXAMPLES,
+        )
+    )
+    recording.add_replay_arguments(
+        command("replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES)
+    )
     from common.view import command as view  # aiohttp and OpenCV are imported only when `hri view` runs
-    view.add_view_arguments(command(
-        "view", "a live web page of cameras, overlays, decisions and services (or of a recording)",
-        view.VIEW_EXAMPLES))
+
+    view.add_view_arguments(
+        command(
+            "view",
+            "a live web page of cameras, overlays, decisions and services (or of a recording)",
+            view.VIEW_EXAMPLES,
+        )
+    )
     return parser
 
 

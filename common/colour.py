@@ -20,12 +20,12 @@ from common.language import BASIC_COLORS, COLOR_MODIFIERS, COLOR_PHRASES, COLOR_
 
 Lab = tuple[float, float, float]
 
-SIGMA = 12.0            # ΔE94 at which a term's fit falls to exp(-1/2) ≈ 0.61
-K_L = 2.0               # lightness weight 1/K_L
+SIGMA = 12.0  # ΔE94 at which a term's fit falls to exp(-1/2) ≈ 0.61
+K_L = 2.0  # lightness weight 1/K_L
 LIGHTNESS_ONLY = {"dark": 1.0, "light": -1.0}  # terms that say nothing about hue: darker (lighter) than their L fits
-LIGHT_SHIFT = 0.45      # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
+LIGHT_SHIFT = 0.45  # "light X": lightness moves this share of the way to 100, chroma × LIGHT_CHROMA
 LIGHT_CHROMA = 0.7
-DARK_SCALE = 0.55       # "dark X": lightness × this, chroma × DARK_CHROMA
+DARK_SCALE = 0.55  # "dark X": lightness × this, chroma × DARK_CHROMA
 DARK_CHROMA = 0.6
 
 
@@ -37,8 +37,9 @@ def delta_e94_grid(labs: np.ndarray, refs: np.ndarray, k_l: float = K_L) -> np.n
     c2 = np.hypot(refs[:, 1], refs[:, 2])[None, :]
     dl = labs[:, None, 0] - refs[None, :, 0]
     dc = c1 - c2
-    dh2 = np.maximum(0.0, (labs[:, None, 1] - refs[None, :, 1]) ** 2 + (labs[:, None, 2] - refs[None, :, 2]) ** 2
-                     - dc * dc)
+    dh2 = np.maximum(
+        0.0, (labs[:, None, 1] - refs[None, :, 1]) ** 2 + (labs[:, None, 2] - refs[None, :, 2]) ** 2 - dc * dc
+    )
     c = np.sqrt(c1 * c2)
     return np.sqrt((dl / k_l) ** 2 + (dc / (1 + 0.045 * c)) ** 2 + dh2 / (1 + 0.015 * c) ** 2)
 
@@ -50,11 +51,11 @@ def delta_e94(x: Lab, y: Lab, k_l: float = K_L) -> float:
 
 def modified(lab: Lab, modifier: str) -> Lab:
     """A prototype made light or dark (chroma shrinks a little either way: pale and deep colours are duller)."""
-    l, a, b = lab
+    lightness, a, b = lab
     if modifier == "light":
-        return (l + (100 - l) * LIGHT_SHIFT, a * LIGHT_CHROMA, b * LIGHT_CHROMA)
+        return (lightness + (100 - lightness) * LIGHT_SHIFT, a * LIGHT_CHROMA, b * LIGHT_CHROMA)
     if modifier == "dark":
-        return (l * DARK_SCALE, a * DARK_CHROMA, b * DARK_CHROMA)
+        return (lightness * DARK_SCALE, a * DARK_CHROMA, b * DARK_CHROMA)
     raise ValueError(f"unknown colour modifier {modifier!r}: use one of {', '.join(COLOR_MODIFIERS)}")
 
 
@@ -71,9 +72,9 @@ def prototypes(term: str) -> tuple[Lab, ...]:
 
 def term_fits(term: str, labs: np.ndarray) -> np.ndarray:
     """How plausibly a person calls each measured colour (N×3) `term`, in (0, 1]: exp(-d²/2σ²), d the ΔE94 to the
-    term's nearest prototype (lightness alone for "dark" and "light"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ. A light or
-    dark term is a claim about lightness: its lightness difference counts in full (k_L = 1). One array operation
-    for all, so one decision over a thousand objects stays cheap."""
+    term's nearest prototype (lightness alone for "dark" and "light"); 1 at a prototype, 0.61 at σ, 0.14 at 2σ.
+    A light or dark term is a claim about lightness: its lightness difference counts in full (k_L = 1). One array
+    operation for all, so one decision over a thousand objects stays cheap."""
     labs = np.asarray(labs, np.float64).reshape(-1, 3)
     if term in LIGHTNESS_ONLY:
         d = np.maximum(0.0, LIGHTNESS_ONLY[term] * (labs[:, 0] - COLOR_PROTOTYPES[term][0][0])) / K_L

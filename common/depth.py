@@ -30,21 +30,44 @@ def encode_depth(depth: np.ndarray, compression: str = "none") -> tuple[str, byt
     if compression != "png":
         raise ValueError(f"depth compression must be none or png, not {compression!r}")
     if encoding != "16UC1":
-        raise ValueError("png depth compression carries 16UC1 only: send 32FC1 depth uncompressed or as uint16 "
-                         "units with a depth_scale")
+        raise ValueError(
+            "png depth compression carries 16UC1 only: send 32FC1 depth uncompressed or as uint16 "
+            "units with a depth_scale"
+        )
     import cv2
+
     ok, buf = cv2.imencode(".png", depth, [cv2.IMWRITE_PNG_COMPRESSION, 1])  # level 1: most of the gain, fast
     if not ok:
         raise ValueError(f"OpenCV could not encode a {depth.shape} depth image as PNG")
     return encoding, buf.tobytes()
 
 
-def depth_frame(depth: np.ndarray, *, stamp: float, source: str, seq: int, cam: str, depth_scale: float,
-                camera_info: CameraInfo, compression: str = "none") -> DepthFrame:
+def depth_frame(
+    depth: np.ndarray,
+    *,
+    stamp: float,
+    source: str,
+    seq: int,
+    cam: str,
+    depth_scale: float,
+    camera_info: CameraInfo,
+    compression: str = "none",
+) -> DepthFrame:
     encoding, data = encode_depth(depth, compression)
     h, w = depth.shape[:2]
-    return DepthFrame(stamp=stamp, source=source, seq=seq, cam=cam, width=w, height=h, encoding=encoding,
-                      compression=compression, depth_scale=depth_scale, camera_info=camera_info, data=data)
+    return DepthFrame(
+        stamp=stamp,
+        source=source,
+        seq=seq,
+        cam=cam,
+        width=w,
+        height=h,
+        encoding=encoding,
+        compression=compression,
+        depth_scale=depth_scale,
+        camera_info=camera_info,
+        data=data,
+    )
 
 
 def depth_units(frame: DepthFrame) -> np.ndarray:
@@ -52,8 +75,10 @@ def depth_units(frame: DepthFrame) -> np.ndarray:
     if frame.compression == "none":
         dtype = np.dtype("<u2") if frame.encoding == "16UC1" else np.dtype("<f4")
         if len(frame.data) != frame.width * frame.height * dtype.itemsize:
-            raise UndecodableDepth(f"{frame.encoding} {frame.width}x{frame.height} needs "
-                                   f"{frame.width * frame.height * dtype.itemsize} bytes, got {len(frame.data)}")
+            raise UndecodableDepth(
+                f"{frame.encoding} {frame.width}x{frame.height} needs "
+                f"{frame.width * frame.height * dtype.itemsize} bytes, got {len(frame.data)}"
+            )
         return np.frombuffer(frame.data, dtype).reshape(frame.height, frame.width)
     # png: check the header before decoding (a small file must not decode to a huge image)
     if not frame.data.startswith(PNG_SIGNATURE):
@@ -63,9 +88,11 @@ def depth_units(frame: DepthFrame) -> np.ndarray:
     except ValueError as exc:
         raise UndecodableDepth(f"png depth: {exc}") from None
     if size != (frame.width, frame.height):
-        raise UndecodableDepth(f"png depth header says {size[0]}x{size[1]}, the frame declares "
-                               f"{frame.width}x{frame.height}")
+        raise UndecodableDepth(
+            f"png depth header says {size[0]}x{size[1]}, the frame declares {frame.width}x{frame.height}"
+        )
     import cv2
+
     img = cv2.imdecode(np.frombuffer(frame.data, np.uint8), cv2.IMREAD_UNCHANGED)
     if img is None or img.dtype != np.uint16 or img.ndim != 2:
         raise UndecodableDepth("png depth does not decode to a single-channel 16-bit image")

@@ -49,11 +49,11 @@ def jpeg_size(data: bytes) -> tuple[int, int]:
             continue
         if marker in (0xD9, 0xDA):
             raise ValueError("JPEG image data before any frame header (SOF)")
-        length = struct.unpack(">H", data[i + 2:i + 4])[0]
+        length = struct.unpack(">H", data[i + 2 : i + 4])[0]
         if marker in JPEG_SOF:
             if length < 7 or i + 9 > len(data):
                 raise ValueError("truncated JPEG frame header")
-            height, width = struct.unpack(">HH", data[i + 5:i + 9])
+            height, width = struct.unpack(">HH", data[i + 5 : i + 9])
             return width, height
         i += 2 + length
     raise ValueError("no JPEG frame header (SOF) in the header segments")
@@ -63,8 +63,9 @@ def check_frame_header(frame: Frame, max_pixels: int | None = DEFAULT_MAX_PIXELS
     """Raise InvalidSample unless the frame is within the pixel cap and its encoded header matches its declared
     width/height: `oversized` (more than `max_pixels`), `bad_value` (header unreadable or different)."""
     if max_pixels is not None and frame.width * frame.height > max_pixels:
-        raise InvalidSample("oversized", f"frame of {frame.width}x{frame.height} is over the cap of {max_pixels} "
-                            f"pixels (--max-pixels)")
+        raise InvalidSample(
+            "oversized", f"frame of {frame.width}x{frame.height} is over the cap of {max_pixels} pixels (--max-pixels)"
+        )
     if frame.encoding == "bgr8":
         return  # its size is checked against width*height*3 by the schema
     try:
@@ -72,8 +73,10 @@ def check_frame_header(frame: Frame, max_pixels: int | None = DEFAULT_MAX_PIXELS
     except (ValueError, struct.error) as exc:
         raise InvalidSample("bad_value", f"{frame.encoding} frame header unreadable: {exc}") from None
     if (width, height) != (frame.width, frame.height):
-        raise InvalidSample("bad_value", f"{frame.encoding} header says {width}x{height}, the frame declares "
-                            f"{frame.width}x{frame.height}")
+        raise InvalidSample(
+            "bad_value",
+            f"{frame.encoding} header says {width}x{height}, the frame declares {frame.width}x{frame.height}",
+        )
 
 
 def decode_image(data: bytes, encoding: str, width: int, height: int) -> np.ndarray:
@@ -83,6 +86,7 @@ def decode_image(data: bytes, encoding: str, width: int, height: int) -> np.ndar
             raise UndecodableFrame(f"bgr8 frame of {width}x{height} needs {width * height * 3} bytes, got {len(data)}")
         return np.frombuffer(data, np.uint8).reshape(height, width, 3)
     import cv2  # here, not at the top: the runner checks headers in services that never decode an image
+
     img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
     if img is None:
         raise UndecodableFrame(f"{encoding} data ({len(data)} bytes) does not decode")
@@ -99,6 +103,7 @@ def frame_image(frame: Frame) -> np.ndarray:
 def frame_handler(service: Any, handle: Callable[[Frame, np.ndarray], None]) -> Callable[[Any], None]:
     """A runner handler for Frame subscriptions: decodes the image and calls `handle(frame, image)`; a frame
     whose image does not decode is rejected as `undecodable` in the service's counters, with the reason."""
+
     def on_frame(delivery: Any) -> None:
         try:
             img = frame_image(delivery.sample)
@@ -106,4 +111,5 @@ def frame_handler(service: Any, handle: Callable[[Frame, np.ndarray], None]) -> 
             service.counters.reject("undecodable", str(exc), delivery.key)
             return
         handle(delivery.sample, img)
+
     return on_frame

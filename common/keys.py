@@ -3,7 +3,18 @@
 from __future__ import annotations
 
 from common.schema import (
-    AudioChunk, Bodies, Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, Sample, Stats, Transcript,
+    AudioChunk,
+    Bodies,
+    Clarification,
+    DepthFrame,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    Sample,
+    Stats,
+    Transcript,
 )
 
 DEFAULT_PREFIX = "hri"
@@ -81,7 +92,7 @@ class Keys:
         head = self.prefix + "/"
         if not key.startswith(head):
             return None
-        chunks = key[len(head):].split("/")
+        chunks = key[len(head) :].split("/")
         for pattern, schema in KEY_TABLE:
             parts = pattern.split("/")
             if len(parts) == len(chunks) and all(p.startswith("{") or p == c for p, c in zip(parts, chunks)):
@@ -93,5 +104,5 @@ class Keys:
         head = self.prefix + "/alive/"
         if not key.startswith(head):
             return None
-        parts = key[len(head):].split("/")
+        parts = key[len(head) :].split("/")
         return (parts[0], parts[1]) if len(parts) == 2 else None

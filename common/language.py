@@ -50,8 +50,19 @@ def one_word_commands() -> tuple[str, ...]:
 # Requests that name no verb ("I'd like the banana"): an intent for the parser only. Kept out of INTENT_PHRASES,
 # which the closed speech grammar reads, so that grammar (and its measured accuracy) stays as it was.
 REQUEST_PHRASES: dict[str, tuple[str, ...]] = {
-    "bring": ("i want", "i d like", "i would like", "i need", "can i have", "could i have", "may i have",
-              "can i get", "could i get", "i ll have", "i ll take"),
+    "bring": (
+        "i want",
+        "i d like",
+        "i would like",
+        "i need",
+        "can i have",
+        "could i have",
+        "may i have",
+        "can i get",
+        "could i get",
+        "i ll have",
+        "i ll take",
+    ),
 }
 
 # Short answers to a clarification question.
@@ -62,8 +73,19 @@ ANSWER_PHRASES: dict[str, tuple[str, ...]] = {
 
 # Colour words. Each key is a colour term fusion matches by similarity (services/fusion/colour.py); the first
 # eleven are the basic colour names (Berlin & Kay) vision publishes in `color` and `colors` (docs/vision.md).
-BASIC_COLORS: tuple[str, ...] = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "brown", "white",
-                                 "grey", "black")
+BASIC_COLORS: tuple[str, ...] = (
+    "red",
+    "orange",
+    "yellow",
+    "green",
+    "blue",
+    "purple",
+    "pink",
+    "brown",
+    "white",
+    "grey",
+    "black",
+)
 _COLOR_TERMS: dict[str, tuple[str, ...]] = {
     "red": ("red", "scarlet", "cherry"),
     "orange": ("orange", "tangerine", "amber"),
@@ -126,29 +148,115 @@ COLOR_PROTOTYPES: dict[str, tuple[tuple[float, float, float], ...]] = {
 # Lightness modifiers: "light blue", "pale green", "dark red", "deep purple" are terms of their own, made
 # from the base term's prototypes (common.colour.modified).
 COLOR_MODIFIERS: dict[str, tuple[str, ...]] = {"light": ("light", "pale"), "dark": ("dark", "deep")}
-MODIFIABLE_COLORS: tuple[str, ...] = ("red", "orange", "yellow", "green", "blue", "purple", "pink", "brown", "grey",
-                                      "turquoise")
+MODIFIABLE_COLORS: tuple[str, ...] = (
+    "red",
+    "orange",
+    "yellow",
+    "green",
+    "blue",
+    "purple",
+    "pink",
+    "brown",
+    "grey",
+    "turquoise",
+)
 VIVID_WORDS: tuple[str, ...] = ("bright", "vivid")  # "bright red" is red: saturation, which real light varies
 COLOR_PHRASES: dict[str, tuple[str, ...]] = {
-    **{term: ps + (tuple(f"{w} {ps[0]}" for w in VIVID_WORDS) if term in MODIFIABLE_COLORS else ())
-       for term, ps in _COLOR_TERMS.items()},
-    **{f"{mod} {base}": tuple(f"{word} {p}" for word in words for p in _COLOR_TERMS[base][:2])
-       for mod, words in COLOR_MODIFIERS.items() for base in MODIFIABLE_COLORS},
+    **{
+        term: ps + (tuple(f"{w} {ps[0]}" for w in VIVID_WORDS) if term in MODIFIABLE_COLORS else ())
+        for term, ps in _COLOR_TERMS.items()
+    },
+    **{
+        f"{mod} {base}": tuple(f"{word} {p}" for word in words for p in _COLOR_TERMS[base][:2])
+        for mod, words in COLOR_MODIFIERS.items()
+        for base in MODIFIABLE_COLORS
+    },
 }
 assert set(COLOR_PROTOTYPES) == set(_COLOR_TERMS) and set(BASIC_COLORS) <= set(COLOR_PROTOTYPES)
 
 # The detector's label set: the 80 COCO classes, in the model's class-index order (YOLOX, SSD, YOLOv5 …
 # all use it). Vision backends that run a COCO model import this list; everything here names them.
 COCO_LABELS: tuple[str, ...] = (
-    "person", "bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat", "traffic light",
-    "fire hydrant", "stop sign", "parking meter", "bench", "bird", "cat", "dog", "horse", "sheep", "cow",
-    "elephant", "bear", "zebra", "giraffe", "backpack", "umbrella", "handbag", "tie", "suitcase", "frisbee",
-    "skis", "snowboard", "sports ball", "kite", "baseball bat", "baseball glove", "skateboard", "surfboard",
-    "tennis racket", "bottle", "wine glass", "cup", "fork", "knife", "spoon", "bowl", "banana", "apple",
-    "sandwich", "orange", "broccoli", "carrot", "hot dog", "pizza", "donut", "cake", "chair", "couch",
-    "potted plant", "bed", "dining table", "toilet", "tv", "laptop", "mouse", "remote", "keyboard", "cell phone",
-    "microwave", "oven", "toaster", "sink", "refrigerator", "book", "clock", "vase", "scissors", "teddy bear",
-    "hair drier", "toothbrush",
+    "person",
+    "bicycle",
+    "car",
+    "motorcycle",
+    "airplane",
+    "bus",
+    "train",
+    "truck",
+    "boat",
+    "traffic light",
+    "fire hydrant",
+    "stop sign",
+    "parking meter",
+    "bench",
+    "bird",
+    "cat",
+    "dog",
+    "horse",
+    "sheep",
+    "cow",
+    "elephant",
+    "bear",
+    "zebra",
+    "giraffe",
+    "backpack",
+    "umbrella",
+    "handbag",
+    "tie",
+    "suitcase",
+    "frisbee",
+    "skis",
+    "snowboard",
+    "sports ball",
+    "kite",
+    "baseball bat",
+    "baseball glove",
+    "skateboard",
+    "surfboard",
+    "tennis racket",
+    "bottle",
+    "wine glass",
+    "cup",
+    "fork",
+    "knife",
+    "spoon",
+    "bowl",
+    "banana",
+    "apple",
+    "sandwich",
+    "orange",
+    "broccoli",
+    "carrot",
+    "hot dog",
+    "pizza",
+    "donut",
+    "cake",
+    "chair",
+    "couch",
+    "potted plant",
+    "bed",
+    "dining table",
+    "toilet",
+    "tv",
+    "laptop",
+    "mouse",
+    "remote",
+    "keyboard",
+    "cell phone",
+    "microwave",
+    "oven",
+    "toaster",
+    "sink",
+    "refrigerator",
+    "book",
+    "clock",
+    "vase",
+    "scissors",
+    "teddy bear",
+    "hair drier",
+    "toothbrush",
 )
 
 # Labels of the colour backend and of the demo scenes that are not COCO classes.
@@ -157,34 +265,110 @@ EXTRA_LABELS: tuple[str, ...] = ("candy", "box", "block")
 # Other words people use for a label: word -> the label it names (one label; a word that may mean
 # several labels is a category below). "glass" is a category (wine glass or cup), "mug" is a cup.
 OBJECT_SYNONYMS: dict[str, str] = {
-    "mug": "cup", "beaker": "cup", "coffee": "cup", "tea": "cup", "coffee cup": "cup", "coffee mug": "cup",
-    "flask": "bottle", "water bottle": "bottle",
-    "ball": "sports ball", "football": "sports ball", "soccer ball": "sports ball", "tennis ball": "sports ball",
-    "phone": "cell phone", "mobile": "cell phone", "mobile phone": "cell phone", "smartphone": "cell phone",
+    "mug": "cup",
+    "beaker": "cup",
+    "coffee": "cup",
+    "tea": "cup",
+    "coffee cup": "cup",
+    "coffee mug": "cup",
+    "flask": "bottle",
+    "water bottle": "bottle",
+    "ball": "sports ball",
+    "football": "sports ball",
+    "soccer ball": "sports ball",
+    "tennis ball": "sports ball",
+    "phone": "cell phone",
+    "mobile": "cell phone",
+    "mobile phone": "cell phone",
+    "smartphone": "cell phone",
     "cellphone": "cell phone",
-    "teddy": "teddy bear", "stuffed animal": "teddy bear", "plush": "teddy bear",
-    "television": "tv", "tv set": "tv", "monitor": "tv", "screen": "tv",
-    "computer": "laptop", "notebook computer": "laptop",
-    "sofa": "couch", "plant": "potted plant", "flower pot": "potted plant",
-    "fridge": "refrigerator", "doughnut": "donut", "remote control": "remote", "controller": "remote",
-    "hairdryer": "hair drier", "hair dryer": "hair drier", "bike": "bicycle", "motorbike": "motorcycle",
-    "plane": "airplane", "puppy": "dog", "kitten": "cat", "bag": "handbag", "purse": "handbag",
-    "rucksack": "backpack", "racket": "tennis racket", "bat": "baseball bat", "glove": "baseball glove",
+    "teddy": "teddy bear",
+    "stuffed animal": "teddy bear",
+    "plush": "teddy bear",
+    "television": "tv",
+    "tv set": "tv",
+    "monitor": "tv",
+    "screen": "tv",
+    "computer": "laptop",
+    "notebook computer": "laptop",
+    "sofa": "couch",
+    "plant": "potted plant",
+    "flower pot": "potted plant",
+    "fridge": "refrigerator",
+    "doughnut": "donut",
+    "remote control": "remote",
+    "controller": "remote",
+    "hairdryer": "hair drier",
+    "hair dryer": "hair drier",
+    "bike": "bicycle",
+    "motorbike": "motorcycle",
+    "plane": "airplane",
+    "puppy": "dog",
+    "kitten": "cat",
+    "bag": "handbag",
+    "purse": "handbag",
+    "rucksack": "backpack",
+    "racket": "tennis racket",
+    "bat": "baseball bat",
+    "glove": "baseball glove",
     "dish": "bowl",
-    "package": "box", "carton": "box", "cube": "box", "brick": "box", "parcel": "box",
-    "sweet": "candy", "smartie": "candy", "smarties": "candy", "candies": "candy", "sweets": "candy",
-    "stool": "chair", "armchair": "chair", "arm chair": "chair", "office chair": "chair", "rocking chair": "chair",
-    "tumbler": "cup", "teacup": "cup", "coffee glass": "cup",
-    "settee": "couch", "loveseat": "couch", "love seat": "couch", "sectional": "couch",
-    "stove": "oven", "range": "oven", "cooker": "oven", "cooktop": "oven", "hob": "oven",
-    "basin": "sink", "washbasin": "sink", "wash basin": "sink", "microwave oven": "microwave",
-    "kitchen table": "dining table", "coffee table": "dining table",
-    "houseplant": "potted plant", "house plant": "potted plant", "pot plant": "potted plant",
-    "telly": "tv", "computer screen": "tv", "laptop computer": "laptop",
-    "him": "person", "gentleman": "person",
-    "human": "person", "man": "person", "woman": "person", "guy": "person", "lady": "person", "boy": "person",
-    "girl": "person", "child": "person", "kid": "person", "someone": "person", "somebody": "person",
-    "people": "person", "men": "person", "women": "person", "children": "person", "kids": "person",
+    "package": "box",
+    "carton": "box",
+    "cube": "box",
+    "brick": "box",
+    "parcel": "box",
+    "sweet": "candy",
+    "smartie": "candy",
+    "smarties": "candy",
+    "candies": "candy",
+    "sweets": "candy",
+    "stool": "chair",
+    "armchair": "chair",
+    "arm chair": "chair",
+    "office chair": "chair",
+    "rocking chair": "chair",
+    "tumbler": "cup",
+    "teacup": "cup",
+    "coffee glass": "cup",
+    "settee": "couch",
+    "loveseat": "couch",
+    "love seat": "couch",
+    "sectional": "couch",
+    "stove": "oven",
+    "range": "oven",
+    "cooker": "oven",
+    "cooktop": "oven",
+    "hob": "oven",
+    "basin": "sink",
+    "washbasin": "sink",
+    "wash basin": "sink",
+    "microwave oven": "microwave",
+    "kitchen table": "dining table",
+    "coffee table": "dining table",
+    "houseplant": "potted plant",
+    "house plant": "potted plant",
+    "pot plant": "potted plant",
+    "telly": "tv",
+    "computer screen": "tv",
+    "laptop computer": "laptop",
+    "him": "person",
+    "gentleman": "person",
+    "human": "person",
+    "man": "person",
+    "woman": "person",
+    "guy": "person",
+    "lady": "person",
+    "boy": "person",
+    "girl": "person",
+    "child": "person",
+    "kid": "person",
+    "someone": "person",
+    "somebody": "person",
+    "people": "person",
+    "men": "person",
+    "women": "person",
+    "children": "person",
+    "kids": "person",
 }
 
 # Words for a kind of thing: word -> the labels it covers. A label itself is always more specific than
@@ -193,8 +377,20 @@ OBJECT_CATEGORIES: dict[str, tuple[str, ...]] = {
     "fruit": ("apple", "banana", "orange", "fruit"),
     "drink": ("bottle", "cup", "wine glass"),
     "glass": ("wine glass", "cup"),
-    "food": ("banana", "apple", "sandwich", "orange", "broccoli", "carrot", "hot dog", "pizza", "donut", "cake",
-             "candy", "fruit"),
+    "food": (
+        "banana",
+        "apple",
+        "sandwich",
+        "orange",
+        "broccoli",
+        "carrot",
+        "hot dog",
+        "pizza",
+        "donut",
+        "cake",
+        "candy",
+        "fruit",
+    ),
     "snack": ("banana", "apple", "orange", "sandwich", "donut", "cake", "candy"),
     "vegetable": ("broccoli", "carrot"),
     "cutlery": ("fork", "knife", "spoon"),
@@ -221,7 +417,8 @@ ANY_OBJECT_WORDS: tuple[str, ...] = ("object", "thing", "item", "one", "stuff", 
 # ("cups", "wine glasses").
 LABEL_PHRASES: dict[str, tuple[str, ...]] = {
     label: (label, *[w for w, lab in OBJECT_SYNONYMS.items() if lab == label and w not in OBJECT_CATEGORIES])
-    for label in (*COCO_LABELS, *EXTRA_LABELS) if label not in OBJECT_CATEGORIES
+    for label in (*COCO_LABELS, *EXTRA_LABELS)
+    if label not in OBJECT_CATEGORIES
 }
 LABEL_PHRASES.update({category: (category,) for category in OBJECT_CATEGORIES})
 LABEL_PHRASES[ANY_OBJECT] = ANY_OBJECT_WORDS
@@ -266,8 +463,22 @@ SPATIAL_PHRASES: dict[str, tuple[str, ...]] = {
 # ("the bottle next to the bowl") the phrase relates the head noun to that anchor; said alone ("the chair in
 # front") it is the spatial word of RELATION_ALONE.
 RELATION_PHRASES: dict[str, tuple[str, ...]] = {
-    "next_to": ("next to", "beside", "besides", "by", "near", "near to", "close to", "nearby", "alongside",
-                "by the side of", "at the side of", "right next to", "right by", "just by"),
+    "next_to": (
+        "next to",
+        "beside",
+        "besides",
+        "by",
+        "near",
+        "near to",
+        "close to",
+        "nearby",
+        "alongside",
+        "by the side of",
+        "at the side of",
+        "right next to",
+        "right by",
+        "just by",
+    ),
     "behind": ("behind", "in back of", "at the back of", "further back than"),
     "in_front_of": ("in front of", "in front", "at the front of"),
     "left_of": ("left of", "to the left of", "on the left of", "on the left side of", "left from"),
@@ -278,17 +489,35 @@ RELATION_PHRASES: dict[str, tuple[str, ...]] = {
     "above": ("above",),
     "between": ("between", "in between"),
 }
-RELATION_ALONE: dict[str, str] = {"next_to": "nearest", "behind": "farthest", "in_front_of": "nearest",
-                                  "left_of": "left", "right_of": "right", "between": "middle", "under": "bottom",
-                                  "above": "top"}
+RELATION_ALONE: dict[str, str] = {
+    "next_to": "nearest",
+    "behind": "farthest",
+    "in_front_of": "nearest",
+    "left_of": "left",
+    "right_of": "right",
+    "between": "middle",
+    "under": "bottom",
+    "above": "top",
+}
 # Ordinals: "the second bottle from the left", "the last one". Counted from the left unless said otherwise.
-ORDINAL_WORDS: dict[str, int] = {"first": 1, "second": 2, "third": 3, "fourth": 4, "fifth": 5, "last": -1,
-                                 "second last": -2, "second to last": -2, "next to last": -2}
+ORDINAL_WORDS: dict[str, int] = {
+    "first": 1,
+    "second": 2,
+    "third": 3,
+    "fourth": 4,
+    "fifth": 5,
+    "last": -1,
+    "second last": -2,
+    "second to last": -2,
+    "next to last": -2,
+}
 ORDINAL_FROM_PHRASES: dict[str, tuple[str, ...]] = {
     "left": ("from the left", "from left", "counting from the left"),
     "right": ("from the right", "from right", "counting from the right"),
-    "top": ("from the top", "from top"), "bottom": ("from the bottom", "from bottom"),
-    "nearest": ("from the front", "from me"), "farthest": ("from the back",),
+    "top": ("from the top", "from top"),
+    "bottom": ("from the bottom", "from bottom"),
+    "nearest": ("from the front", "from me"),
+    "farthest": ("from the back",),
 }
 # Place words that are also objects the detector names, when they are a relation's anchor ("the cup on the table").
 PLACE_AS_OBJECT: dict[str, str] = {"table": "dining table"}
@@ -321,8 +550,34 @@ PLACE_PHRASES: dict[str, tuple[str, ...]] = {
 
 # Words that carry no meaning for the parser (articles, politeness, prepositions).
 FILLER_WORDS: tuple[str, ...] = (
-    "the", "a", "an", "please", "robot", "now", "up", "me", "to", "on", "in", "into", "onto", "at", "of",
-    "and", "then", "can", "you", "could", "would", "kindly", "for", "over", "with", "one", "ones", "is",
+    "the",
+    "a",
+    "an",
+    "please",
+    "robot",
+    "now",
+    "up",
+    "me",
+    "to",
+    "on",
+    "in",
+    "into",
+    "onto",
+    "at",
+    "of",
+    "and",
+    "then",
+    "can",
+    "you",
+    "could",
+    "would",
+    "kindly",
+    "for",
+    "over",
+    "with",
+    "one",
+    "ones",
+    "is",
 )
 
 
@@ -352,55 +607,203 @@ UNIT_PHRASES: dict[str, tuple[str, ...]] = {
 }
 STEP_M = 0.5  # one of the robot's "steps", in metres (documented in docs/fusion.md)
 UNIT_SCALE: dict[str, tuple[str, float]] = {
-    "metre": ("distance", 1.0), "centimetre": ("distance", 0.01), "millimetre": ("distance", 0.001),
-    "foot": ("distance", 0.3048), "inch": ("distance", 0.0254), "step": ("distance", STEP_M),
+    "metre": ("distance", 1.0),
+    "centimetre": ("distance", 0.01),
+    "millimetre": ("distance", 0.001),
+    "foot": ("distance", 0.3048),
+    "inch": ("distance", 0.0254),
+    "step": ("distance", STEP_M),
     "degree": ("angle", 1.0),
 }
 # Amounts without a number: (distance in metres, angle in degrees).
 VAGUE_AMOUNTS: dict[str, tuple[float, float]] = {
-    "a bit": (0.25, 15.0), "a little": (0.25, 15.0), "a little bit": (0.25, 15.0), "slightly": (0.25, 15.0),
-    "a tiny bit": (0.1, 5.0), "a lot": (2.0, 90.0),
+    "a bit": (0.25, 15.0),
+    "a little": (0.25, 15.0),
+    "a little bit": (0.25, 15.0),
+    "slightly": (0.25, 15.0),
+    "a tiny bit": (0.1, 5.0),
+    "a lot": (2.0, 90.0),
 }
 TURN_DEFAULT_DEG = 90.0  # "turn left" without an amount
 TURN_AROUND_DEG = 180.0
 NUMBER_WORDS: dict[str, float] = {
-    "zero": 0, "one": 1, "two": 2, "three": 3, "four": 4, "five": 5, "six": 6, "seven": 7, "eight": 8,
-    "nine": 9, "ten": 10, "eleven": 11, "twelve": 12, "thirteen": 13, "fourteen": 14, "fifteen": 15,
-    "sixteen": 16, "seventeen": 17, "eighteen": 18, "nineteen": 19, "twenty": 20, "thirty": 30, "forty": 40,
-    "fifty": 50, "sixty": 60, "seventy": 70, "eighty": 80, "ninety": 90, "hundred": 100, "half": 0.5,
-    "couple": 2, "few": 3, "a": 1, "an": 1, "single": 1, "quarter": 0.25,
+    "zero": 0,
+    "one": 1,
+    "two": 2,
+    "three": 3,
+    "four": 4,
+    "five": 5,
+    "six": 6,
+    "seven": 7,
+    "eight": 8,
+    "nine": 9,
+    "ten": 10,
+    "eleven": 11,
+    "twelve": 12,
+    "thirteen": 13,
+    "fourteen": 14,
+    "fifteen": 15,
+    "sixteen": 16,
+    "seventeen": 17,
+    "eighteen": 18,
+    "nineteen": 19,
+    "twenty": 20,
+    "thirty": 30,
+    "forty": 40,
+    "fifty": 50,
+    "sixty": 60,
+    "seventy": 70,
+    "eighty": 80,
+    "ninety": 90,
+    "hundred": 100,
+    "half": 0.5,
+    "couple": 2,
+    "few": 3,
+    "a": 1,
+    "an": 1,
+    "single": 1,
+    "quarter": 0.25,
 }
 
 # -- dialogue -----------------------------------------------------------------------------------
 # "The other one": the candidate that was not chosen (or not proposed).
-OTHER_PHRASES: tuple[str, ...] = ("other", "the other", "the other one", "another", "another one", "a different one",
-                                  "different one", "the other way", "not that one", "not this one", "not that",
-                                  "not this", "wrong one", "the wrong one")
+OTHER_PHRASES: tuple[str, ...] = (
+    "other",
+    "the other",
+    "the other one",
+    "another",
+    "another one",
+    "a different one",
+    "different one",
+    "the other way",
+    "not that one",
+    "not this one",
+    "not that",
+    "not this",
+    "wrong one",
+    "the wrong one",
+)
 # Words that take back what was just said: "the red, no, the blue cup". Only after something was said.
-CORRECTION_PHRASES: tuple[str, ...] = ("no", "sorry", "i mean", "i meant", "actually", "rather", "or rather",
-                                       "make that", "no wait", "wait no", "oops", "i mean the", "correction")
+CORRECTION_PHRASES: tuple[str, ...] = (
+    "no",
+    "sorry",
+    "i mean",
+    "i meant",
+    "actually",
+    "rather",
+    "or rather",
+    "make that",
+    "no wait",
+    "wait no",
+    "oops",
+    "i mean the",
+    "correction",
+)
 
 # Speech that carries no meaning: hesitations, politeness and softeners real people add ("uh, could you
 # please hand me the cup for me, thanks"). Kept apart from FILLER_WORDS, which the speech grammar gives roles.
 DISFLUENCY_WORDS: tuple[str, ...] = (
-    "uh", "um", "umm", "uhm", "uhh", "er", "erm", "ah", "hmm", "hm", "mm", "mhm", "oh", "well", "so", "like",
-    "just", "maybe", "thanks", "thank", "cheers", "will", "should", "go ahead and", "quickly", "right now",
-    "very", "really", "mind", "kindly", "pretty", "i", "id", "d", "ll", "s", "want", "need", "would like",
-    "let", "lets", "us", "my", "your", "some", "also", "again", "yourself",
+    "uh",
+    "um",
+    "umm",
+    "uhm",
+    "uhh",
+    "er",
+    "erm",
+    "ah",
+    "hmm",
+    "hm",
+    "mm",
+    "mhm",
+    "oh",
+    "well",
+    "so",
+    "like",
+    "just",
+    "maybe",
+    "thanks",
+    "thank",
+    "cheers",
+    "will",
+    "should",
+    "go ahead and",
+    "quickly",
+    "right now",
+    "very",
+    "really",
+    "mind",
+    "kindly",
+    "pretty",
+    "i",
+    "id",
+    "d",
+    "ll",
+    "s",
+    "want",
+    "need",
+    "would like",
+    "let",
+    "lets",
+    "us",
+    "my",
+    "your",
+    "some",
+    "also",
+    "again",
+    "yourself",
 )
-POLITENESS_PHRASES: tuple[str, ...] = ("could you please", "can you please", "would you please", "please could you",
-                                       "would you mind", "if you could", "for me please", "for me", "thank you",
-                                       "i want you to", "i would like you to", "i d like you to")
-DETERMINERS: tuple[str, ...] = ("the", "a", "an", "this", "that", "these", "those", "my", "your", "some", "his",
-                                "her", "our", "their", "any")
+POLITENESS_PHRASES: tuple[str, ...] = (
+    "could you please",
+    "can you please",
+    "would you please",
+    "please could you",
+    "would you mind",
+    "if you could",
+    "for me please",
+    "for me",
+    "thank you",
+    "i want you to",
+    "i would like you to",
+    "i d like you to",
+)
+DETERMINERS: tuple[str, ...] = (
+    "the",
+    "a",
+    "an",
+    "this",
+    "that",
+    "these",
+    "those",
+    "my",
+    "your",
+    "some",
+    "his",
+    "her",
+    "our",
+    "their",
+    "any",
+)
 
 
 def plural(word: str) -> str:
     """English plural of a label's last word ("cup" -> "cups", "wine glass" -> "wine glasses")."""
     head, _, last = word.rpartition(" ")
-    irregular = {"person": "people", "mouse": "mice", "knife": "knives", "man": "men", "woman": "women",
-                 "child": "children", "foot": "feet", "skis": "skis", "scissors": "scissors", "sheep": "sheep",
-                 "candy": "candies", "stuff": "stuff", "tv": "tvs", "couch": "couches"}
+    irregular = {
+        "person": "people",
+        "mouse": "mice",
+        "knife": "knives",
+        "man": "men",
+        "woman": "women",
+        "child": "children",
+        "foot": "feet",
+        "skis": "skis",
+        "scissors": "scissors",
+        "sheep": "sheep",
+        "candy": "candies",
+        "stuff": "stuff",
+        "tv": "tvs",
+        "couch": "couches",
+    }
     if last in irregular:
         out = irregular[last]
     elif last.endswith(("s", "x", "z", "ch", "sh")):
@@ -427,8 +830,19 @@ def phrases(table: dict[str, tuple[str, ...]]) -> dict[str, str]:
 def vocabulary() -> set[str]:
     """Every single word the language uses (for grammars and ASR prompts)."""
     words: set[str] = set(FILLER_WORDS) | set(DEICTIC_OBJECT_WORDS) | set(DEICTIC_PLACE_WORDS)
-    for table in (INTENT_PHRASES, REQUEST_PHRASES, ANSWER_PHRASES, COLOR_PHRASES, OBJECT_PHRASES, LABEL_PHRASES, SPATIAL_PHRASES,
-                  PLACE_PHRASES, MOTION_PHRASES, DIRECTION_PHRASES, UNIT_PHRASES):
+    for table in (
+        INTENT_PHRASES,
+        REQUEST_PHRASES,
+        ANSWER_PHRASES,
+        COLOR_PHRASES,
+        OBJECT_PHRASES,
+        LABEL_PHRASES,
+        SPATIAL_PHRASES,
+        PLACE_PHRASES,
+        MOTION_PHRASES,
+        DIRECTION_PHRASES,
+        UNIT_PHRASES,
+    ):
         for ps in table.values():
             for p in ps:
                 words.update(p.split())
@@ -441,15 +855,46 @@ def prompt_words(limit: int = 120) -> list[str]:
     """The words most worth priming a recogniser with (Whisper's prompt holds ~220 tokens, so not all of
     `vocabulary()`): the first phrase of each intent, motion, direction and unit, the colours, the labels a
     table-top robot meets (COCO household labels, then the rest), the categories and the dialogue words."""
-    household = ("cup", "bottle", "bowl", "banana", "apple", "orange", "book", "cell phone", "laptop", "remote",
-                 "scissors", "teddy bear", "sports ball", "wine glass", "fork", "knife", "spoon", "keyboard", "mouse",
-                 "person", "chair", "vase", "clock", "toothbrush", "candy", "box")
+    household = (
+        "cup",
+        "bottle",
+        "bowl",
+        "banana",
+        "apple",
+        "orange",
+        "book",
+        "cell phone",
+        "laptop",
+        "remote",
+        "scissors",
+        "teddy bear",
+        "sports ball",
+        "wine glass",
+        "fork",
+        "knife",
+        "spoon",
+        "keyboard",
+        "mouse",
+        "person",
+        "chair",
+        "vase",
+        "clock",
+        "toothbrush",
+        "candy",
+        "box",
+    )
     ordered: list[str] = []
-    for group in ([ps[0] for ps in INTENT_PHRASES.values()], [ps[0] for ps in MOTION_PHRASES.values()],
-                  [ps[0] for ps in DIRECTION_PHRASES.values()], list(BASIC_COLORS), list(household),
-                  list(OBJECT_CATEGORIES), ["the other one", "not that one", "yes", "no", "meters", "degrees",
-                                           "steps", "centimeters"],
-                  list(PLACE_PHRASES), [label for label in COCO_LABELS if label not in household]):
+    for group in (
+        [ps[0] for ps in INTENT_PHRASES.values()],
+        [ps[0] for ps in MOTION_PHRASES.values()],
+        [ps[0] for ps in DIRECTION_PHRASES.values()],
+        list(BASIC_COLORS),
+        list(household),
+        list(OBJECT_CATEGORIES),
+        ["the other one", "not that one", "yes", "no", "meters", "degrees", "steps", "centimeters"],
+        list(PLACE_PHRASES),
+        [label for label in COCO_LABELS if label not in household],
+    ):
         ordered.extend(p for p in group if p not in ordered)
     return ordered[:limit]
 

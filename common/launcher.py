@@ -57,8 +57,10 @@ class ServiceSpec:
 
     def __post_init__(self) -> None:
         if self.name not in STACK or self.argv[:1] != [service_module(self.name)]:
-            raise ValueError(f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(STACK)}: "
-                             f"common/launcher.py STACK) runs as `python -m {service_module(self.name)}`")
+            raise ValueError(
+                f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(STACK)}: "
+                f"common/launcher.py STACK) runs as `python -m {service_module(self.name)}`"
+            )
 
 
 def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
@@ -102,12 +104,20 @@ def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
 class Child:
     """One child process, its output relayed line by line with a name prefix."""
 
-    def __init__(self, name: str, argv: list[str], out: Callable[[str], None], stdin: int | IO | None,
-                 env: dict[str, str]):
+    def __init__(
+        self, name: str, argv: list[str], out: Callable[[str], None], stdin: int | IO | None, env: dict[str, str]
+    ):
         self.name = name
-        self.popen = subprocess.Popen(argv, stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                      env={**os.environ, "PYTHONUNBUFFERED": "1", **env},
-                                      start_new_session=True, text=True, errors="replace")
+        self.popen = subprocess.Popen(
+            argv,
+            stdin=stdin,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            env={**os.environ, "PYTHONUNBUFFERED": "1", **env},
+            start_new_session=True,
+            text=True,
+            errors="replace",
+        )
         self._relay = threading.Thread(target=self._pump, args=(out,), daemon=True)
         self._relay.start()
 
@@ -138,8 +148,15 @@ class Child:
 class Launcher:
     """Runs a set of services (and the router) as one group."""
 
-    def __init__(self, endpoint: str, prefix: str, start_router: bool, out: Callable[[str], None] = print,
-                 secure: str | None = None, listen: list[str] | None = None):
+    def __init__(
+        self,
+        endpoint: str,
+        prefix: str,
+        start_router: bool,
+        out: Callable[[str], None] = print,
+        secure: str | None = None,
+        listen: list[str] | None = None,
+    ):
         self.secure = secure  # a secrets folder: the router enforces it, each service logs in as itself
         self.endpoint = endpoint
         self.listen = listen or [endpoint]  # the router's endpoints (one per network it serves); we use the first
@@ -155,8 +172,13 @@ class Launcher:
         with self._lock:
             self._out(line)
 
-    def _start(self, name: str, module_args: list[str], stdin: int | IO | None = subprocess.DEVNULL,
-               env: dict[str, str] | None = None) -> Child:
+    def _start(
+        self,
+        name: str,
+        module_args: list[str],
+        stdin: int | IO | None = subprocess.DEVNULL,
+        env: dict[str, str] | None = None,
+    ) -> Child:
         argv = [sys.executable, "-m", *module_args, *(["--secure", self.secure] if self.secure else [])]
         child = Child(name, argv, self.say, stdin, {"HRI_PREFIX": self.prefix, **(env or {})})
         self.children.append(child)
@@ -164,10 +186,12 @@ class Launcher:
 
     def start(self, specs: list[ServiceSpec], live_timeout: float = 60.0) -> None:
         if self.start_router:
-            self._start("router", [*ROUTER_ARGV, self.listen[0],
-                                   *[a for ep in self.listen[1:] for a in ("--listen", ep)]])
-        self.session = _client_session(self.endpoint, self.start_router, timeout=30.0, secure=self.secure,
-                                       prefix=self.prefix)
+            self._start(
+                "router", [*ROUTER_ARGV, self.listen[0], *[a for ep in self.listen[1:] for a in ("--listen", ep)]]
+            )
+        self.session = _client_session(
+            self.endpoint, self.start_router, timeout=30.0, secure=self.secure, prefix=self.prefix
+        )
         for spec in specs:
             self._start(spec.name, [*spec.argv, "--connect", self.endpoint], spec.stdin, spec.env)
         self.wait_live([s.name for s in specs], live_timeout)
@@ -188,8 +212,10 @@ class Launcher:
             waiting -= self.live_services()
             dead = [c for c in self.children if c.name in waiting and not c.alive()]
             if dead:
-                raise RuntimeError(f"{dead[0].name} exited with code {dead[0].popen.returncode} before it came up "
-                                   f"(its log lines are above, prefixed [{dead[0].name}])")
+                raise RuntimeError(
+                    f"{dead[0].name} exited with code {dead[0].popen.returncode} before it came up "
+                    f"(its log lines are above, prefixed [{dead[0].name}])"
+                )
             if not waiting:
                 break
             if time.monotonic() > deadline:
@@ -208,8 +234,9 @@ class Launcher:
         self.children.clear()
 
 
-def _client_session(endpoint: str, router_starting: bool, timeout: float,
-                    secure: str | None = None, prefix: str = "hri") -> zenoh.Session:
+def _client_session(
+    endpoint: str, router_starting: bool, timeout: float, secure: str | None = None, prefix: str = "hri"
+) -> zenoh.Session:
     deadline = time.monotonic() + timeout
     while True:
         try:
@@ -222,34 +249,65 @@ def _client_session(endpoint: str, router_starting: bool, timeout: float,
 
 
 def add_up_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--camera", default="0", help="camera source: device index, video, image or folder "
-                   "(default 0); 'none' for no camera service")
+    p.add_argument(
+        "--camera",
+        default="0",
+        help="camera source: device index, video, image or folder (default 0); 'none' for no camera service",
+    )
     p.add_argument("--cam", default="cam0", help="camera id (default cam0)")
     p.add_argument("--fps", type=float, default=None, help="camera publish rate")
     p.add_argument("--loop", action="store_true", help="loop a video file or image folder")
     p.add_argument("--vision-backend", choices=("color", "onnx"), default="color")
-    p.add_argument("--model", default=None,
-                   help="ONNX detector path for --vision-backend onnx (YOLOX, YOLOv5 or YOLOv8/11 export)")
-    p.add_argument("--vision-labels", default=None, metavar="FILE",
-                   help='colour -> label JSON for the color backend, e.g. data/demo/labels.json ({"*": "candy"}); '
-                        "with onnx, the model's class names, one per line (default: COCO-80)")
-    p.add_argument("--vision-arg", action="append", default=[], metavar="ARG",
-                   help="extra argument for the vision service, repeatable (e.g. --vision-arg=--conf=0.4)")
+    p.add_argument(
+        "--model", default=None, help="ONNX detector path for --vision-backend onnx (YOLOX, YOLOv5 or YOLOv8/11 export)"
+    )
+    p.add_argument(
+        "--vision-labels",
+        default=None,
+        metavar="FILE",
+        help='colour -> label JSON for the color backend, e.g. data/demo/labels.json ({"*": "candy"}); '
+        "with onnx, the model's class names, one per line (default: COCO-80)",
+    )
+    p.add_argument(
+        "--vision-arg",
+        action="append",
+        default=[],
+        metavar="ARG",
+        help="extra argument for the vision service, repeatable (e.g. --vision-arg=--conf=0.4)",
+    )
     p.add_argument("--no-vision", action="store_true", help="do not start the vision service")
     p.add_argument("--no-gesture", action="store_true", help="do not start the gesture service")
     p.add_argument("--mirrored", action="store_true", help="the camera image is mirrored (selfie view)")
-    p.add_argument("--speech-input", choices=("mic", "wav", "zenoh", "text", "none"), default="mic",
-                   help="mic (default), wav files (--wav), AudioChunks over zenoh, text lines on stdin, or none")
+    p.add_argument(
+        "--speech-input",
+        choices=("mic", "wav", "zenoh", "text", "none"),
+        default="mic",
+        help="mic (default), wav files (--wav), AudioChunks over zenoh, text lines on stdin, or none",
+    )
     p.add_argument("--wav", nargs="+", default=None, help="WAV files or folders for --speech-input wav")
-    p.add_argument("--speech-backend", choices=("whisper", "pocketsphinx"), default=None,
-                   help="speech recogniser: whisper (the default: Whisper tiny.en, offline, from a package) or "
-                        "pocketsphinx (a grammar decoder for small machines)")
-    p.add_argument("--fusion-arg", action="append", default=[], metavar="ARG",
-                   help="extra argument for the fusion service, repeatable (e.g. --fusion-arg=--weights=fixed)")
-    p.add_argument("--only", type=only_list, default=None, metavar="NAME[,NAME...]",
-                   help=f"start only these of router,{','.join(STACK)} (the rest runs on other hosts); without "
-                        f"'router' in the list, the services connect to --connect ENDPOINT (default "
-                        f"{DEFAULT_ENDPOINT})")
+    p.add_argument(
+        "--speech-backend",
+        choices=("whisper", "pocketsphinx"),
+        default=None,
+        help="speech recogniser: whisper (the default: Whisper tiny.en, offline, from a package) or "
+        "pocketsphinx (a grammar decoder for small machines)",
+    )
+    p.add_argument(
+        "--fusion-arg",
+        action="append",
+        default=[],
+        metavar="ARG",
+        help="extra argument for the fusion service, repeatable (e.g. --fusion-arg=--weights=fixed)",
+    )
+    p.add_argument(
+        "--only",
+        type=only_list,
+        default=None,
+        metavar="NAME[,NAME...]",
+        help=f"start only these of router,{','.join(STACK)} (the rest runs on other hosts); without "
+        f"'router' in the list, the services connect to --connect ENDPOINT (default "
+        f"{DEFAULT_ENDPOINT})",
+    )
     p.add_argument("--live-timeout", type=float, default=90.0, help="seconds to wait for each service to come up")
 
 
@@ -257,8 +315,9 @@ def only_list(text: str) -> list[str]:
     names = [n.strip() for n in text.split(",") if n.strip()]
     unknown = [n for n in names if n not in ("router", *STACK)]
     if unknown or not names:
-        raise argparse.ArgumentTypeError(f"unknown part(s) {unknown or [text]}: name some of "
-                                         f"router,{','.join(STACK)}, comma-separated")
+        raise argparse.ArgumentTypeError(
+            f"unknown part(s) {unknown or [text]}: name some of router,{','.join(STACK)}, comma-separated"
+        )
     return names
 
 
@@ -287,8 +346,10 @@ def cmd_up(args: argparse.Namespace) -> int:
     code = 0
     try:
         launcher.start(specs, args.live_timeout)
-        launcher.say(f"[hri up ] all up; watch with: hri echo '{prefix}/fusion/**' "
-                     f"--connect {launcher.endpoint}   (Ctrl-C stops everything)")
+        launcher.say(
+            f"[hri up ] all up; watch with: hri echo '{prefix}/fusion/**' "
+            f"--connect {launcher.endpoint}   (Ctrl-C stops everything)"
+        )
         reported: set[int] = set()
         while not stop.wait(0.5):
             for child in launcher.children:

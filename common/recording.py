@@ -102,13 +102,23 @@ class KeyTally:
 class SessionWriter:
     """Writes received samples to an MCAP stream: one channel per key, payload bytes untouched."""
 
-    def __init__(self, stream: IO[bytes], keys: Keys, *, compression: str = "zstd",
-                 metadata: dict[str, str] | None = None, chunk_size: int = 1 << 20):
+    def __init__(
+        self,
+        stream: IO[bytes],
+        keys: Keys,
+        *,
+        compression: str = "zstd",
+        metadata: dict[str, str] | None = None,
+        chunk_size: int = 1 << 20,
+    ):
         mcap = _mcap()
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression must be one of {COMPRESSIONS}, not {compression!r}")
-        kind = {"zstd": mcap.writer.CompressionType.ZSTD, "lz4": mcap.writer.CompressionType.LZ4,
-                "none": mcap.writer.CompressionType.NONE}[compression]
+        kind = {
+            "zstd": mcap.writer.CompressionType.ZSTD,
+            "lz4": mcap.writer.CompressionType.LZ4,
+            "none": mcap.writer.CompressionType.NONE,
+        }[compression]
         self.keys = keys
         self._writer = mcap.writer.Writer(stream, chunk_size=chunk_size, compression=kind)
         self._writer.start(profile=PROFILE, library="hri-fusion record")
@@ -127,9 +137,12 @@ class SessionWriter:
             return 0
         if schema.__name__ not in self._schemas:
             from common.wiredoc import json_schema
+
             self._schemas[schema.__name__] = self._writer.register_schema(
-                name=schema.__name__, encoding="jsonschema",
-                data=json.dumps(json_schema(schema), separators=(",", ":")).encode())
+                name=schema.__name__,
+                encoding="jsonschema",
+                data=json.dumps(json_schema(schema), separators=(",", ":")).encode(),
+            )
         return self._schemas[schema.__name__]
 
     def add(self, key: str, payload: bytes, receive_ns: int, zenoh_encoding: str = ENCODING) -> int:
@@ -138,8 +151,11 @@ class SessionWriter:
         if channel is None:
             schema = self.keys.schema_for(key)
             channel = self._channels[key] = self._writer.register_channel(
-                topic=key, message_encoding=MESSAGE_ENCODING, schema_id=self._schema_id(schema),
-                metadata={"schema": schema.__name__ if schema else "", "zenoh_encoding": zenoh_encoding})
+                topic=key,
+                message_encoding=MESSAGE_ENCODING,
+                schema_id=self._schema_id(schema),
+                metadata={"schema": schema.__name__ if schema else "", "zenoh_encoding": zenoh_encoding},
+            )
         stamp = stamp_ns(key, payload, self.keys)
         tally = self.tally[key]
         tally.samples += 1
@@ -147,8 +163,9 @@ class SessionWriter:
         if stamp is None:
             tally.not_contract += 1
         publish_ns = receive_ns if stamp is None else stamp
-        self._writer.add_message(channel_id=channel, log_time=receive_ns, data=payload,
-                                 publish_time=publish_ns, sequence=tally.samples)
+        self._writer.add_message(
+            channel_id=channel, log_time=receive_ns, data=payload, publish_time=publish_ns, sequence=tally.samples
+        )
         self.samples += 1
         self.bytes += len(payload)
         return publish_ns
@@ -175,6 +192,7 @@ class Recorded:
 @dataclass
 class RecordingInfo:
     """What the summary says (or what a linear scan found when the summary is missing)."""
+
     keys: dict[str, int] = field(default_factory=dict)  # key -> message count
     start_ns: int = 0
     end_ns: int = 0
@@ -219,14 +237,16 @@ class SessionReader:
         except self._errors:
             summary = None
         if summary is not None and summary.statistics is not None:
-            info = RecordingInfo(start_ns=summary.statistics.message_start_time,
-                                 end_ns=summary.statistics.message_end_time)
+            info = RecordingInfo(
+                start_ns=summary.statistics.message_start_time, end_ns=summary.statistics.message_end_time
+            )
             for cid, channel in summary.channels.items():
                 if channel.message_encoding != MESSAGE_ENCODING:
                     self.skipped_encodings[channel.topic] = channel.message_encoding
                     continue
-                info.keys[channel.topic] = info.keys.get(channel.topic, 0) + \
-                    summary.statistics.channel_message_counts.get(cid, 0)
+                info.keys[channel.topic] = info.keys.get(
+                    channel.topic, 0
+                ) + summary.statistics.channel_message_counts.get(cid, 0)
             return info
         # No summary: the recording was cut short. One linear pass tells what is readable.
         info = RecordingInfo(complete=False)
@@ -311,8 +331,7 @@ class ReplayClock:
 class Progress:
     """A status line on stderr about once a second: rewritten in place on a terminal, appended otherwise."""
 
-    def __init__(self, stream: IO[str] = sys.stderr, interval: float = 1.0,
-                 now: Callable[[], float] = time.monotonic):
+    def __init__(self, stream: IO[str] = sys.stderr, interval: float = 1.0, now: Callable[[], float] = time.monotonic):
         self.stream = stream
         self.interval = interval
         self._now = now
@@ -342,8 +361,10 @@ class Progress:
 
 def rate_line(verb: str, samples: int, nbytes: int, elapsed: float, extra: str = "") -> str:
     elapsed = max(elapsed, 1e-9)
-    return (f"{verb}: {samples} samples, {human_bytes(nbytes)}, {samples / elapsed:.1f} samples/s "
-            f"({human_bytes(nbytes / elapsed)}/s), {elapsed:.1f} s{extra}")
+    return (
+        f"{verb}: {samples} samples, {human_bytes(nbytes)}, {samples / elapsed:.1f} samples/s "
+        f"({human_bytes(nbytes / elapsed)}/s), {elapsed:.1f} s{extra}"
+    )
 
 
 def key_table(counts: dict[str, KeyTally] | dict[str, int]) -> str:
@@ -363,28 +384,49 @@ def key_table(counts: dict[str, KeyTally] | dict[str, int]) -> str:
 # ---------------------------------------------------------------------------
 def add_record_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("keyexpr", nargs="*", help="zenoh key expressions to record (default '<prefix>/**')")
-    p.add_argument("-o", "--output", default=None,
-                   help="the .mcap file to write (default hri-YYYYmmdd-HHMMSS.mcap in the current folder)")
+    p.add_argument(
+        "-o",
+        "--output",
+        default=None,
+        help="the .mcap file to write (default hri-YYYYmmdd-HHMMSS.mcap in the current folder)",
+    )
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.add_argument("--count", type=int, default=None, help="stop after N samples")
     p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
     p.add_argument("--compression", choices=COMPRESSIONS, default="zstd", help="chunk compression (default zstd)")
-    p.add_argument("--max-backlog-mb", type=float, default=256.0,
-                   help="received but not yet written data above which new samples are dropped and counted "
-                        "(default 256)")
+    p.add_argument(
+        "--max-backlog-mb",
+        type=float,
+        default=256.0,
+        help="received but not yet written data above which new samples are dropped and counted (default 256)",
+    )
     p.set_defaults(func=cmd_record)
 
 
 def add_replay_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", help="an .mcap written by `hri record`")
-    p.add_argument("--speed", type=float, default=1.0,
-                   help="time scale: 1 = original timing (default), 2 = twice as fast, 0 = as fast as possible")
-    p.add_argument("--only", action="append", default=None, metavar="KEYEXPR",
-                   help="replay only keys intersecting this key expression, repeatable (e.g. 'hri/speech/**')")
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=1.0,
+        help="time scale: 1 = original timing (default), 2 = twice as fast, 0 = as fast as possible",
+    )
+    p.add_argument(
+        "--only",
+        action="append",
+        default=None,
+        metavar="KEYEXPR",
+        help="replay only keys intersecting this key expression, repeatable (e.g. 'hri/speech/**')",
+    )
     p.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
-    p.add_argument("--wait-subscribers", type=float, default=2.0, metavar="S",
-                   help="wait up to S seconds for a subscriber on a replayed key before the first send "
-                        "(default 2; 0 = do not wait)")
+    p.add_argument(
+        "--wait-subscribers",
+        type=float,
+        default=2.0,
+        metavar="S",
+        help="wait up to S seconds for a subscriber on a replayed key before the first send "
+        "(default 2; 0 = do not wait)",
+    )
     p.set_defaults(func=cmd_replay)
 
 
@@ -395,13 +437,13 @@ def _stop_on_signals(stop: threading.Event) -> None:
 
 def _check_keyexprs(exprs: Iterable[str], what: str) -> list[Any] | None:
     import zenoh
+
     out = []
     for expr in exprs:
         try:
             out.append(zenoh.KeyExpr(expr))
         except zenoh.ZError as exc:
-            print(f"hri {what}: {expr!r} is not a valid key expression: {str(exc).split(' at ')[0]}",
-                  file=sys.stderr)
+            print(f"hri {what}: {expr!r} is not a valid key expression: {str(exc).split(' at ')[0]}", file=sys.stderr)
             return None
     return out
 
@@ -422,8 +464,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         return 2
     out = Path(args.output or time.strftime("hri-%Y%m%d-%H%M%S.mcap"))
     if out.exists() and not args.force:
-        print(f"hri record: {out} already exists; pass --force to overwrite it or choose another -o",
-              file=sys.stderr)
+        print(f"hri record: {out} already exists; pass --force to overwrite it or choose another -o", file=sys.stderr)
         return 2
     try:
         stream = open(out, "wb")
@@ -433,9 +474,18 @@ def cmd_record(args: argparse.Namespace) -> int:
     log = setup_logging("hri.record", args.log_level)
     stop = threading.Event()
     _stop_on_signals(stop)
-    writer = SessionWriter(stream, keys, compression=args.compression,
-                           metadata={"keyexpr": " ".join(exprs), "prefix": keys.prefix, "host": socket.gethostname(),
-                                     "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "tool": "hri record"})
+    writer = SessionWriter(
+        stream,
+        keys,
+        compression=args.compression,
+        metadata={
+            "keyexpr": " ".join(exprs),
+            "prefix": keys.prefix,
+            "host": socket.gethostname(),
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            "tool": "hri record",
+        },
+    )
 
     # Zenoh callbacks only enqueue; the main thread decodes stamps and writes, so a slow disk
     # shows up as backlog (and, past --max-backlog-mb, as counted drops) instead of stalling the session.
@@ -468,8 +518,11 @@ def cmd_record(args: argparse.Namespace) -> int:
     def extra() -> str:
         with backlog_lock:
             b, d = backlog["bytes"], backlog["dropped"]
-        return (f", {len(writer.tally)} keys" + (f", backlog {human_bytes(b)}" if b > 1_000_000 else "")
-                + (f", {d} DROPPED (disk too slow)" if d else ""))
+        return (
+            f", {len(writer.tally)} keys"
+            + (f", backlog {human_bytes(b)}" if b > 1_000_000 else "")
+            + (f", {d} DROPPED (disk too slow)" if d else "")
+        )
 
     def write_one(item: tuple[str, bytes, int, str]) -> None:
         key, payload, receive_ns, encoding = item
@@ -489,8 +542,7 @@ def cmd_record(args: argparse.Namespace) -> int:
             except queue.Empty:
                 pass
             if progress.due():
-                progress.show(rate_line("recording", writer.samples, writer.bytes,
-                                        time.monotonic() - started, extra()))
+                progress.show(rate_line("recording", writer.samples, writer.bytes, time.monotonic() - started, extra()))
         for sub in subscribers:
             sub.undeclare()
         # what already arrived is written, up to --count
@@ -546,17 +598,28 @@ def cmd_replay(args: argparse.Namespace) -> int:
     for key, enc in reader.skipped_encodings.items():
         log.warning("skipping %s: message encoding %r is not msgpack", key, enc)
     if not info.complete:
-        log.warning("%s has no summary (the recorder did not finish it); replaying the %d readable samples",
-                    args.file, info.samples)
+        log.warning(
+            "%s has no summary (the recorder did not finish it); replaying the %d readable samples",
+            args.file,
+            info.samples,
+        )
     if not selected:
         what = f" matching {' '.join(args.only)}" if args.only else ""
-        print(f"hri replay: nothing to replay{what} in {args.file} (keys: {', '.join(sorted(info.keys)) or 'none'})",
-              file=sys.stderr)
+        print(
+            f"hri replay: nothing to replay{what} in {args.file} (keys: {', '.join(sorted(info.keys)) or 'none'})",
+            file=sys.stderr,
+        )
         reader.close()
         return 1
     total = sum(selected.values())
-    log.info("replaying %d samples on %d keys spanning %.1f s from %s at %s", total, len(selected), info.span_s,
-             args.file, "full speed" if args.speed == 0 else f"x{args.speed:g}")
+    log.info(
+        "replaying %d samples on %d keys spanning %.1f s from %s at %s",
+        total,
+        len(selected),
+        info.span_s,
+        args.file,
+        "full speed" if args.speed == 0 else f"x{args.speed:g}",
+    )
 
     stop = threading.Event()
     _stop_on_signals(stop)
@@ -564,10 +627,15 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if session is None:
         reader.close()
         return 0
-    publishers = {key: session.declare_publisher(key, encoding=zenoh.Encoding(ENCODING),
-                                                 congestion_control=zenoh.CongestionControl.BLOCK,
-                                                 priority=zenoh.Priority.DATA_HIGH)
-                  for key in sorted(selected)}
+    publishers = {
+        key: session.declare_publisher(
+            key,
+            encoding=zenoh.Encoding(ENCODING),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+            priority=zenoh.Priority.DATA_HIGH,
+        )
+        for key in sorted(selected)
+    }
     _wait_for_subscribers(publishers, args.wait_subscribers, stop, log)
 
     clock = ReplayClock(args.speed)
@@ -592,8 +660,11 @@ def cmd_replay(args: argparse.Namespace) -> int:
                 if progress.due():
                     where = f", {(msg.log_ns - first_ns) / NS:.1f}/{info.span_s:.1f} s recorded time"
                     loop = f", loop {loops}" if args.loop else ""
-                    progress.show(rate_line("replaying", sent, sent_bytes, time.monotonic() - started,
-                                            f" [{i}/{total}{where}{loop}]"))
+                    progress.show(
+                        rate_line(
+                            "replaying", sent, sent_bytes, time.monotonic() - started, f" [{i}/{total}{where}{loop}]"
+                        )
+                    )
             if reader.damaged:
                 log.warning("stopped reading at damaged data in %s: %s", args.file, reader.damaged)
             if not args.loop:
@@ -608,10 +679,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
         session.close()
         reader.close()
     elapsed = time.monotonic() - started
-    progress.end(rate_line("replayed", sent, sent_bytes, elapsed,
-                           f" on {len(selected)} keys (recording spans {info.span_s:.1f} s, "
-                           f"{'full speed' if args.speed == 0 else f'x{args.speed:g}'}"
-                           f"{f', {loops} loops' if args.loop else ''})"))
+    progress.end(
+        rate_line(
+            "replayed",
+            sent,
+            sent_bytes,
+            elapsed,
+            f" on {len(selected)} keys (recording spans {info.span_s:.1f} s, "
+            f"{'full speed' if args.speed == 0 else f'x{args.speed:g}'}"
+            f"{f', {loops} loops' if args.loop else ''})",
+        )
+    )
     return error
 
 

@@ -30,8 +30,8 @@ from typing import Any, Callable
 import zenoh
 
 from common.codec import ENCODING, decode, encode
-from common.keys import Keys, check_chunk
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
+from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
 from common.stamps import DEFAULT_MAX_SKEW_S, DEFAULT_RESET_RUN, FUTURE, OUT_OF_ORDER, RESET, StampGuard
 from common.transport import add_zenoh_arguments, declare_recovering_publisher, open_session, resolve
@@ -48,21 +48,37 @@ def setup_logging(name: str, level: str | None = None) -> logging.Logger:
 
 def service_parser(name: str, description: str, epilog: str = "") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=f"hri-{name}", description=description, epilog=epilog,
-        formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--instance", default=os.environ.get("HRI_INSTANCE"),
-                        help="this instance's id in liveliness/stats keys and `source` (default host-pid)")
+        prog=f"hri-{name}", description=description, epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--instance",
+        default=os.environ.get("HRI_INSTANCE"),
+        help="this instance's id in liveliness/stats keys and `source` (default host-pid)",
+    )
     parser.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
     g = parser.add_argument_group("input checks (docs/foundation.md)")
-    g.add_argument("--max-skew", type=_at_least(0.0, float), default=DEFAULT_MAX_SKEW_S, metavar="S",
-                   help=f"reject samples stamped more than S seconds ahead of this machine's clock "
-                        f"(default {DEFAULT_MAX_SKEW_S:g})")
-    g.add_argument("--timeline-run", type=_at_least(1, int), default=DEFAULT_RESET_RUN, metavar="N",
-                   help=f"follow a stream that went back in time after N consistent samples "
-                        f"(default {DEFAULT_RESET_RUN})")
-    g.add_argument("--max-pixels", type=_at_least(1, int), default=DEFAULT_MAX_PIXELS, metavar="N",
-                   help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: "
-                        f"4096x2160)")
+    g.add_argument(
+        "--max-skew",
+        type=_at_least(0.0, float),
+        default=DEFAULT_MAX_SKEW_S,
+        metavar="S",
+        help=f"reject samples stamped more than S seconds ahead of this machine's clock "
+        f"(default {DEFAULT_MAX_SKEW_S:g})",
+    )
+    g.add_argument(
+        "--timeline-run",
+        type=_at_least(1, int),
+        default=DEFAULT_RESET_RUN,
+        metavar="N",
+        help=f"follow a stream that went back in time after N consistent samples (default {DEFAULT_RESET_RUN})",
+    )
+    g.add_argument(
+        "--max-pixels",
+        type=_at_least(1, int),
+        default=DEFAULT_MAX_PIXELS,
+        metavar="N",
+        help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: 4096x2160)",
+    )
     add_zenoh_arguments(parser)
     return parser
 
@@ -73,6 +89,7 @@ def _at_least(lowest: float, kind: Callable[[str], Any]) -> Callable[[str], Any]
         if value < lowest:
             raise argparse.ArgumentTypeError(f"must be at least {lowest}, got {text}")
         return value
+
     parse.__name__ = kind.__name__  # argparse names the type in its errors
     return parse
 
@@ -100,8 +117,13 @@ class RateLimitedLog:
                 return
             self._last[reason] = now
             n, _ = self._pending.pop(reason, (0, ""))
-        self._log.log(level, "%s%s", message, f" (and {n} more like it in the last {self._interval:g} s)" if n
-                      else "", exc_info=exc_info)
+        self._log.log(
+            level,
+            "%s%s",
+            message,
+            f" (and {n} more like it in the last {self._interval:g} s)" if n else "",
+            exc_info=exc_info,
+        )
 
     def flush(self) -> None:
         """Write the summaries whose interval is over (called periodically, so a flood that stops is reported)."""
@@ -151,8 +173,13 @@ class Counters:
 
     def snapshot(self) -> dict[str, Any]:
         with self._lock:
-            return {"received": self.received, "published": self.published, "skipped": self.skipped,
-                    "rejected": dict(self.rejected), "other": dict(self.other)}
+            return {
+                "received": self.received,
+                "published": self.published,
+                "skipped": self.skipped,
+                "rejected": dict(self.rejected),
+                "other": dict(self.other),
+            }
 
 
 @dataclass(slots=True)
@@ -179,7 +206,7 @@ class Inbox:
         with self._cond:
             if self._fifo_len[channel] >= maxlen:
                 # drop the oldest of this channel: count it, keep the stream moving
-                for i, (_, old, ch) in enumerate(self._fifo):
+                for i, (_, _, ch) in enumerate(self._fifo):
                     if ch == channel:
                         del self._fifo[i]
                         self._fifo_len[channel] -= 1
@@ -223,8 +250,9 @@ class Inbox:
 class Service:
     """A running hri service: session, liveliness, stats, validated inputs, one worker thread."""
 
-    def __init__(self, name: str, args: argparse.Namespace, log: logging.Logger | None = None,
-                 recovering: bool = False):
+    def __init__(
+        self, name: str, args: argparse.Namespace, log: logging.Logger | None = None, recovering: bool = False
+    ):
         """`recovering`: this service publishes with `publish(..., recovering=True)` (its session then stamps
         its samples itself, which Zenoh's AdvancedPublisher needs)."""
         resolve(args)
@@ -255,8 +283,9 @@ class Service:
         self.session = open_session(self.args, self.log, self.stop_event, timestamping=self.recovering)
         if self.session is None:
             return False
-        self._declared.append(self.session.declare_queryable(self.keys.stats(self.name, self.instance),
-                                                             self._answer_stats))
+        self._declared.append(
+            self.session.declare_queryable(self.keys.stats(self.name, self.instance), self._answer_stats)
+        )
         return True
 
     def _install_signal_handlers(self) -> None:
@@ -264,8 +293,16 @@ class Service:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, lambda *_: self.stop_event.set())
 
-    def subscribe(self, keyexpr: str, schema: type[Sample], handler: Callable[[Delivery], None], *,
-                  latest: bool = False, maxlen: int = 1000, monotonic: bool = False) -> None:
+    def subscribe(
+        self,
+        keyexpr: str,
+        schema: type[Sample],
+        handler: Callable[[Delivery], None],
+        *,
+        latest: bool = False,
+        maxlen: int = 1000,
+        monotonic: bool = False,
+    ) -> None:
         """Validate samples on `keyexpr` as `schema` and hand valid ones to `handler` on the worker thread.
 
         Every sample stamped more than --max-skew ahead of this machine's clock is rejected as future_stamp.
@@ -276,8 +313,10 @@ class Service:
         assert self.session is not None, "connect() first"
         channel = self._channels
         self._channels += 1
-        guard = StampGuard(max_skew=getattr(self.args, "max_skew", DEFAULT_MAX_SKEW_S),
-                           reset_run=getattr(self.args, "timeline_run", DEFAULT_RESET_RUN))
+        guard = StampGuard(
+            max_skew=getattr(self.args, "max_skew", DEFAULT_MAX_SKEW_S),
+            reset_run=getattr(self.args, "timeline_run", DEFAULT_RESET_RUN),
+        )
         guard_lock = threading.Lock()  # zenoh may call back from several threads
         max_pixels = getattr(self.args, "max_pixels", DEFAULT_MAX_PIXELS)
 
@@ -299,21 +338,37 @@ class Service:
             else:
                 verdict = FUTURE if guard.is_future(sample.stamp, now) else "accepted"
             if verdict == FUTURE:
-                self.counters.reject(FUTURE, f"stamp {sample.stamp:.6f} is {sample.stamp - now:.3g} s ahead of "
-                                     f"this machine's clock (more than --max-skew {guard.max_skew:g} s): is the "
-                                     f"sender's clock synchronised (NTP)?", key)
+                self.counters.reject(
+                    FUTURE,
+                    f"stamp {sample.stamp:.6f} is {sample.stamp - now:.3g} s ahead of "
+                    f"this machine's clock (more than --max-skew {guard.max_skew:g} s): is the "
+                    f"sender's clock synchronised (NTP)?",
+                    key,
+                )
                 return
             if verdict == OUT_OF_ORDER:
-                self.counters.reject(OUT_OF_ORDER, f"stamp {sample.stamp:.6f} is older than {high:.6f} already "
-                                     f"seen ({guard.reset_run} consistent older samples start a new timeline)", key)
+                self.counters.reject(
+                    OUT_OF_ORDER,
+                    f"stamp {sample.stamp:.6f} is older than {high:.6f} already "
+                    f"seen ({guard.reset_run} consistent older samples start a new timeline)",
+                    key,
+                )
                 return
             if verdict == RESET:
                 self.counters.add(RESET)
-                self.counters.ratelog.warn(RESET, f"{key} went back in time: following its new timeline from "
-                                           f"stamp {sample.stamp:.6f} (a clock step or a restarted replay?)")
+                self.counters.ratelog.warn(
+                    RESET,
+                    f"{key} went back in time: following its new timeline from "
+                    f"stamp {sample.stamp:.6f} (a clock step or a restarted replay?)",
+                )
             ts = zsample.timestamp
-            delivery = Delivery(key, sample, time.time(), verdict == RESET,
-                                ts.get_time_as_ntp64().as_secs_f64() if ts is not None else None)
+            delivery = Delivery(
+                key,
+                sample,
+                time.time(),
+                verdict == RESET,
+                ts.get_time_as_ntp64().as_secs_f64() if ts is not None else None,
+            )
             if latest:
                 self._inbox.put_latest(handler, delivery)
             else:
@@ -321,8 +376,9 @@ class Service:
 
         self._subscribers.append(self.session.declare_subscriber(keyexpr, on_sample))
 
-    def publish(self, key: str, sample: Sample, *, lossless: bool = True, realtime: bool = False,
-                recovering: bool = False) -> None:
+    def publish(
+        self, key: str, sample: Sample, *, lossless: bool = True, realtime: bool = False, recovering: bool = False
+    ) -> None:
         """`recovering`: what must not be lost across a dropped link (commands): kept in a cache that recovering
         subscribers fetch what they missed from (common/transport.py declare_recovering_publisher)."""
         slot = (key, lossless, realtime, recovering)
@@ -330,8 +386,9 @@ class Service:
         if pub is None:  # one declared publisher per key and QoS (a stop and a pick_up share a key, not a QoS)
             assert self.session is not None, "connect() first"
             assert self.recovering or not recovering, "Service(..., recovering=True) for recovering publishers"
-            pub = self._publishers[slot] = SamplePublisher(self.session, key, lossless=lossless, realtime=realtime,
-                                                           recovering=recovering)
+            pub = self._publishers[slot] = SamplePublisher(
+                self.session, key, lossless=lossless, realtime=realtime, recovering=recovering
+            )
         pub.put(sample)
         self.counters.add("published")
 
@@ -340,8 +397,14 @@ class Service:
 
     def stats(self) -> Stats:
         snap = self.counters.snapshot()
-        return Stats(stamp=time.time(), source=self.source, service=self.name, instance=self.instance,
-                     uptime=time.monotonic() - self._started, **snap)
+        return Stats(
+            stamp=time.time(),
+            source=self.source,
+            service=self.name,
+            instance=self.instance,
+            uptime=time.monotonic() - self._started,
+            **snap,
+        )
 
     def _answer_stats(self, query: zenoh.Query) -> None:
         try:
@@ -350,15 +413,20 @@ class Service:
             self.log.warning("could not answer a stats query: %s", exc)
 
     # -- running -----------------------------------------------------------
-    def run(self, loop: Callable[[threading.Event], None] | None = None,
-            tick: Callable[[], None] | None = None, tick_interval: float = 0.05) -> int:
+    def run(
+        self,
+        loop: Callable[[threading.Event], None] | None = None,
+        tick: Callable[[], None] | None = None,
+        tick_interval: float = 0.05,
+    ) -> int:
         """Run until SIGINT/SIGTERM (or until `loop` returns). Returns the process exit code."""
         if self.session is None and not self.connect():
             return 0
         assert self.session is not None
         self._declared.append(self.session.liveliness().declare_token(self.keys.alive(self.name, self.instance)))
-        worker = threading.Thread(target=self._work, args=(loop, tick, tick_interval),
-                                  name=f"{self.name}-worker", daemon=True)
+        worker = threading.Thread(
+            target=self._work, args=(loop, tick, tick_interval), name=f"{self.name}-worker", daemon=True
+        )
         worker.start()
         self.log.info("%s %s running (prefix %s)", self.name, self.instance, self.keys.prefix)
         while not self.stop_event.wait(0.2):
@@ -380,9 +448,12 @@ class Service:
                         handler(delivery)
                     except Exception:
                         self.counters.add("handler_error")
-                        self.counters.ratelog.warn("handler_error", f"error while handling a sample on "
-                                                   f"{delivery.key}; it is dropped, the service goes on",
-                                                   logging.ERROR, exc_info=True)
+                        self.counters.ratelog.warn(
+                            "handler_error",
+                            f"error while handling a sample on {delivery.key}; it is dropped, the service goes on",
+                            logging.ERROR,
+                            exc_info=True,
+                        )
                 if tick is not None:
                     tick()
         except Exception:
@@ -427,17 +498,27 @@ class Service:
 class SamplePublisher:
     """A declared publisher that encodes (and so validates) every sample it sends."""
 
-    def __init__(self, session: zenoh.Session, key: str, *, lossless: bool = True, realtime: bool = False,
-                 recovering: bool = False):
+    def __init__(
+        self,
+        session: zenoh.Session,
+        key: str,
+        *,
+        lossless: bool = True,
+        realtime: bool = False,
+        recovering: bool = False,
+    ):
         self.key = key
         qos = dict(
             encoding=zenoh.Encoding(ENCODING),
             congestion_control=zenoh.CongestionControl.BLOCK if lossless else zenoh.CongestionControl.DROP,
-            priority=zenoh.Priority.REAL_TIME if realtime else (
-                zenoh.Priority.DATA_HIGH if lossless else zenoh.Priority.DATA),
-            express=realtime)
-        self._pub = (declare_recovering_publisher(session, key, **qos) if recovering
-                     else session.declare_publisher(key, **qos))
+            priority=zenoh.Priority.REAL_TIME
+            if realtime
+            else (zenoh.Priority.DATA_HIGH if lossless else zenoh.Priority.DATA),
+            express=realtime,
+        )
+        self._pub = (
+            declare_recovering_publisher(session, key, **qos) if recovering else session.declare_publisher(key, **qos)
+        )
 
     def put(self, sample: Sample) -> None:
         self._pub.put(encode(sample))

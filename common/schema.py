@@ -40,8 +40,17 @@ GESTURES: tuple[str, ...] = get_args(GestureName)
 GESTURE_PHASES: tuple[str, ...] = get_args(GesturePhase)
 CLARIFICATION_REASONS: tuple[str, ...] = get_args(ClarificationReason)
 INTENTS = (
-    "pick_up", "bring", "put_down", "go_to", "come_here", "stop", "look_at", "follow", "greet",
-    "move", "turn",  # v1 extension: with FusedCommand.motion
+    "pick_up",
+    "bring",
+    "put_down",
+    "go_to",
+    "come_here",
+    "stop",
+    "look_at",
+    "follow",
+    "greet",
+    "move",
+    "turn",  # v1 extension: with FusedCommand.motion
 )
 
 # Number and string types of the contract. Every float is finite: a plain `float` would let NaN through,
@@ -73,15 +82,24 @@ class InvalidSample(ValueError):
 
 # The documented reasons (docs/wire.md). A cross-field rule raises InvalidSample with one of them; msgspec
 # keeps its message, so the reason comes back out of the decode error unchanged.
-REASONS = ("oversized", "not_msgpack", "not_a_map", "missing_field", "wrong_type", "not_finite",
-           "out_of_range", "bad_value", "bad_version")
+REASONS = (
+    "oversized",
+    "not_msgpack",
+    "not_a_map",
+    "missing_field",
+    "wrong_type",
+    "not_finite",
+    "out_of_range",
+    "bad_value",
+    "bad_version",
+)
 
 # msgspec's message -> reason, first match wins. `range` is resolved against the offending value:
 # a bound broken by NaN or ±inf is `not_finite`, any other number `out_of_range`.
 _ERROR_TABLE: tuple[tuple[re.Pattern[str], str], ...] = (
     (re.compile(r"^(%s): " % "|".join(REASONS)), "own"),
     (re.compile(r"^Object missing required field"), "missing_field"),
-    (re.compile(r"^Expected `object`, got `\w+`$"), "not_a_map"),     # the top level only (no path)
+    (re.compile(r"^Expected `object`, got `\w+`$"), "not_a_map"),  # the top level only (no path)
     (re.compile(r"^Expected `[^`]+`, got `"), "wrong_type"),
     (re.compile(r"^Invalid enum value"), "bad_value"),
     (re.compile(r"^Expected `\w+` of length"), "bad_value"),
@@ -121,6 +139,7 @@ def rejection(error: Exception, payload: bytes | None = None, data: Any = None) 
         # msgspec validates while it parses: a map that is cut short or followed by garbage can fail a field
         # check first. Malformed MessagePack is reported as such, whatever else is wrong with it.
         import msgpack
+
         try:
             data = msgpack.unpackb(payload, raw=False, strict_map_key=False)
         except Exception as exc:
@@ -128,14 +147,14 @@ def rejection(error: Exception, payload: bytes | None = None, data: Any = None) 
     text = str(error)
     match = _PATH.search(text)
     path = match.group(1) if match else "$"
-    message = text[:match.start()] if match else text
+    message = text[: match.start()] if match else text
     where = path.removeprefix("$").removeprefix(".")
     for pattern, reason in _ERROR_TABLE:
         found = pattern.search(message)
         if not found:
             continue
         if reason == "own":
-            reason, message = found.group(1), message[found.end():]
+            reason, message = found.group(1), message[found.end() :]
         elif reason == "not_a_map" and where:
             reason = "wrong_type"
         elif reason == "range":
@@ -213,6 +232,7 @@ def _check(ok: bool, reason: str, detail: str) -> None:
 # ---------------------------------------------------------------------------
 class ColorShare(Struct, kw_only=True):
     """v1 extension: one colour name and how likely a person would call the object that."""
+
     name: described(NonEmpty, "a basic colour name (`red`, `brown`, `grey`, …; docs/vision.md lists them)")
     p: described(UnitFloat, "probability; the shares of one object sum to at most 1")
 
@@ -220,22 +240,35 @@ class ColorShare(Struct, kw_only=True):
 class DetectedObject(Struct, kw_only=True):
     id: described(NonEmpty, "stable while the object stays in view")
     label: described(NonEmpty, "class name, through the command language (`cup`, `person`, …)")
-    color: described(Optional[str], "the most likely colour name (`red orange yellow green blue purple white black "
-                                    "grey`, and with the colour model also `brown pink`), or nil") = None
+    color: described(
+        Optional[str],
+        "the most likely colour name (`red orange yellow green blue purple white black "
+        "grey`, and with the colour model also `brown pink`), or nil",
+    ) = None
     score: described(UnitFloat, "detection confidence")
     bbox: described(Box, "[x, y, w, h] px")
     center: described(Point, "[x, y] px")
-    lab: described(Optional[Point3], "**v1 extension**: CIELAB (D65) [L 0–100, a, b] of the object's own pixels, "
-                                     "corrected for the scene's illuminant; nil = not measured") = None
-    colors: described(list[ColorShare], "**v1 extension**: the likeliest colour names, best first (at most 5); "
-                                        "`color` is the first") = msgspec.field(default_factory=list)
-    position: described(Optional[Point3], "**v1 extension**: [x, y, z] metres in the camera's optical frame "
-                                          "(x right, y down, z forward), from the depth of the object's own "
-                                          "pixels; absent without depth, never zero") = None
-    extent: described(Optional[Point3], "**v1 extension**: [width, height, depth] metres spanned by those "
-                                        "pixels; absent without depth") = None
-    depth_support: described(Optional[UnitFloat], "**v1 extension**: share of the object's pixels with a valid "
-                                                  "depth behind `position`") = None
+    lab: described(
+        Optional[Point3],
+        "**v1 extension**: CIELAB (D65) [L 0–100, a, b] of the object's own pixels, "
+        "corrected for the scene's illuminant; nil = not measured",
+    ) = None
+    colors: described(
+        list[ColorShare], "**v1 extension**: the likeliest colour names, best first (at most 5); `color` is the first"
+    ) = msgspec.field(default_factory=list)
+    position: described(
+        Optional[Point3],
+        "**v1 extension**: [x, y, z] metres in the camera's optical frame "
+        "(x right, y down, z forward), from the depth of the object's own "
+        "pixels; absent without depth, never zero",
+    ) = None
+    extent: described(
+        Optional[Point3],
+        "**v1 extension**: [width, height, depth] metres spanned by those pixels; absent without depth",
+    ) = None
+    depth_support: described(
+        Optional[UnitFloat], "**v1 extension**: share of the object's pixels with a valid depth behind `position`"
+    ) = None
 
     def check_measurements(self, where: str) -> None:
         """The v1-extension fields' cross-field rules (called by Detections, once per object that has them)."""
@@ -244,8 +277,9 @@ class DetectedObject(Struct, kw_only=True):
                 raise InvalidSample("out_of_range", f"{where}.lab: L {self.lab[0]} is outside 0–100")
         if self.position is not None:
             if not (self.position[2] > 0.0):
-                raise InvalidSample("bad_value",
-                                    f"{where}.position: z {self.position[2]} m is not in front of the camera")
+                raise InvalidSample(
+                    "bad_value", f"{where}.position: z {self.position[2]} m is not in front of the camera"
+                )
         if self.extent is not None:
             if not (min(self.extent) >= 0.0):
                 raise InvalidSample("bad_value", f"{where}.extent: a negative size")
@@ -253,12 +287,16 @@ class DetectedObject(Struct, kw_only=True):
 
 class CameraInfo(Struct, kw_only=True):
     """v1 extension: the intrinsics of the image they travel with (Zenoh has no latching, so they come along)."""
+
     width: described(Annotated[int, Meta(gt=0)], "px, the resolution `k` belongs to")
     height: described(Annotated[int, Meta(gt=0)], "px")
-    k: described(Annotated[list[Finite], Meta(min_length=9, max_length=9)],
-                 "K, 3×3 row-major: [fx, 0, cx, 0, fy, cy, 0, 0, 1] (px)")
-    distortion_model: described(NonEmpty, "`none`, `plumb_bob` (OpenCV k1 k2 p1 p2 k3), "
-                                          "`rational_polynomial`, …") = "none"
+    k: described(
+        Annotated[list[Finite], Meta(min_length=9, max_length=9)],
+        "K, 3×3 row-major: [fx, 0, cx, 0, fy, cy, 0, 0, 1] (px)",
+    )
+    distortion_model: described(NonEmpty, "`none`, `plumb_bob` (OpenCV k1 k2 p1 p2 k3), `rational_polynomial`, …") = (
+        "none"
+    )
     distortion: described(list[Finite], "the model's coefficients") = msgspec.field(default_factory=list)
     frame_id: described(NonEmpty, "name of the camera's optical frame (x right, y down, z forward, metres)")
 
@@ -267,8 +305,7 @@ class CameraInfo(Struct, kw_only=True):
         if not (k[0] > 0.0 and k[4] > 0.0):
             raise InvalidSample("bad_value", f"k: focal lengths must be > 0 (fx {k[0]}, fy {k[4]})")
         if not (k[3] == 0.0 and k[6:] == [0.0, 0.0, 1.0]):
-            raise InvalidSample("bad_value",
-                                "k: not a camera matrix (rows 2 and 3 must be [0, fy, cy] and [0, 0, 1])")
+            raise InvalidSample("bad_value", "k: not a camera matrix (rows 2 and 3 must be [0, fy, cy] and [0, 0, 1])")
 
     @property
     def fx(self) -> float:
@@ -289,9 +326,11 @@ class CameraInfo(Struct, kw_only=True):
     def check_size(self, width: int, height: int, what: str = "camera_info") -> None:
         """Intrinsics belong to one resolution: refuse them with an image of another size."""
         if not ((self.width, self.height) == (width, height)):
-            raise InvalidSample("bad_value",
-                                f"{what}: intrinsics are for {self.width}x{self.height}, the image is {width}x{height} "
-                                f"(scale K with the image, or send the intrinsics of this resolution)")
+            raise InvalidSample(
+                "bad_value",
+                f"{what}: intrinsics are for {self.width}x{self.height}, the image is {width}x{height} "
+                f"(scale K with the image, or send the intrinsics of this resolution)",
+            )
 
 
 class ImageQuality(Struct, kw_only=True):
@@ -302,14 +341,21 @@ class ImageQuality(Struct, kw_only=True):
 
 class Ray3D(Struct, kw_only=True):
     """v1 extension: a pointing ray in metres, in a camera's optical frame."""
+
     origin: described(Point3, "[x, y, z] metres (the eyes for `eye_fingertip`, else the arm's proximal point)")
     direction: described(Point3, "unit vector")
-    method: described(Ray3DMethod, "`eye_fingertip` (eyes through the index tip, the best cue), `index_finger`, "
-                                   "`forearm` (elbow→wrist), `shoulder_wrist`, `world_landmarks` (MediaPipe's "
-                                   "metric skeleton placed at the torso's depth)")
+    method: described(
+        Ray3DMethod,
+        "`eye_fingertip` (eyes through the index tip, the best cue), `index_finger`, "
+        "`forearm` (elbow→wrist), `shoulder_wrist`, `world_landmarks` (MediaPipe's "
+        "metric skeleton placed at the torso's depth)",
+    )
     frame_id: described(NonEmpty, "the optical frame (CameraInfo.frame_id)")
-    hit: described(Optional[Point3], "where the ray meets the surface it points at (a plane fitted to the depth: "
-                                     "floor or table), metres; nil = it meets none in view") = None
+    hit: described(
+        Optional[Point3],
+        "where the ray meets the surface it points at (a plane fitted to the depth: "
+        "floor or table), metres; nil = it meets none in view",
+    ) = None
 
     def __post_init__(self) -> None:
         norm = math.sqrt(sum(c * c for c in self.direction))
@@ -321,9 +367,11 @@ class Ray(Struct, kw_only=True):
     origin: described(Point, "[x, y] px")
     direction: described(Point, "[dx, dy] unit vector, image axes (x right, y down)")
     confidence: described(UnitFloat, "how steady the pointing is, independent of the hand's `score`") = 1.0
-    source: described(Optional[RaySource],
-                      "**v1 extension**: `hand` = the index finger, `body` = the arm seen by the body stage; "
-                      "nil = a sender from before the extension (a hand ray)") = None
+    source: described(
+        Optional[RaySource],
+        "**v1 extension**: `hand` = the index finger, `body` = the arm seen by the body stage; "
+        "nil = a sender from before the extension (a hand ray)",
+    ) = None
     ray3d: described(Optional[Ray3D], "**v1 extension**: the same ray in metres, when depth is known") = None
 
     def __post_init__(self) -> None:
@@ -335,18 +383,25 @@ class Ray(Struct, kw_only=True):
 class Hand(Struct, kw_only=True):
     hand: described(Handedness, "which hand, as the person sees it")
     score: described(UnitFloat, "landmark confidence")
-    landmarks: described(Annotated[list[Point], Meta(min_length=21, max_length=21)],
-                         "21 × [x, y] px, MediaPipe order (0 wrist, 4 thumb tip, 8 index tip, …)")
+    landmarks: described(
+        Annotated[list[Point], Meta(min_length=21, max_length=21)],
+        "21 × [x, y] px, MediaPipe order (0 wrist, 4 thumb tip, 8 index tip, …)",
+    )
     gesture: described(Optional[GestureName], "this frame's raw class, or nil") = None
     ray: described(Optional[Ray], "pointing ray, when the hand points") = None
 
 
 class Body(Struct, kw_only=True):
     """One person's MediaPipe Pose skeleton (v1 extension, `Bodies`)."""
-    landmarks: described(Annotated[list[Point], Meta(min_length=33, max_length=33)],
-                         "33 × [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists, …)")
-    visibility: described(Annotated[list[UnitFloat], Meta(min_length=33, max_length=33)],
-                          "MediaPipe's visibility of each point; below 0.5 the point is a guess")
+
+    landmarks: described(
+        Annotated[list[Point], Meta(min_length=33, max_length=33)],
+        "33 × [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists, …)",
+    )
+    visibility: described(
+        Annotated[list[UnitFloat], Meta(min_length=33, max_length=33)],
+        "MediaPipe's visibility of each point; below 0.5 the point is a guess",
+    )
     left_ray: described(Optional[Ray], "set when the person's own left arm points (`source` `body`)") = None
     right_ray: described(Optional[Ray], "set when the right arm points") = None
 
@@ -361,6 +416,7 @@ class Word(Struct, kw_only=True):
 
 class Target(Struct, kw_only=True):
     """The DetectedObject a command or question is about."""
+
     id: described(NonEmpty, "the object's id in its Detections")
     label: NonEmpty
     color: Optional[str] = None
@@ -368,8 +424,9 @@ class Target(Struct, kw_only=True):
     center: described(Point, "[x, y] px")
     score: UnitFloat
     cam: described(NonEmpty, "the camera that saw it")
-    position: described(Optional[Point3], "**v1 extension**: [x, y, z] metres in `frame_id` (camera optical frame)"
-                        ) = None
+    position: described(Optional[Point3], "**v1 extension**: [x, y, z] metres in `frame_id` (camera optical frame)") = (
+        None
+    )
     extent: described(Optional[Point3], "**v1 extension**: [width, height, depth] metres") = None
     frame_id: described(Optional[str], "**v1 extension**: the frame of `position`") = None
 
@@ -378,22 +435,31 @@ class Location(Struct, kw_only=True):
     x: described(Finite, "px")
     y: described(Finite, "px")
     cam: NonEmpty
-    position: described(Optional[Point3], "**v1 extension**: the place in metres in `frame_id` (\"go there\": "
-                                          "where the pointing ray meets the floor or table)") = None
+    position: described(
+        Optional[Point3],
+        '**v1 extension**: the place in metres in `frame_id` ("go there": '
+        "where the pointing ray meets the floor or table)",
+    ) = None
     frame_id: described(Optional[str], "**v1 extension**: the frame of `position`") = None
 
 
 class Motion(Struct, kw_only=True):
     """The robot moving itself ("go forward ten meters", "turn left"): FusedCommand intents `move` and `turn`."""
+
     direction: described(Optional[MotionDirection], "the robot's own frame: forward = the way it faces") = None
-    distance: described(Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
-                        "metres; nil = not said (a short move of the planner's choosing)") = None
-    angle: described(Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
-                     "degrees, for `turn` (\"turn left\" = 90, \"turn around\" = 180)") = None
+    distance: described(
+        Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+        "metres; nil = not said (a short move of the planner's choosing)",
+    ) = None
+    angle: described(
+        Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+        'degrees, for `turn` ("turn left" = 90, "turn around" = 180)',
+    ) = None
 
 
 class Weights(Struct, kw_only=True):
     """Normalised reliability of each modality for one decision."""
+
     speech: UnitFloat
     vision: UnitFloat
     gesture: UnitFloat
@@ -406,8 +472,11 @@ class Sample(Struct, kw_only=True):
     MAX_BYTES: ClassVar[int] = 1 * MIB
 
     v: described(int, "schema version, `1`") = SCHEMA_VERSION
-    stamp: described(UnixTime, "seconds since the UNIX epoch, **when the observed thing happened** (frame "
-                               "capture, first audio sample, utterance end)")
+    stamp: described(
+        UnixTime,
+        "seconds since the UNIX epoch, **when the observed thing happened** (frame "
+        "capture, first audio sample, utterance end)",
+    )
     source: described(NonEmpty, "the producing instance, `service/instance`")
 
     def __post_init__(self) -> None:
@@ -431,14 +500,14 @@ class Frame(Sample, kw_only=True):
     height: described(Annotated[int, Meta(gt=0)], "px")
     encoding: described(ImageEncoding, "`bgr8`: raw rows of B,G,R bytes, `width*height*3` bytes")
     data: described(bytes, "the image")
-    camera_info: described(Optional[CameraInfo], "**v1 extension**: the colour camera's intrinsics, when known"
-                           ) = None
+    camera_info: described(Optional[CameraInfo], "**v1 extension**: the colour camera's intrinsics, when known") = None
 
     def _check_sample(self) -> None:
         if self.encoding == "bgr8":
             if len(self.data) != self.width * self.height * 3:
-                raise InvalidSample("bad_value", f"data: bgr8 needs {self.width * self.height * 3} bytes, "
-                                                 f"got {len(self.data)}")
+                raise InvalidSample(
+                    "bad_value", f"data: bgr8 needs {self.width * self.height * 3} bytes, got {len(self.data)}"
+                )
         if self.camera_info is not None:
             self.camera_info.check_size(self.width, self.height)
 
@@ -446,18 +515,21 @@ class Frame(Sample, kw_only=True):
 class DepthFrame(Sample, kw_only=True):
     """v1 extension: a depth image aligned to the colour Frame of the same capture (same `stamp` and `seq`),
     so the colour intrinsics apply. 0 (16UC1) or 0/NaN (32FC1) = no measurement."""
+
     MAX_BYTES: ClassVar[int] = 64 * MIB
     seq: described(Annotated[int, Meta(ge=0)], "the `seq` of the colour Frame of the same capture")
     cam: described(NonEmpty, "camera id (the colour camera it is aligned to)")
     width: described(Annotated[int, Meta(gt=0)], "px, equal to the colour frame's")
     height: described(Annotated[int, Meta(gt=0)], "px")
-    encoding: described(DepthEncoding, "`16UC1`: unsigned 16-bit little-endian units; `32FC1`: float32 "
-                                       "little-endian units")
-    compression: described(DepthCompression, "`none`: raw rows; `png`: a lossless 16-bit PNG (16UC1 only)"
-                           ) = "none"
-    depth_scale: described(Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)],
-                           "metres per unit, explicit even for 16UC1 (RealSense 0.001, YCB-Video 0.0001, TUM "
-                           "0.0002; 32FC1 in metres: 1.0)")
+    encoding: described(
+        DepthEncoding, "`16UC1`: unsigned 16-bit little-endian units; `32FC1`: float32 little-endian units"
+    )
+    compression: described(DepthCompression, "`none`: raw rows; `png`: a lossless 16-bit PNG (16UC1 only)") = "none"
+    depth_scale: described(
+        Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)],
+        "metres per unit, explicit even for 16UC1 (RealSense 0.001, YCB-Video 0.0001, TUM "
+        "0.0002; 32FC1 in metres: 1.0)",
+    )
     camera_info: described(CameraInfo, "intrinsics of the aligned image (the colour camera's)")
     data: described(bytes, "the depth image")
 
@@ -466,8 +538,10 @@ class DepthFrame(Sample, kw_only=True):
         if self.compression == "none":
             need = self.width * self.height * (2 if self.encoding == "16UC1" else 4)
             if not (len(self.data) == need):
-                raise InvalidSample("bad_value", f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, "
-                                                 f"got {len(self.data)}")
+                raise InvalidSample(
+                    "bad_value",
+                    f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, got {len(self.data)}",
+                )
         else:
             if not (self.encoding == "16UC1"):
                 raise InvalidSample("bad_value", "compression: png carries 16UC1 depth only")
@@ -492,11 +566,13 @@ class Detections(Sample, kw_only=True):
     cam: NonEmpty
     width: described(int, "px, of the frame")
     height: described(int, "px, of the frame")
-    objects: described(list[DetectedObject], "may be empty: published for **every** processed frame, so "
-                                             "\"nothing seen\" is known")
+    objects: described(
+        list[DetectedObject], 'may be empty: published for **every** processed frame, so "nothing seen" is known'
+    )
     quality: described(ImageQuality, "how far to trust this frame (see docs/vision.md)")
-    frame_id: described(Optional[str], "**v1 extension**: the optical frame of the objects' `position`s (set "
-                                       "when depth was used)") = None
+    frame_id: described(
+        Optional[str], "**v1 extension**: the optical frame of the objects' `position`s (set when depth was used)"
+    ) = None
 
     def _check_sample(self) -> None:
         for i, o in enumerate(self.objects):
@@ -514,6 +590,7 @@ class Hands(Sample, kw_only=True):
 
 class Bodies(Sample, kw_only=True):
     """v1 extension: the body stage's skeletons for one frame (an empty list when nobody is seen)."""
+
     seq: described(int, "of the frame")
     cam: NonEmpty
     width: described(int, "px, of the frame")
@@ -556,38 +633,57 @@ class Transcript(Sample, kw_only=True):
         lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
         for i, w in enumerate(self.words):
             if not lo <= w.start <= w.end <= hi:
-                raise InvalidSample("bad_value", f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside "
-                                                 f"the utterance {self.start}–{self.end}")
+                raise InvalidSample(
+                    "bad_value",
+                    f"words[{i}]: {w.word!r} at {w.start}–{w.end} is not a span inside "
+                    f"the utterance {self.start}–{self.end}",
+                )
 
 
-def make_transcript(text: str, *, mic: str, end: float, confidence: float, source: str,
-                    seconds_per_word: float = 0.3) -> Transcript:
+def make_transcript(
+    text: str, *, mic: str, end: float, confidence: float, source: str, seconds_per_word: float = 0.3
+) -> Transcript:
     """A Transcript as a recogniser would make it, with evenly spaced word times ending at `end` (typed text:
     the speech service's `--backend text`, `hri say`, tests)."""
     tokens = text.split()
     start = end - seconds_per_word * max(len(tokens), 1)
-    words = [Word(word=w, start=start + i * seconds_per_word, end=start + (i + 1) * seconds_per_word,
-                  confidence=confidence) for i, w in enumerate(tokens)]
-    return Transcript(stamp=end, source=source, mic=mic, start=start, end=end, text=text,
-                      confidence=confidence, words=words, final=True, backend="text")
+    words = [
+        Word(word=w, start=start + i * seconds_per_word, end=start + (i + 1) * seconds_per_word, confidence=confidence)
+        for i, w in enumerate(tokens)
+    ]
+    return Transcript(
+        stamp=end,
+        source=source,
+        mic=mic,
+        start=start,
+        end=end,
+        text=text,
+        confidence=confidence,
+        words=words,
+        final=True,
+        backend="text",
+    )
 
 
 class FusedCommand(Sample, kw_only=True):
     id: described(NonEmpty, "deterministic from the inputs: replaying the same samples gives the same id")
-    intent: described(NonEmpty, "`pick_up bring put_down go_to come_here stop look_at follow greet move turn` "
-                                "(`move`, `turn`: v1 extension, with `motion`)")
+    intent: described(
+        NonEmpty,
+        "`pick_up bring put_down go_to come_here stop look_at follow greet move turn` "
+        "(`move`, `turn`: v1 extension, with `motion`)",
+    )
     text: described(Optional[str], "the utterance (nil for gesture-only commands)") = None
     target: described(Optional[Target], "the object meant") = None
-    location: described(Optional[Location], "a place in the image (\"put it there\" + pointing)") = None
-    place: described(Optional[str], "a named place (\"go to the kitchen\": `kitchen`), from "
-                                    "`common/language.py`") = None
+    location: described(Optional[Location], 'a place in the image ("put it there" + pointing)') = None
+    place: described(Optional[str], 'a named place ("go to the kitchen": `kitchen`), from `common/language.py`') = None
     gesture: described(Optional[str], "the gesture that took part") = None
     confidence: UnitFloat
     weights: described(Weights, "normalised reliability of each modality for this decision")
     inputs: described(dict[str, Optional[Finite]], "the stamp of each modality's sample used; nil = missing")
     explanation: described(str, "why this target won")
-    prompt: described(str, "a self-contained text for an LLM planner (command, objects in view with "
-                           "positions, gesture, motion)")
+    prompt: described(
+        str, "a self-contained text for an LLM planner (command, objects in view with positions, gesture, motion)"
+    )
     motion: described(Optional[Motion], "**v1 extension**, for `move` / `turn`; absent or nil otherwise") = None
 
 
@@ -595,13 +691,13 @@ class Clarification(Sample, kw_only=True):
     id: described(NonEmpty, "deterministic, like a command's")
     text: described(Optional[str], "the utterance that needs clarifying") = None
     reason: ClarificationReason
-    question: described(NonEmpty, "a question a person can answer (\"Which candy: the red one on the left "
-                                  "or …?\")")
+    question: described(NonEmpty, 'a question a person can answer ("Which candy: the red one on the left or …?")')
     candidates: described(list[Target], "the objects the question is between")
 
 
 class Stats(Sample, kw_only=True):
     """Reply of a service's stats queryable."""
+
     service: NonEmpty
     instance: NonEmpty
     uptime: described(Finite, "seconds")
@@ -609,10 +705,21 @@ class Stats(Sample, kw_only=True):
     published: described(int, "samples published")
     skipped: described(int, "stale frames replaced by newer ones")
     rejected: described(dict[str, int], "invalid samples by reason")
-    other: described(dict[str, int], "service-specific counters, e.g. `undecodable`, `non_command`, "
-                                     "`dropped_overflow`") = msgspec.field(default_factory=dict)
+    other: described(
+        dict[str, int], "service-specific counters, e.g. `undecodable`, `non_command`, `dropped_overflow`"
+    ) = msgspec.field(default_factory=dict)
 
 
 ALL_SAMPLES: tuple[type[Sample], ...] = (
-    Frame, DepthFrame, AudioChunk, Detections, Hands, Bodies, GestureEvent, Transcript, FusedCommand, Clarification, Stats,
+    Frame,
+    DepthFrame,
+    AudioChunk,
+    Detections,
+    Hands,
+    Bodies,
+    GestureEvent,
+    Transcript,
+    FusedCommand,
+    Clarification,
+    Stats,
 )

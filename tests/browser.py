@@ -12,21 +12,31 @@ import itertools
 import json
 import os
 import re
-import signal
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
 from typing import Any
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-FLAGS = ["--headless=new", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run", "--hide-scrollbars",
-         "--remote-debugging-port=0", "--remote-allow-origins=*"]
+FLAGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--hide-scrollbars",
+    "--remote-debugging-port=0",
+    "--remote-allow-origins=*",
+]
 
 
 def require_chromium():
     import pytest
+
     if CHROMIUM is None:
         pytest.skip("chromium is not installed (scripts/setup.sh --test installs Debian's chromium)")
 
@@ -38,10 +48,19 @@ class Browser:
         if CHROMIUM is None:
             raise RuntimeError("chromium is not installed")
         self.profile = tempfile.TemporaryDirectory(prefix="hri-chromium-", ignore_cleanup_errors=True)
-        self.proc = subprocess.Popen([CHROMIUM, *FLAGS, f"--user-data-dir={self.profile.name}",
-                                      f"--window-size={window[0]},{window[1]}", "about:blank"],
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                     start_new_session=True)
+        self.proc = subprocess.Popen(
+            [
+                CHROMIUM,
+                *FLAGS,
+                f"--user-data-dir={self.profile.name}",
+                f"--window-size={window[0]},{window[1]}",
+                "about:blank",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+            start_new_session=True,
+        )
         self.loop = asyncio.new_event_loop()
         self.port = self._devtools_port(timeout)
         self.tabs: list[Tab] = []
@@ -115,6 +134,7 @@ class Tab:
                     if "error" in msg:
                         raise RuntimeError(f"{method}: {msg['error']}")
                     return msg["result"]
+
         return self.browser.run(go())
 
     def js(self, expression: str) -> Any:
@@ -149,4 +169,5 @@ class Tab:
         async def go() -> None:
             await self.ws.close()
             await self.client.close()
+
         self.browser.run(go())

@@ -18,8 +18,8 @@ import numpy as np
 from common.codec import encode
 from common.schema import Frame, Sample
 
-U64_MAX = 2 ** 64 - 1
-I64_MIN = -2 ** 63
+U64_MAX = 2**64 - 1
+I64_MIN = -(2**63)
 
 
 def image_bomb() -> bytes:
@@ -63,7 +63,7 @@ class Fuzzer:
         if kind == "random_bytes":
             return kind, rng.randbytes(rng.randint(0, 2000))
         if kind == "truncated":
-            return kind, self.encoded[:rng.randint(0, len(self.encoded) - 1)]
+            return kind, self.encoded[: rng.randint(0, len(self.encoded) - 1)]
         if kind == "not_a_map":
             return kind, self._pack(rng.choice([[1, 2, 3], 42, "frame", None, b"\0" * 10, 1.5, True]))
         if kind == "missing_field":
@@ -73,10 +73,13 @@ class Fuzzer:
         if kind == "not_finite":
             return kind, self._with(stamp=rng.choice([float("nan"), float("inf"), float("-inf")]))
         if kind == "huge_int":
-            return kind, self._with(**{rng.choice(["stamp", field]): rng.choice([U64_MAX, I64_MIN, 2 ** 63])})
+            return kind, self._with(**{rng.choice(["stamp", field]): rng.choice([U64_MAX, I64_MIN, 2**63])})
         if kind == "deep_nesting":
-            return kind, (b"\x91" * 100_000 + b"\x01" if rng.random() < 0.5
-                          else self._with(**{field: nested(rng.randint(100, 400))}))
+            return kind, (
+                b"\x91" * 100_000 + b"\x01"
+                if rng.random() < 0.5
+                else self._with(**{field: nested(rng.randint(100, 400))})
+            )
         if kind == "far_future":
             return kind, self._with(stamp=rng.choice([1.8e19, now + 3600.0, now + 86400.0 * 365, float(U64_MAX)]))
         if kind == "far_past":
@@ -90,8 +93,13 @@ class Fuzzer:
             return kind, self._with(stamp=now, width=m["width"] + rng.randint(1, 50))
         if kind == "image_bomb":
             big = rng.random() < 0.5  # declared as what it is (over the pixel cap) or as a small frame
-            return kind, self._with(stamp=now, encoding="png", data=self.bomb,
-                                    width=15000 if big else m["width"], height=15000 if big else m["height"])
+            return kind, self._with(
+                stamp=now,
+                encoding="png",
+                data=self.bomb,
+                width=15000 if big else m["width"],
+                height=15000 if big else m["height"],
+            )
         raise AssertionError(kind)
 
     def payloads(self, n: int) -> Iterator[tuple[str, bytes]]:
@@ -102,6 +110,16 @@ class Fuzzer:
         return self._with(pad=b"\0" * (type(self.valid).MAX_BYTES + 1))
 
 
-KINDS = ["random_bytes", "truncated", "not_a_map", "missing_field", "wrong_type", "not_finite", "huge_int",
-         "deep_nesting", "far_future", "far_past"]
+KINDS = [
+    "random_bytes",
+    "truncated",
+    "not_a_map",
+    "missing_field",
+    "wrong_type",
+    "not_finite",
+    "huge_int",
+    "deep_nesting",
+    "far_future",
+    "far_past",
+]
 FRAME_KINDS = ["bgr8_wrong_size", "undecodable_jpeg", "header_lies", "image_bomb"]

@@ -33,6 +33,7 @@ def missing_services(*names: str) -> list[str]:
 
 def requires_services(*names: str):
     import pytest
+
     missing = missing_services(*names)
     return pytest.mark.skipif(bool(missing), reason=f"service(s) not in this checkout yet: {', '.join(missing)}")
 
@@ -61,8 +62,9 @@ class Proc:
         self.argv = argv
         self.log = tempfile.NamedTemporaryFile(prefix=f"hri-{name}-", suffix=".log", delete=False)
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
-        self.popen = subprocess.Popen(argv, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT, env=full_env,
-                                      start_new_session=True)
+        self.popen = subprocess.Popen(
+            argv, stdout=self.log, stderr=subprocess.STDOUT, cwd=ROOT, env=full_env, start_new_session=True
+        )
 
     @property
     def pid(self) -> int:
@@ -174,6 +176,7 @@ class Client:
 
     def stats(self, service: str, timeout: float = 2.0) -> dict[str, Any]:
         from common.schema import Stats
+
         for reply in self.session.get(self.keys.stats(service, "*"), timeout=timeout):
             if reply.ok is not None:
                 return decode(reply.ok.payload.to_bytes(), Stats).to_dict()
@@ -225,8 +228,9 @@ class Collector:
         schema = self.keys.schema_for(key)
         self.items.put((key, decode(s.payload.to_bytes(), schema) if schema else s.payload.to_bytes()))
 
-    def wait(self, n: int = 1, timeout: float = 10.0,
-             where: Callable[[str, Any], bool] = lambda k, s: True) -> list[tuple[str, Any]]:
+    def wait(
+        self, n: int = 1, timeout: float = 10.0, where: Callable[[str, Any], bool] = lambda k, s: True
+    ) -> list[tuple[str, Any]]:
         """Block until `n` matching samples have arrived (in total); returns them."""
         deadline = time.monotonic() + timeout
         while True:
@@ -235,8 +239,10 @@ class Collector:
                 return matching[:n]
             left = deadline - time.monotonic()
             if left <= 0:
-                raise TimeoutError(f"got {len(matching)}/{n} matching samples in {timeout} s "
-                                   f"(all received: {[k for k, _ in self.seen]})")
+                raise TimeoutError(
+                    f"got {len(matching)}/{n} matching samples in {timeout} s "
+                    f"(all received: {[k for k, _ in self.seen]})"
+                )
             try:
                 self.seen.append(self.items.get(timeout=min(left, 0.2)))
             except queue.Empty:

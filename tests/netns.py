@@ -81,6 +81,7 @@ class Link:
 @dataclass
 class Network:
     """Namespaces `router`, `perception` and `speech`, linked to the router's; `close()` removes all."""
+
     run: str = field(default_factory=lambda: f"{os.getpid()}-{random.randrange(16**4):04x}")
     namespaces: dict[str, str] = field(default_factory=dict)
     links: dict[str, Link] = field(default_factory=dict)
@@ -103,8 +104,9 @@ class Network:
         router_ns = self.namespaces["router"]
         for k, host in enumerate(HOSTS):
             ns = self.namespaces.get(host)  # None for the observer
-            link = Link(host, ns, f"h{tag}{k}r", f"h{tag}{k}h", f"10.77.{subnet}.{4 * k + 1}",
-                        f"10.77.{subnet}.{4 * k + 2}")
+            link = Link(
+                host, ns, f"h{tag}{k}r", f"h{tag}{k}h", f"10.77.{subnet}.{4 * k + 1}", f"10.77.{subnet}.{4 * k + 2}"
+            )
             # create the pair inside the router's namespace so a failed run leaves nothing in the root one
             _ip("-n", router_ns, "link", "add", link.router_if, "type", "veth", "peer", "name", link.host_if)
             if ns is None:
@@ -153,8 +155,9 @@ class NetnsGroup(ProcessGroup):
         self.port = port
         self.endpoint = net.endpoint("observer", port)  # what this (root namespace) process connects to
 
-    def start(self, name: str, *args: str, env: dict[str, str] | None = None, connect: bool = True,
-              host: str = "observer") -> Proc:
+    def start(
+        self, name: str, *args: str, env: dict[str, str] | None = None, connect: bool = True, host: str = "observer"
+    ) -> Proc:
         argv = [*self.net.exec_prefix(host), sys.executable, "-m", *args]
         if connect:
             argv += ["--connect", self.net.endpoint(host, self.port)]
@@ -170,6 +173,7 @@ class NetnsGroup(ProcessGroup):
 
     def wait_router(self, timeout: float = 15.0) -> None:
         import socket
+
         addr = self.net.links["observer"].router_addr
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -188,6 +192,7 @@ def netns_fixture():
     """The body of a pytest fixture: a Network and a NetnsGroup on it, skipped with the reason where namespaces
     cannot be made; processes stopped and namespaces deleted whatever the test did."""
     import pytest
+
     reason = unavailable()
     if reason:
         pytest.skip(reason)

@@ -25,8 +25,10 @@ def main() -> None:
         schema = keys.schema_for(str(s.key_expr))
         sample = decode(s.payload.to_bytes(), schema)
         with lock:
-            print(json.dumps({"key": str(s.key_expr), "id": getattr(sample, "id", None), "stamp": sample.stamp}),
-                  flush=True)
+            print(
+                json.dumps({"key": str(s.key_expr), "id": getattr(sample, "id", None), "stamp": sample.stamp}),
+                flush=True,
+            )
 
     sub = declare_recovering_subscriber(session, key, on_sample)
     print("ready", flush=True)

@@ -20,8 +20,10 @@ def shared_path(relative: str) -> Path:
     """The path of `relative` under shared/, or skip the calling test saying what is missing and how to give it."""
     path = shared_dir() / relative
     if not path.exists():
-        pytest.skip(f"{relative} not found under {shared_dir()} (it lives in ../shared/ beside the checkout; "
-                    f"set HRI_SHARED to that folder to run this test)")
+        pytest.skip(
+            f"{relative} not found under {shared_dir()} (it lives in ../shared/ beside the checkout; "
+            f"set HRI_SHARED to that folder to run this test)"
+        )
     return path
 
 

@@ -21,8 +21,11 @@ def lines(name: str) -> list[str]:
 
 COMMANDS = lines("commands.txt") + lines("commands_extra.txt")  # 32: the grammar's and motions outside it
 NON_COMMANDS = lines("non_commands.txt")
-_SPELLED = {str(int(v)): w for w, v in NUMBER_WORDS.items() if float(v).is_integer() and w.isalpha() and
-            w not in ("a", "an", "single", "couple", "few")}
+_SPELLED = {
+    str(int(v)): w
+    for w, v in NUMBER_WORDS.items()
+    if float(v).is_integer() and w.isalpha() and w not in ("a", "an", "single", "couple", "few")
+}
 
 
 def spelled(words: list[str]) -> list[str]:
@@ -60,7 +63,9 @@ class AudioCache:
             synthesize(text, path, voice=voice, noise_snr_db=snr, noise_seed=seed, **kw)
         return path
 
-    def stream(self, texts: list[str], voice: str, snr: float | None, gap: float) -> tuple[Path, list[tuple[float, float]]]:
+    def stream(
+        self, texts: list[str], voice: str, snr: float | None, gap: float
+    ) -> tuple[Path, list[tuple[float, float]]]:
         """The sentences as one WAV with `gap` s of silence between them, and each one's span (s from the start)."""
         files = [self.speech(t, voice, snr, seed=i) for i, t in enumerate(texts)]
         out = self.folder / f"stream-{voice}-{snr}-{gap}-{abs(hash(tuple(texts)))}.wav".replace(":", "_")
@@ -80,12 +85,19 @@ def score(texts: list[str], spans: list[tuple[float, float]], transcripts: list,
     heard: list[list[str]] = [[] for _ in texts]
     for t in transcripts:
         middle = (t.start + t.end) / 2 - t0
-        i = min(range(len(spans)), key=lambda k: 0 if spans[k][0] <= middle <= spans[k][1] else
-                min(abs(middle - spans[k][0]), abs(middle - spans[k][1])))
+        i = min(
+            range(len(spans)),
+            key=lambda k: (
+                0 if spans[k][0] <= middle <= spans[k][1] else min(abs(middle - spans[k][0]), abs(middle - spans[k][1]))
+            ),
+        )
         heard[i].append(t.text)
     ref = " ".join(texts).split()
     hyp = spelled(" ".join(" ".join(h) for h in heard).split())
     right = [meaning(" ".join(h)) == meaning(text) for h, text in zip(heard, texts)]
-    return {"wer": word_errors(ref, hyp) / len(ref), "meaning": sum(right) / len(texts),
-            "heard": [" ".join(h) for h in heard], "wrong": [(t, " ".join(h)) for h, t, ok in
-                                                            zip(heard, texts, right) if not ok]}
+    return {
+        "wer": word_errors(ref, hyp) / len(ref),
+        "meaning": sum(right) / len(texts),
+        "heard": [" ".join(h) for h in heard],
+        "wrong": [(t, " ".join(h)) for h, t, ok in zip(heard, texts, right) if not ok],
+    }

@@ -6,8 +6,8 @@ import cv2
 import msgpack
 import pytest
 
-from common.codec import encode
 from common.cli import make_transcript
+from common.codec import encode
 from common.schema import Frame
 from tests.harness import DATA, Client, requires_services
 
@@ -19,8 +19,16 @@ PHOTO = DATA / "images" / "tabletop" / "smarties.png"
 def real_frame(seq: int, stamp: float) -> Frame:
     img = cv2.imread(str(PHOTO))
     data = cv2.imencode(".jpg", img)[1].tobytes()
-    return Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=img.shape[1], height=img.shape[0],
-                 encoding="jpeg", data=data)
+    return Frame(
+        stamp=stamp,
+        source="test/cam",
+        seq=seq,
+        cam="cam0",
+        width=img.shape[1],
+        height=img.shape[0],
+        encoding="jpeg",
+        data=data,
+    )
 
 
 def bad_payloads(valid: bytes, schema_cap: int) -> dict[str, bytes]:
@@ -42,15 +50,22 @@ def bad_payloads(valid: bytes, schema_cap: int) -> dict[str, bytes]:
 CASES = [
     ("vision", [], "hri/camera/cam0/frame", lambda t: real_frame(1, t), "hri/vision/cam0/objects"),
     ("gesture", [], "hri/camera/cam0/frame", lambda t: real_frame(1, t), "hri/gesture/cam0/hands"),
-    ("fusion", [], "hri/speech/kbd/transcript",
-     lambda t: make_transcript("stop", mic="kbd", end=t, confidence=1.0, source="test/kbd"), "hri/fusion/command"),
+    (
+        "fusion",
+        [],
+        "hri/speech/kbd/transcript",
+        lambda t: make_transcript("stop", mic="kbd", end=t, confidence=1.0, source="test/kbd"),
+        "hri/fusion/command",
+    ),
 ]
 
 
-@pytest.mark.parametrize("service,argv,key,make_valid,output_key",
-                         [pytest.param(*c, marks=requires_services(c[0])) for c in CASES], ids=[c[0] for c in CASES])
-def test_malformed_inputs_are_counted_and_do_not_stop_the_service(group, service, argv, key, make_valid,
-                                                                   output_key):
+@pytest.mark.parametrize(
+    "service,argv,key,make_valid,output_key",
+    [pytest.param(*c, marks=requires_services(c[0])) for c in CASES],
+    ids=[c[0] for c in CASES],
+)
+def test_malformed_inputs_are_counted_and_do_not_stop_the_service(group, service, argv, key, make_valid, output_key):
     group.router()
     proc = group.service(service, *argv)
     client = Client(group.endpoint)

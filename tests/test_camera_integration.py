@@ -36,14 +36,16 @@ def test_frames_decode_to_the_shipped_photos_with_gap_free_seq(group, encoding):
     client = Client(group.endpoint)
     try:
         frames = client.collect("hri/camera/front/frame")
-        group.service("camera", "--source", str(TABLETOP), "--cam", "front", "--fps", "30", "--loop",
-                      "--encoding", encoding)
+        group.service(
+            "camera", "--source", str(TABLETOP), "--cam", "front", "--fps", "30", "--loop", "--encoding", encoding
+        )
         got = [s for _, s in frames.wait(6, timeout=30)]
     finally:
         client.close()
     first = got[0].seq
     assert [f.seq for f in got] == list(range(first, first + 6))
     import cv2
+
     photos = [cv2.imread(str(p)) for p in sorted(TABLETOP.iterdir())]
     for frame in got:
         img = frame_image(frame)
@@ -61,13 +63,21 @@ def test_camera_count_stops_after_n_frames(group):
     assert "published': 3" in camera.output()
 
 
-@pytest.mark.parametrize("source,message", [
-    ("/nonexistent/folder", "does not exist"),
-    (str(ROOT / "pyproject.toml"), "cannot open video file"),
-    ("97", "cannot open camera device 97"),
-])
+@pytest.mark.parametrize(
+    "source,message",
+    [
+        ("/nonexistent/folder", "does not exist"),
+        (str(ROOT / "pyproject.toml"), "cannot open video file"),
+        ("97", "cannot open camera device 97"),
+    ],
+)
 def test_a_source_that_cannot_be_opened_is_a_clear_error(source, message):
-    res = subprocess.run([sys.executable, "-m", "services.camera", "--source", source, "--connect",
-                          "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    res = subprocess.run(
+        [sys.executable, "-m", "services.camera", "--source", source, "--connect", "tcp/127.0.0.1:9"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert res.returncode == 2
     assert message in res.stderr

@@ -11,39 +11,70 @@ import numpy as np
 import pytest
 
 from common.depth import metres
-from services.camera.rgbd import (Capture, RgbdFolderSource, find_pairs, import_realsense, mirror_capture,
-                                  parse_intrinsics, read_intrinsics, realsense_capture)
 from services.camera.opener import open_source
+from services.camera.rgbd import (
+    Capture,
+    RgbdFolderSource,
+    find_pairs,
+    import_realsense,
+    mirror_capture,
+    parse_intrinsics,
+    read_intrinsics,
+    realsense_capture,
+)
 from services.camera.source import SourceError
 from services.vision.depth import object_depth
 from tests.shared import shared_path
 
-YCB = {"width": 640, "height": 480, "fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109,
-       "depth_scale": 0.0001}
+YCB = {
+    "width": 640,
+    "height": 480,
+    "fx": 1066.778,
+    "fy": 1067.487,
+    "cx": 312.9869,
+    "cy": 241.3109,
+    "depth_scale": 0.0001,
+}
 
 
 def test_intrinsics_from_fx_fy_cx_cy_or_k():
     a = parse_intrinsics(YCB)
     assert a.camera_info.k == [1066.778, 0.0, 312.9869, 0.0, 1067.487, 241.3109, 0.0, 0.0, 1.0]
     assert a.depth_scale == 0.0001 and a.camera_info.frame_id == "camera_color_optical_frame"
-    nested = parse_intrinsics({"width": 640, "height": 480, "K": [[1066.778, 0, 312.9869], [0, 1067.487, 241.3109],
-                                                                  [0, 0, 1]], "frame_id": "ycb"})
+    nested = parse_intrinsics(
+        {
+            "width": 640,
+            "height": 480,
+            "K": [[1066.778, 0, 312.9869], [0, 1067.487, 241.3109], [0, 0, 1]],
+            "frame_id": "ycb",
+        }
+    )
     assert nested.camera_info.k == a.camera_info.k and nested.camera_info.frame_id == "ycb"
     assert nested.depth_scale is None
-    flat = parse_intrinsics({"width": 640, "height": 480, "K": a.camera_info.k, "distortion_model": "plumb_bob",
-                             "distortion": [0.1, -0.2, 0, 0, 0.05]})
+    flat = parse_intrinsics(
+        {
+            "width": 640,
+            "height": 480,
+            "K": a.camera_info.k,
+            "distortion_model": "plumb_bob",
+            "distortion": [0.1, -0.2, 0, 0, 0.05],
+        }
+    )
     assert flat.camera_info.distortion == [0.1, -0.2, 0.0, 0.0, 0.05]
 
 
-@pytest.mark.parametrize("spec,message", [
-    ({"height": 480, "fx": 1, "fy": 1, "cx": 1, "cy": 1}, "width must be a positive integer"),
-    ({"width": 640, "height": 480, "fx": 1, "cy": 1}, "missing fy, cx"),
-    ({"width": 640, "height": 480, "K": [1, 2, 3]}, "K must be 3×3"),
-    ({"width": 640, "height": 480, "K": [500, 0, 320, 1, 500, 240, 0, 0, 1]}, "not a camera matrix"),
-    ({**YCB, "fx": -5}, "focal lengths must be > 0"),
-    ({**YCB, "fx": "big"}, "fx must be a finite number"),
-    ({**YCB, "depth_scale": 0}, "depth_scale must be > 0"),
-])
+@pytest.mark.parametrize(
+    "spec,message",
+    [
+        ({"height": 480, "fx": 1, "fy": 1, "cx": 1, "cy": 1}, "width must be a positive integer"),
+        ({"width": 640, "height": 480, "fx": 1, "cy": 1}, "missing fy, cx"),
+        ({"width": 640, "height": 480, "K": [1, 2, 3]}, "K must be 3×3"),
+        ({"width": 640, "height": 480, "K": [500, 0, 320, 1, 500, 240, 0, 0, 1]}, "not a camera matrix"),
+        ({**YCB, "fx": -5}, "focal lengths must be > 0"),
+        ({**YCB, "fx": "big"}, "fx must be a finite number"),
+        ({**YCB, "depth_scale": 0}, "depth_scale must be > 0"),
+    ],
+)
 def test_bad_intrinsics_say_what_is_wrong(spec, message):
     with pytest.raises(SourceError, match=message):
         parse_intrinsics(spec, "intrinsics.json")
@@ -72,8 +103,10 @@ def test_a_colour_depth_folder_is_an_rgbd_source(tmp_path):
     folder = ycb_folder(tmp_path)
     (folder / "notes.txt").write_text("not an image")
     (folder / "000009-color.png").write_bytes((folder / "000002-color.png").read_bytes())  # no depth: not a pair
-    assert [(c.name, d.name) for c, d in find_pairs(folder)] == [("000002-color.png", "000002-depth.png"),
-                                                                ("000004-color.png", "000004-depth.png")]
+    assert [(c.name, d.name) for c, d in find_pairs(folder)] == [
+        ("000002-color.png", "000002-depth.png"),
+        ("000004-color.png", "000004-depth.png"),
+    ]
     source = open_source(str(folder))
     assert isinstance(source, RgbdFolderSource) and source.finite
     captures = list(source.frames())
@@ -119,6 +152,7 @@ def realsense():
 
 def test_without_pyrealsense2_the_error_says_how_to_install(monkeypatch):
     import builtins
+
     real_import = builtins.__import__
 
     def no_realsense(name, *args, **kwargs):
@@ -156,8 +190,9 @@ def test_a_real_realsense_frame_through_the_pyrealsense2_pipeline():
     intrinsics.model, intrinsics.coeffs = rs.distortion.none, [0.0] * 5
     device = rs.software_device()
     sensors, profiles = [], []
-    for uid, (name, kind, fmt, bpp) in enumerate([("Depth", rs.stream.depth, rs.format.z16, 2),
-                                                  ("Color", rs.stream.color, rs.format.rgb8, 3)]):
+    for uid, (name, kind, fmt, bpp) in enumerate(
+        [("Depth", rs.stream.depth, rs.format.z16, 2), ("Color", rs.stream.color, rs.format.rgb8, 3)]
+    ):
         stream = rs.video_stream()
         stream.type, stream.index, stream.uid = kind, 0, uid
         stream.width, stream.height, stream.fps, stream.bpp, stream.fmt = width, height, 30, bpp, fmt
@@ -184,8 +219,12 @@ def test_a_real_realsense_frame_through_the_pyrealsense2_pipeline():
                 frame.domain = rs.timestamp_domain.hardware_clock
                 frame.profile = profile.as_video_stream_profile()
                 sensor.on_video_frame(frame)
-            capture = realsense_capture(rs, align.process(syncer.wait_for_frames(5000)),
-                                        sensors[0].get_option(rs.option.depth_units), "rs_color_optical_frame")
+            capture = realsense_capture(
+                rs,
+                align.process(syncer.wait_for_frames(5000)),
+                sensors[0].get_option(rs.option.depth_units),
+                "rs_color_optical_frame",
+            )
             if capture is not None:
                 break
     finally:
@@ -205,7 +244,7 @@ def test_a_real_realsense_frame_through_the_pyrealsense2_pipeline():
     box = (550, 405, 100, 110)
     got = object_depth(metres(capture.depth, capture.depth_scale), info, box)
     x, y, w, h = box
-    region = depth[y:y + h, x:x + w].astype(float) / 1000
+    region = depth[y : y + h, x : x + w].astype(float) / 1000
     assert np.median(region[region > 0]) > 0.5  # the board
     top = region[(region > 0) & (region < np.percentile(region[region > 0], 10) + 0.01)]  # the brick's top face
     assert abs(got.position[2] - np.median(top)) < 0.01, (got.position, np.median(top))

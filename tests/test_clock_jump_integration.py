@@ -22,8 +22,11 @@ PERIOD_S = 0.2  # the camera timeline: 5 fps
 
 def test_services_follow_a_camera_clock_that_jumps_back_ten_minutes(group):
     group.router()
-    procs = {"vision": group.service("vision", "--labels", str(DATA / "demo" / "labels.json")),
-             "gesture": group.service("gesture"), "fusion": group.service("fusion")}
+    procs = {
+        "vision": group.service("vision", "--labels", str(DATA / "demo" / "labels.json")),
+        "gesture": group.service("gesture"),
+        "fusion": group.service("fusion"),
+    }
     client = Client(group.endpoint)
     try:
         for name in procs:
@@ -34,8 +37,16 @@ def test_services_follow_a_camera_clock_that_jumps_back_ten_minutes(group):
         data = cv2.imencode(".jpg", img)[1].tobytes()
 
         def frame(seq: int, stamp: float) -> Frame:
-            return Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=img.shape[1],
-                         height=img.shape[0], encoding="jpeg", data=data)
+            return Frame(
+                stamp=stamp,
+                source="test/cam",
+                seq=seq,
+                cam="cam0",
+                width=img.shape[1],
+                height=img.shape[0],
+                encoding="jpeg",
+                data=data,
+            )
 
         def publish_and_wait(seq: int, stamp: float, served: bool) -> None:
             """Lockstep (no frame is skipped for a newer one however slow the machine): publish, and if the
@@ -64,10 +75,11 @@ def test_services_follow_a_camera_clock_that_jumps_back_ten_minutes(group):
             assert stats["other"].get("timeline_reset") == 1, stats
             assert stats["rejected"].get("out_of_order") == DEFAULT_RESET_RUN - 1, stats
         # fusion follows too: a command spoken on the new timeline is grounded on the new timeline's detections
-        said = make_transcript("pick up the red candy", mic="kbd", end=back + jumped * PERIOD_S, confidence=1.0,
-                               source="test/kbd")
+        said = make_transcript(
+            "pick up the red candy", mic="kbd", end=back + jumped * PERIOD_S, confidence=1.0, source="test/kbd"
+        )
         client.publish("hri/speech/kbd/transcript", said)
-        (_, cmd), = commands.wait(1, timeout=30, where=lambda k, c: c.inputs.get("speech") == said.stamp)
+        ((_, cmd),) = commands.wait(1, timeout=30, where=lambda k, c: c.inputs.get("speech") == said.stamp)
         assert cmd.intent == "pick_up" and cmd.target is not None and cmd.target.color == "red", cmd
         assert back <= cmd.inputs["vision"] <= back + jumped * PERIOD_S, cmd.inputs
         assert client.stats("fusion")["other"].get("timeline_reset", 0) >= 1

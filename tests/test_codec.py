@@ -9,9 +9,32 @@ import pytest
 from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import (
-    ALL_SAMPLES, AudioChunk, Bodies, Body, CameraInfo, Clarification, ColorShare, DepthFrame, DetectedObject, Detections,
-    Frame, FusedCommand, GestureEvent, Hand, Hands, ImageQuality, InvalidSample, Location, Motion, Ray, Ray3D, Stats,
-    Target, Transcript, Weights, Word,
+    ALL_SAMPLES,
+    AudioChunk,
+    Bodies,
+    Body,
+    CameraInfo,
+    Clarification,
+    ColorShare,
+    DepthFrame,
+    DetectedObject,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hand,
+    Hands,
+    ImageQuality,
+    InvalidSample,
+    Location,
+    Motion,
+    Ray,
+    Ray3D,
+    Stats,
+    Target,
+    Transcript,
+    Weights,
+    Word,
 )
 
 T = 1_790_000_000.0
@@ -23,44 +46,162 @@ INFO_2X2 = CameraInfo(width=2, height=2, k=[600.0, 0.0, 1.0, 0.0, 600.0, 1.0, 0.
 
 def examples():
     return [
-        Frame(stamp=T, source="camera/a", seq=7, cam="cam0", width=2, height=2, encoding="bgr8", data=bytes(12),
-              camera_info=INFO_2X2),
+        Frame(
+            stamp=T,
+            source="camera/a",
+            seq=7,
+            cam="cam0",
+            width=2,
+            height=2,
+            encoding="bgr8",
+            data=bytes(12),
+            camera_info=INFO_2X2,
+        ),
         AudioChunk(stamp=T, source="mic/a", mic="mic0", rate=16000, channels=1, format="s16le", data=bytes(640)),
-        Detections(stamp=T, source="vision/a", seq=7, cam="cam0", width=640, height=480,
-                   objects=[DetectedObject(id="o1", label="candy", color="red", score=0.9, bbox=[1, 2, 3, 4],
-                                           center=[2.5, 4.0]),
-                            DetectedObject(id="o2", label="cup", color="red", score=0.8, bbox=[5, 6, 7, 8],
-                                           center=[8.5, 10.0], lab=[38.0, 45.0, 30.0],
-                                           colors=[ColorShare(name="red", p=0.7), ColorShare(name="brown", p=0.2)],
-                                           position=[0.1, -0.05, 0.9], extent=[0.08, 0.1, 0.06], depth_support=0.8)],
-                   quality=ImageQuality(brightness=0.5, contrast=0.4, sharpness=0.9), frame_id="cam0_optical"),
-        Hands(stamp=T, source="gesture/a", seq=7, cam="cam0", width=640, height=480,
-              hands=[Hand(hand="right", score=0.97, landmarks=LANDMARKS, gesture="point",
-                          ray=Ray(origin=[120.0, 180.0], direction=[0.6, -0.8], confidence=0.9, source="hand",
-                                  ray3d=Ray3D(origin=[0.0, -0.4, 1.5], direction=[0.0, 0.6, -0.8],
-                                              method="eye_fingertip", frame_id="cam0_optical")))]),
-        GestureEvent(stamp=T, source="gesture/a", cam="cam0", width=640, height=480, gesture="point", phase="start",
-                     start=T - 0.2, end=T, score=0.9, hand="right", ray=RAY),
-        Transcript(stamp=T, source="speech/a", mic="mic0", start=T - 1.2, end=T, text="pick up that cup",
-                   confidence=0.8, words=[Word(word="pick", start=T - 1.2, end=T - 1.0, confidence=0.9)],
-                   final=True, backend="pocketsphinx"),
-        FusedCommand(stamp=T, source="fusion/a", id="c1", intent="pick_up", text="pick up that cup", target=TARGET,
-                     location=Location(x=10, y=20, cam="cam0"), gesture="point", confidence=0.7,
-                     weights=Weights(speech=0.4, vision=0.3, gesture=0.3),
-                     inputs={"speech": T, "vision": T - 0.1, "gesture": None},
-                     explanation="red cup, pointed at", prompt="Command: pick up ...",
-                     motion=Motion(direction="forward", distance=0.5, angle=0.0)),
-        Clarification(stamp=T, source="fusion/a", id="q1", text="pick up the cup", reason="ambiguous",
-                      question="Which cup: the red one on the left or the blue one on the right?",
-                      candidates=[TARGET, TARGET]),
-        Stats(stamp=T, source="vision/a", service="vision", instance="a", uptime=3.0, received=10, published=9,
-              skipped=1, rejected={"not_msgpack": 2}, other={"undecodable": 1}),
-        Bodies(stamp=T, source="gesture/a", seq=7, cam="cam0", width=640, height=480,
-               bodies=[Body(landmarks=[[300.0 + i, 100.0 + 8 * i] for i in range(33)], visibility=[0.9] * 33,
-                            right_ray=Ray(origin=[200.0, 250.0], direction=[-0.6, 0.8], confidence=0.8,
-                                          source="body"))]),
-        DepthFrame(stamp=T, source="camera/a", seq=7, cam="cam0", width=2, height=2, encoding="16UC1",
-                   depth_scale=0.001, camera_info=INFO_2X2, data=bytes(8)),
+        Detections(
+            stamp=T,
+            source="vision/a",
+            seq=7,
+            cam="cam0",
+            width=640,
+            height=480,
+            objects=[
+                DetectedObject(id="o1", label="candy", color="red", score=0.9, bbox=[1, 2, 3, 4], center=[2.5, 4.0]),
+                DetectedObject(
+                    id="o2",
+                    label="cup",
+                    color="red",
+                    score=0.8,
+                    bbox=[5, 6, 7, 8],
+                    center=[8.5, 10.0],
+                    lab=[38.0, 45.0, 30.0],
+                    colors=[ColorShare(name="red", p=0.7), ColorShare(name="brown", p=0.2)],
+                    position=[0.1, -0.05, 0.9],
+                    extent=[0.08, 0.1, 0.06],
+                    depth_support=0.8,
+                ),
+            ],
+            quality=ImageQuality(brightness=0.5, contrast=0.4, sharpness=0.9),
+            frame_id="cam0_optical",
+        ),
+        Hands(
+            stamp=T,
+            source="gesture/a",
+            seq=7,
+            cam="cam0",
+            width=640,
+            height=480,
+            hands=[
+                Hand(
+                    hand="right",
+                    score=0.97,
+                    landmarks=LANDMARKS,
+                    gesture="point",
+                    ray=Ray(
+                        origin=[120.0, 180.0],
+                        direction=[0.6, -0.8],
+                        confidence=0.9,
+                        source="hand",
+                        ray3d=Ray3D(
+                            origin=[0.0, -0.4, 1.5],
+                            direction=[0.0, 0.6, -0.8],
+                            method="eye_fingertip",
+                            frame_id="cam0_optical",
+                        ),
+                    ),
+                )
+            ],
+        ),
+        GestureEvent(
+            stamp=T,
+            source="gesture/a",
+            cam="cam0",
+            width=640,
+            height=480,
+            gesture="point",
+            phase="start",
+            start=T - 0.2,
+            end=T,
+            score=0.9,
+            hand="right",
+            ray=RAY,
+        ),
+        Transcript(
+            stamp=T,
+            source="speech/a",
+            mic="mic0",
+            start=T - 1.2,
+            end=T,
+            text="pick up that cup",
+            confidence=0.8,
+            words=[Word(word="pick", start=T - 1.2, end=T - 1.0, confidence=0.9)],
+            final=True,
+            backend="pocketsphinx",
+        ),
+        FusedCommand(
+            stamp=T,
+            source="fusion/a",
+            id="c1",
+            intent="pick_up",
+            text="pick up that cup",
+            target=TARGET,
+            location=Location(x=10, y=20, cam="cam0"),
+            gesture="point",
+            confidence=0.7,
+            weights=Weights(speech=0.4, vision=0.3, gesture=0.3),
+            inputs={"speech": T, "vision": T - 0.1, "gesture": None},
+            explanation="red cup, pointed at",
+            prompt="Command: pick up ...",
+            motion=Motion(direction="forward", distance=0.5, angle=0.0),
+        ),
+        Clarification(
+            stamp=T,
+            source="fusion/a",
+            id="q1",
+            text="pick up the cup",
+            reason="ambiguous",
+            question="Which cup: the red one on the left or the blue one on the right?",
+            candidates=[TARGET, TARGET],
+        ),
+        Stats(
+            stamp=T,
+            source="vision/a",
+            service="vision",
+            instance="a",
+            uptime=3.0,
+            received=10,
+            published=9,
+            skipped=1,
+            rejected={"not_msgpack": 2},
+            other={"undecodable": 1},
+        ),
+        Bodies(
+            stamp=T,
+            source="gesture/a",
+            seq=7,
+            cam="cam0",
+            width=640,
+            height=480,
+            bodies=[
+                Body(
+                    landmarks=[[300.0 + i, 100.0 + 8 * i] for i in range(33)],
+                    visibility=[0.9] * 33,
+                    right_ray=Ray(origin=[200.0, 250.0], direction=[-0.6, 0.8], confidence=0.8, source="body"),
+                )
+            ],
+        ),
+        DepthFrame(
+            stamp=T,
+            source="camera/a",
+            seq=7,
+            cam="cam0",
+            width=2,
+            height=2,
+            encoding="16UC1",
+            depth_scale=0.001,
+            camera_info=INFO_2X2,
+            data=bytes(8),
+        ),
     ]
 
 
@@ -121,11 +262,11 @@ INVALID = [
     (0, ["v"], 2, "bad_version"),
     (0, ["seq"], True, "wrong_type"),
     (0, ["encoding"], "gif", "bad_value"),
-    (0, ["data"], bytes(11), "bad_value"),           # bgr8 size does not match width*height*3
+    (0, ["data"], bytes(11), "bad_value"),  # bgr8 size does not match width*height*3
     (0, ["width"], 0, "out_of_range"),
     (0, ["source"], "", "bad_value"),
     (1, ["rate"], 12, "out_of_range"),
-    (1, ["data"], bytes(3), "bad_value"),             # half an s16 sample
+    (1, ["data"], bytes(3), "bad_value"),  # half an s16 sample
     (1, ["format"], "f32le", "bad_value"),
     (2, ["objects", 0, "score"], 1.5, "out_of_range"),
     (2, ["objects", 0, "bbox"], [1, 2, 3], "bad_value"),
@@ -136,9 +277,9 @@ INVALID = [
     (3, ["hands", 0, "landmarks"], LANDMARKS[:20], "bad_value"),
     (3, ["hands", 0, "landmarks", 4], [1.0], "bad_value"),
     (3, ["hands", 0, "hand"], "middle", "bad_value"),
-    (3, ["hands", 0, "ray", "direction"], [3.0, 4.0], "bad_value"),   # not a unit vector
+    (3, ["hands", 0, "ray", "direction"], [3.0, 4.0], "bad_value"),  # not a unit vector
     (4, ["phase"], "begin", "bad_value"),
-    (4, ["start"], T + 5, "bad_value"),               # start after end
+    (4, ["start"], T + 5, "bad_value"),  # start after end
     (5, ["final"], 1, "wrong_type"),
     (5, ["words", 0, "confidence"], float("-inf"), "not_finite"),
     (5, ["confidence"], 2, "out_of_range"),
@@ -150,8 +291,11 @@ INVALID = [
 ]
 
 
-@pytest.mark.parametrize("index,path,value,reason", INVALID,
-                         ids=[f"{type(examples()[i]).__name__}.{'.'.join(map(str, p))}" for i, p, _, _ in INVALID])
+@pytest.mark.parametrize(
+    "index,path,value,reason",
+    INVALID,
+    ids=[f"{type(examples()[i]).__name__}.{'.'.join(map(str, p))}" for i, p, _, _ in INVALID],
+)
 def test_invalid_values_are_rejected_with_a_reason(index, path, value, reason):
     sample = examples()[index]
     data = copy.deepcopy(sample.to_dict())
@@ -171,15 +315,18 @@ def test_truncated_msgpack_is_rejected(sample):
         assert err.value.reason in ("not_msgpack", "not_a_map", "missing_field")
 
 
-@pytest.mark.parametrize("payload,reason", [
-    (b"", "not_msgpack"),
-    (b"\xc1", "not_msgpack"),                         # never-used msgpack byte
-    (msgpack.packb([1, 2, 3]), "not_a_map"),
-    (msgpack.packb("pick up the cup"), "not_a_map"),
-    (msgpack.packb(None), "not_a_map"),
-    (b"\x81\xa1v\x01" + b"garbage", "not_msgpack"),  # a map followed by trailing bytes
-    (b'{"json": "is not msgpack"}', "not_msgpack"),
-])
+@pytest.mark.parametrize(
+    "payload,reason",
+    [
+        (b"", "not_msgpack"),
+        (b"\xc1", "not_msgpack"),  # never-used msgpack byte
+        (msgpack.packb([1, 2, 3]), "not_a_map"),
+        (msgpack.packb("pick up the cup"), "not_a_map"),
+        (msgpack.packb(None), "not_a_map"),
+        (b"\x81\xa1v\x01" + b"garbage", "not_msgpack"),  # a map followed by trailing bytes
+        (b'{"json": "is not msgpack"}', "not_msgpack"),
+    ],
+)
 def test_not_a_sample_at_all(payload, reason):
     with pytest.raises(InvalidSample) as err:
         decode(payload, Transcript)
@@ -226,27 +373,30 @@ def test_keys_map_to_schemas_under_any_prefix():
 
 
 # msgspec's error messages -> the documented reasons: the one table in common.schema, each row exercised.
-@pytest.mark.parametrize("index,change,reason", [
-    (5, {"words": [{"word": "pick", "start": T - 9.0, "end": T - 8.9, "confidence": 0.9}]}, "bad_value"),
-    (5, {"words": [{"word": "pick", "start": T - 0.5, "end": T - 0.6, "confidence": 0.9}]}, "bad_value"),
-    (0, {"seq": -1}, "out_of_range"),                      # int bound
-    (0, {"cam": ""}, "bad_value"),                         # empty string
-    (3, {"hands": [{"hand": "left"}]}, "missing_field"),   # nested missing field
-    (6, {"inputs": {1: 2.0}}, "wrong_type"),               # map key of the wrong type
-    (6, {"weights": []}, "wrong_type"),                    # nested map given as a list
-    (6, {"confidence": float("nan")}, "not_finite"),       # NaN against a 0–1 bound
-    (6, {"location": {"x": float("-inf"), "y": 0, "cam": "c"}}, "not_finite"),
-    (6, {"motion": {"direction": "forward", "distance": -1.0}}, "out_of_range"),
-    (9, {"bodies": [{"landmarks": [[0.0, 0.0]] * 33, "visibility": [1.5] * 33}]}, "out_of_range"),
-    (9, {"bodies": [{"landmarks": [[0.0, 0.0]] * 32, "visibility": [0.5] * 33}]}, "bad_value"),
-])
+@pytest.mark.parametrize(
+    "index,change,reason",
+    [
+        (5, {"words": [{"word": "pick", "start": T - 9.0, "end": T - 8.9, "confidence": 0.9}]}, "bad_value"),
+        (5, {"words": [{"word": "pick", "start": T - 0.5, "end": T - 0.6, "confidence": 0.9}]}, "bad_value"),
+        (0, {"seq": -1}, "out_of_range"),  # int bound
+        (0, {"cam": ""}, "bad_value"),  # empty string
+        (3, {"hands": [{"hand": "left"}]}, "missing_field"),  # nested missing field
+        (6, {"inputs": {1: 2.0}}, "wrong_type"),  # map key of the wrong type
+        (6, {"weights": []}, "wrong_type"),  # nested map given as a list
+        (6, {"confidence": float("nan")}, "not_finite"),  # NaN against a 0–1 bound
+        (6, {"location": {"x": float("-inf"), "y": 0, "cam": "c"}}, "not_finite"),
+        (6, {"motion": {"direction": "forward", "distance": -1.0}}, "out_of_range"),
+        (9, {"bodies": [{"landmarks": [[0.0, 0.0]] * 33, "visibility": [1.5] * 33}]}, "out_of_range"),
+        (9, {"bodies": [{"landmarks": [[0.0, 0.0]] * 32, "visibility": [0.5] * 33}]}, "bad_value"),
+    ],
+)
 def test_each_row_of_the_error_table(index, change, reason):
     sample = examples()[index]
     data = {**sample.to_dict(), **change}
     with pytest.raises(InvalidSample) as err:
         decode(msgpack.packb(data), type(sample))
     assert err.value.reason == reason, err.value
-    with pytest.raises(InvalidSample) as err:   # the same reason through from_dict (hri pub's path)
+    with pytest.raises(InvalidSample) as err:  # the same reason through from_dict (hri pub's path)
         type(sample).from_dict(msgpack.unpackb(msgpack.packb(data), strict_map_key=False))
     assert err.value.reason == reason, err.value
 
@@ -268,6 +418,7 @@ def test_malformed_msgpack_wins_over_a_missing_field():
 
 def test_encode_refuses_values_msgpack_has_no_form_for():
     import numpy as np
+
     sample = examples()[2]
     sample.objects[0].score = np.float32(0.5)
     with pytest.raises(InvalidSample) as err:
@@ -297,8 +448,17 @@ def _reason(schema, data):
 
 
 def test_intrinsics_of_another_resolution_are_refused():
-    frame = Frame(stamp=T, source="camera/a", seq=1, cam="cam0", width=2, height=2, encoding="bgr8", data=bytes(12),
-                  camera_info=INFO_2X2).to_dict()
+    frame = Frame(
+        stamp=T,
+        source="camera/a",
+        seq=1,
+        cam="cam0",
+        width=2,
+        height=2,
+        encoding="bgr8",
+        data=bytes(12),
+        camera_info=INFO_2X2,
+    ).to_dict()
     frame["camera_info"]["width"] = 640
     reason, detail = _reason(Frame, frame)
     assert reason == "bad_value" and "640x2" in detail and "2x2" in detail
@@ -321,7 +481,7 @@ def test_depth_sizes_and_png_rule():
     depth["encoding"], depth["data"] = "32FC1", bytes(16)
     assert decode(msgpack.packb(depth), DepthFrame).encoding == "32FC1"
     depth["compression"] = "png"
-    assert _reason(DepthFrame, depth)[0] == "bad_value"          # png carries 16UC1 only
+    assert _reason(DepthFrame, depth)[0] == "bad_value"  # png carries 16UC1 only
     depth = examples()[-1].to_dict()
     depth["depth_scale"] = 0.0
     assert _reason(DepthFrame, depth)[0] == "out_of_range"

@@ -13,8 +13,15 @@ from tests.harness import Client
 from tests.netns import netns_fixture
 
 
-def feed(clocks: ClockOffsets, source: str, skew: float, n: int, rng: random.Random, t0: float = 1.0e9,
-         router_skew: float = 0.0) -> None:
+def feed(
+    clocks: ClockOffsets,
+    source: str,
+    skew: float,
+    n: int,
+    rng: random.Random,
+    t0: float = 1.0e9,
+    router_skew: float = 0.0,
+) -> None:
     """`n` samples at 30 Hz from a source whose clock runs `skew` s ahead of ours; each stamped when its frame was
     taken, published after a processing delay of 20-120 ms, 0.2-5 ms on the network to the router (whose clock
     runs `router_skew` ahead), as much again to us."""
@@ -103,9 +110,18 @@ def test_fusion_reports_sources_300_ms_ahead_and_behind_and_warns(netns_group):
         time.sleep(0.5)
         for i in range(40):  # 2 s of hands from three sources: in step, ahead and behind
             for cam, skew in (("ok", 0.0), ("ahead", 0.3), ("behind", -0.3)):
-                client.publish(f"hri/gesture/{cam}/hands", Hands(
-                    stamp=time.time() + skew, source=f"gesture/{cam}", seq=i, cam=cam, width=640, height=480,
-                    hands=[]))
+                client.publish(
+                    f"hri/gesture/{cam}/hands",
+                    Hands(
+                        stamp=time.time() + skew,
+                        source=f"gesture/{cam}",
+                        seq=i,
+                        cam=cam,
+                        width=640,
+                        height=480,
+                        hands=[],
+                    ),
+                )
             time.sleep(0.05)
         time.sleep(1.5)  # fusion updates its stats every second
         other = client.stats("fusion")["other"]

@@ -35,8 +35,12 @@ def rss_mb(pid: int) -> float:
 
 
 def say(client: Client, text: str, seconds_per_word: float = 0.2) -> None:
-    client.publish("hri/speech/kbd/transcript", make_transcript(
-        text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd", seconds_per_word=seconds_per_word))
+    client.publish(
+        "hri/speech/kbd/transcript",
+        make_transcript(
+            text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd", seconds_per_word=seconds_per_word
+        ),
+    )
 
 
 def next_result(results, timeout: float = 30.0):
@@ -76,8 +80,11 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         t_cut = time.monotonic()
         g.net.set_link("perception", up=False)
         # the router drops the unreachable host's tokens once its lease (3 s) ran out: fusion sees vision gone
-        wait_until(lambda: not {"camera", "vision", "gesture"} & {s for s, _ in client.alive(0.5)}, OUTAGE_S,
-                   "the perception host's liveliness tokens gone")
+        wait_until(
+            lambda: not {"camera", "vision", "gesture"} & {s for s, _ in client.alive(0.5)},
+            OUTAGE_S,
+            "the perception host's liveliness tokens gone",
+        )
         time.sleep(max(0.0, t_cut + 4.2 - time.monotonic()))  # vision's last samples are past fusion's look-back
         say(client, "pick up the red one")
         blind = next_result(results)
@@ -88,9 +95,11 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         time.sleep(max(0.0, t_cut + OUTAGE_S - time.monotonic()))
         g.net.set_link("perception", up=True)
         t_up, wall_up = time.monotonic(), time.time()
-        t_back = wait_until(lambda: {"camera", "vision", "gesture"} <= {s for s, _ in client.alive(0.5)},
-                            RECONNECT_BOUND_S,
-                            "the perception host's liveliness tokens back")
+        t_back = wait_until(
+            lambda: {"camera", "vision", "gesture"} <= {s for s, _ in client.alive(0.5)},
+            RECONNECT_BOUND_S,
+            "the perception host's liveliness tokens back",
+        )
         print(f"reconnected {t_back - t_up:.2f} s after the link came back")
 
         time.sleep(1.5)  # fresh frames through vision
@@ -122,11 +131,19 @@ def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once
     secure: list[str] = []
     if secured:  # the access rules must let the recovery through (it lives under KEY/@adv/...)
         from common.security import init_secrets
+
         secure = ["--secure", str(init_secrets(tmp_path / "secrets", {"operator": ["reader", "keyboard"]}).folder)]
     g.router(*secure)
     g.service("fusion", *secure, host="speech")
-    consumer = g.start("consumer", "tests.recovering_echo", g.net.endpoint("perception"), "hri/fusion/command",
-                       *secure[1:], connect=False, host="perception")
+    consumer = g.start(
+        "consumer",
+        "tests.recovering_echo",
+        g.net.endpoint("perception"),
+        "hri/fusion/command",
+        *secure[1:],
+        connect=False,
+        host="perception",
+    )
     client = Client(g.endpoint, secure=secure[1] if secure else None, user="operator" if secure else "cli")
     try:
         client.wait_alive("fusion", timeout=90)

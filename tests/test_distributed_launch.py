@@ -49,12 +49,37 @@ def test_two_hosts_each_run_part_of_the_stack_with_hri_up(netns_group):
     """The README's two-host example: host A runs the router with camera and vision, host B speech-less fusion."""
     g = netns_group
     net = g.net
-    host_a = g.start("up-perception", "common.cli", "up", "--only", "router,camera,vision", "--camera", str(TABLE),
-                     "--fps", "10", "--loop", "--vision-labels", str(DATA / "demo" / "labels.json"),
-                     *[a for ep in net.router_listen() for a in ("--listen", ep)], connect=False, host="router")
+    host_a = g.start(
+        "up-perception",
+        "common.cli",
+        "up",
+        "--only",
+        "router,camera,vision",
+        "--camera",
+        str(TABLE),
+        "--fps",
+        "10",
+        "--loop",
+        "--vision-labels",
+        str(DATA / "demo" / "labels.json"),
+        *[a for ep in net.router_listen() for a in ("--listen", ep)],
+        connect=False,
+        host="router",
+    )
     g.wait_router(30)
-    host_b = g.start("up-fusion", "common.cli", "up", "--only", "fusion", "--speech-input", "none", "--connect",
-                     net.endpoint("speech"), connect=False, host="speech")
+    host_b = g.start(
+        "up-fusion",
+        "common.cli",
+        "up",
+        "--only",
+        "fusion",
+        "--speech-input",
+        "none",
+        "--connect",
+        net.endpoint("speech"),
+        connect=False,
+        host="speech",
+    )
     client = Client(g.endpoint)
     try:
         for name in ("camera", "vision", "fusion"):

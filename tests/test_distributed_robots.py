@@ -61,20 +61,28 @@ def test_two_robots_share_a_router_without_seeing_each_others_inputs(group, tmp_
         time.sleep(1.0)
         # robot 2's operator speaks: robot 2 acts, robot 1 hears nothing
         speech2.publish("robot2/speech/kbd/transcript", transcript("turn left", "speech/robot2"))
-        (_, cmd2), = out2.wait(1, timeout=20)
+        ((_, cmd2),) = out2.wait(1, timeout=20)
         assert isinstance(cmd2, FusedCommand) and cmd2.intent == "turn", cmd2
         # robot 2's processes try robot 1's keys: its words and a forged command
         speech2.put_raw("robot1/speech/kbd/transcript", encode(transcript("turn right", "speech/robot2")))
         speech2.publish("robot1/speech/kbd/transcript", transcript("turn right", "speech/robot2"))
-        forged = FusedCommand(stamp=time.time(), source="fusion/forged", id="cmd-forged", intent="stop",
-                              confidence=1.0, weights=Weights(speech=1.0, vision=0.0, gesture=0.0), inputs={},
-                              explanation="forged", prompt="forged")
+        forged = FusedCommand(
+            stamp=time.time(),
+            source="fusion/forged",
+            id="cmd-forged",
+            intent="stop",
+            confidence=1.0,
+            weights=Weights(speech=1.0, vision=0.0, gesture=0.0),
+            inputs={},
+            explanation="forged",
+            prompt="forged",
+        )
         fusion2_forger.publish("robot1/fusion/command", forged)
         fusion2_forger.put_raw("robot1/fusion/command", encode(forged))
         # robot 1's own operator: the one command robot 1 sees
         time.sleep(1.0)
         speech1.publish("robot1/speech/kbd/transcript", transcript("turn left", "speech/robot1"))
-        (_, cmd1), = out1.wait(1, timeout=20)
+        ((_, cmd1),) = out1.wait(1, timeout=20)
         assert isinstance(cmd1, FusedCommand) and cmd1.intent == "turn" and "left" in cmd1.prompt, cmd1
         out1.drain(1.5)
         assert [s.id for _, s in out1.seen] == [cmd1.id], [s for _, s in out1.seen]

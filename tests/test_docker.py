@@ -27,7 +27,7 @@ CI_TIMEOUT_S = 1500
 def skip_reason(output: str) -> str:
     for line in output.splitlines():
         if line.startswith("SKIP docker: "):
-            return line[len("SKIP docker: "):]
+            return line[len("SKIP docker: ") :]
     return "docker/ci.sh exited 77 without a reason"
 
 
@@ -42,8 +42,15 @@ def test_compose_stack_builds_starts_and_answers_from_the_host(tmp_path: Path) -
     env.pop("HRI_ROUTER_PORT", None)  # the script picks a free one
     log = tmp_path / "docker-ci.log"
     with log.open("w") as out:
-        proc = subprocess.Popen(["bash", str(ROOT / "docker" / "ci.sh")], cwd=ROOT, env=env, stdout=out,
-                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+        proc = subprocess.Popen(
+            ["bash", str(ROOT / "docker" / "ci.sh")],
+            cwd=ROOT,
+            env=env,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+        )
         try:
             proc.wait(CI_TIMEOUT_S)
         except subprocess.TimeoutExpired:
@@ -66,13 +73,14 @@ def test_compose_stack_builds_starts_and_answers_from_the_host(tmp_path: Path) -
     assert "all docker checks passed" in output, tail(output)
     left_out = [ln for ln in output.splitlines() if "not in this checkout yet" in ln]
     if left_out:  # visible in the warnings summary: the stack ran without some services
-        warnings.warn(left_out[0].split("] ", 1)[-1])
+        warnings.warn(left_out[0].split("] ", 1)[-1], stacklevel=1)  # the test itself is the place to report
 
 
 # -- the helpers, without Docker ------------------------------------------------------------------------
 def load_docker_script(name: str):
-    spec = importlib.util.spec_from_file_location(f"hri_docker_{name.replace('-', '_')}",
-                                                  ROOT / "docker" / f"{name}.py")
+    spec = importlib.util.spec_from_file_location(
+        f"hri_docker_{name.replace('-', '_')}", ROOT / "docker" / f"{name}.py"
+    )
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -85,7 +93,7 @@ def test_image_requirements_are_the_pyproject_extras_with_self_references_expand
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     optional = project["optional-dependencies"]
     image = module.requirements(project, ["gesture", "vision", "speech", "record"])
-    assert image[:len(project["dependencies"])] == project["dependencies"]
+    assert image[: len(project["dependencies"])] == project["dependencies"]
     for extra in ("gesture", "vision", "speech", "record"):
         assert set(optional[extra]) <= set(image), extra
     assert not set(optional["test"]) & set(image)  # pytest stays out of the image
@@ -101,10 +109,20 @@ def test_image_requirements_are_the_pyproject_extras_with_self_references_expand
 def test_fused_answer_verdict():
     check = load_docker_script("check_fused").check
     utterance = "pick up the red candy"
-    red = {"key": "hri/fusion/command", "text": utterance, "intent": "pick_up", "confidence": 0.9,
-           "target": {"label": "candy", "color": "red"}, "explanation": "red candy by colour"}
-    question = {"key": "hri/fusion/clarification", "text": utterance, "reason": "not_found",
-                "question": "I can't see anything right now"}
+    red = {
+        "key": "hri/fusion/command",
+        "text": utterance,
+        "intent": "pick_up",
+        "confidence": 0.9,
+        "target": {"label": "candy", "color": "red"},
+        "explanation": "red candy by colour",
+    }
+    question = {
+        "key": "hri/fusion/clarification",
+        "text": utterance,
+        "reason": "not_found",
+        "question": "I can't see anything right now",
+    }
     assert check(red, utterance, grounded=True)[0]
     assert check(question, utterance, grounded=False)[0]
     ok, why = check(question, utterance, grounded=True)
@@ -119,8 +137,14 @@ def test_fused_answer_verdict():
 
 def run_healthcheck(what: str, env: dict[str, str]) -> subprocess.CompletedProcess:
     full_env = {k: v for k, v in os.environ.items() if not k.startswith("HRI_")} | env
-    return subprocess.run([sys.executable, str(ROOT / "docker" / "healthcheck.py"), what], cwd=ROOT,
-                          env=full_env, capture_output=True, text=True, timeout=60)
+    return subprocess.run(
+        [sys.executable, str(ROOT / "docker" / "healthcheck.py"), what],
+        cwd=ROOT,
+        env=full_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 @pytest.mark.integration

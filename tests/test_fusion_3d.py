@@ -10,7 +10,16 @@ import numpy as np
 import pytest
 
 from common.schema import (
-    Bodies, Body, DetectedObject, Detections, Hand, Hands, ImageQuality, Ray, Ray3D, Weights,
+    Bodies,
+    Body,
+    DetectedObject,
+    Detections,
+    Hand,
+    Hands,
+    ImageQuality,
+    Ray,
+    Ray3D,
+    Weights,
 )
 from services.fusion import space
 from services.fusion.evidence import pointing_from_hands, select_pointing
@@ -36,9 +45,17 @@ def thing(oid: str, label: str, position, size=(0.08, 0.22, 0.08), color=None) -
     """A detected object at `position` (m) as vision would report it with depth: its box is its projection."""
     c = project(position)
     w, h = size[0] * F / position[2], size[1] * F / position[2]
-    return DetectedObject(id=oid, label=label, color=color, score=0.9, bbox=[c[0] - w / 2, c[1] - h / 2, w, h],
-                          center=[float(c[0]), float(c[1])], position=[float(v) for v in position],
-                          extent=list(size), depth_support=0.8)
+    return DetectedObject(
+        id=oid,
+        label=label,
+        color=color,
+        score=0.9,
+        bbox=[c[0] - w / 2, c[1] - h / 2, w, h],
+        center=[float(c[0]), float(c[1])],
+        position=[float(v) for v in position],
+        extent=list(size),
+        depth_support=0.8,
+    )
 
 
 def flat(o: DetectedObject) -> DetectedObject:
@@ -47,10 +64,17 @@ def flat(o: DetectedObject) -> DetectedObject:
 
 
 def detections(objects, stamp=BASE_STAMP, depth=True) -> Detections:
-    return Detections(stamp=stamp, source="vision/cam0", seq=1, cam="cam0", width=W, height=H,
-                      objects=[o if depth else flat(o) for o in objects],
-                      quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.6),
-                      frame_id=FRAME if depth else None)
+    return Detections(
+        stamp=stamp,
+        source="vision/cam0",
+        seq=1,
+        cam="cam0",
+        width=W,
+        height=H,
+        objects=[o if depth else flat(o) for o in objects],
+        quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.6),
+        frame_id=FRAME if depth else None,
+    )
 
 
 def pointing_hand(target, eyes=EYES, hit=None, with_3d=True) -> Hand:
@@ -59,11 +83,30 @@ def pointing_hand(target, eyes=EYES, hit=None, with_3d=True) -> Hand:
     tip = eyes + 0.7 * d
     tip_px, eye_px = project(tip), project(eyes)
     d2 = unit(tip_px - eye_px)
-    ray3d = Ray3D(origin=[float(v) for v in eyes], direction=[float(v) for v in d], method="eye_fingertip",
-                  frame_id=FRAME, hit=None if hit is None else [float(v) for v in hit]) if with_3d else None
-    return Hand(hand="right", score=0.95, landmarks=landmarks_at(*tip_px), gesture="point",
-                ray=Ray(origin=[float(v) for v in tip_px], direction=[float(v) for v in d2], confidence=0.9,
-                        source="body", ray3d=ray3d))
+    ray3d = (
+        Ray3D(
+            origin=[float(v) for v in eyes],
+            direction=[float(v) for v in d],
+            method="eye_fingertip",
+            frame_id=FRAME,
+            hit=None if hit is None else [float(v) for v in hit],
+        )
+        if with_3d
+        else None
+    )
+    return Hand(
+        hand="right",
+        score=0.95,
+        landmarks=landmarks_at(*tip_px),
+        gesture="point",
+        ray=Ray(
+            origin=[float(v) for v in tip_px],
+            direction=[float(v) for v in d2],
+            confidence=0.9,
+            source="body",
+            ray3d=ray3d,
+        ),
+    )
 
 
 def hands(hand: Hand, stamp=BASE_STAMP) -> Hands:
@@ -92,9 +135,15 @@ def test_two_d_and_three_d_disagree_and_three_d_is_right():
     assert pointed(objects, hand, depth=False) == "B"  # the image alone is fooled
     assert pointed(objects, hand) == "A"
     p = select_pointing(pointing_from_hands(hands(hand)), BASE_STAMP)
-    angles = {s.obj.id: s.angle for s in score(parse("that bottle").obj, scene_objects([detections(objects)]), p,
-                                                Weights(speech=0.5, vision=0.0,
-                                                                                           gesture=0.5))}
+    angles = {
+        s.obj.id: s.angle
+        for s in score(
+            parse("that bottle").obj,
+            scene_objects([detections(objects)]),
+            p,
+            Weights(speech=0.5, vision=0.0, gesture=0.5),
+        )
+    }
     assert angles["A"] < 3.0 < 45.0 < angles["B"]
 
 
@@ -102,8 +151,17 @@ def test_two_d_and_three_d_disagree_and_three_d_is_right():
 def test_pointing_at_objects_one_to_three_metres_away_picks_the_right_one(which):
     """Six bottles 1-3 m from the person, spread over the room; pointing at each picks it, with and without a
     3° error in the ray."""
-    places = [np.array(p) for p in ([-0.8, 0.5, 2.4], [-0.2, 0.5, 1.6], [0.6, 0.5, 1.2], [-1.3, 0.3, 3.0],
-                                    [1.2, 0.4, 2.0], [0.0, 0.2, 4.6])]
+    places = [
+        np.array(p)
+        for p in (
+            [-0.8, 0.5, 2.4],
+            [-0.2, 0.5, 1.6],
+            [0.6, 0.5, 1.2],
+            [-1.3, 0.3, 3.0],
+            [1.2, 0.4, 2.0],
+            [0.0, 0.2, 4.6],
+        )
+    ]
     for p in places:
         assert 1.0 <= np.linalg.norm(p - EYES) <= 3.0
     objects = [thing(f"b{i}", "bottle", p) for i, p in enumerate(places)]
@@ -147,10 +205,19 @@ def test_a_ray_in_another_frame_is_compared_in_two_d():
     b = on_ray * (on_ray[2] + 1.2) / on_ray[2]
     objects = [thing("A", "bottle", target + unit(np.cross(d, [0, 1, 0])) * 0.06), thing("B", "bottle", b)]
     hand = pointing_hand(target)
-    other = Ray3D(origin=hand.ray.ray3d.origin, direction=hand.ray.ray3d.direction, method="eye_fingertip",
-                  frame_id="another_camera")
-    hand = Hand(hand="right", score=0.95, landmarks=hand.landmarks, gesture="point",
-                ray=Ray(origin=hand.ray.origin, direction=hand.ray.direction, confidence=0.9, ray3d=other))
+    other = Ray3D(
+        origin=hand.ray.ray3d.origin,
+        direction=hand.ray.ray3d.direction,
+        method="eye_fingertip",
+        frame_id="another_camera",
+    )
+    hand = Hand(
+        hand="right",
+        score=0.95,
+        landmarks=hand.landmarks,
+        gesture="point",
+        ray=Ray(origin=hand.ray.origin, direction=hand.ray.direction, confidence=0.9, ray3d=other),
+    )
     assert pointed(objects, hand) == "B"
 
 
@@ -174,9 +241,11 @@ def test_the_nearest_bottle_by_depth_not_by_the_lowest_box():
     shelf = thing("shelf_bottle", "bottle", [0.3, 0.1, 1.0])
     assert floor.bbox[1] + floor.bbox[3] > shelf.bbox[1] + shelf.bbox[3]  # the floor bottle is the lower one
     w = Weights(speech=1.0, vision=0.0, gesture=0.0)
-    for text, depth, expected in (("the nearest bottle", True, "shelf_bottle"),
-                                  ("the farthest bottle", True, "floor_bottle"),
-                                  ("the nearest bottle", False, "floor_bottle")):  # 2-D: lowest = nearest
+    for text, depth, expected in (
+        ("the nearest bottle", True, "shelf_bottle"),
+        ("the farthest bottle", True, "floor_bottle"),
+        ("the nearest bottle", False, "floor_bottle"),
+    ):  # 2-D: lowest = nearest
         ranked = score(parse(f"pick up {text}").obj, scene_objects([detections([floor, shelf], depth=depth)]), None, w)
         assert ranked[0].obj.id == expected, text
         assert ranked[0].total - ranked[1].total > 0.3, text
@@ -211,13 +280,30 @@ def test_an_object_behind_the_spot_on_the_floor_is_not_there():
 
 
 def test_fit_projection_recovers_the_pinhole_despite_an_odd_object():
-    objects = scene_objects([detections([thing("a", "cup", [0.1, 0.2, 1.0]), thing("b", "cup", [-0.5, 0.3, 2.0]),
-                                         thing("c", "cup", [0.7, -0.2, 3.0])])])
+    objects = scene_objects(
+        [
+            detections(
+                [
+                    thing("a", "cup", [0.1, 0.2, 1.0]),
+                    thing("b", "cup", [-0.5, 0.3, 2.0]),
+                    thing("c", "cup", [0.7, -0.2, 3.0]),
+                ]
+            )
+        ]
+    )
     assert space.fit_projection(objects) == pytest.approx((F, CX, CY))
-    odd = DetectedObject(id="table", label="dining table", score=0.5, bbox=[0, 100, 640, 380], center=[320, 290],
-                         position=[0.4, 0.35, 1.5], extent=[1.5, 0.5, 1.2])  # its median point is not its centre
-    objects = scene_objects([detections([thing("a", "cup", [0.1, 0.2, 1.0]), thing("b", "cup", [-0.5, 0.3, 2.0]),
-                                         odd])])
+    odd = DetectedObject(
+        id="table",
+        label="dining table",
+        score=0.5,
+        bbox=[0, 100, 640, 380],
+        center=[320, 290],
+        position=[0.4, 0.35, 1.5],
+        extent=[1.5, 0.5, 1.2],
+    )  # its median point is not its centre
+    objects = scene_objects(
+        [detections([thing("a", "cup", [0.1, 0.2, 1.0]), thing("b", "cup", [-0.5, 0.3, 2.0]), odd])]
+    )
     assert space.fit_projection(objects)[0] == pytest.approx(F, rel=0.01)
     on_axis = scene_objects([detections([thing("a", "cup", [0.01, 0.02, 1.0])])])
     assert space.fit_projection(on_axis) is None
@@ -231,6 +317,7 @@ def step(t: float, make) -> Step:
         sample = make(base + t)
         key = KEYS.objects("cam0") if isinstance(sample, Detections) else KEYS.hands("cam0")
         return key, sample
+
     return Step(t, build)
 
 
@@ -267,8 +354,9 @@ def body(facing: bool | None) -> Body:
 
 
 def bodies(b: Body | None, stamp: float) -> Bodies:
-    return Bodies(stamp=stamp, source="gesture/cam0", seq=1, cam="cam0", width=W, height=H,
-                  bodies=[] if b is None else [b])
+    return Bodies(
+        stamp=stamp, source="gesture/cam0", seq=1, cam="cam0", width=W, height=H, bodies=[] if b is None else [b]
+    )
 
 
 def test_side_words_said_from_the_speaker():
@@ -289,18 +377,32 @@ def test_facing_from_the_shoulders():
 
 def run_with_body(text: str, person: Body | None) -> str:
     """Two cups, one on each side of the image; the person's body (if any) seen throughout."""
-    cups = [DetectedObject(id="image_left", label="cup", score=0.9, bbox=[60, 300, 60, 80], center=[90, 340]),
-            DetectedObject(id="image_right", label="cup", score=0.9, bbox=[520, 300, 60, 80], center=[550, 340])]
+    cups = [
+        DetectedObject(id="image_left", label="cup", score=0.9, bbox=[60, 300, 60, 80], center=[90, 340]),
+        DetectedObject(id="image_right", label="cup", score=0.9, bbox=[520, 300, 60, 80], center=[550, 340]),
+    ]
 
     def see(s):
-        return Detections(stamp=s, source="vision/cam0", seq=1, cam="cam0", width=W, height=H, objects=cups,
-                          quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.6))
+        return Detections(
+            stamp=s,
+            source="vision/cam0",
+            seq=1,
+            cam="cam0",
+            width=W,
+            height=H,
+            objects=cups,
+            quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.6),
+        )
+
     steps = [step(t / 10, see) for t in range(-10, 20, 2)]
     if person is not None:
-        steps += [Step(t / 10, lambda base, t=t: (KEYS.bodies("cam0"), bodies(person, base + t / 10)))
-                  for t in range(-10, 20, 2)]
+        steps += [
+            Step(t / 10, lambda base, t=t: (KEYS.bodies("cam0"), bodies(person, base + t / 10)))
+            for t in range(-10, 20, 2)
+        ]
     steps.append(say(0.0, 0.8, text))
     from services.fusion.core import Config, FusionCore
+
     core = FusionCore(Config(), "fusion/test")
     for modality in ("vision", "gesture"):
         core.on_liveliness(modality, "test", True)
@@ -314,13 +416,16 @@ def run_with_body(text: str, person: Body | None) -> str:
     return out[0].target.id
 
 
-@pytest.mark.parametrize("text,person,expected", [
-    ("pick up the cup on my left", body(True), "image_right"),  # face to face: my left is your right
-    ("pick up the cup on my right", body(True), "image_left"),
-    ("pick up the cup on my left", body(False), "image_left"),  # seen from behind: the same side as the camera
-    ("pick up the cup on my left", None, "image_right"),  # not seen: taken to face the robot
-    ("pick up the cup on your left", body(True), "image_left"),  # the robot's = the camera's
-    ("pick up the left cup", body(True), "image_left"),
-])
+@pytest.mark.parametrize(
+    "text,person,expected",
+    [
+        ("pick up the cup on my left", body(True), "image_right"),  # face to face: my left is your right
+        ("pick up the cup on my right", body(True), "image_left"),
+        ("pick up the cup on my left", body(False), "image_left"),  # seen from behind: the same side as the camera
+        ("pick up the cup on my left", None, "image_right"),  # not seen: taken to face the robot
+        ("pick up the cup on your left", body(True), "image_left"),  # the robot's = the camera's
+        ("pick up the left cup", body(True), "image_left"),
+    ],
+)
 def test_on_my_left_is_the_speakers_left(text, person, expected):
     assert run_with_body(text, person) == expected

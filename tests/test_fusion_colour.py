@@ -23,8 +23,22 @@ SPEECH = Weights(speech=0.6, vision=0.4, gesture=0.0)
 
 
 def obj(id_, label, x, color=None, lab=None, colors=()):
-    return SceneObject(id_, label, label, color, (x - 30.0, 200.0, 60.0, 60.0), (x, 230.0), 0.8, "cam0", 640, 480,
-                       1.0, 1.0, lab=lab, colors=tuple(colors))
+    return SceneObject(
+        id_,
+        label,
+        label,
+        color,
+        (x - 30.0, 200.0, 60.0, 60.0),
+        (x, 230.0),
+        0.8,
+        "cam0",
+        640,
+        480,
+        1.0,
+        1.0,
+        lab=lab,
+        colors=tuple(colors),
+    )
 
 
 def decide(text, objects):
@@ -41,9 +55,11 @@ def issue_counter():
     """The issue's kitchen counter: a dark red cup (hue 14°, sat 0.65, val 0.40), a white cup in shadow (sat 0.09,
     61 %) and a black cup; `color` as the old hue palette named them."""
     lab = lambda h, s, v: measure_lab(hsv_patch(h, s, v).reshape(-1, 3))  # noqa: E731
-    return [obj("dark_red", "cup", 100, "orange", lab(14, 0.65, 0.40)),
-            obj("white", "cup", 300, "grey", lab(40, 0.09, 0.61)),
-            obj("black", "cup", 500, "black", lab(220, 0.2, 0.10))]
+    return [
+        obj("dark_red", "cup", 100, "orange", lab(14, 0.65, 0.40)),
+        obj("white", "cup", 300, "grey", lab(40, 0.09, 0.61)),
+        obj("black", "cup", 500, "black", lab(220, 0.2, 0.10)),
+    ]
 
 
 def test_the_issues_cups_are_found_by_similarity():
@@ -62,9 +78,24 @@ def candies():
     out = []
     for i, (box, _) in enumerate(CANDIES):
         lab, colors = object_colour(img, box)
-        out.append(SceneObject(f"c{i}", "candy", "candy", colors[0][0], tuple(float(v) for v in box),
-                               (box[0] + box[2] / 2, box[1] + box[3] / 2), 0.9, "cam0", 413, 356, 1.0, 1.0,
-                               lab=lab, colors=tuple(colors)))
+        out.append(
+            SceneObject(
+                f"c{i}",
+                "candy",
+                "candy",
+                colors[0][0],
+                tuple(float(v) for v in box),
+                (box[0] + box[2] / 2, box[1] + box[3] / 2),
+                0.9,
+                "cam0",
+                413,
+                356,
+                1.0,
+                1.0,
+                lab=lab,
+                colors=tuple(colors),
+            )
+        )
     return out
 
 
@@ -82,8 +113,11 @@ def test_real_candies_relative_choice():
 
 
 def test_two_that_fit_about_equally_are_asked_about_and_one_that_stands_out_is_chosen():
-    near = [obj("a", "cup", 100, lab=(45.0, 60.0, 40.0)), obj("b", "cup", 300, lab=(42.0, 55.0, 36.0)),
-            obj("c", "cup", 500, lab=(40.0, 20.0, -50.0))]
+    near = [
+        obj("a", "cup", 100, lab=(45.0, 60.0, 40.0)),
+        obj("b", "cup", 300, lab=(42.0, 55.0, 36.0)),
+        obj("c", "cup", 500, lab=(40.0, 20.0, -50.0)),
+    ]
     assert picked("the red cup", near) == ("ambiguous", ["a", "b"])
     apart = [near[0], obj("b", "cup", 300, lab=(55.0, 35.0, 60.0)), near[2]]  # b is orange now
     assert picked("the red cup", apart) == "a"
@@ -92,16 +126,21 @@ def test_two_that_fit_about_equally_are_asked_about_and_one_that_stands_out_is_c
 
 def test_plausible_only_relative_to_the_objects_the_other_words_fit():
     """A reddish-brown cup is the red cup when the other cup is blue, even beside a vivid red ball."""
-    objs = [obj("cup_brownish", "cup", 100, lab=(35.0, 30.0, 28.0)),
-            obj("cup_blue", "cup", 300, lab=(40.0, 20.0, -55.0)),
-            obj("ball", "sports ball", 500, lab=(45.0, 65.0, 45.0))]
+    objs = [
+        obj("cup_brownish", "cup", 100, lab=(35.0, 30.0, 28.0)),
+        obj("cup_blue", "cup", 300, lab=(40.0, 20.0, -55.0)),
+        obj("ball", "sports ball", 500, lab=(45.0, 65.0, 45.0)),
+    ]
     assert picked("the red cup", objs) == "cup_brownish"
     assert picked("the red ball", objs) == "ball"
 
 
 def test_light_and_dark_modifiers():
-    bowls = [obj("light", "bowl", 100, lab=(80.0, -12.0, -25.0)), obj("mid", "bowl", 300, lab=(45.0, 15.0, -50.0)),
-             obj("navy", "bowl", 500, lab=(18.0, 12.0, -30.0))]
+    bowls = [
+        obj("light", "bowl", 100, lab=(80.0, -12.0, -25.0)),
+        obj("mid", "bowl", 300, lab=(45.0, 15.0, -50.0)),
+        obj("navy", "bowl", 500, lab=(18.0, 12.0, -30.0)),
+    ]
     assert picked("the light blue bowl", bowls) == "light"
     assert picked("the pale blue bowl", bowls) == "light"
     assert picked("the navy bowl", bowls) == "navy"
@@ -112,18 +151,18 @@ def test_light_and_dark_modifiers():
     assert picked("the silver sofa", sofas) == "light"
     assert picked("the white sofa", sofas) == "light"
     assert picked("the dark sofa", sofas) == "dark"
-    assert picked("the light one", sofas) == "light"       # not "the right one" (a fuzzy fix it used to get)
+    assert picked("the light one", sofas) == "light"  # not "the right one" (a fuzzy fix it used to get)
 
 
 def test_without_lab_names_match_by_similarity():
     """An old sender or the colour backend: `color` only. Neighbouring names partly match, distant ones never."""
     cups = [obj("orange", "cup", 100, "orange"), obj("blue", "cup", 400, "blue")]
-    assert picked("the red cup", cups) == "orange"         # the issue's dark red cup that vision called orange
+    assert picked("the red cup", cups) == "orange"  # the issue's dark red cup that vision called orange
     assert picked("the navy cup", cups) == "blue"
     assert decide("the green cup", cups).kind == "not_found"
     assert decide("the purple cup", cups).kind == "not_found"
     two = [obj("grey", "cup", 100, "grey"), obj("black", "cup", 400, "black")]
-    assert picked("the white cup", two) == "grey"            # white in shadow, named grey
+    assert picked("the white cup", two) == "grey"  # white in shadow, named grey
     assert picked("the red cup", [obj("red", "cup", 100, "red"), obj("orange", "cup", 400, "orange")]) == "red"
     with_names = [obj("a", "cup", 100, colors=[("brown", 0.5), ("red", 0.4)]), obj("b", "cup", 400, "blue")]
     assert picked("the red cup", with_names) == "a"
@@ -135,14 +174,29 @@ def test_an_object_with_no_colour_is_neither_chosen_nor_excluded_by_one():
     assert f[("cam0", "unknown")] == 0.5 and f[("cam0", "blue")] == 0.0
 
 
-@pytest.mark.parametrize("text,term", [
-    ("the silver laptop", "silver"), ("the beige couch", "beige"), ("the gold vase", "gold"),
-    ("the navy bottle", "navy"), ("the turquoise bowl", "turquoise"), ("the crimson cup", "crimson"),
-    ("the light grey chair", "light grey"), ("the dark red cup", "dark red"), ("the light blue bowl", "light blue"),
-    ("the pink soap bottle", "pink"), ("the purple cup", "purple"), ("the brown teddy bear", "brown"),
-    ("the gray sofa", "grey"), ("the deep purple cup", "dark purple"), ("the dark one", "dark"),
-    ("the light one", "light"), ("the paler one", "light"), ("the bright red cup", "red"),
-])
+@pytest.mark.parametrize(
+    "text,term",
+    [
+        ("the silver laptop", "silver"),
+        ("the beige couch", "beige"),
+        ("the gold vase", "gold"),
+        ("the navy bottle", "navy"),
+        ("the turquoise bowl", "turquoise"),
+        ("the crimson cup", "crimson"),
+        ("the light grey chair", "light grey"),
+        ("the dark red cup", "dark red"),
+        ("the light blue bowl", "light blue"),
+        ("the pink soap bottle", "pink"),
+        ("the purple cup", "purple"),
+        ("the brown teddy bear", "brown"),
+        ("the gray sofa", "grey"),
+        ("the deep purple cup", "dark purple"),
+        ("the dark one", "dark"),
+        ("the light one", "light"),
+        ("the paler one", "light"),
+        ("the bright red cup", "red"),
+    ],
+)
 def test_the_words_people_use_are_understood(text, term):
     assert parse(text).obj.color == term
 
@@ -166,13 +220,16 @@ def test_colour_words_are_one_table_for_parser_and_speech():
 
 def test_cie94_matches_published_values_and_many_colours_at_once_match_one_at_a_time():
     """Sharma et al.'s CIEDE2000 test pairs 1–2 have CIE94 (graphic arts, k_L = 1) differences 1.3950 and 1.9341
-    with the first colour's chroma as reference; the symmetric form here (geometric mean chroma) gives 1.380 and 1.893."""
+    with the first colour's chroma as reference; the symmetric form here (geometric mean chroma) gives 1.380 and
+    1.893."""
     from common.colour import COLOR_PROTOTYPES, delta_e94, term_fits
+
     assert delta_e94((50, 2.6772, -79.7751), (50, 0, -82.7485), 1.0) == pytest.approx(1.3950, abs=0.05)
     assert delta_e94((50, 3.1571, -77.2803), (50, 0, -82.7485), 1.0) == pytest.approx(1.9341, abs=0.05)
     rng = np.random.default_rng(7)
     labs = np.column_stack([rng.uniform(0, 100, 200), rng.uniform(-80, 80, 200), rng.uniform(-80, 80, 200)])
     for term in ("red", "blue", "grey", "white"):
-        one_by_one = [max(np.exp(-0.5 * (delta_e94(tuple(x), p) / 12.0) ** 2) for p in COLOR_PROTOTYPES[term])
-                      for x in labs]
+        one_by_one = [
+            max(np.exp(-0.5 * (delta_e94(tuple(x), p) / 12.0) ** 2) for p in COLOR_PROTOTYPES[term]) for x in labs
+        ]
         assert np.allclose(term_fits(term, labs), one_by_one, atol=1e-9), term

@@ -23,13 +23,15 @@ RELATION_WORDS = (" in front", " in the ", " next to ", " behind ", " between ")
 def colour_lines():
     scenes = shared_path("data/scenes")
     lines = json.loads((scenes / "scenes.json").read_text())
-    return scenes, [ln for ln in lines if parse(ln["say"]).obj.color and not any(w in f" {ln['say']} "
-                                                                                  for w in RELATION_WORDS)]
+    return scenes, [
+        ln for ln in lines if parse(ln["say"]).obj.color and not any(w in f" {ln['say']} " for w in RELATION_WORDS)
+    ]
 
 
 @pytest.fixture(scope="module")
 def pipeline():
     from services.vision.yolo import YoloDetector
+
     return VisionPipeline(YoloDetector(str(yolox_model())))
 
 
@@ -40,11 +42,20 @@ def test_colour_lines_of_real_scenes(pipeline):
     for ln in lines:
         img = cv2.imread(str(scenes / ln["photo"]))  # upright: cv2 applies the EXIF orientation (scenes README)
         objects, quality = pipeline.process(ln["photo"], img)
-        dets = Detections(source="vision/cam0", cam="cam0", stamp=1.0, seq=1, width=img.shape[1],
-                          height=img.shape[0], objects=objects, quality=quality)
+        dets = Detections(
+            source="vision/cam0",
+            cam="cam0",
+            stamp=1.0,
+            seq=1,
+            width=img.shape[1],
+            height=img.shape[0],
+            objects=objects,
+            quality=quality,
+        )
         phrase = parse(ln["say"]).obj
-        choice = choose(phrase, score(phrase, scene_objects([dets]), None, Weights(speech=0.6, vision=0.4,
-                                                                                  gesture=0.0), ref=1.0))
+        choice = choose(
+            phrase, score(phrase, scene_objects([dets]), None, Weights(speech=0.6, vision=0.4, gesture=0.0), ref=1.0)
+        )
         expect = ln["expect"]
         if "target" in expect:
             ok = choice.kind == "target" and iou(choice.winner.obj.bbox, expect["target"]) >= 0.5
@@ -52,6 +63,5 @@ def test_colour_lines_of_real_scenes(pipeline):
             asked = [c.obj.bbox for c in choice.candidates] if choice.kind == "ambiguous" else []
             ok = all(any(iou(box, want) >= 0.5 for box in asked) for want in expect["ask"])
         if not ok:
-            wrong.append((ln["photo"], ln["say"], choice.kind,
-                          [(c.obj.name(), c.obj.lab) for c in choice.candidates]))
+            wrong.append((ln["photo"], ln["say"], choice.kind, [(c.obj.name(), c.obj.lab) for c in choice.candidates]))
     assert not wrong, wrong

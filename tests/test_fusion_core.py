@@ -23,7 +23,7 @@ def interleaved(scenario, seed: int) -> list[int]:
     for seq in per_key.values():
         early = [i for i in seq if scenario.steps[i].t < 0.0]
         rng.shuffle(early)
-        seq[:len(early)] = early
+        seq[: len(early)] = early
     order, queues = [], [list(q) for q in per_key.values()]
     while any(queues):
         q = rng.choice([q for q in queues if q])
@@ -31,10 +31,18 @@ def interleaved(scenario, seed: int) -> list[int]:
     return order
 
 
-@pytest.mark.parametrize("name", ["pointing: that cup", "follow-up: pointing and that one",
-                                  "conflict: says red, points blue", "late gesture within the window",
-                                  "candies: the blue one on the left", "stop gesture during speech wins",
-                                  "out of order: shuffled inputs"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "pointing: that cup",
+        "follow-up: pointing and that one",
+        "conflict: says red, points blue",
+        "late gesture within the window",
+        "candies: the blue one on the left",
+        "stop gesture during speech wins",
+        "out of order: shuffled inputs",
+    ],
+)
 def test_decisions_do_not_depend_on_delivery_order(name):
     scenario = next(s for s in SCENARIOS if s.name == name)
     reference = run_in_process(scenario)
@@ -52,6 +60,7 @@ def test_every_scenario_in_process():
 def test_wrong_object_is_never_chosen_by_default_when_nothing_fits():
     scenario_steps = normal(TWO_CUPS, "pick up the green ball")
     from tests.scenarios import Scenario
+
     out = run_in_process(Scenario("x", scenario_steps, []))
     assert len(out) == 1 and isinstance(out[0], Clarification) and out[0].reason == "not_found"
 

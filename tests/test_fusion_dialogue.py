@@ -18,9 +18,19 @@ from tests.test_fusion_ground import EVEN, _scene
 
 
 def window(objects) -> Context:
-    return Context(objects, [], None, EVEN, {"speech": 0.9, "vision": 0.9, "gesture": None},
-                   {"speech": BASE_STAMP, "vision": BASE_STAMP, "gesture": None}, ["gesture"], BASE_STAMP,
-                   Ready("watermarks"), adaptive=True, margin=0.1)
+    return Context(
+        objects,
+        [],
+        None,
+        EVEN,
+        {"speech": 0.9, "vision": 0.9, "gesture": None},
+        {"speech": BASE_STAMP, "vision": BASE_STAMP, "gesture": None},
+        ["gesture"],
+        BASE_STAMP,
+        Ready("watermarks"),
+        adaptive=True,
+        margin=0.1,
+    )
 
 
 def utterance(start: float, text: str):
@@ -59,8 +69,7 @@ def test_no_withdraws_the_question_and_time_closes_it():
     assert dialogue.question is not None
     dialogue.expire(12.0 + BASE_STAMP)  # more than 10 s after the question's utterance ended
     assert dialogue.question is None and dialogue.reply(*utterance(12.0, "the blue one"), ctx) is None
-    assert counts == ["clarification_ambiguous", "dialogue_cancelled", "clarification_ambiguous",
-                      "dialogue_expired"]
+    assert counts == ["clarification_ambiguous", "dialogue_cancelled", "clarification_ambiguous", "dialogue_expired"]
 
 
 def test_an_answer_that_does_not_decide_asks_again_and_a_correction_redoes_the_last_command():

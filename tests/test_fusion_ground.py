@@ -14,9 +14,23 @@ from tests.test_fusion_evidence import _obs
 
 
 def _scene(objs, quality=1.0):
-    return [SceneObject(o.id, L.canonical_label(o.label), o.label, o.color,
-                        tuple(o.detected().bbox), o.center, o.score, "cam0", 640, 480, BASE_STAMP, quality)
-            for o in objs]
+    return [
+        SceneObject(
+            o.id,
+            L.canonical_label(o.label),
+            o.label,
+            o.color,
+            tuple(o.detected().bbox),
+            o.center,
+            o.score,
+            "cam0",
+            640,
+            480,
+            BASE_STAMP,
+            quality,
+        )
+        for o in objs
+    ]
 
 
 def _pointing_at(target, origin=(320.0, 470.0)):
@@ -29,8 +43,13 @@ EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
 
 def test_grounding_by_colour_class_and_position():
     objs = _scene(TWO_CUPS + [Obj("ball", "sports ball", "red", (320, 330))])
-    for text, expected in (("the red cup", "cup_red"), ("the blue one", "cup_blue"), ("the ball", "ball"),
-                           ("the cup on the right", "cup_blue"), ("the left cup", "cup_red")):
+    for text, expected in (
+        ("the red cup", "cup_red"),
+        ("the blue one", "cup_blue"),
+        ("the ball", "ball"),
+        ("the cup on the right", "cup_blue"),
+        ("the left cup", "cup_red"),
+    ):
         phrase = parse(text).obj
         choice = choose(phrase, score(phrase, objs, None, EVEN))
         assert choice.kind == "target" and choice.winner.obj.id == expected, (text, choice)
@@ -60,8 +79,12 @@ def test_conflict_is_resolved_by_the_dominant_side_or_asked():
     assert clear.kind == "conflict"
     noisy = choose(phrase, score(phrase, objs, p, Weights(speech=0.1, vision=0.45, gesture=0.45)))
     assert noisy.kind == "target" and noisy.winner.obj.id == "cup_blue" and noisy.overruled == "speech"
-    dark = choose(phrase, score(phrase, _scene(TWO_CUPS, quality=0.05), p, Weights(speech=0.5, vision=0.02,
-                                                                                  gesture=0.48), ref=BASE_STAMP))
+    dark = choose(
+        phrase,
+        score(
+            phrase, _scene(TWO_CUPS, quality=0.05), p, Weights(speech=0.5, vision=0.02, gesture=0.48), ref=BASE_STAMP
+        ),
+    )
     assert dark.kind == "target" and dark.winner.obj.id == "cup_blue"
 
 
@@ -80,14 +103,34 @@ def test_the_pointing_hand_is_never_its_own_target():
     from services.fusion.parse import parse
 
     def obj(i, color, cx, cy):
-        return DetectedObject(id=i, label="object", color=color, score=0.95, bbox=[cx - 20, cy - 20, 40, 40],
-                              center=[cx, cy])
-    det = Detections(stamp=10.0, source="v", seq=1, cam="cam0", width=640, height=480,
-                     objects=[obj("finger", "orange", 430, 167), obj("candy", "red", 548, 132)],
-                     quality=ImageQuality(brightness=0.6, contrast=0.5, sharpness=0.6))
-    pointing = Pointing(stamp=10.0, cam="cam0", hand="right", origin=(271.0, 186.0), direction=(0.981, -0.193),
-                        confidence=0.9, stability=1.0, spread_deg=0.0, n=10, width=640, height=480,
-                        hand_box=(60.0, 20.0, 495.0, 400.0))
+        return DetectedObject(
+            id=i, label="object", color=color, score=0.95, bbox=[cx - 20, cy - 20, 40, 40], center=[cx, cy]
+        )
+
+    det = Detections(
+        stamp=10.0,
+        source="v",
+        seq=1,
+        cam="cam0",
+        width=640,
+        height=480,
+        objects=[obj("finger", "orange", 430, 167), obj("candy", "red", 548, 132)],
+        quality=ImageQuality(brightness=0.6, contrast=0.5, sharpness=0.6),
+    )
+    pointing = Pointing(
+        stamp=10.0,
+        cam="cam0",
+        hand="right",
+        origin=(271.0, 186.0),
+        direction=(0.981, -0.193),
+        confidence=0.9,
+        stability=1.0,
+        spread_deg=0.0,
+        n=10,
+        width=640,
+        height=480,
+        hand_box=(60.0, 20.0, 495.0, 400.0),
+    )
     weights = Weights(speech=0.4, vision=0.35, gesture=0.25)
     phrase = parse("pick up that one").obj
     ranked = score(phrase, scene_objects([det]), pointing, weights, ref=10.0)

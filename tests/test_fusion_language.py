@@ -134,30 +134,45 @@ def test_there_are_at_least_80_utterances():
 @pytest.mark.parametrize("text,meaning", CASES, ids=[c[0] for c in CASES])
 def test_utterance_means(text, meaning):
     u = parse(text)
-    got = {"intent": u.intent, "answer": u.answer, "color": u.obj.color, "label": u.obj.label, "noun": u.obj.noun,
-           "spatial": u.obj.spatial, "deictic": u.obj.deictic, "place": u.place, "other": u.other,
-           "motion": (u.motion.kind, u.motion.direction, u.motion.distance, u.motion.angle) if u.motion else None}
+    got = {
+        "intent": u.intent,
+        "answer": u.answer,
+        "color": u.obj.color,
+        "label": u.obj.label,
+        "noun": u.obj.noun,
+        "spatial": u.obj.spatial,
+        "deictic": u.obj.deictic,
+        "place": u.place,
+        "other": u.other,
+        "motion": (u.motion.kind, u.motion.direction, u.motion.distance, u.motion.angle) if u.motion else None,
+    }
     for key, want in meaning.items():
         if key == "motion" and want is not None:
             kind, direction, distance, angle = got["motion"] or (None,) * 4
             assert (kind, direction) == want[:2], (text, got)
             for value, expected in ((distance, want[2]), (angle, want[3])):
-                assert (value is None) == (expected is None) and (value is None or abs(value - expected) < 1e-6), \
-                    (text, got)
+                assert (value is None) == (expected is None) and (value is None or abs(value - expected) < 1e-6), (
+                    text,
+                    got,
+                )
         else:
             assert got[key] == want, f"{text!r}: {key} = {got[key]!r}, expected {want!r} ({got})"
 
 
-@pytest.mark.parametrize("plain,noisy", [
-    ("pick up the red cup", "Uh, um, could you please pick up the, uh, red cup for me? Thanks."),
-    ("bring me the banana", "Well, would you mind bringing... I mean, bring me the banana, please."),
-    ("turn left", "Okay, so, like, turn left, please."),
-    ("go forward two meters", "Um, go forward, uh, 2 meters, please."),
-])
+@pytest.mark.parametrize(
+    "plain,noisy",
+    [
+        ("pick up the red cup", "Uh, um, could you please pick up the, uh, red cup for me? Thanks."),
+        ("bring me the banana", "Well, would you mind bringing... I mean, bring me the banana, please."),
+        ("turn left", "Okay, so, like, turn left, please."),
+        ("go forward two meters", "Um, go forward, uh, 2 meters, please."),
+    ],
+)
 def test_disfluencies_and_politeness_never_change_the_meaning(plain, noisy):
     def meaning(u):
         m = u.motion
         return u.intent, u.obj, (m.kind, m.direction, m.distance, m.angle) if m else None
+
     assert meaning(parse(plain)) == meaning(parse(noisy))
 
 
@@ -194,9 +209,20 @@ def test_motion_on_the_wire_is_optional_and_checked():
 
     from common.codec import decode, encode
     from common.schema import FusedCommand, InvalidSample, Motion, Weights
-    cmd = FusedCommand(stamp=1.0, source="fusion/a", id="c", intent="move", text="Go forward ten meters.",
-                       confidence=0.9, weights=Weights(speech=1.0, vision=0.0, gesture=0.0), inputs={},
-                       explanation="", prompt="", motion=Motion(direction="forward", distance=10.0))
+
+    cmd = FusedCommand(
+        stamp=1.0,
+        source="fusion/a",
+        id="c",
+        intent="move",
+        text="Go forward ten meters.",
+        confidence=0.9,
+        weights=Weights(speech=1.0, vision=0.0, gesture=0.0),
+        inputs={},
+        explanation="",
+        prompt="",
+        motion=Motion(direction="forward", distance=10.0),
+    )
     assert decode(encode(cmd), FusedCommand).motion == Motion(direction="forward", distance=10.0)
     data = cmd.to_dict()
     old_style = {k: v for k, v in data.items() if k != "motion"}  # a v1 producer from before the extension
@@ -219,19 +245,35 @@ def test_every_word_the_recogniser_is_primed_with_is_understood():
 def test_whisper_words_with_spaces_and_punctuation_count_for_speech_reliability():
     from common.schema import Transcript, Word
     from services.fusion.evidence import speech_reliability
-    words = [Word(word=w, start=i * 0.2, end=i * 0.2 + 0.2, confidence=0.2 if w.strip(" .") == "cup" else 0.9)
-             for i, w in enumerate([" Pick", " up", " the", " cup."])]
-    t = Transcript(stamp=1.0, source="speech/m", mic="m", start=0.0, end=0.8, text="Pick up the cup.",
-                   confidence=0.9, words=words, final=True, backend="whisper")
+
+    words = [
+        Word(word=w, start=i * 0.2, end=i * 0.2 + 0.2, confidence=0.2 if w.strip(" .") == "cup" else 0.9)
+        for i, w in enumerate([" Pick", " up", " the", " cup."])
+    ]
+    t = Transcript(
+        stamp=1.0,
+        source="speech/m",
+        mic="m",
+        start=0.0,
+        end=0.8,
+        text="Pick up the cup.",
+        confidence=0.9,
+        words=words,
+        final=True,
+        backend="whisper",
+    )
     assert speech_reliability(t, parse(t.text)) < 0.6  # the weak " cup." limits it: it was read as "cup"
 
 
 def test_a_motion_reaches_the_planner_prompt_and_the_command():
     from tests.scenarios import check, run_in_process
     from tests.scenarios.suite import SCENARIOS
+
     scenario = next(s for s in SCENARIOS if s.name == "motion: go left 2 steps")
     (cmd,) = run_in_process(scenario)
     assert not check(scenario, [cmd])
     assert cmd.intent == "move" and cmd.target is None and cmd.location is None
-    assert 'Motion: move left 1 m (robot frame: forward = the way it faces, left/right = its own left/right, ' \
-           'said as "2 steps")' in cmd.prompt, cmd.prompt
+    assert (
+        "Motion: move left 1 m (robot frame: forward = the way it faces, left/right = its own left/right, "
+        'said as "2 steps")' in cmd.prompt
+    ), cmd.prompt

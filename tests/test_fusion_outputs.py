@@ -14,8 +14,11 @@ def test_ids_are_deterministic_and_distinct():
 
 def test_prompt_lists_the_scene_and_is_bounded():
     many = [Obj(f"o{i}", "candy", "red", (5 + i * 0.6, 240), (4, 4), score=0.5 + i / 4000) for i in range(1000)]
-    out = run_in_process(__import__("tests.scenarios", fromlist=["Scenario"]).Scenario(
-        "many", by_time(scene(many, -1.0, 2.0, 0.5) + pointing(None) + [say(0.0, 1.5, "hello")]), []))
+    out = run_in_process(
+        __import__("tests.scenarios", fromlist=["Scenario"]).Scenario(
+            "many", by_time(scene(many, -1.0, 2.0, 0.5) + pointing(None) + [say(0.0, 1.5, "hello")]), []
+        )
+    )
     (cmd,) = out
     assert isinstance(cmd, FusedCommand) and "Objects in view (1000, 25 most confident listed)" in cmd.prompt
     assert len(cmd.prompt.splitlines()) < 40
@@ -23,6 +26,7 @@ def test_prompt_lists_the_scene_and_is_bounded():
 
 def test_named_places_are_published_in_the_command():
     from tests.scenarios import Scenario, run_in_process, say
+
     out = run_in_process(Scenario("place", [say(0.0, 1.2, "go to the kitchen")], []))
     (cmd,) = out
     assert cmd.intent == "go_to" and cmd.place == "kitchen" and cmd.location is None
@@ -34,14 +38,16 @@ def test_one_builder_for_commands_and_questions():
     from common.schema import Clarification, Location
     from services.fusion.ground import MAX_CANDIDATES
     from services.fusion.outputs import Outputs
+    from tests.scenarios.suite import CANDIES
     from tests.test_fusion_dialogue import utterance, window
     from tests.test_fusion_ground import _scene
-    from tests.scenarios.suite import CANDIES
+
     build = Outputs("fusion/test")
     t, _ = utterance(0.0, "put it there")
     ctx = window(_scene(CANDIES))
-    out = build.command(t, "put_down", ctx, confidence=1.7, explanation="why", location=Location(x=12.0, y=34.0,
-                                                                                                 cam="cam0"))
+    out = build.command(
+        t, "put_down", ctx, confidence=1.7, explanation="why", location=Location(x=12.0, y=34.0, cam="cam0")
+    )
     cmd = out.sample
     assert cmd.id == stable_id("cmd", t.source, t.stamp, t.mic) and cmd.confidence == 1.0 and not out.realtime
     assert cmd.location == Location(x=12.0, y=34.0, cam="cam0") and cmd.weights == ctx.weights

@@ -8,13 +8,26 @@ from common import language as L
 from services.fusion.parse import ObjectPhrase, parse
 
 
-@pytest.mark.parametrize("text,intent", [
-    ("pick up the red cup", "pick_up"), ("grab it", "pick_up"), ("give me that", "bring"),
-    ("hand me the bottle", "bring"), ("put it there", "put_down"), ("place the cup on the table", "put_down"),
-    ("go there", "go_to"), ("come here", "come_here"), ("stop", "stop"), ("look at that", "look_at"),
-    ("follow me", "follow"), ("hello robot", "greet"), ("please stop now", "stop"),
-    ("could you bring me the yellow ball please", "bring"), ("pickup the ball", "pick_up"),
-])
+@pytest.mark.parametrize(
+    "text,intent",
+    [
+        ("pick up the red cup", "pick_up"),
+        ("grab it", "pick_up"),
+        ("give me that", "bring"),
+        ("hand me the bottle", "bring"),
+        ("put it there", "put_down"),
+        ("place the cup on the table", "put_down"),
+        ("go there", "go_to"),
+        ("come here", "come_here"),
+        ("stop", "stop"),
+        ("look at that", "look_at"),
+        ("follow me", "follow"),
+        ("hello robot", "greet"),
+        ("please stop now", "stop"),
+        ("could you bring me the yellow ball please", "bring"),
+        ("pickup the ball", "pick_up"),
+    ],
+)
 def test_parser_finds_the_intent(text, intent):
     assert parse(text).intent == intent
 
@@ -25,18 +38,21 @@ def test_parser_every_intent_phrase_of_the_language_is_understood():
             assert parse(phrase).intent == intent, phrase
 
 
-@pytest.mark.parametrize("text,color,label,spatial", [
-    ("pick up the crimson mug", "crimson", "cup", ()),  # its own term, matched to red by similarity
-    ("bring me the navy bottle", "navy", "bottle", ()),
-    ("bring me the light blue bowl", "light blue", "bowl", ()),
-    ("the dark grey sofa", "dark grey", "couch", ()),
-    ("the pale pink bottle", "light pink", "bottle", ()),
-    ("take the blue one on the left", "blue", "object", ("left",)),
-    ("the leftmost ball", None, "sports ball", ("left",)),
-    ("grab the biggest box", None, "box", ("biggest",)),
-    ("pick up the candy in the middle", None, "candy", ("middle",)),
-    ("pick the nearest cup", None, "cup", ("nearest",)),
-])
+@pytest.mark.parametrize(
+    "text,color,label,spatial",
+    [
+        ("pick up the crimson mug", "crimson", "cup", ()),  # its own term, matched to red by similarity
+        ("bring me the navy bottle", "navy", "bottle", ()),
+        ("bring me the light blue bowl", "light blue", "bowl", ()),
+        ("the dark grey sofa", "dark grey", "couch", ()),
+        ("the pale pink bottle", "light pink", "bottle", ()),
+        ("take the blue one on the left", "blue", "object", ("left",)),
+        ("the leftmost ball", None, "sports ball", ("left",)),
+        ("grab the biggest box", None, "box", ("biggest",)),
+        ("pick up the candy in the middle", None, "candy", ("middle",)),
+        ("pick the nearest cup", None, "cup", ("nearest",)),
+    ],
+)
 def test_parser_reads_the_object_phrase(text, color, label, spatial):
     obj = parse(text).obj
     assert (obj.color, obj.label, obj.spatial) == (color, label, spatial)

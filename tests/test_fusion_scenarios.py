@@ -14,7 +14,16 @@ import pytest
 from common.schema import Clarification, FusedCommand
 from tests.harness import Client, ProcessGroup
 from tests.scenarios import (
-    BASE_STAMP, SCENARIO_SPACING, Scenario, check, describe, gesture, hands, run_in_process, say, see,
+    BASE_STAMP,
+    SCENARIO_SPACING,
+    Scenario,
+    check,
+    describe,
+    gesture,
+    hands,
+    run_in_process,
+    say,
+    see,
 )
 from tests.scenarios.suite import SCENARIOS
 
@@ -51,8 +60,12 @@ class FusionRig:
         while time.monotonic() < deadline:
             before = self.client.stats("fusion")["received"]
             base = BASE_STAMP - 10_000 + round_
-            for step in (see(0.0, []), hands(0.0), say(0.0, 0.5, "what", mic="warmup"),
-                         gesture(0.0, "fist", score=0.1)):
+            for step in (
+                see(0.0, []),
+                hands(0.0),
+                say(0.0, 0.5, "what", mic="warmup"),
+                gesture(0.0, "fist", score=0.1),
+            ):
                 self.client.publish(*step.build(base))
             time.sleep(0.3)
             if self.client.stats("fusion")["received"] - before >= 4:
@@ -70,8 +83,11 @@ class FusionRig:
                 time.sleep((step.t - previous) / SPEEDUP)
             previous = step.t
             self.client.publish(*step.build(base))
-        sentinel = [see(SENTINEL_AT + 1.0, []), hands(SENTINEL_AT + 1.0),
-                    say(SENTINEL_AT - 1.0, SENTINEL_AT, "hello", mic="sentinel", lag=0.0)]
+        sentinel = [
+            see(SENTINEL_AT + 1.0, []),
+            hands(SENTINEL_AT + 1.0),
+            say(SENTINEL_AT - 1.0, SENTINEL_AT, "hello", mic="sentinel", lag=0.0),
+        ]
         for step in sentinel:
             self.client.publish(*step.build(base))
         sentinel_stamp = base + SENTINEL_AT
@@ -80,8 +96,11 @@ class FusionRig:
         except TimeoutError:
             raise AssertionError(f"no answer to the sentinel of {scenario.name!r}\n{self.group.logs()}") from None
         self.outputs.drain(0.05)
-        return [s for _, s in self.outputs.seen if isinstance(s, (FusedCommand, Clarification))
-                and base - 10 <= s.stamp < base + SENTINEL_AT]
+        return [
+            s
+            for _, s in self.outputs.seen
+            if isinstance(s, (FusedCommand, Clarification)) and base - 10 <= s.stamp < base + SENTINEL_AT
+        ]
 
     def close(self) -> None:
         self.client.close()
@@ -103,8 +122,18 @@ DEFAULT_SCENARIOS = [(i, s) for i, s in enumerate(SCENARIOS) if not s.config]
 def test_the_suite_has_enough_scenarios():
     assert len(SCENARIOS) >= 40
     tags = {t for s in SCENARIOS for t in s.tags}
-    for needed in ("colour", "class", "position", "pointing", "conflict", "dialogue", "missing", "order",
-                   "gesture", "timing"):
+    for needed in (
+        "colour",
+        "class",
+        "position",
+        "pointing",
+        "conflict",
+        "dialogue",
+        "missing",
+        "order",
+        "gesture",
+        "timing",
+    ):
         assert needed in tags, f"no scenario tagged {needed!r}"
 
 
@@ -116,8 +145,9 @@ def test_scenario_over_zenoh(rig, index, scenario):
     assert not problem, f"{scenario.name}: {problem}"
     # The process decides exactly as the core does in process: same ids, same outcomes.
     in_process = run_in_process(scenario, base=base)
-    assert [(o.id, type(o).__name__) for o in outputs] == [(o.id, type(o).__name__) for o in in_process], \
-        [describe(o) for o in in_process]
+    assert [(o.id, type(o).__name__) for o in outputs] == [(o.id, type(o).__name__) for o in in_process], [
+        describe(o) for o in in_process
+    ]
 
 
 def test_outputs_carry_weights_explanation_and_prompt(rig):
@@ -156,9 +186,18 @@ def test_fallback_to_the_most_confident_detection_is_an_option():
 
 def test_replay_into_a_fresh_process_reproduces_the_commands(rig):
     """The same samples into a second, fresh fusion process give the same ids, intents, targets and prompts."""
-    chosen = [s for s in SCENARIOS if s.name in (
-        "pointing: that cup", "follow-up: the red one", "conflict: says red, points blue", "go there: a location",
-        "out of order: shuffled inputs")]
+    chosen = [
+        s
+        for s in SCENARIOS
+        if s.name
+        in (
+            "pointing: that cup",
+            "follow-up: the red one",
+            "conflict: says red, points blue",
+            "go there: a location",
+            "out of order: shuffled inputs",
+        )
+    ]
     base0 = _scenario_base(len(SCENARIOS) + 10)
     first = [rig.run(s, base0 + i * SCENARIO_SPACING) for i, s in enumerate(chosen)]
     fresh = FusionRig()
@@ -168,8 +207,19 @@ def test_replay_into_a_fresh_process_reproduces_the_commands(rig):
         fresh.close()
 
     def summary(outs):
-        return [(o.id, type(o).__name__, getattr(o, "intent", None), getattr(getattr(o, "target", None), "id", None),
-                 getattr(o, "location", None), getattr(o, "reason", None), getattr(o, "prompt", None)) for o in outs]
+        return [
+            (
+                o.id,
+                type(o).__name__,
+                getattr(o, "intent", None),
+                getattr(getattr(o, "target", None), "id", None),
+                getattr(o, "location", None),
+                getattr(o, "reason", None),
+                getattr(o, "prompt", None),
+            )
+            for o in outs
+        ]
+
     assert [summary(o) for o in first] == [summary(o) for o in second]
 
 
@@ -189,8 +239,10 @@ def test_real_photo_scenes_over_zenoh(rig):
     pytest.importorskip("onnxruntime")
     from tests.scenarios.real import real_scenarios, yolox_detector
     from tests.shared import ROOT, shared_path, yolox_model
-    scenarios = real_scenarios(yolox_detector(yolox_model()),
-                               lambda name: ROOT / name[5:] if name.startswith("repo:") else shared_path(name))
+
+    scenarios = real_scenarios(
+        yolox_detector(yolox_model()), lambda name: ROOT / name[5:] if name.startswith("repo:") else shared_path(name)
+    )
     problems = []
     for i, sc in enumerate(scenarios):
         base = _scenario_base(len(SCENARIOS) + 30 + i)

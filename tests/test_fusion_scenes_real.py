@@ -48,9 +48,10 @@ def test_the_indoor_scenes_in_process(in_process):
 
 
 def test_relation_lines_pick_the_head_noun_not_the_anchor(in_process):
-    """"the bottle next to the sink" is a bottle: no line with a relation acts on its anchor's kind."""
+    """ "the bottle next to the sink" is a bottle: no line with a relation acts on its anchor's kind."""
     from services.fusion.parse import parse
-    for line, ok, got in in_process:
+
+    for line, _ok, got in in_process:
         phrase = parse(line.say).obj
         if phrase.relations and got.split()[0] in ("pick_up", "bring", "look_at", "go_to"):
             assert phrase.label in got, (line.say, got)
@@ -78,11 +79,11 @@ def test_relation_words_on_real_photos(folder, photo, text, expect):
     pytest.importorskip("onnxruntime")
     from tests.scenarios import run_in_process
     from tests.scenarios.indoor import Line, scenario
+
     line = Line(photo, text, expect, "")
     outputs = run_in_process(scenario(line, _seen(folder, photo)))
     if expect.get("not_found"):
-        assert len(outputs) == 1 and isinstance(outputs[0], Clarification) and outputs[0].reason == "not_found", \
-            outputs
+        assert len(outputs) == 1 and isinstance(outputs[0], Clarification) and outputs[0].reason == "not_found", outputs
         assert ", but no " in outputs[0].question, outputs[0].question  # says which part did not fit
         return
     ok, got = judge(line, outputs)
@@ -107,6 +108,7 @@ def test_the_indoor_scenes_over_zenoh(in_process, folder, tmp_path):
     arrive upright and the pixels are the ones the in-process run saw), vision with the real model, fusion with a
     short dialogue timeout so that a question left open by one line is not answered by the next."""
     import cv2
+
     lines = [line for line, _, _ in in_process]
     verdicts = {line.name: (ok, got) for line, ok, got in in_process}
     group = ProcessGroup()
@@ -138,8 +140,10 @@ def test_the_indoor_scenes_over_zenoh(in_process, folder, tmp_path):
                 time.sleep(max(0.0, last_end + DIALOGUE_TIMEOUT + 0.3 * len(line.say.split()) + 0.2 - time.time()))
                 n = len([s for _, s in results.drain() if isinstance(s, (FusedCommand, Clarification))])
                 last_end = time.time()
-                client.publish("hri/speech/kbd/transcript", make_transcript(
-                    line.say, mic="kbd", end=last_end, confidence=0.95, source="test/kbd"))
+                client.publish(
+                    "hri/speech/kbd/transcript",
+                    make_transcript(line.say, mic="kbd", end=last_end, confidence=0.95, source="test/kbd"),
+                )
                 out = results.wait(n + 1, timeout=30, where=lambda k, s: isinstance(s, (FusedCommand, Clarification)))
                 ok, got = judge(line, [out[-1][1]])
                 print(f"{'ok ' if ok else 'BAD'} {line.name!r:60} -> {got}")

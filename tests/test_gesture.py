@@ -55,13 +55,16 @@ def landmarker():
     lm.close()
 
 
-@pytest.mark.parametrize("photo,expected", [
-    (HANDS / "handSrc.jpg", "open_palm"),                    # lying sideways on a table, fingers to the right
-    (HANDS / "Back_Projection_Theory0.jpg", "open_palm"),
-    (HANDS / "Histogram_Comparison_Source_1.jpg", "open_palm"),
-    (DATA / "demo" / "stop.png", "open_palm"),
-    (DATA / "demo" / "pointing.png", "point"),
-])
+@pytest.mark.parametrize(
+    "photo,expected",
+    [
+        (HANDS / "handSrc.jpg", "open_palm"),  # lying sideways on a table, fingers to the right
+        (HANDS / "Back_Projection_Theory0.jpg", "open_palm"),
+        (HANDS / "Histogram_Comparison_Source_1.jpg", "open_palm"),
+        (DATA / "demo" / "stop.png", "open_palm"),
+        (DATA / "demo" / "pointing.png", "point"),
+    ],
+)
 def test_real_photos_give_21_landmarks_and_the_gesture(landmarker, photo, expected):
     img = cv2.imread(str(photo))
     hands = landmarker.detect(img)
@@ -217,8 +220,9 @@ def tilt(p: np.ndarray, degrees: float, squash: float, axis: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("squash", [0.7, 0.5])
-@pytest.mark.parametrize("name,expected", [("open_palm_up", "open_palm"), ("open_palm_sideways", "open_palm"),
-                                           ("point_right", "point")])
+@pytest.mark.parametrize(
+    "name,expected", [("open_palm_up", "open_palm"), ("open_palm_sideways", "open_palm"), ("point_right", "point")]
+)
 def test_a_hand_tilted_away_from_the_camera_keeps_its_class(name, expected, squash):
     """Tilted up to 60° (half its length), at every image rotation: a straight finger still projects straight."""
     for degrees in range(0, 360, 15):

@@ -12,7 +12,14 @@ import pytest
 
 from common.schema import CameraInfo, DepthFrame
 from services.gesture.space import (
-    DepthView, FrameRays, arm_ray3d, depth_view, fit_plane, hand_ray3d, surface_hit, torso_point,
+    DepthView,
+    FrameRays,
+    arm_ray3d,
+    depth_view,
+    fit_plane,
+    hand_ray3d,
+    surface_hit,
+    torso_point,
 )
 from tests.shared import shared_path
 
@@ -73,9 +80,19 @@ class Person:
         """33 x [x px, y px, visibility]; unset points invisible."""
         p = np.zeros((33, 3))
         left_shoulder = self.shoulder + [0.35, 0, 0]
-        points = {2: self.eyes + [0.03, 0, 0], 5: self.eyes - [0.03, 0, 0], 11: left_shoulder, 12: self.shoulder,
-                  14: self.elbow, 16: self.wrist, 20: self.tip, 23: self.hips[0], 24: self.hips[1],
-                  13: left_shoulder + [0, 0.3, 0], 15: left_shoulder + [0, 0.55, 0]}
+        points = {
+            2: self.eyes + [0.03, 0, 0],
+            5: self.eyes - [0.03, 0, 0],
+            11: left_shoulder,
+            12: self.shoulder,
+            14: self.elbow,
+            16: self.wrist,
+            20: self.tip,
+            23: self.hips[0],
+            24: self.hips[1],
+            13: left_shoulder + [0, 0.3, 0],
+            15: left_shoulder + [0, 0.55, 0],
+        }
         for i, q in points.items():
             p[i] = [*project(q), 0.99]
         return p
@@ -84,8 +101,16 @@ class Person:
         """MediaPipe-style world landmarks: metres, origin between the hips."""
         w = np.zeros((33, 3))
         left_shoulder = self.shoulder + [0.35, 0, 0]
-        for i, q in {2: self.eyes + [0.03, 0, 0], 5: self.eyes - [0.03, 0, 0], 11: left_shoulder, 12: self.shoulder,
-                     16: self.wrist, 20: self.tip, 23: self.hips[0], 24: self.hips[1]}.items():
+        for i, q in {
+            2: self.eyes + [0.03, 0, 0],
+            5: self.eyes - [0.03, 0, 0],
+            11: left_shoulder,
+            12: self.shoulder,
+            16: self.wrist,
+            20: self.tip,
+            23: self.hips[0],
+            24: self.hips[1],
+        }.items():
             w[i] = q
         return w - self.hips.mean(axis=0)
 
@@ -198,8 +223,19 @@ def depth_frame(raw: np.ndarray, scale: float, png: bool) -> DepthFrame:
     h, w = raw.shape
     info = CameraInfo(width=w, height=h, k=[F, 0, CX, 0, F, CY, 0, 0, 1], frame_id="cam_optical")
     data = cv2.imencode(".png", raw)[1].tobytes() if png else raw.astype("<u2").tobytes()
-    return DepthFrame(stamp=1.0, source="camera/test", seq=0, cam="cam", width=w, height=h, encoding="16UC1",
-                      compression="png" if png else "none", depth_scale=scale, camera_info=info, data=data)
+    return DepthFrame(
+        stamp=1.0,
+        source="camera/test",
+        seq=0,
+        cam="cam",
+        width=w,
+        height=h,
+        encoding="16UC1",
+        compression="png" if png else "none",
+        depth_scale=scale,
+        camera_info=info,
+        data=data,
+    )
 
 
 def test_depth_view_reads_raw_and_png_alike():
@@ -233,10 +269,13 @@ class _Ray:
         self.origin, self.direction, self.reach, self.method = np.asarray(origin, float), unit(direction), reach, "t"
 
 
-@pytest.mark.parametrize("frame,pixels", [
-    ("ycb", [(600, 440), (60, 420), (560, 330), (120, 300), (400, 400)]),
-    ("realsense", [(1000, 400), (200, 500), (900, 600), (150, 150)]),
-])
+@pytest.mark.parametrize(
+    "frame,pixels",
+    [
+        ("ycb", [(600, 440), (60, 420), (560, 330), (120, 300), (400, 400)]),
+        ("realsense", [(1000, 400), (200, 500), (900, 600), (150, 150)]),
+    ],
+)
 def test_pointing_at_the_table_hits_the_table_where_the_depth_says(frame, pixels):
     """A ray from a virtual eye above the camera towards a table pixel meets the fitted plane within 2 cm of that
     pixel's own measured 3-D point (an independent back-projection of the raw depth)."""

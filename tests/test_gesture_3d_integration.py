@@ -27,6 +27,7 @@ FRAME = "room_camera_optical_frame"
 def synthetic_depth(bgr: np.ndarray) -> np.ndarray:
     """uint16 mm: the floor, and the person (the hull of their pose landmarks, widened) at the depth of their feet."""
     from services.gesture.landmarks import PoseLandmarker
+
     h, w = bgr.shape[:2]
     u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     rays = np.stack([(u - w / 2) / F, (v - h / 2) / F, np.ones_like(u)], axis=-1)
@@ -60,8 +61,20 @@ def test_a_pointing_person_gets_a_3d_ray_that_meets_the_floor(group, tmp_path):
     folder.mkdir()
     cv2.imwrite(str(folder / "room-color.png"), bgr)
     cv2.imwrite(str(folder / "room-depth.png"), synthetic_depth(bgr))
-    (folder / "intrinsics.json").write_text(json.dumps({"width": w, "height": h, "fx": F, "fy": F, "cx": w / 2,
-                                                        "cy": h / 2, "depth_scale": 0.001, "frame_id": FRAME}))
+    (folder / "intrinsics.json").write_text(
+        json.dumps(
+            {
+                "width": w,
+                "height": h,
+                "fx": F,
+                "fy": F,
+                "cx": w / 2,
+                "cy": h / 2,
+                "depth_scale": 0.001,
+                "frame_id": FRAME,
+            }
+        )
+    )
     group.router()
     group.service("gesture")
     client = Client(group.endpoint)
@@ -70,10 +83,16 @@ def test_a_pointing_person_gets_a_3d_ray_that_meets_the_floor(group, tmp_path):
         events = client.collect("hri/gesture/*/event")
         bodies = client.collect("hri/gesture/*/bodies")
         group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
-        (_, start), = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.ray is not None
-                                  and e.ray.ray3d is not None)
-        (_, body), = bodies.wait(1, timeout=30, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray
-                                 is not None and b.bodies[0].right_ray.ray3d is not None)
+        ((_, start),) = events.wait(
+            1, timeout=90, where=lambda k, e: e.gesture == "point" and e.ray is not None and e.ray.ray3d is not None
+        )
+        ((_, body),) = bodies.wait(
+            1,
+            timeout=30,
+            where=lambda k, b: (
+                bool(b.bodies) and b.bodies[0].right_ray is not None and b.bodies[0].right_ray.ray3d is not None
+            ),
+        )
     finally:
         client.close()
     for ray in (start.ray, body.bodies[0].right_ray):
@@ -92,6 +111,7 @@ def test_a_pointing_person_gets_a_3d_ray_that_meets_the_floor(group, tmp_path):
 @requires_services("gesture")
 def test_a_broken_depth_frame_is_counted_and_the_2d_rays_still_go_out(group):
     from common.schema import CameraInfo, DepthFrame, Frame
+
     bgr = cv2.imread(str(shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")))
     h, w = bgr.shape[:2]
     png = cv2.imencode(".png", bgr)[1].tobytes()
@@ -104,14 +124,30 @@ def test_a_broken_depth_frame_is_counted_and_the_2d_rays_still_go_out(group):
         bodies = client.collect("hri/gesture/cam0/bodies")
         for seq in range(4):
             stamp = time.time()
-            client.publish("hri/camera/cam0/depth", DepthFrame(
-                stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=w, height=h, encoding="16UC1",
-                compression="png", depth_scale=0.001, camera_info=info, data=b"not a png at all"))
-            client.publish("hri/camera/cam0/frame", Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0",
-                                                          width=w, height=h, encoding="png", data=png))
+            client.publish(
+                "hri/camera/cam0/depth",
+                DepthFrame(
+                    stamp=stamp,
+                    source="test/cam",
+                    seq=seq,
+                    cam="cam0",
+                    width=w,
+                    height=h,
+                    encoding="16UC1",
+                    compression="png",
+                    depth_scale=0.001,
+                    camera_info=info,
+                    data=b"not a png at all",
+                ),
+            )
+            client.publish(
+                "hri/camera/cam0/frame",
+                Frame(stamp=stamp, source="test/cam", seq=seq, cam="cam0", width=w, height=h, encoding="png", data=png),
+            )
             time.sleep(0.5)
-        (_, body), = bodies.wait(1, timeout=60, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray
-                                 is not None)
+        ((_, body),) = bodies.wait(
+            1, timeout=60, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray is not None
+        )
         assert body.bodies[0].right_ray.ray3d is None  # no depth to lift it with: the 2-D ray alone
         deadline = time.monotonic() + 10
         while client.stats("gesture")["rejected"].get("bad_value", 0) < 1:

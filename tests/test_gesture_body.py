@@ -35,10 +35,10 @@ def person(right_arm=None, left_arm=None, vis=1.0, eyes=True) -> np.ndarray:
     return p
 
 
-RIGHT_OUT = ((210, 185), (140, 190), (115, 191))       # the person's right arm straight out to the image left
-LEFT_OUT = ((430, 185), (500, 190), (525, 191))        # left arm straight out to the image right
-RIGHT_BENT = ((250, 260), (300, 230), (310, 215))      # elbow bent, hand in front of the chest
-RIGHT_ACROSS = ((330, 215), (400, 245), (425, 255))    # right arm straight across the body, to the image right
+RIGHT_OUT = ((210, 185), (140, 190), (115, 191))  # the person's right arm straight out to the image left
+LEFT_OUT = ((430, 185), (500, 190), (525, 191))  # left arm straight out to the image right
+RIGHT_BENT = ((250, 260), (300, 230), (310, 215))  # elbow bent, hand in front of the chest
+RIGHT_ACROSS = ((330, 215), (400, 245), (425, 255))  # right arm straight across the body, to the image right
 
 
 # -- arm rules on landmark arrays ---------------------------------------------------------------------------
@@ -95,10 +95,10 @@ def palm_at(wrist, degrees: float, scale: float = 0.5) -> np.ndarray:
 
 def test_a_raised_palm_is_a_stop_one_resting_on_the_hip_or_a_table_is_not():
     p = person()
-    assert raised_palm(p, "right", palm_at((250, 200), 0))       # raised beside the shoulder, fingers up
+    assert raised_palm(p, "right", palm_at((250, 200), 0))  # raised beside the shoulder, fingers up
     assert not raised_palm(p, "right", palm_at((290, 330), 180))  # on the hip, fingers down
-    assert not raised_palm(p, "right", palm_at((290, 330), 90))   # on the hip, fingers sideways
-    assert not raised_palm(p, "right", palm_at((300, 300), 0))    # upright on a table at belly height
+    assert not raised_palm(p, "right", palm_at((290, 330), 90))  # on the hip, fingers sideways
+    assert not raised_palm(p, "right", palm_at((300, 300), 0))  # upright on a table at belly height
 
 
 # -- hand + body over time ----------------------------------------------------------------------------------
@@ -168,6 +168,7 @@ def test_one_point_stream_per_arm_as_the_hand_comes_and_goes():
 @pytest.fixture(scope="module")
 def poser():
     from services.gesture.landmarks import PoseLandmarker
+
     lm = PoseLandmarker(video=False)
     yield lm
     lm.close()
@@ -228,6 +229,7 @@ def test_real_people_with_relaxed_arms_point_with_neither_arm(poser):
 def test_real_raised_palms_stay_a_stop_with_the_body(poser):
     """HaGRID `four_*`: a raised open hand; with the body stage on it is still an open palm (a stop)."""
     from services.gesture.landmarks import HandLandmarker
+
     photos = sorted((shared_dir() / "data" / "people").glob("four_*.jpg")) or [shared_path("data/people/four_")]
     hands = HandLandmarker("full", 2, video=False)
     palms = 0
@@ -235,12 +237,18 @@ def test_real_raised_palms_stay_a_stop_with_the_body(poser):
         for photo in photos:
             img = cv2.imread(str(photo))
             skeleton, seen = poser.detect(img), hands.detect(img)
-            arms = [arm(skeleton, s, img.shape[1], img.shape[0]) for s in ("left", "right")] if skeleton is not None \
+            arms = (
+                [arm(skeleton, s, img.shape[1], img.shape[0]) for s in ("left", "right")]
+                if skeleton is not None
                 else []
+            )
             fused = fuse_arms(seen, arms, skeleton)
             for cue in fused:
-                if cue.observation is not None and cue.arm is not None \
-                        and classify(seen[cue.observation].landmarks) == "open_palm":
+                if (
+                    cue.observation is not None
+                    and cue.arm is not None
+                    and classify(seen[cue.observation].landmarks) == "open_palm"
+                ):
                     palms += 1
                     assert cue.raw == "open_palm", photo.name
     finally:
@@ -253,9 +261,13 @@ def test_bodies_round_trip_and_an_old_ray_without_source_still_decodes():
     from common.codec import decode, encode
     from common.keys import Keys
     from common.schema import Bodies, Body, InvalidSample, Ray
+
     skeleton = person(right_arm=RIGHT_OUT)
-    body = Body(landmarks=skeleton[:, :2].tolist(), visibility=skeleton[:, 2].tolist(),
-                right_ray=Ray(origin=[115.0, 191.0], direction=[-1.0, 0.0], confidence=0.8, source="body"))
+    body = Body(
+        landmarks=skeleton[:, :2].tolist(),
+        visibility=skeleton[:, 2].tolist(),
+        right_ray=Ray(origin=[115.0, 191.0], direction=[-1.0, 0.0], confidence=0.8, source="body"),
+    )
     sample = Bodies(stamp=100.0, source="gesture/test", seq=1, cam="cam0", width=W, height=H, bodies=[body])
     back = decode(encode(sample), Bodies)
     assert back.bodies[0].right_ray.source == "body" and back.bodies[0].left_ray is None

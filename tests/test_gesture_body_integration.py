@@ -29,14 +29,16 @@ def test_pointing_down_at_a_cube_picks_the_cube_under_the_finger(group):
         bodies = client.collect("hri/gesture/*/bodies")
         results = client.collect("hri/fusion/**")
         group.service("camera", "--source", str(photo), "--fps", "10", "--loop")
-        (_, start), = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.phase == "start")
+        ((_, start),) = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.phase == "start")
         assert start.hand == "right" and start.ray is not None and start.ray.source in ("hand", "body")
-        (_, body), = bodies.wait(1, timeout=30, where=lambda k, b: bool(b.bodies))
+        ((_, body),) = bodies.wait(1, timeout=30, where=lambda k, b: bool(b.bodies))
         assert isinstance(body, Bodies) and len(body.bodies[0].landmarks) == 33
         time.sleep(0.5)  # the point is held: hands and events of the utterance's time are in
-        client.publish("hri/speech/kbd/transcript", make_transcript(
-            "pick up that one", mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"))
-        (_, result), = results.wait(1, timeout=30)
+        client.publish(
+            "hri/speech/kbd/transcript",
+            make_transcript("pick up that one", mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"),
+        )
+        ((_, result),) = results.wait(1, timeout=30)
         assert isinstance(result, FusedCommand), result
         assert result.intent == "pick_up" and result.target is not None, result
         assert result.target.color == "green", (result.target, result.explanation)
@@ -56,10 +58,12 @@ def test_a_person_pointing_across_a_room_gives_a_body_ray_point_stream(group):
         events = client.collect("hri/gesture/*/event")
         bodies = client.collect("hri/gesture/*/bodies")
         group.service("camera", "--source", str(photo), "--fps", "10", "--loop")
-        (_, start), = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.phase == "start")
+        ((_, start),) = events.wait(1, timeout=90, where=lambda k, e: e.gesture == "point" and e.phase == "start")
         assert start.hand == "right" and start.ray.source == "body", start
         assert start.ray.direction[0] < 0 and start.ray.direction[1] > 0 and 0 < start.ray.confidence <= 1
-        (_, body), = bodies.wait(1, timeout=30, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray is not None)
+        ((_, body),) = bodies.wait(
+            1, timeout=30, where=lambda k, b: bool(b.bodies) and b.bodies[0].right_ray is not None
+        )
         assert body.bodies[0].left_ray is None and body.bodies[0].visibility[12] > 0.9  # the right shoulder
     finally:
         client.close()

@@ -13,9 +13,20 @@ GESTURE_ONLY = Weights(speech=0.5, vision=0.0, gesture=0.5)
 
 def obj(id_, color, bbox):
     x, y, w, h = bbox
-    return SceneObject(id=id_, label="object", raw_label="object", color=color, bbox=bbox,
-                       center=(x + w / 2, y + h / 2), score=0.9, cam="cam0", width=700, height=950, stamp=100.0,
-                       quality=1.0)
+    return SceneObject(
+        id=id_,
+        label="object",
+        raw_label="object",
+        color=color,
+        bbox=bbox,
+        center=(x + w / 2, y + h / 2),
+        score=0.9,
+        cam="cam0",
+        width=700,
+        height=950,
+        stamp=100.0,
+        quality=1.0,
+    )
 
 
 GREEN = obj("g", "green", (429.0, 495.0, 89.0, 63.0))
@@ -25,8 +36,20 @@ YELLOW = obj("y", "yellow", (276.0, 577.0, 98.0, 90.0))
 
 
 def pointing(origin, direction, hand_box=None):
-    return Pointing(stamp=100.0, cam="cam0", hand="right", origin=origin, direction=direction, confidence=0.9,
-                    stability=0.9, spread_deg=2.0, n=5, width=700, height=950, hand_box=hand_box)
+    return Pointing(
+        stamp=100.0,
+        cam="cam0",
+        hand="right",
+        origin=origin,
+        direction=direction,
+        confidence=0.9,
+        stability=0.9,
+        spread_deg=2.0,
+        n=5,
+        width=700,
+        height=950,
+        hand_box=hand_box,
+    )
 
 
 # the body ray from the fingertip (449, 471), and the hand ray from the index knuckle with the hand's box

@@ -19,7 +19,7 @@ def test_camera_to_gesture_events(group, scene, gesture):
         client.wait_alive("gesture", timeout=60)
         events = client.collect("hri/gesture/*/event")
         group.service("camera", "--source", str(DATA / "demo" / scene), "--fps", "10", "--loop")
-        (_, start), = events.wait(1, timeout=60, where=lambda k, e: e.phase == "start")
+        ((_, start),) = events.wait(1, timeout=60, where=lambda k, e: e.phase == "start")
         assert start.gesture == gesture and start.start <= start.end and start.cam == "cam0"
         if gesture == "point":
             assert start.ray is not None and start.ray.direction[0] > 0.9 and 0 < start.ray.confidence <= 1

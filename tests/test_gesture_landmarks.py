@@ -87,12 +87,15 @@ def still_landmarker():
 
 
 @pytest.mark.parametrize("turn", sorted(TURNS))
-@pytest.mark.parametrize("photo,expected", [
-    (DATA / "demo" / "pointing.png", "point"),
-    (DATA / "demo" / "stop.png", "open_palm"),
-    (DATA / "images" / "hands" / "handSrc.jpg", "open_palm"),
-    (DATA / "images" / "hands" / "Back_Projection_Theory0.jpg", "open_palm"),
-])
+@pytest.mark.parametrize(
+    "photo,expected",
+    [
+        (DATA / "demo" / "pointing.png", "point"),
+        (DATA / "demo" / "stop.png", "open_palm"),
+        (DATA / "images" / "hands" / "handSrc.jpg", "open_palm"),
+        (DATA / "images" / "hands" / "Back_Projection_Theory0.jpg", "open_palm"),
+    ],
+)
 def test_real_photos_turned_and_mirrored_keep_their_gesture_and_ray(still_landmarker, photo, expected, turn):
     img = cv2.imread(str(photo))
     turn_image, turn_vector = TURNS[turn]

@@ -46,21 +46,24 @@ OPENCV_PHOTOS = [
     ("opencv-doc", "frame.jpg", None, None),  # fingers holding a bottle cap up to the camera
     ("opencv-doc", "screen_charuco.jpg", None, None),  # hands holding a calibration board
 ]
-POINTING_PHOTOS = [("pointing", name, "point", side) for name, side in [
-    ("lowcam_man_image3_left_arm_to_image_left.jpeg", "left"),
-    ("lowcam_man_image4_left_arm_to_image_right.jpeg", "left"),
-    ("lowcam_man_image5_left_arm_raised_forward.jpeg", "left"),
-    ("lowcam_man_image7_right_arm_to_floor.jpeg", "right"),
-    ("lowcam_man_image8_right_arm_at_camera.jpeg", "right"),
-    ("nico_table_f01_red_cube.jpg", "right"),
-    ("nico_table_f05_yellow_cube.jpg", "right"),
-    ("nico_table_f06_row_middle_yellow.jpg", "right"),
-    ("nico_table_f07_green_cube.jpg", "right"),
-    ("nico_table_f10_row_right_green.jpg", "right"),
-    ("room_woman_0126_t2_right_arm_to_image_right.png", "right"),
-    ("room_woman_0126_t3_right_arm_to_image_left.png", "right"),
-    ("room_woman_0219_t6_left_arm_to_image_right.png", "left"),
-]]
+POINTING_PHOTOS = [
+    ("pointing", name, "point", side)
+    for name, side in [
+        ("lowcam_man_image3_left_arm_to_image_left.jpeg", "left"),
+        ("lowcam_man_image4_left_arm_to_image_right.jpeg", "left"),
+        ("lowcam_man_image5_left_arm_raised_forward.jpeg", "left"),
+        ("lowcam_man_image7_right_arm_to_floor.jpeg", "right"),
+        ("lowcam_man_image8_right_arm_at_camera.jpeg", "right"),
+        ("nico_table_f01_red_cube.jpg", "right"),
+        ("nico_table_f05_yellow_cube.jpg", "right"),
+        ("nico_table_f06_row_middle_yellow.jpg", "right"),
+        ("nico_table_f07_green_cube.jpg", "right"),
+        ("nico_table_f10_row_right_green.jpg", "right"),
+        ("room_woman_0126_t2_right_arm_to_image_right.png", "right"),
+        ("room_woman_0126_t3_right_arm_to_image_left.png", "right"),
+        ("room_woman_0219_t6_left_arm_to_image_right.png", "left"),
+    ]
+]
 HAND_PHOTOS_27 = REPO_PHOTOS + OPENCV_PHOTOS + POINTING_PHOTOS
 # HaGRID label (file prefix, README in ../shared/data/people) -> the start the robot should see
 PEOPLE_EXPECTED = {"four": "open_palm", "call": None, "rock": None, "none": None}
@@ -121,12 +124,20 @@ def count(results, key) -> int:
 
 # -- the judging rule itself --------------------------------------------------------------------------------
 def test_judge_counts_a_second_point_stream_and_a_wrong_arm_as_phantom_points():
-    assert judge([("point", "right")], "point", "right") == {"right": True, "missed_stop": False,
-                                                             "phantom_point": False, "false_stop": False}
+    assert judge([("point", "right")], "point", "right") == {
+        "right": True,
+        "missed_stop": False,
+        "phantom_point": False,
+        "false_stop": False,
+    }
     assert judge([("point", "right"), ("point", "right")], "point", "right")["phantom_point"]
     assert judge([("point", "left")], "point", "right")["phantom_point"]
-    assert judge([("point", "right")], "open_palm", None) == {"right": False, "missed_stop": True,
-                                                              "phantom_point": True, "false_stop": False}
+    assert judge([("point", "right")], "open_palm", None) == {
+        "right": False,
+        "missed_stop": True,
+        "phantom_point": True,
+        "false_stop": False,
+    }
     assert judge([("fist", "left")], None, None)["right"]
 
 
@@ -154,8 +165,8 @@ def test_the_27_real_hand_photos():
 
 def test_the_shared_people_photos_per_class():
     """HaGRID people at 1-3 m: every raised 'four' hand MediaPipe finds is a stop; 'call me', rock and other signs
-    start no stop and no point. Measured: four 8 of 8 stops (four_25bb…: no hand found at 4 m, the raised arm stops), call/rock/none 0 stops,
-    0 points in 22."""
+    start no stop and no point. Measured: four 8 of 8 stops (four_25bb…: no hand found at 4 m, the raised arm
+    stops), call/rock/none 0 stops, 0 points in 22."""
     folder = shared_path("data/people")
     photos = [("people", p.name, PEOPLE_EXPECTED[p.name.split("_")[0]], None) for p in sorted(folder.glob("*.jpg"))]
     assert len(photos) == 30

@@ -43,12 +43,27 @@ def test_an_undecodable_frame_is_counted_and_the_next_one_is_processed(group):
         img = cv2.imread(str(STOP))
         h, w = img.shape[:2]
         jpeg = cv2.imencode(".jpg", img)[1].tobytes()
-        client.publish("hri/camera/cam0/frame", Frame(stamp=time.time(), source="test/cam", seq=0, cam="cam0",
-                                                     width=w, height=h, encoding="jpeg", data=jpeg[:200]))
+        client.publish(
+            "hri/camera/cam0/frame",
+            Frame(
+                stamp=time.time(),
+                source="test/cam",
+                seq=0,
+                cam="cam0",
+                width=w,
+                height=h,
+                encoding="jpeg",
+                data=jpeg[:200],
+            ),
+        )
         time.sleep(0.3)
-        client.publish("hri/camera/cam0/frame", Frame(stamp=time.time(), source="test/cam", seq=1, cam="cam0",
-                                                     width=w, height=h, encoding="jpeg", data=jpeg))
-        (_, out), = hands.wait(1, timeout=60)
+        client.publish(
+            "hri/camera/cam0/frame",
+            Frame(
+                stamp=time.time(), source="test/cam", seq=1, cam="cam0", width=w, height=h, encoding="jpeg", data=jpeg
+            ),
+        )
+        ((_, out),) = hands.wait(1, timeout=60)
         assert out.seq == 1 and len(out.hands) == 1 and out.hands[0].gesture == "open_palm"
         stats = client.stats("gesture")
         assert stats["rejected"].get("undecodable") == 1, stats

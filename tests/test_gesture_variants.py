@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
+from services.gesture.body import arm, raised_hand
 from services.gesture.rules import classify, finger_states, palm_size
 from services.gesture.temporal import GestureTracker, body_scale, close_up, fuse_arms
-from services.gesture.body import arm, raised_hand
 from tests.test_gesture import fold_index, real, rotate
 from tests.test_gesture_body import RIGHT_OUT, H, W, hand_at, person, run, starts
 
@@ -26,7 +26,7 @@ def bend(p: np.ndarray, mcp: int, degrees: float) -> np.ndarray:
     a = math.radians(degrees)
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
     for joint in (mcp, mcp + 1, mcp + 2):
-        q[joint + 1:mcp + 4] = (q[joint + 1:mcp + 4] - q[joint]) @ rot.T + q[joint]
+        q[joint + 1 : mcp + 4] = (q[joint + 1 : mcp + 4] - q[joint]) @ rot.T + q[joint]
     return q
 
 
@@ -53,7 +53,7 @@ def edge_on(p: np.ndarray, squeeze: float = 0.35) -> np.ndarray:
 def aim_index_at_camera(p: np.ndarray, shrink: float = 0.3) -> np.ndarray:
     """The index finger aimed toward the camera: its image shrinks toward its knuckle along its own line."""
     q = p.copy()
-    q[INDEX + 1:INDEX + 4] = p[INDEX] + (p[INDEX + 1:INDEX + 4] - p[INDEX]) * shrink
+    q[INDEX + 1 : INDEX + 4] = p[INDEX] + (p[INDEX + 1 : INDEX + 4] - p[INDEX]) * shrink
     return q
 
 
@@ -62,14 +62,29 @@ PALM = real("open_palm_up")
 
 
 # -- pointing variants ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("variant", ["plain", "thumb raised", "edge on", "edge on, thumb raised", "back (mirrored)",
-                                     "index at the camera", "index at the camera, thumb raised"])
+@pytest.mark.parametrize(
+    "variant",
+    [
+        "plain",
+        "thumb raised",
+        "edge on",
+        "edge on, thumb raised",
+        "back (mirrored)",
+        "index at the camera",
+        "index at the camera, thumb raised",
+    ],
+)
 @pytest.mark.parametrize("degrees", [0, 90, 200, 300])
 def test_pointing_variants_point_in_any_direction(variant, degrees):
-    p = {"plain": POINT, "thumb raised": raise_thumb(POINT), "edge on": edge_on(POINT),
-         "edge on, thumb raised": edge_on(raise_thumb(POINT)), "back (mirrored)": rotate(POINT, 0, flip=True),
-         "index at the camera": aim_index_at_camera(POINT),
-         "index at the camera, thumb raised": aim_index_at_camera(raise_thumb(POINT))}[variant]
+    p = {
+        "plain": POINT,
+        "thumb raised": raise_thumb(POINT),
+        "edge on": edge_on(POINT),
+        "edge on, thumb raised": edge_on(raise_thumb(POINT)),
+        "back (mirrored)": rotate(POINT, 0, flip=True),
+        "index at the camera": aim_index_at_camera(POINT),
+        "index at the camera, thumb raised": aim_index_at_camera(raise_thumb(POINT)),
+    }[variant]
     assert classify(rotate(p, degrees)) == "point", variant
 
 

@@ -62,6 +62,7 @@ def in_layer(module: str, layer: set[str]) -> bool:
 
 GRAPH = project_graph()
 
+
 def all_imports(module: str) -> set[str]:
     path = ROOT / Path(*module.split("."))
     return imports_of(path / "__init__.py" if path.is_dir() else path.with_suffix(".py"))
@@ -92,8 +93,9 @@ def test_services_import_no_tool():
     for module, deps in GRAPH.items():
         if module.startswith("services."):
             tools = {m for m in deps if in_layer(m, TOOLS)}
-            assert not tools, (f"{module} imports the tool(s) {sorted(tools)}: move what it needs into common/'s "
-                               f"contract or runtime")
+            assert not tools, (
+                f"{module} imports the tool(s) {sorted(tools)}: move what it needs into common/'s contract or runtime"
+            )
 
 
 def test_nothing_shipped_imports_the_tests_or_the_benchmarks():

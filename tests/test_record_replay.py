@@ -7,8 +7,8 @@ import json
 import threading
 import time
 
-import msgpack
 import mcap.reader
+import msgpack
 import pytest
 from mcap.reader import make_reader
 
@@ -24,18 +24,36 @@ T0 = 1_790_000_000.0
 
 
 def detections(stamp: float, cam: str = "cam0") -> Detections:
-    return Detections(stamp=stamp, source="test/vision", seq=1, cam=cam, width=640, height=480,
-                      objects=[DetectedObject(id="o1", label="cup", color="red", score=0.9, bbox=[10, 20, 60, 80],
-                                              center=[40, 60]),
-                               DetectedObject(id="o2", label="cup", color="blue", score=0.8, bbox=[300, 20, 60, 80],
-                                              center=[330, 60])],
-                      quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.8))
+    return Detections(
+        stamp=stamp,
+        source="test/vision",
+        seq=1,
+        cam=cam,
+        width=640,
+        height=480,
+        objects=[
+            DetectedObject(id="o1", label="cup", color="red", score=0.9, bbox=[10, 20, 60, 80], center=[40, 60]),
+            DetectedObject(id="o2", label="cup", color="blue", score=0.8, bbox=[300, 20, 60, 80], center=[330, 60]),
+        ],
+        quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.8),
+    )
 
 
 def pointing(stamp: float, cam: str = "cam0") -> GestureEvent:
-    return GestureEvent(stamp=stamp, source="test/gesture", cam=cam, width=640, height=480, gesture="point",
-                        phase="start", start=stamp - 0.2, end=stamp, score=0.9, hand="right",
-                        ray=Ray(origin=[500, 400], direction=[-0.6, -0.8]))
+    return GestureEvent(
+        stamp=stamp,
+        source="test/gesture",
+        cam=cam,
+        width=640,
+        height=480,
+        gesture="point",
+        phase="start",
+        start=stamp - 0.2,
+        end=stamp,
+        score=0.9,
+        hand="right",
+        ray=Ray(origin=[500, 400], direction=[-0.6, -0.8]),
+    )
 
 
 def said(text: str, stamp: float) -> object:
@@ -47,11 +65,15 @@ def said(text: str, stamp: float) -> object:
 # ---------------------------------------------------------------------------
 def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp_path):
     path = tmp_path / "core.mcap"
-    contract = [(KEYS.transcript("kbd"), encode(said("pick up the red cup", T0))),
-                (KEYS.objects("cam0"), encode(detections(T0 + 0.1))),
-                (KEYS.transcript("kbd"), encode(said("stop", T0 + 0.5)))]
-    outside = [(KEYS.transcript("kbd"), msgpack.packb({"text": "no envelope"})),  # contract key, invalid sample
-               ("hri/test/raw", b"\x01\x02 not msgpack")]  # key outside the contract
+    contract = [
+        (KEYS.transcript("kbd"), encode(said("pick up the red cup", T0))),
+        (KEYS.objects("cam0"), encode(detections(T0 + 0.1))),
+        (KEYS.transcript("kbd"), encode(said("stop", T0 + 0.5))),
+    ]
+    outside = [
+        (KEYS.transcript("kbd"), msgpack.packb({"text": "no envelope"})),  # contract key, invalid sample
+        ("hri/test/raw", b"\x01\x02 not msgpack"),
+    ]  # key outside the contract
     received = [int((T0 + 1 + i) * NS) for i in range(5)]
     with open(path, "wb") as f:
         writer = SessionWriter(f, KEYS, metadata={"keyexpr": "hri/**"})
@@ -79,8 +101,9 @@ def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp
         got = [(ch.topic, m.data, m.log_time, m.publish_time, m.sequence) for _, ch, m in reader.iter_messages()]
         assert [m.name for m in reader.iter_metadata()] == ["hri.record"]
     stamps = [T0, T0 + 0.1, T0 + 0.5]
-    expected = [(key, payload, at, int(round(stamp * NS)))
-                for (key, payload), at, stamp in zip(contract, received, stamps)]
+    expected = [
+        (key, payload, at, int(round(stamp * NS))) for (key, payload), at, stamp in zip(contract, received, stamps)
+    ]
     expected += [(key, payload, at, at) for (key, payload), at in zip(outside, received[3:])]
     assert [g[:4] for g in got] == expected
     assert [g[4] for g in got] == [1, 1, 2, 3, 1]  # per-channel sequence
@@ -150,6 +173,7 @@ def test_progress_prints_about_once_per_interval():
 
 def test_replay_explains_a_missing_or_foreign_file(tmp_path):
     from common.recording import RecordingError
+
     with pytest.raises(RecordingError, match="cannot open"):
         SessionReader(tmp_path / "nope.mcap")
     junk = tmp_path / "junk.mcap"
@@ -224,10 +248,12 @@ def test_record_then_replay_round_trip(group, tmp_path):
     try:
         token = client.session.liveliness().declare_token("hri/alive/test/recording")  # not data: not recorded
         now = time.time()
-        sent = [(KEYS.transcript("kbd"), said("pick up the red cup", now)),
-                (KEYS.objects("cam0"), detections(now + 0.01)),
-                (KEYS.gesture_event("cam0"), pointing(now + 0.02)),
-                (KEYS.transcript("kbd"), said("stop", now + 0.03))]
+        sent = [
+            (KEYS.transcript("kbd"), said("pick up the red cup", now)),
+            (KEYS.objects("cam0"), detections(now + 0.01)),
+            (KEYS.gesture_event("cam0"), pointing(now + 0.02)),
+            (KEYS.transcript("kbd"), said("stop", now + 0.03)),
+        ]
         wait_matched(client, [k for k, _ in sent] + ["hri/test/raw"])
         before_ns = time.time_ns()
         for key, sample in sent:
@@ -247,8 +273,12 @@ def test_record_then_replay_round_trip(group, tmp_path):
             summary = reader.get_summary()
             assert summary is not None, "no summary: the recorder did not finish the file on SIGTERM"
             topics = {c.topic: c.message_encoding for c in summary.channels.values()}
-            assert topics == {KEYS.transcript("kbd"): "msgpack", KEYS.objects("cam0"): "msgpack",
-                              KEYS.gesture_event("cam0"): "msgpack", "hri/test/raw": "msgpack"}
+            assert topics == {
+                KEYS.transcript("kbd"): "msgpack",
+                KEYS.objects("cam0"): "msgpack",
+                KEYS.gesture_event("cam0"): "msgpack",
+                "hri/test/raw": "msgpack",
+            }
             recorded = [(ch.topic, m.data, m.log_time, m.publish_time) for _, ch, m in reader.iter_messages()]
         expected = [(k, encode(s)) for k, s in sent] + [("hri/test/raw", b"\xc1 outside the contract")]
         assert [(k, d) for k, d, _, _ in recorded] == expected
@@ -286,8 +316,9 @@ def test_record_then_replay_round_trip(group, tmp_path):
 
         # -- --speed 0 --loop: back to back, over and over until SIGTERM
         tap.clear()
-        looper = group.start("replay", "common.cli", "replay", str(path), "--only", "hri/vision/*/objects",
-                             "--speed", "0", "--loop")
+        looper = group.start(
+            "replay", "common.cli", "replay", str(path), "--only", "hri/vision/*/objects", "--speed", "0", "--loop"
+        )
         got = tap.wait(3)
         code, _ = looper.terminate(timeout=5.0)
         assert code == 0, looper.output()
@@ -300,8 +331,7 @@ def test_record_then_replay_round_trip(group, tmp_path):
 def test_record_stops_by_itself_after_count_or_duration(group, tmp_path):
     group.router()
     counted, timed = tmp_path / "count.mcap", tmp_path / "duration.mcap"
-    by_count = group.start("record-count", "common.cli", "record", "-o", str(counted), "hri/speech/**",
-                           "--count", "2")
+    by_count = group.start("record-count", "common.cli", "record", "-o", str(counted), "hri/speech/**", "--count", "2")
     wait_for_text(by_count, "recording")
     by_time = group.start("record-duration", "common.cli", "record", "-o", str(timed), "--duration", "3")
     wait_for_text(by_time, "recording")
@@ -346,23 +376,29 @@ def test_record_refuses_to_overwrite_and_replay_rejects_bad_input(group, tmp_pat
 # ---------------------------------------------------------------------------
 # The point of it all: a recorded session replayed into a fresh fusion service
 # ---------------------------------------------------------------------------
-REPLAYED_SCENARIOS = ("colour: the red cup", "pointing: that cup", "follow-up: the red one",
-                      "open palm: stop at once")
+REPLAYED_SCENARIOS = ("colour: the red cup", "pointing: that cup", "follow-up: the red one", "open palm: stop at once")
 INPUT_KEYS = [KEYS.transcript("mic0"), KEYS.objects("cam0"), KEYS.hands("cam0"), KEYS.gesture_event("cam0")]
 
 
 def outcome(sample) -> tuple:
     """What a fused output decides (the volatile parts — stamps, explanation wording — left out)."""
     from common.schema import Clarification
+
     if isinstance(sample, Clarification):
         return ("clarification", sample.id, sample.reason, sorted(c.id for c in sample.candidates))
-    return ("command", sample.id, sample.intent, sample.target.id if sample.target else None,
-            sample.location is not None)
+    return (
+        "command",
+        sample.id,
+        sample.intent,
+        sample.target.id if sample.target else None,
+        sample.location is not None,
+    )
 
 
 def warm_up_fusion(client: Client, timeout: float = 30.0) -> None:
     """Inputs that decide nothing (no objects, no hands), until fusion counts them: its routes exist."""
     from tests.scenarios import BASE_STAMP, hands, see
+
     deadline, round_ = time.monotonic() + timeout, 0
     while time.monotonic() < deadline:
         before = client.stats("fusion")["received"]
@@ -402,17 +438,23 @@ def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_command
 
         def decided(since: int, base: float) -> list:
             """Wait for the sentinel's command of the scenario at `base`; return that scenario's outputs."""
+
             def is_sentinel(key: str, s: object) -> bool:
                 return isinstance(s, FusedCommand) and s.stamp == base + sentinel_at
+
             earlier = sum(1 for item in outputs.seen[:since] if is_sentinel(*item))  # A's, when B replays
             try:
                 outputs.wait(earlier + 1, 30, where=is_sentinel)
             except TimeoutError as exc:
-                raise AssertionError(f"no answer to the sentinel at {base + sentinel_at}: {exc}\n"
-                                     f"{group.logs()}") from None
+                raise AssertionError(
+                    f"no answer to the sentinel at {base + sentinel_at}: {exc}\n{group.logs()}"
+                ) from None
             outputs.drain(0.05)
-            return [s for _, s in outputs.seen[since:] if isinstance(s, (FusedCommand, Clarification))
-                    and base - 10 <= s.stamp < base + sentinel_at]
+            return [
+                s
+                for _, s in outputs.seen[since:]
+                if isinstance(s, (FusedCommand, Clarification)) and base - 10 <= s.stamp < base + sentinel_at
+            ]
 
         # -- live: the scenarios' inputs into fusion A, everything recorded
         live = []
@@ -433,8 +475,9 @@ def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_command
 
         # the recording holds A's answers too, exactly as the collector received them
         reader = SessionReader(path)
-        in_file = [decode(m.payload, KEYS.schema_for(m.key))
-                   for m in reader.messages(lambda k: k.startswith("hri/fusion/"))]
+        in_file = [
+            decode(m.payload, KEYS.schema_for(m.key)) for m in reader.messages(lambda k: k.startswith("hri/fusion/"))
+        ]
         reader.close()
         answered_live = [outcome(s) for _, s in outputs.seen if s.stamp >= base0 - 10]
         assert sorted(outcome(s) for s in in_file if s.stamp >= base0 - 10) == sorted(answered_live)
@@ -444,17 +487,27 @@ def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_command
         client.wait_alive("fusion")
         wait_matched(client, INPUT_KEYS)  # A and the recorder are gone: this is B's route
         since = len(outputs.seen)
-        res = group.hri("replay", str(path), "--only", "hri/speech/**", "--only", "hri/vision/**",
-                        "--only", "hri/gesture/**", timeout=180)
+        res = group.hri(
+            "replay",
+            str(path),
+            "--only",
+            "hri/speech/**",
+            "--only",
+            "hri/vision/**",
+            "--only",
+            "hri/gesture/**",
+            timeout=180,
+        )
         assert res.returncode == 0, res.stderr
         replayed = []
-        for i, scenario in enumerate(chosen):
+        for i in range(len(chosen)):
             base = base0 + i * SCENARIO_SPACING
             got = decided(since, base)
             replayed.append([outcome(s) for s in got])
         assert replayed == live, f"live {live}\nreplayed {replayed}\n{group.logs()}"
-        assert sum(1 for _, s in outputs.seen[since:] if s.stamp >= base0 - 10) == len(answered_live), \
+        assert sum(1 for _, s in outputs.seen[since:] if s.stamp >= base0 - 10) == len(answered_live), (
             "the replay made fusion B publish more or fewer outputs than A did live"
+        )
         assert fresh.alive()
     finally:
         client.close()

@@ -29,8 +29,16 @@ from tests.shared import shared_path, yolox_model
 
 pytestmark = pytest.mark.integration
 
-K = {"width": 640, "height": 480, "fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109,
-     "depth_scale": 0.0001, "frame_id": "ycb_camera_optical_frame"}
+K = {
+    "width": 640,
+    "height": 480,
+    "fx": 1066.778,
+    "fy": 1067.487,
+    "cx": 312.9869,
+    "cy": 241.3109,
+    "depth_scale": 0.0001,
+    "frame_id": "ycb_camera_optical_frame",
+}
 BOTTLE = (210, 31, 97, 257)  # the Soft Scrub bottle in 000002 (YOLOX-Nano: bottle 0.76)
 COPY_AT = (420, 5)  # top-left of its copy
 NEARER = 0.35  # m
@@ -42,10 +50,10 @@ def two_bottles(folder) -> tuple[np.ndarray, np.ndarray]:
     depth = cv2.imread(str(src / "000002-depth.png"), cv2.IMREAD_UNCHANGED)
     x, y, w, h = BOTTLE
     dx, dy = COPY_AT
-    z = depth[y:y + h, x:x + w].astype(float) * K["depth_scale"]
+    z = depth[y : y + h, x : x + w].astype(float) * K["depth_scale"]
     own = (z > 0) & (z < 1.05)  # the bottle (and the table right at its foot), not the room behind
-    colour[dy:dy + h, dx:dx + w][own] = colour[y:y + h, x:x + w][own]
-    depth[dy:dy + h, dx:dx + w][own] = depth[y:y + h, x:x + w][own] - int(NEARER / K["depth_scale"])
+    colour[dy : dy + h, dx : dx + w][own] = colour[y : y + h, x : x + w][own]
+    depth[dy : dy + h, dx : dx + w][own] = depth[y : y + h, x : x + w][own] - int(NEARER / K["depth_scale"])
     folder.mkdir()
     cv2.imwrite(str(folder / "000001-color.png"), colour)
     cv2.imwrite(str(folder / "000001-depth.png"), depth)
@@ -54,8 +62,10 @@ def two_bottles(folder) -> tuple[np.ndarray, np.ndarray]:
 
 
 def say(client: Client, text: str) -> None:
-    client.publish("hri/speech/kbd/transcript",
-                   make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"))
+    client.publish(
+        "hri/speech/kbd/transcript",
+        make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"),
+    )
 
 
 def start(group, folder) -> Client:
@@ -114,8 +124,13 @@ def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):
     project = lambda p: (K["fx"] * p[0] / p[2] + K["cx"], K["fy"] * p[1] / p[2] + K["cy"])  # noqa: E731
     tip_px, spot_seen = np.array(project(tip)), np.array(project(hit))
     d2 = (spot_seen - tip_px) / np.linalg.norm(spot_seen - tip_px)
-    ray3d = Ray3D(origin=eyes.tolist(), direction=direction.tolist(), method="eye_fingertip",
-                  frame_id=K["frame_id"], hit=[float(c) for c in hit])
+    ray3d = Ray3D(
+        origin=eyes.tolist(),
+        direction=direction.tolist(),
+        method="eye_fingertip",
+        frame_id=K["frame_id"],
+        hit=[float(c) for c in hit],
+    )
     client = start(group, tmp_path / "scene")
     try:
         wait_for_bottles(client)
@@ -123,13 +138,30 @@ def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):
         t0 = time.time()
         for i in range(12):  # pointing for the 1.1 s up to the end of the words
             tip_list = [float(c) for c in tip_px]
-            client.publish("hri/gesture/cam0/hands", Hands(
-                stamp=t0 - 1.1 + 0.1 * i, source="test/gesture", seq=i, cam="cam0", width=640, height=480,
-                hands=[Hand(hand="right", score=0.95, landmarks=[tip_list] * 21, gesture="point",
-                            ray=Ray(origin=tip_list, direction=d2.tolist(), confidence=0.9, source="body",
-                                    ray3d=ray3d))]))
-        client.publish("hri/speech/kbd/transcript", make_transcript(
-            "go there", mic="kbd", end=t0, confidence=0.95, source="test/kbd"))
+            client.publish(
+                "hri/gesture/cam0/hands",
+                Hands(
+                    stamp=t0 - 1.1 + 0.1 * i,
+                    source="test/gesture",
+                    seq=i,
+                    cam="cam0",
+                    width=640,
+                    height=480,
+                    hands=[
+                        Hand(
+                            hand="right",
+                            score=0.95,
+                            landmarks=[tip_list] * 21,
+                            gesture="point",
+                            ray=Ray(origin=tip_list, direction=d2.tolist(), confidence=0.9, source="body", ray3d=ray3d),
+                        )
+                    ],
+                ),
+            )
+        client.publish(
+            "hri/speech/kbd/transcript",
+            make_transcript("go there", mic="kbd", end=t0, confidence=0.95, source="test/kbd"),
+        )
         cmd = results.wait(1, timeout=30)[0][1]
     finally:
         client.close()

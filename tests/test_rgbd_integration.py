@@ -19,8 +19,16 @@ from tests.shared import shared_path
 
 pytestmark = pytest.mark.integration
 
-YCB_INTRINSICS = {"width": 640, "height": 480, "fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109,
-                  "depth_scale": 0.0001, "frame_id": "ycb_camera_optical_frame"}
+YCB_INTRINSICS = {
+    "width": 640,
+    "height": 480,
+    "fx": 1066.778,
+    "fy": 1067.487,
+    "cx": 312.9869,
+    "cy": 241.3109,
+    "depth_scale": 0.0001,
+    "frame_id": "ycb_camera_optical_frame",
+}
 
 
 def ycb_folder(tmp_path, intrinsics: dict | None = None):
@@ -70,8 +78,12 @@ def test_rgbd_folder_through_camera_and_vision_gives_positions_in_metres(group, 
         colours = {f.seq: f for _, f in frames.wait(4, timeout=30)}
     finally:
         client.close()
-    info = CameraInfo(width=640, height=480, k=[1066.778, 0, 312.9869, 0, 1067.487, 241.3109, 0, 0, 1],
-                      frame_id="ycb_camera_optical_frame")
+    info = CameraInfo(
+        width=640,
+        height=480,
+        k=[1066.778, 0, 312.9869, 0, 1067.487, 241.3109, 0, 0, 1],
+        frame_id="ycb_camera_optical_frame",
+    )
     for seq, d in depths.items():  # same capture: same stamp and seq; the colour frame carries its K too
         if seq in colours:
             assert colours[seq].stamp == d.stamp and colours[seq].camera_info == d.camera_info == info
@@ -98,6 +110,7 @@ def test_a_wrong_resolution_intrinsics_file_is_refused_at_start_up(group, tmp_pa
 
 def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     from mcap.reader import make_reader
+
     folder = ycb_folder(tmp_path)
     group.router()
     path = tmp_path / "rgbd.mcap"
@@ -134,7 +147,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
         group.start("replay", "common.cli", "replay", str(path), "--loop")
         got = {}
         for seq in (0, 1):
-            _, det = out.wait(1, timeout=30, where=lambda k, s: s.seq == seq and s.frame_id is not None)[0]
+            _, det = out.wait(1, timeout=30, where=lambda k, s, seq=seq: s.seq == seq and s.frame_id is not None)[0]
             got[seq] = det
     finally:
         client.close()
@@ -149,6 +162,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
 
 def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused(group, tmp_path):
     from tests.harness import DATA
+
     photo = DATA / "demo" / "pointing.png"  # 640x480
     folder = tmp_path / "colour"
     folder.mkdir()
@@ -160,8 +174,7 @@ def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused
     client = Client(group.endpoint)
     try:
         frames = client.collect("hri/camera/cam0/frame")
-        group.service("camera", "--source", str(folder), "--fps", "10", "--loop", "--intrinsics", str(good),
-                      "--mirror")
+        group.service("camera", "--source", str(folder), "--fps", "10", "--loop", "--intrinsics", str(good), "--mirror")
         _, frame = frames.wait(1, timeout=30)[0]
     finally:
         client.close()
@@ -177,6 +190,7 @@ def test_on_a_secured_robot_vision_may_read_depth(group, tmp_path):
     """The access rules let vision (and gesture) receive camera/*/depth: positions work with --secure too."""
     from common.security import init_secrets
     from tests.harness import wait_for_port
+
     folder = ycb_folder(tmp_path)
     secrets = str(init_secrets(tmp_path / "secrets", {}).folder)
     group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)

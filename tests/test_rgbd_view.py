@@ -15,8 +15,7 @@ def test_positions_are_written_in_metres_only_when_known():
 
 def test_a_positioned_object_gets_the_longer_label():
     img = np.full((200, 400, 3), 255, np.uint8)
-    obj = {"id": "cam0-o1", "label": "cup", "color": "red", "score": 0.9, "bbox": [20, 60, 80, 80],
-           "center": [60, 100]}
+    obj = {"id": "cam0-o1", "label": "cup", "color": "red", "score": 0.9, "bbox": [20, 60, 80, 80], "center": [60, 100]}
 
     def label_width(layers) -> int:
         out = render(img, layers)
@@ -32,12 +31,21 @@ def test_a_positioned_object_gets_the_longer_label():
 def depth_sample(seq: int = 0, cam: str = "table"):
     from common.depth import depth_frame
     from common.schema import CameraInfo
+
     depth = np.full((120, 160), 2000, np.uint16)  # a wall at 2 m
-    depth[30:70, 40:90] = 800                      # an object at 0.8 m
-    depth[100:, :] = 0                             # no measurement
+    depth[30:70, 40:90] = 800  # an object at 0.8 m
+    depth[100:, :] = 0  # no measurement
     info = CameraInfo(width=160, height=120, k=[130.0, 0, 79.5, 0, 130.0, 59.5, 0, 0, 1], frame_id="cam_optical")
-    return depth_frame(depth, stamp=1_700_000_000.0 + seq, source="camera/t", seq=seq, cam=cam, depth_scale=0.001,
-                       camera_info=info, compression="png")
+    return depth_frame(
+        depth,
+        stamp=1_700_000_000.0 + seq,
+        source="camera/t",
+        seq=seq,
+        cam=cam,
+        depth_scale=0.001,
+        camera_info=info,
+        compression="png",
+    )
 
 
 def test_the_depth_overlay_colours_near_red_far_blue_and_holes_black():
@@ -46,6 +54,7 @@ def test_the_depth_overlay_colours_near_red_far_blue_and_holes_black():
     from common.codec import encode
     from common.keys import Keys
     from common.view.core import ViewState
+
     keys = Keys("hri")
     state = ViewState(keys)
     assert state.depth_picture("table") is None
@@ -71,6 +80,7 @@ def test_the_depth_endpoint_serves_the_picture_and_204_without_depth(monkeypatch
     from common.keys import Keys
     from common.view import server
     from common.view.core import ViewState
+
     keys = Keys("hri")
     state = ViewState(keys)
     state.ingest(keys.depth("table"), encode(depth_sample(5)), now=0.0)

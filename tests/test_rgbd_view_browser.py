@@ -30,9 +30,19 @@ def test_depth_toggle_overlays_the_depth_and_objects_carry_positions(tmp_path):
     folder.mkdir()
     (folder / "000002-color.png").write_bytes((src / "000002-color.png").read_bytes())
     (folder / "000002-depth.png").write_bytes((src / "000002-depth.png").read_bytes())
-    (folder / "intrinsics.json").write_text(json.dumps({
-        "width": 640, "height": 480, "fx": 1066.778, "fy": 1067.487, "cx": 312.9869, "cy": 241.3109,
-        "depth_scale": 0.0001}))
+    (folder / "intrinsics.json").write_text(
+        json.dumps(
+            {
+                "width": 640,
+                "height": 480,
+                "fx": 1066.778,
+                "fy": 1067.487,
+                "cx": 312.9869,
+                "cy": 241.3109,
+                "depth_scale": 0.0001,
+            }
+        )
+    )
     group = ProcessGroup()
     browser = None
     try:
@@ -44,13 +54,13 @@ def test_depth_toggle_overlays_the_depth_and_objects_carry_positions(tmp_path):
         tab = browser.tab(url)
         tab.wait_for("window.hriView && hriView.framesDrawn > 2", 60, "camera frames")
         tab.wait_for("!document.querySelector('label.depth-toggle').hidden", 30, "the depth toggle")
-        tab.wait_for("(hriView.state.cameras.cam0.objects || []).some((o) => o.position)", 30,
-                     "objects with positions")
+        tab.wait_for("(hriView.state.cameras.cam0.objects || []).some((o) => o.position)", 30, "objects with positions")
         before = panel_shot(tab)
         tab.js("document.querySelector('[data-depth=cam0]').click()")
         tab.wait_for("hriView.cams.cam0.depthBitmap !== null", 30, "the depth picture")
         tab.js("hriView.cams.cam0.n = -1")  # draw again now, not at the next frame
         import time
+
         time.sleep(1.0)
         after = panel_shot(tab)
         cv2.imwrite(str(tmp_path / "depth-overlay.png"), after.astype(np.uint8))

@@ -19,14 +19,14 @@ TABLE = DATA / "demo" / "table.png"
 
 
 def secured_router(group: ProcessGroup, secrets: str):
-    proc = group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets,
-                       connect=False)
+    proc = group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
     wait_for_port(group.port)
     return proc
 
 
 def test_only_authorised_services_command_the_robot(group, tmp_path):
     from common.schema import Frame
+
     secrets = str(init_secrets(tmp_path / "secrets", {"operator": ["reader", "keyboard"]}).folder)
     secured_router(group, secrets)
     vision = group.service("vision", "--labels", str(DATA / "demo" / "labels.json"), "--secure", secrets)
@@ -41,24 +41,42 @@ def test_only_authorised_services_command_the_robot(group, tmp_path):
         commands = reader.collect("hri/fusion/command")
         objects = reader.collect("hri/vision/*/objects")
         img = cv2.imread(str(TABLE))
-        frame = Frame(stamp=time.time(), source="camera/test", seq=0, cam="cam0", width=img.shape[1],
-                      height=img.shape[0], encoding="jpeg", data=cv2.imencode(".jpg", img)[1].tobytes())
+        frame = Frame(
+            stamp=time.time(),
+            source="camera/test",
+            seq=0,
+            cam="cam0",
+            width=img.shape[1],
+            height=img.shape[0],
+            encoding="jpeg",
+            data=cv2.imencode(".jpg", img)[1].tobytes(),
+        )
         camera.publish("hri/camera/cam0/frame", frame)
         objects.wait(1, timeout=60)
-        forged = FusedCommand(stamp=time.time(), source="fusion/forged", id="cmd-forged", intent="stop",
-                              confidence=1.0, weights=Weights(speech=1.0, vision=0.0, gesture=0.0),
-                              inputs={}, explanation="forged", prompt="forged")
+        forged = FusedCommand(
+            stamp=time.time(),
+            source="fusion/forged",
+            id="cmd-forged",
+            intent="stop",
+            confidence=1.0,
+            weights=Weights(speech=1.0, vision=0.0, gesture=0.0),
+            inputs={},
+            explanation="forged",
+            prompt="forged",
+        )
         intruder.publish("hri/fusion/command", forged)
         # a fresh session sends its first put before it learns there is no subscriber it may reach: the router
         # itself must refuse it
         from common.codec import encode
+
         hasty = Client(group.endpoint, secure=secrets, user="gesture")
         hasty.put_raw("hri/fusion/command", encode(forged))
         hasty.close()
-        said = make_transcript("pick up the red candy", mic="desk", end=time.time(), confidence=1.0,
-                               source="speech/test")
+        said = make_transcript(
+            "pick up the red candy", mic="desk", end=time.time(), confidence=1.0, source="speech/test"
+        )
         speech.publish("hri/speech/desk/transcript", said)
-        (_, cmd), = commands.wait(1, timeout=30)
+        ((_, cmd),) = commands.wait(1, timeout=30)
         assert cmd.intent == "pick_up" and cmd.target is not None and cmd.target.color == "red", cmd
         assert cmd.source.startswith("fusion/")
         time.sleep(0.5)
@@ -86,8 +104,9 @@ def test_a_wrong_password_fails_with_a_clear_error(group, tmp_path):
     secured_router(group, str(secrets))
     wrong = tmp_path / "wrong"
     wrong.mkdir()
-    (wrong / "passwords").write_text("".join(f"{u}:not-{p}\n" for u, p in read_passwords(secrets / "passwords")
-                                             .items()))
+    (wrong / "passwords").write_text(
+        "".join(f"{u}:not-{p}\n" for u, p in read_passwords(secrets / "passwords").items())
+    )
     t0 = time.monotonic()
     res = group.hri("list", "--secure", str(wrong), timeout=30)
     assert res.returncode != 0 and "refused user 'cli'" in res.stderr and "wrong password" in res.stderr, res
@@ -108,9 +127,11 @@ def test_a_tls_secured_stack_commands_and_refuses_a_client_without_the_ca(group,
     try:
         reader.wait_alive("fusion", timeout=120)
         commands = reader.collect("hri/fusion/command")
-        speech.publish("hri/speech/mic0/transcript", make_transcript("stop", mic="mic0", end=time.time(),
-                                                                     confidence=1.0, source="speech/test"))
-        (_, cmd), = commands.wait(1, timeout=30)
+        speech.publish(
+            "hri/speech/mic0/transcript",
+            make_transcript("stop", mic="mic0", end=time.time(), confidence=1.0, source="speech/test"),
+        )
+        ((_, cmd),) = commands.wait(1, timeout=30)
         assert cmd.intent == "stop"
         (secrets / "tls" / "ca.pem").rename(tmp_path / "ca.pem")  # a client that does not trust the robot's CA
         with pytest.raises(zenoh.ZError):

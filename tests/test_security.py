@@ -6,7 +6,13 @@ import stat
 import pytest
 
 from common.security import (
-    SecurityError, access_control, init_secrets, may_publish, password_for, read_passwords, read_secrets,
+    SecurityError,
+    access_control,
+    init_secrets,
+    may_publish,
+    password_for,
+    read_passwords,
+    read_secrets,
 )
 
 
@@ -35,12 +41,19 @@ def test_errors_say_what_to_do(tmp_path):
 
 def test_each_user_publishes_only_its_own_keys(tmp_path):
     sec = init_secrets(tmp_path / "s", {"operator": ["reader", "keyboard"]})
-    allowed = {(u, k) for u in sec.users for k in ("hri/fusion/command", "hri/camera/cam0/frame",
-                                                   "hri/vision/cam0/objects", "hri/speech/kbd/transcript")
-               if may_publish(sec, u, k, "hri")}
-    assert allowed == {("fusion", "hri/fusion/command"), ("camera", "hri/camera/cam0/frame"),
-                       ("vision", "hri/vision/cam0/objects"), ("speech", "hri/speech/kbd/transcript"),
-                       ("operator", "hri/speech/kbd/transcript")}
+    allowed = {
+        (u, k)
+        for u in sec.users
+        for k in ("hri/fusion/command", "hri/camera/cam0/frame", "hri/vision/cam0/objects", "hri/speech/kbd/transcript")
+        if may_publish(sec, u, k, "hri")
+    }
+    assert allowed == {
+        ("fusion", "hri/fusion/command"),
+        ("camera", "hri/camera/cam0/frame"),
+        ("vision", "hri/vision/cam0/objects"),
+        ("speech", "hri/speech/kbd/transcript"),
+        ("operator", "hri/speech/kbd/transcript"),
+    }
     acl = access_control(sec, "lab/robot7")
     assert acl["default_permission"] == "deny"
     puts = {r["id"]: r["key_exprs"] for r in acl["rules"] if "put" in r["messages"] and r["flows"] == ["ingress"]}

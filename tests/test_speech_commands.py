@@ -12,7 +12,7 @@ import pytest
 
 from common.language import ONE_WORD_EXTRAS, STOP_WORDS, one_word_commands
 from services.fusion.parse import parse, stop_near_miss
-from services.speech.audio import RATE, read_wav
+from services.speech.audio import read_wav
 from services.speech.pipeline import MicStream
 from services.speech.vad import make_segmenter
 from services.speech.whisper import WhisperRecognizer, choose_command, remove_loops
@@ -28,6 +28,7 @@ MAX_FALSE_STOPS = 2
 
 
 # -- pure rules ------------------------------------------------------------------------------------
+
 
 def test_a_heard_word_outside_the_commands_gives_way_to_a_likely_command():
     commands = {"off": 0.02, "up": 0.01, "stop": 0.0}
@@ -50,15 +51,40 @@ def test_no_no_no_survives_the_loop_guard_but_other_repeats_do_not():
     assert remove_loops("turn left turn left".split(), repeatable={"no"}) == ["turn", "left"]
 
 
-@pytest.mark.parametrize("text", ["stop", "please stop", "pick up the red cup and stop", "halt", "freeze",
-                                  "wait", "wait for me", "no no no", "no wait", "stopp", "go to the door stop",
-                                  "the red one no stop"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "stop",
+        "please stop",
+        "pick up the red cup and stop",
+        "halt",
+        "freeze",
+        "wait",
+        "wait for me",
+        "no no no",
+        "no wait",
+        "stopp",
+        "go to the door stop",
+        "the red one no stop",
+    ],
+)
 def test_a_stop_word_anywhere_stops(text):
     assert parse(text).intent == "stop", text
 
 
-@pytest.mark.parametrize("text", ["i want the red cup", "no", "no no", "no wait the blue one", "step forward",
-                                  "put it on top", "go left", "what is that"])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "i want the red cup",
+        "no",
+        "no no",
+        "no wait the blue one",
+        "step forward",
+        "put it on top",
+        "go left",
+        "what is that",
+    ],
+)
 def test_words_near_a_stop_word_do_not_stop(text):
     assert parse(text).intent != "stop", text
 
@@ -75,6 +101,7 @@ def test_a_doubted_near_miss_of_a_stop_word_stops_and_a_sure_one_does_not():
 def test_fusion_stops_at_once_on_a_doubted_near_miss_and_says_why(conf, stops):
     from services.fusion.core import Config, FusionCore
     from tests.scenarios import BASE_STAMP, say
+
     core = FusionCore(Config(), "fusion/test")
     key, t = say(0.2, 0.6, "stap", conf=conf).build(BASE_STAMP)
     out = core.on_transcript(key, t, 1000.0)
@@ -88,6 +115,7 @@ def test_fusion_stops_at_once_on_a_doubted_near_miss_and_says_why(conf, stops):
 
 
 # -- the real clips -----------------------------------------------------------------------------------
+
 
 def clips() -> list[tuple[str, np.ndarray, int]]:
     folder = shared_path("data/speech_commands")
@@ -106,7 +134,7 @@ def hear(recogniser, samples: np.ndarray, rate: int) -> tuple[list[str], list[st
     samples = np.concatenate([pad, samples.astype(np.float32), pad])
     heard, step = [], rate // 50
     for off in range(0, len(samples), step):
-        heard += stream.feed(samples[off:off + step], rate, T0 + off / rate)
+        heard += stream.feed(samples[off : off + step], rate, T0 + off / rate)
     heard += stream.flush()
     return [h.transcript.text for h in heard], counted
 
@@ -123,8 +151,11 @@ def heard_clips():
 @pytest.mark.timeout(1800)
 def test_real_one_word_commands_are_heard_right(heard_clips):
     right = [w for w, texts, _ in heard_clips if texts == [w]]
-    wrong = [(w, texts, [c for c in counted if c not in ("utterances", "speculation_used")])
-             for w, texts, counted in heard_clips if texts != [w]]
+    wrong = [
+        (w, texts, [c for c in counted if c not in ("utterances", "speculation_used")])
+        for w, texts, counted in heard_clips
+        if texts != [w]
+    ]
     print(f"{len(right)} of {len(heard_clips)} right; wrong: {wrong}")
     assert len(right) >= MIN_RIGHT, wrong
     for word in WORDS:  # no word is lost altogether (measured: 7 to 10 of 10 per word; "off" the worst)
@@ -135,6 +166,7 @@ def test_real_one_word_commands_are_heard_right(heard_clips):
 def test_every_real_stop_stops_and_other_words_rarely_do(heard_clips):
     def stops(texts: list[str]) -> bool:
         return any(parse(t).intent == "stop" for t in texts)
+
     missed = [texts for w, texts, _ in heard_clips if w == "stop" and not stops(texts)]
     false = [(w, texts) for w, texts, _ in heard_clips if w != "stop" and stops(texts)]
     print(f"stops missed {missed}; false stops {false}")

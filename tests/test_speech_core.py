@@ -9,7 +9,7 @@ from common import language
 from services.speech.audio import AudioError, Resampler, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import build_grammar, normalise
 from services.speech.pipeline import MicStream
-from services.speech.recognizers import Recognition, RecognisedWord, derive_pronunciation
+from services.speech.recognizers import RecognisedWord, Recognition, derive_pronunciation
 from services.speech.synth import synthesize
 from services.speech.vad import Segmenter, VadConfig, make_segmenter
 
@@ -17,9 +17,18 @@ from services.speech.vad import Segmenter, VadConfig, make_segmenter
 # -- grammar -------------------------------------------------------------------
 def test_grammar_accepts_commands_built_from_the_language_and_rejects_other_sentences():
     matches = build_grammar().matcher()
-    for text in ("pick up the red cup", "bring me that", "put it on the table", "go to the kitchen",
-                 "can you please pick that up", "no not that one", "the left one", "hello robot",
-                 "give me the one on the right", "put the red ball in the box"):
+    for text in (
+        "pick up the red cup",
+        "bring me that",
+        "put it on the table",
+        "go to the kitchen",
+        "can you please pick that up",
+        "no not that one",
+        "the left one",
+        "hello robot",
+        "give me the one on the right",
+        "put the red ball in the box",
+    ):
         assert matches(text), text
     for text in ("the weather is nice", "pick up the", "cup red the", "", "bring me that banana cake"):
         assert not matches(text), text
@@ -61,8 +70,15 @@ def test_fsg_word_graph_accepts_exactly_what_the_matcher_accepts():
         return False
 
     matches = grammar.matcher()
-    for text in ("pick up the red cup", "stop", "put it there", "the weather is nice", "yes the red one",
-                 "go to the kitchen please", "red the cup"):
+    for text in (
+        "pick up the red cup",
+        "stop",
+        "put it there",
+        "the weather is nice",
+        "yes the red one",
+        "go to the kitchen please",
+        "red the cup",
+    ):
         assert accepts(text.split()) == matches(text), text
 
 
@@ -106,10 +122,10 @@ def _tone(rate: int, seconds: float, hz: float) -> np.ndarray:
 def test_streaming_resampler_keeps_a_tone_and_the_sample_clock(rate):
     tone = _tone(rate, 1.0, 440.0)
     rs = Resampler(rate)
-    parts = [rs.process(tone[i:i + 333]) for i in range(0, len(tone), 333)]
+    parts = [rs.process(tone[i : i + 333]) for i in range(0, len(tone), 333)]
     out = np.concatenate(parts + [rs.process(np.zeros(0, np.float32), final=True)])
     assert abs(len(out) - 16000) <= 1  # one second in, one second out
-    ref = _tone(16000, 1.0, 440.0)[:len(out)]
+    ref = _tone(16000, 1.0, 440.0)[: len(out)]
     middle = slice(200, len(out) - 200)
     assert np.max(np.abs(out[middle] - ref[middle])) < 0.02
 
@@ -129,7 +145,7 @@ def test_pcm_to_mono_averages_channels_and_refuses_partial_frames():
 def test_truncated_and_garbage_wavs_raise_clear_errors(tmp_path):
     good = synthesize("stop", tmp_path / "stop.wav")
     truncated = tmp_path / "truncated.wav"
-    truncated.write_bytes(good.read_bytes()[:len(good.read_bytes()) // 2])
+    truncated.write_bytes(good.read_bytes()[: len(good.read_bytes()) // 2])
     with pytest.raises(AudioError, match="truncated") as err:
         read_wav(truncated)
     assert err.value.reason == "truncated_wav"
@@ -214,11 +230,11 @@ def test_stream_stamps_come_from_the_audio_clock_and_gaps_resync(tmp_path):
     heard = []
     step = 320
     for off in range(0, len(wav.samples), step):
-        heard += stream.feed(wav.samples[off:off + step], wav.rate, t0 + off / wav.rate)
+        heard += stream.feed(wav.samples[off : off + step], wav.rate, t0 + off / wav.rate)
     # the same audio again, 30 s later: a gap in the stream
     t1 = t0 + 30.0
     for off in range(0, len(wav.samples), step):
-        heard += stream.feed(wav.samples[off:off + step], wav.rate, t1 + off / wav.rate)
+        heard += stream.feed(wav.samples[off : off + step], wav.rate, t1 + off / wav.rate)
     heard += stream.flush()
     assert len(heard) == 2 and "clock_resync" in counted
     for h, base in zip(heard, (t0, t1)):
@@ -241,6 +257,7 @@ def test_stream_restarts_when_the_sample_rate_changes():
 # -- speculative decoding ----------------------------------------------------------
 class SpeculativeRecogniser:
     """Records each decode's audio length; says 'stop' with word times inside the audio."""
+
     name = "fake-whisper"
     min_confidence = 0.0
     speculative = True
@@ -256,7 +273,7 @@ class SpeculativeRecogniser:
 
 
 def energy_segmenter():
-    return Segmenter(lambda w: 1.0 if float(np.sqrt(np.mean(w ** 2))) > 0.01 else 0.0, 512, VadConfig())
+    return Segmenter(lambda w: 1.0 if float(np.sqrt(np.mean(w**2))) > 0.01 else 0.0, 512, VadConfig())
 
 
 def test_decoding_starts_when_silence_begins_and_is_redone_only_if_speech_resumes():
@@ -268,7 +285,7 @@ def test_decoding_starts_when_silence_begins_and_is_redone_only_if_speech_resume
     stream = MicStream("mic0", "speech/test", rec, energy_segmenter, lambda n, d: counted.append(n))
     heard = []
     for off in range(0, len(audio), 320):
-        heard += stream.feed(audio[off:off + 320], 16000, 100.0 + off / 16000)
+        heard += stream.feed(audio[off : off + 320], 16000, 100.0 + off / 16000)
     heard += stream.flush()
     assert len(heard) == 1 and heard[0].transcript.text == "stop"
     # one decode at the pause (wasted: speech resumed), one at the end (used: no decode after the VAD decided)
@@ -280,14 +297,18 @@ def test_decoding_starts_when_silence_begins_and_is_redone_only_if_speech_resume
 
 def test_partials_come_while_the_person_speaks_and_never_after_the_final_result():
     t = np.arange(int(2.5 * 16000)) / 16000
-    audio = np.concatenate([np.zeros(8000, np.float32), (0.2 * np.sin(2 * np.pi * 300 * t)).astype(np.float32),
-                            np.zeros(16000, np.float32)])
+    audio = np.concatenate(
+        [
+            np.zeros(8000, np.float32),
+            (0.2 * np.sin(2 * np.pi * 300 * t)).astype(np.float32),
+            np.zeros(16000, np.float32),
+        ]
+    )
     rec, counted = SpeculativeRecogniser(), []
-    stream = MicStream("mic0", "speech/test", rec, energy_segmenter, lambda n, d: counted.append(n),
-                       partial_every=0.5)
+    stream = MicStream("mic0", "speech/test", rec, energy_segmenter, lambda n, d: counted.append(n), partial_every=0.5)
     heard = []
     for off in range(0, len(audio), 320):
-        heard += stream.feed(audio[off:off + 320], 16000, 100.0 + off / 16000)
+        heard += stream.feed(audio[off : off + 320], 16000, 100.0 + off / 16000)
         while stream._partial is not None and not stream._partial[1].done():
             pass  # the fake decodes at once; wait so the test does not depend on thread timing
     heard += stream.flush()
@@ -297,6 +318,8 @@ def test_partials_come_while_the_person_speaks_and_never_after_the_final_result(
     assert ends == sorted(ends)  # each partial covers more of the utterance; the final covers it all
     # without partials: the same audio gives the final alone
     plain = MicStream("mic0", "speech/test", SpeculativeRecogniser(), energy_segmenter, lambda n, d: None)
-    alone = [h for off in range(0, len(audio), 320) for h in plain.feed(audio[off:off + 320], 16000, 100.0 + off / 16000)]
+    alone = [
+        h for off in range(0, len(audio), 320) for h in plain.feed(audio[off : off + 320], 16000, 100.0 + off / 16000)
+    ]
     alone += plain.flush()
     assert [h.transcript.final for h in alone] == [True]

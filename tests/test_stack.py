@@ -96,17 +96,20 @@ def test_compose_runs_each_service_with_flags_it_accepts(compose, name):
     for flag in ("source", "labels"):  # the files the defaults name are shipped under HRI_DATA's default
         value = getattr(args, flag, None)
         if value and value.startswith(inside + "/"):
-            assert (ROOT / host / value[len(inside) + 1:]).exists(), (name, flag, value)
+            assert (ROOT / host / value[len(inside) + 1 :]).exists(), (name, flag, value)
 
 
 # -- hri up ----------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("flags", [
-    [],
-    ["--camera", "data/images/tabletop", "--speech-input", "text", "--loop", "--fps", "5"],
-    ["--speech-input", "wav", "--wav", "a.wav", "b/", "--speech-backend", "whisper", "--mirrored"],
-    ["--vision-backend", "onnx", "--model", "m.onnx", "--speech-input", "zenoh", "--fusion-arg=--weights=fixed"],
-    ["--vision-labels", "data/demo/labels.json", "--no-gesture", "--speech-input", "none", "--camera", "none"],
-])
+@pytest.mark.parametrize(
+    "flags",
+    [
+        [],
+        ["--camera", "data/images/tabletop", "--speech-input", "text", "--loop", "--fps", "5"],
+        ["--speech-input", "wav", "--wav", "a.wav", "b/", "--speech-backend", "whisper", "--mirrored"],
+        ["--vision-backend", "onnx", "--model", "m.onnx", "--speech-input", "zenoh", "--fusion-arg=--weights=fixed"],
+        ["--vision-labels", "data/demo/labels.json", "--no-gesture", "--speech-input", "none", "--camera", "none"],
+    ],
+)
 def test_hri_up_starts_the_stack_with_flags_every_service_accepts(flags):
     p = argparse.ArgumentParser()
     add_up_arguments(p)

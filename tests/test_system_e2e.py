@@ -18,8 +18,10 @@ TABLE = DATA / "demo" / "table.png"
 
 
 def say(client: Client, text: str) -> None:
-    client.publish("hri/speech/kbd/transcript",
-                   make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"))
+    client.publish(
+        "hri/speech/kbd/transcript",
+        make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"),
+    )
 
 
 def next_result(results, timeout: float = 30.0):
@@ -45,8 +47,25 @@ def descendants(pid: int) -> list[int]:
 def test_hri_up_runs_the_pipeline_and_stops_the_whole_group_cleanly():
     port = free_port()
     endpoint = f"tcp/127.0.0.1:{port}"
-    up = Proc("hri-up", [sys.executable, "-m", "common.cli", "up", "--listen", endpoint, "--camera", str(TABLE),
-                         "--fps", "10", "--loop", "--speech-input", "none", "--no-gesture"])
+    up = Proc(
+        "hri-up",
+        [
+            sys.executable,
+            "-m",
+            "common.cli",
+            "up",
+            "--listen",
+            endpoint,
+            "--camera",
+            str(TABLE),
+            "--fps",
+            "10",
+            "--loop",
+            "--speech-input",
+            "none",
+            "--no-gesture",
+        ],
+    )
     try:
         wait_for_port(port, timeout=60)
         client = Client(endpoint)
@@ -76,8 +95,9 @@ def test_hri_up_runs_the_pipeline_and_stops_the_whole_group_cleanly():
 
 @requires_services("vision", "gesture", "speech", "fusion")
 def test_demo_runs_every_scenario_on_real_data():
-    res = subprocess.run([sys.executable, "-m", "demo", "--timeout", "30"], cwd=ROOT, capture_output=True,
-                         text=True, timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-m", "demo", "--timeout", "30"], cwd=ROOT, capture_output=True, text=True, timeout=600
+    )
     assert res.returncode == 0, res.stdout[-6000:] + res.stderr[-3000:]
     out = res.stdout
     assert "demo: 5 passed, 0 failed" in out

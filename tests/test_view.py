@@ -17,7 +17,16 @@ from common.codec import encode
 from common.keys import Keys
 from common.recording import NS, SessionWriter
 from common.schema import (
-    Clarification, Detections, Frame, FusedCommand, GestureEvent, Hand, Ray, Stats, Target, Weights,
+    Clarification,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hand,
+    Ray,
+    Stats,
+    Target,
+    Weights,
 )
 from common.view.core import ViewState
 from common.view.draw import CANDIDATE, TARGET, render
@@ -42,33 +51,56 @@ def objects():
 
 
 def frame(seq: int, stamp: float, data: bytes = JPEG, encoding: str = "jpeg") -> bytes:
-    return encode(Frame(stamp=stamp, source="camera/t", seq=seq, cam="table", width=W, height=H,
-                        encoding=encoding, data=data))
+    return encode(
+        Frame(stamp=stamp, source="camera/t", seq=seq, cam="table", width=W, height=H, encoding=encoding, data=data)
+    )
 
 
 def detections(objects, stamp: float, seq: int = 1) -> bytes:
     found, quality = objects
-    return encode(Detections(stamp=stamp, source="vision/t", seq=seq, cam="table", width=W, height=H,
-                             objects=found, quality=quality))
+    return encode(
+        Detections(
+            stamp=stamp, source="vision/t", seq=seq, cam="table", width=W, height=H, objects=found, quality=quality
+        )
+    )
 
 
 def as_target(obj) -> Target:
-    return Target(id=obj.id, label=obj.label, color=obj.color, bbox=obj.bbox, center=obj.center, score=obj.score,
-                  cam="table")
+    return Target(
+        id=obj.id, label=obj.label, color=obj.color, bbox=obj.bbox, center=obj.center, score=obj.score, cam="table"
+    )
 
 
 def command(obj, stamp: float) -> bytes:
-    return encode(FusedCommand(stamp=stamp, source="fusion/t", id="c1", intent="pick_up", text="pick up the red one",
-                               target=as_target(obj), confidence=0.9,
-                               weights=Weights(speech=0.5, vision=0.4, gesture=0.1),
-                               inputs={"speech": stamp, "vision": stamp, "gesture": None},
-                               explanation="the only red candy", prompt="Command: pick up the red one"))
+    return encode(
+        FusedCommand(
+            stamp=stamp,
+            source="fusion/t",
+            id="c1",
+            intent="pick_up",
+            text="pick up the red one",
+            target=as_target(obj),
+            confidence=0.9,
+            weights=Weights(speech=0.5, vision=0.4, gesture=0.1),
+            inputs={"speech": stamp, "vision": stamp, "gesture": None},
+            explanation="the only red candy",
+            prompt="Command: pick up the red one",
+        )
+    )
 
 
 def question(objs, stamp: float) -> bytes:
-    return encode(Clarification(stamp=stamp, source="fusion/t", id="q1", text="bring me the green one",
-                                reason="ambiguous", question="Which one: left or right?",
-                                candidates=[as_target(o) for o in objs]))
+    return encode(
+        Clarification(
+            stamp=stamp,
+            source="fusion/t",
+            id="q1",
+            text="bring me the green one",
+            reason="ambiguous",
+            question="Which one: left or right?",
+            candidates=[as_target(o) for o in objs],
+        )
+    )
 
 
 def red(objects):
@@ -95,8 +127,15 @@ def test_png_and_raw_frames_are_encoded_to_jpeg_once_released():
     assert shown.jpeg[:2] == b"\xff\xd8"
     back = cv2.imdecode(np.frombuffer(shown.jpeg, np.uint8), cv2.IMREAD_COLOR)
     assert back.shape == TABLE.shape and np.abs(back.astype(int) - TABLE).mean() < 4
-    state.ingest(KEYS.frame("cam2"), encode(Frame(stamp=T0, source="camera/t", seq=0, cam="cam2", width=W, height=H,
-                                                  encoding="bgr8", data=TABLE.tobytes())), now=0.0)
+    state.ingest(
+        KEYS.frame("cam2"),
+        encode(
+            Frame(
+                stamp=T0, source="camera/t", seq=0, cam="cam2", width=W, height=H, encoding="bgr8", data=TABLE.tobytes()
+            )
+        ),
+        now=0.0,
+    )
     assert state.frame("cam2").jpeg[:2] == b"\xff\xd8"
 
 
@@ -104,11 +143,16 @@ def test_bad_input_on_every_key_is_counted_by_key_and_reason_and_changes_nothing
     state = ViewState(KEYS)
     state.ingest(KEYS.objects("table"), detections(objects, T0), now=0.0)
     before = state.snapshot()
-    garbage = {KEYS.frame("table"): b"\xc1", KEYS.objects("table"): msgpack.packb({"v": 1}),
-               KEYS.hands("table"): msgpack.packb([1]), KEYS.gesture_event("table"): b"",
-               KEYS.transcript("kbd"): msgpack.packb({"v": 1, "stamp": float("inf"), "source": "x"}),
-               KEYS.command(): msgpack.packb({"v": 2, "stamp": 1.0, "source": "x"}),
-               KEYS.clarification(): b"\x92\x01", "hri/unknown/key": msgpack.packb({})}
+    garbage = {
+        KEYS.frame("table"): b"\xc1",
+        KEYS.objects("table"): msgpack.packb({"v": 1}),
+        KEYS.hands("table"): msgpack.packb([1]),
+        KEYS.gesture_event("table"): b"",
+        KEYS.transcript("kbd"): msgpack.packb({"v": 1, "stamp": float("inf"), "source": "x"}),
+        KEYS.command(): msgpack.packb({"v": 2, "stamp": 1.0, "source": "x"}),
+        KEYS.clarification(): b"\x92\x01",
+        "hri/unknown/key": msgpack.packb({}),
+    }
     for key, payload in garbage.items():
         assert state.ingest(key, payload, now=1.0) is False
     after = state.snapshot()
@@ -124,8 +168,22 @@ def test_a_flood_of_odd_keys_and_cameras_is_remembered_within_fixed_bounds():
     state = ViewState(KEYS)
     for i in range(1000):
         state.ingest(f"hri/junk/{i}", b"x", now=0)
-        state.ingest(KEYS.frame(f"cam{i}"), encode(Frame(stamp=T0, source=f"camera/{i}", seq=0, cam=f"cam{i}",
-                                                         width=2, height=1, encoding="bgr8", data=bytes(6))), now=0)
+        state.ingest(
+            KEYS.frame(f"cam{i}"),
+            encode(
+                Frame(
+                    stamp=T0,
+                    source=f"camera/{i}",
+                    seq=0,
+                    cam=f"cam{i}",
+                    width=2,
+                    height=1,
+                    encoding="bgr8",
+                    data=bytes(6),
+                )
+            ),
+            now=0,
+        )
     snap = state.snapshot()
     # 100 (key, reason) pairs, then "(other keys)" once per reason
     assert len(state.ignored) <= 100 + 2 and len(state.cameras) == 32 and len(state.services) <= 256
@@ -138,9 +196,20 @@ def test_timeline_is_in_source_time_skips_holds_and_partials_and_sends_only_what
     said = make_transcript("pick up the red one", mic="kbd", end=T0 + 2.0, confidence=0.8, source="speech/t")
     partial = make_transcript("pick up", mic="kbd", end=T0 + 1.0, confidence=0.5, source="speech/t")
     partial.final = False
-    point = GestureEvent(stamp=T0 + 1.5, source="gesture/t", cam="table", width=W, height=H, gesture="point",
-                         phase="start", start=T0 + 1.4, end=T0 + 1.5, score=0.9, hand="right",
-                         ray=Ray(origin=[100, 100], direction=[0.6, 0.8]))
+    point = GestureEvent(
+        stamp=T0 + 1.5,
+        source="gesture/t",
+        cam="table",
+        width=W,
+        height=H,
+        gesture="point",
+        phase="start",
+        start=T0 + 1.4,
+        end=T0 + 1.5,
+        score=0.9,
+        hand="right",
+        ray=Ray(origin=[100, 100], direction=[0.6, 0.8]),
+    )
     hold = msgspec.structs.replace(point, phase="hold", stamp=T0 + 1.6, end=T0 + 1.6)
     state.ingest(KEYS.command(), command(red(objects), T0 + 2.1), now=0)  # arrives first, happened last
     state.ingest(KEYS.transcript("kbd"), encode(said), now=0)
@@ -155,8 +224,11 @@ def test_timeline_is_in_source_time_skips_holds_and_partials_and_sends_only_what
     newest = max(e["n"] for e in timeline)
     assert state.snapshot(after_n=newest)["timeline"] == []
     for i in range(5):
-        state.ingest(KEYS.transcript("kbd"), encode(make_transcript(
-            f"stop {i}", mic="kbd", end=T0 + 10 + i, confidence=1.0, source="speech/t")), now=0)
+        state.ingest(
+            KEYS.transcript("kbd"),
+            encode(make_transcript(f"stop {i}", mic="kbd", end=T0 + 10 + i, confidence=1.0, source="speech/t")),
+            now=0,
+        )
     assert len(state.timeline) == 5 and state.timeline[0][2]["text"] == "stop 0"  # bounded, oldest first out
 
 
@@ -178,8 +250,19 @@ def test_overlay_highlights_the_latest_decision(objects):
 def test_services_from_liveliness_stats_and_samples():
     state = ViewState(KEYS)
     state.set_alive("vision", "a", True)
-    state.set_stats(Stats(stamp=T0, source="vision/a", service="vision", instance="a", uptime=3.0, received=10,
-                          published=9, skipped=1, rejected={"not_msgpack": 2}))
+    state.set_stats(
+        Stats(
+            stamp=T0,
+            source="vision/a",
+            service="vision",
+            instance="a",
+            uptime=3.0,
+            received=10,
+            published=9,
+            skipped=1,
+            rejected={"not_msgpack": 2},
+        )
+    )
     state.set_alive("gesture", "b", True)
     state.set_alive("gesture", "b", False)
     rows = {(s["service"], s["instance"]): s for s in state.snapshot()["services"]}
@@ -189,17 +272,26 @@ def test_services_from_liveliness_stats_and_samples():
 
 def test_render_draws_the_target_candidates_hand_and_ray(objects):
     target = red(objects)
-    hand = Hand(hand="right", score=0.9, landmarks=[[20 + 3 * i, 400 - 4 * i] for i in range(21)], gesture="point",
-                ray=Ray(origin=[80, 320], direction=[0.8, -0.6]))
-    layers = {"objects": [o.to_dict() for o in objects[0]], "quality": objects[1].to_dict(),
-              "hands": [hand.to_dict()], "target": {**as_target(target).to_dict(), "intent": "pick_up"},
-              "candidates": [as_target(o).to_dict() for o in objects[0] if o.color == "green"]}
+    hand = Hand(
+        hand="right",
+        score=0.9,
+        landmarks=[[20 + 3 * i, 400 - 4 * i] for i in range(21)],
+        gesture="point",
+        ray=Ray(origin=[80, 320], direction=[0.8, -0.6]),
+    )
+    layers = {
+        "objects": [o.to_dict() for o in objects[0]],
+        "quality": objects[1].to_dict(),
+        "hands": [hand.to_dict()],
+        "target": {**as_target(target).to_dict(), "intent": "pick_up"},
+        "candidates": [as_target(o).to_dict() for o in objects[0] if o.color == "green"],
+    }
     out = render(TABLE, layers)
     assert out.shape == TABLE.shape and not np.array_equal(out, TABLE)
 
     def count(colour, bbox):
         x, y, w, h = (int(v) for v in bbox)
-        patch = out[max(y - 3, 0):y + h + 4, max(x - 3, 0):x + w + 4].astype(int)
+        patch = out[max(y - 3, 0) : y + h + 4, max(x - 3, 0) : x + w + 4].astype(int)
         return int((np.abs(patch - np.array(colour)).sum(axis=2) < 60).sum())
 
     assert count(TARGET, target.bbox) > 300
@@ -246,22 +338,37 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
     path = tmp_path / "s.mcap"
     write_session(path, objects)
     out = tmp_path / "snap.png"
-    res = subprocess.run([sys.executable, "-m", "common.cli", "view", str(path), "--snapshot", str(out)], cwd=ROOT,
-                         capture_output=True, text=True, timeout=60)
+    res = subprocess.run(
+        [sys.executable, "-m", "common.cli", "view", str(path), "--snapshot", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert res.returncode == 0, res.stderr
     img = cv2.imread(str(out))
     assert img.shape == TABLE.shape
     x, y, w, h = (int(v) for v in red(objects).bbox)
-    box = img[y - 3:y + h + 4, x - 3:x + w + 4].astype(int)
+    box = img[y - 3 : y + h + 4, x - 3 : x + w + 4].astype(int)
     assert (np.abs(box - np.array(TARGET)).sum(axis=2) < 60).sum() > 300
     before = tmp_path / "before.png"  # before the command (1 s into the session): no highlight
-    res = subprocess.run([sys.executable, "-m", "common.cli", "view", str(path), "--snapshot", str(before),
-                          "--at", "1.0"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    res = subprocess.run(
+        [sys.executable, "-m", "common.cli", "view", str(path), "--snapshot", str(before), "--at", "1.0"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert res.returncode == 0, res.stderr
-    box = cv2.imread(str(before))[y - 3:y + h + 4, x - 3:x + w + 4].astype(int)
+    box = cv2.imread(str(before))[y - 3 : y + h + 4, x - 3 : x + w + 4].astype(int)
     assert (np.abs(box - np.array(TARGET)).sum(axis=2) < 60).sum() == 0
-    res = subprocess.run([sys.executable, "-m", "common.cli", "view", str(tmp_path / "none.mcap"), "--snapshot",
-                          str(out)], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    res = subprocess.run(
+        [sys.executable, "-m", "common.cli", "view", str(tmp_path / "none.mcap"), "--snapshot", str(out)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert res.returncode == 2 and "cannot open" in res.stderr
 
 

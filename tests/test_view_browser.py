@@ -63,8 +63,15 @@ def live(tmp_path_factory):
             client.wait_alive(name, timeout=90)
         view, url = start_view(group)
         browser = Browser()
-        yield {"group": group, "client": client, "browser": browser, "view": view, "url": url,
-               "recorder": recorder, "recording": recording}
+        yield {
+            "group": group,
+            "client": client,
+            "browser": browser,
+            "view": view,
+            "url": url,
+            "recorder": recorder,
+            "recording": recording,
+        }
     finally:
         if browser is not None:
             browser.close()
@@ -78,7 +85,7 @@ def target_pixels(png: bytes, rect: dict, frame_w: int, bbox: list[float]) -> tu
     shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
     scale = shot.shape[1] / frame_w
     x, y, w, h = (int(round(v * scale)) for v in bbox)
-    box = shot[max(y - 2, 0):y + h + 3, max(x - 2, 0):x + w + 3].astype(int)
+    box = shot[max(y - 2, 0) : y + h + 3, max(x - 2, 0) : x + w + 3].astype(int)
     b, g, r = box[..., 0], box[..., 1], box[..., 2]
     magenta = (r > 200) & (b > 200) & (g < 90)
     return int(magenta.sum()), float(cv2.cvtColor(shot, cv2.COLOR_BGR2GRAY).std())
@@ -91,10 +98,14 @@ def test_page_shows_the_transcript_the_command_and_highlights_the_target(live):
     res = live["group"].hri("say", "pick up the red one")
     assert res.returncode == 0, res.stderr
 
-    tab.wait_for("document.querySelector('#timeline').innerText.includes('pick up the red one')", 30,
-                 "the transcript in the timeline")
-    summary = tab.wait_for("(document.querySelector('#timeline li.command summary') || {}).innerText", 30,
-                           "a command in the timeline")
+    tab.wait_for(
+        "document.querySelector('#timeline').innerText.includes('pick up the red one')",
+        30,
+        "the transcript in the timeline",
+    )
+    summary = tab.wait_for(
+        "(document.querySelector('#timeline li.command summary') || {}).innerText", 30, "a command in the timeline"
+    )
     assert "pick_up" in summary and "red candy" in summary, summary
     # the command expands to its explanation, the modality weights as bars and the planner prompt
     tab.js("document.querySelector('#timeline li.command details').open = true")
@@ -102,15 +113,17 @@ def test_page_shows_the_transcript_the_command_and_highlights_the_target(live):
     assert tab.js("document.querySelector('#timeline li.command .explanation').innerText.length") > 10
     assert "red" in tab.js("document.querySelector('#timeline li.command pre.prompt').innerText")
     # fusion's estimate of each source's clock offset (docs/foundation.md) in the services table
-    clocks = tab.wait_for("(document.querySelector('#services tr[data-service=fusion] td.clocks') || {}).innerText",
-                          30, "fusion's clock offsets")
+    clocks = tab.wait_for(
+        "(document.querySelector('#services tr[data-service=fusion] td.clocks') || {}).innerText",
+        30,
+        "fusion's clock offsets",
+    )
     assert "vision/" in clocks and " ms" in clocks, clocks
 
     target = tab.wait_for("hriView.state.cameras.table.target", 10, "the target in the overlay")
     assert target["color"] == "red"
     time.sleep(0.5)  # a frame drawn after the decision
-    rect = tab.js("JSON.parse(JSON.stringify(document.querySelector('#cam-table canvas')"
-                  ".getBoundingClientRect()))")
+    rect = tab.js("JSON.parse(JSON.stringify(document.querySelector('#cam-table canvas').getBoundingClientRect()))")
     frame_w = tab.js("document.querySelector('#cam-table canvas').width")
     png = tab.screenshot({"x": rect["x"], "y": rect["y"], "width": rect["width"], "height": rect["height"]})
     Path(live["recording"]).with_name("camera-panel.png").write_bytes(png)
@@ -128,17 +141,22 @@ def test_bad_input_on_any_key_is_ignored_counted_and_the_page_goes_on(live):
     tab = live["browser"].tab(live["url"])
     tab.wait_for("window.hriView && hriView.connected && hriView.framesDrawn > 0", 60, "camera frames")
     client = live["client"]
-    bad = {"hri/camera/table/frame": b"\xc1 not msgpack",
-           "hri/vision/table/objects": msgpack.packb({"v": 1, "stamp": 1.0}),
-           "hri/gesture/table/hands": msgpack.packb([1, 2, 3]),
-           "hri/gesture/table/event": msgpack.packb({"v": 1, "stamp": float("nan"), "source": "x"}),
-           "hri/speech/kbd/transcript": msgpack.packb({"v": 1, "stamp": 5.0, "source": "x", "text": 7}),
-           "hri/fusion/command": b"",
-           "hri/fusion/clarification": msgpack.packb({"v": 2, "stamp": 5.0, "source": "x"})}
+    bad = {
+        "hri/camera/table/frame": b"\xc1 not msgpack",
+        "hri/vision/table/objects": msgpack.packb({"v": 1, "stamp": 1.0}),
+        "hri/gesture/table/hands": msgpack.packb([1, 2, 3]),
+        "hri/gesture/table/event": msgpack.packb({"v": 1, "stamp": float("nan"), "source": "x"}),
+        "hri/speech/kbd/transcript": msgpack.packb({"v": 1, "stamp": 5.0, "source": "x", "text": 7}),
+        "hri/fusion/command": b"",
+        "hri/fusion/clarification": msgpack.packb({"v": 2, "stamp": 5.0, "source": "x"}),
+    }
     for key, payload in bad.items():
         client.put_raw(key, payload)
-    shown = tab.wait_for(f"hriView.state && hriView.state.ignored_total >= {len(bad)} && "
-                         "document.querySelector('#ignored').innerText", 20, "the ignored count")
+    shown = tab.wait_for(
+        f"hriView.state && hriView.state.ignored_total >= {len(bad)} && document.querySelector('#ignored').innerText",
+        20,
+        "the ignored count",
+    )
     assert re.search(r"ignored: \d+", shown)
     listed = tab.js("document.querySelector('#ignored-list').innerText")
     for key in bad:
@@ -154,8 +172,9 @@ def test_bad_input_on_any_key_is_ignored_counted_and_the_page_goes_on(live):
 def test_many_tabs_and_a_tab_that_never_reads_do_not_grow_the_server(live):
     url, pid = live["url"], live["view"].pid
     host, port = re.match(r"http://([^:/]+):(\d+)/", url).groups()
-    import aiohttp
     import asyncio
+
+    import aiohttp
 
     async def tab(stop: asyncio.Event) -> int:
         """A tab as the page behaves: long-poll state and frames in a loop."""
@@ -175,8 +194,7 @@ def test_many_tabs_and_a_tab_that_never_reads_do_not_grow_the_server(live):
         """A tab that asks for frames again and again and never reads a byte of the answers."""
         s = socket.create_connection((host, int(port)))
         s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-        s.sendall(b"".join(f"GET /api/frame/table?after={i} HTTP/1.1\r\nHost: x\r\n\r\n".encode()
-                           for i in range(200)))
+        s.sendall(b"".join(f"GET /api/frame/table?after={i} HTTP/1.1\r\nHost: x\r\n\r\n".encode() for i in range(200)))
         return s
 
     async def run(seconds: float) -> list[int]:
@@ -213,14 +231,17 @@ def test_many_tabs_and_a_tab_that_never_reads_do_not_grow_the_server(live):
 
 def test_snapshot_of_the_live_bus_writes_the_annotated_camera_frame(live, tmp_path):
     out = tmp_path / "live.png"
-    res = live["group"].hri("view", "--snapshot", str(out), "--cam", "table", "--wait", "1", "--timeout", "30",
-                            timeout=60)
+    res = live["group"].hri(
+        "view", "--snapshot", str(out), "--cam", "table", "--wait", "1", "--timeout", "30", timeout=60
+    )
     assert res.returncode == 0, res.stderr
     img = cv2.imread(str(out))
     table = cv2.imread(str(TABLE))
     assert img.shape == table.shape and img.std() > 20
+
     def box_green(image):  # draw.py BOX; the photo's green candies come close, so count only what was drawn
         return np.abs(image.astype(int) - np.array((80, 220, 0))).sum(axis=2) < 40
+
     drawn = box_green(img) & ~box_green(table)
     assert drawn.sum() > 2000, f"no detection boxes drawn ({drawn.sum()} box-coloured pixels added)"
     res = live["group"].hri("view", "--snapshot", str(out), "--at", "5")
@@ -238,18 +259,26 @@ def test_recording_opens_with_a_slider_and_shows_the_same_command(live):
     assert tab.js("document.querySelector('#player').hidden") is False
     assert "recording" in tab.js("document.querySelector('#mode').innerText")
     # a person drags the slider to the end
-    tab.js(f"(() => {{ const s = document.querySelector('#slider'); s.value = {player['duration']};"
-           "s.dispatchEvent(new Event('input')); s.dispatchEvent(new Event('change')); })()")
-    summary = tab.wait_for("(document.querySelector('#timeline li.command summary') || {}).innerText", 30,
-                           "the recorded command")
+    tab.js(
+        f"(() => {{ const s = document.querySelector('#slider'); s.value = {player['duration']};"
+        "s.dispatchEvent(new Event('input')); s.dispatchEvent(new Event('change')); })()"
+    )
+    summary = tab.wait_for(
+        "(document.querySelector('#timeline li.command summary') || {}).innerText", 30, "the recorded command"
+    )
     assert "pick_up" in summary and "red candy" in summary
     assert "pick up the red one" in tab.js("document.querySelector('#timeline').innerText")
     tab.wait_for("hriView.framesDrawn > 0", 20, "a recorded frame")
     # back to the start, then play: the slider moves on its own
-    tab.js("(() => { const s = document.querySelector('#slider'); s.value = 0;"
-           "s.dispatchEvent(new Event('input')); s.dispatchEvent(new Event('change')); })()")
-    tab.wait_for("hriView.state.player.position < 0.5 && !document.querySelector('#timeline li.command')", 20,
-                 "the session rewound")
+    tab.js(
+        "(() => { const s = document.querySelector('#slider'); s.value = 0;"
+        "s.dispatchEvent(new Event('input')); s.dispatchEvent(new Event('change')); })()"
+    )
+    tab.wait_for(
+        "hriView.state.player.position < 0.5 && !document.querySelector('#timeline li.command')",
+        20,
+        "the session rewound",
+    )
     tab.js("document.querySelector('#play').click()")
     tab.wait_for("Number(document.querySelector('#slider').value) > 1.0", 20, "the slider moving")
     assert tab.js("hriView.state.player.playing") is True

@@ -45,7 +45,7 @@ def test_each_smarties_box_holds_one_candy_of_its_colour():
     for det in ColorSegmenter().detect(img):
         x, y, w, h = (int(v) for v in det.bbox)
         assert 0.5 < w / h < 2.0 or det.color == "black", det  # round candies (or a cut-off one)
-        assert det.color == color_name(hsv[y + h // 3:y + 2 * h // 3, x + w // 3:x + 2 * w // 3])[0]
+        assert det.color == color_name(hsv[y + h // 3 : y + 2 * h // 3, x + w // 3 : x + 2 * w // 3])[0]
 
 
 def test_demo_scenes_have_the_objects_the_demo_relies_on():
@@ -64,9 +64,9 @@ def touching_candies() -> np.ndarray:
     img = photo("smarties.png")
     canvas = np.full((160, 260, 3), 255, np.uint8)
     x = 20
-    for (x0, y0) in ((260, 186), (319, 210), (177, 183)):  # red, blue, orange: 58×57 patches, white margins
-        patch = img[y0:y0 + 57, x0:x0 + 58]
-        canvas[50:107, x:x + 58] = np.minimum(canvas[50:107, x:x + 58], patch)  # darker pixel wins: no seams
+    for x0, y0 in ((260, 186), (319, 210), (177, 183)):  # red, blue, orange: 58×57 patches, white margins
+        patch = img[y0 : y0 + 57, x0 : x0 + 58]
+        canvas[50:107, x : x + 58] = np.minimum(canvas[50:107, x : x + 58], patch)  # darker pixel wins: no seams
         x += 50
     return canvas
 
@@ -90,7 +90,7 @@ def test_red_uses_both_ends_of_the_hue_circle():
     wrapped = 0
     for det in reds:
         x, y, w, h = (int(v) for v in det.bbox)
-        pix = hsv[y:y + h, x:x + w].reshape(-1, 3)
+        pix = hsv[y : y + h, x : x + w].reshape(-1, 3)
         pix = pix[(pix[:, 1] >= 100) & (pix[:, 2] >= 75)]
         high = (pix[:, 0] >= 170).mean()
         low = (pix[:, 0] < 5).mean()
@@ -142,7 +142,9 @@ def test_ids_stay_stable_while_the_scene_moves_and_are_not_reused():
             if o.color == "black":
                 continue  # the cut-off candy in the corner changes shape as it moves
             same = [p for p in previous if p.color == o.color]
-            before = min(same, key=lambda p: (p.center[0] + 3 - o.center[0]) ** 2 + (p.center[1] + 2 - o.center[1]) ** 2)
+            before = min(
+                same, key=lambda p: (p.center[0] + 3 - o.center[0]) ** 2 + (p.center[1] + 2 - o.center[1]) ** 2
+            )
             assert o.id == before.id, (step, o, before)
         previous = objects
     seen = {o.id for o in first}
@@ -155,14 +157,15 @@ def test_ids_stay_stable_while_the_scene_moves_and_are_not_reused():
 
 def test_tracker_keeps_an_object_through_a_short_gap():
     from services.vision.segment import Detection
+
     tr = Tracker(max_missed=3)
     a = Detection("object", "red", 0.9, (10, 10, 20, 20))
-    (id1, _), = tr.update([a])
+    ((id1, _),) = tr.update([a])
     tr.update([])
     tr.update([])
-    (id2, _), = tr.update([Detection("object", "red", 0.9, (14, 12, 20, 20))])
+    ((id2, _),) = tr.update([Detection("object", "red", 0.9, (14, 12, 20, 20))])
     assert id1 == id2
-    (id3, _), = tr.update([Detection("object", "blue", 0.9, (14, 12, 20, 20))])
+    ((id3, _),) = tr.update([Detection("object", "blue", 0.9, (14, 12, 20, 20))])
     assert id3 != id1  # same place, other colour: another object
 
 
@@ -171,6 +174,7 @@ def tiny_yolo(path, prediction: np.ndarray, size: int = 640) -> None:
     """An ONNX model with a YOLOv8 input/output layout whose output is `prediction` (1×(4+C)×N) for any image."""
     import onnx
     from onnx import TensorProto, helper, numpy_helper
+
     const = numpy_helper.from_array(prediction.astype(np.float32), "planted")
     zero = numpy_helper.from_array(np.zeros((), np.float32), "zero")
     nodes = [
@@ -178,10 +182,13 @@ def tiny_yolo(path, prediction: np.ndarray, size: int = 640) -> None:
         helper.make_node("Mul", ["total", "zero"], ["nothing"]),
         helper.make_node("Add", ["planted", "nothing"], ["output0"]),
     ]
-    graph = helper.make_graph(nodes, "tiny_yolo",
-                              [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, size, size])],
-                              [helper.make_tensor_value_info("output0", TensorProto.FLOAT, list(prediction.shape))],
-                              initializer=[const, zero])
+    graph = helper.make_graph(
+        nodes,
+        "tiny_yolo",
+        [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, size, size])],
+        [helper.make_tensor_value_info("output0", TensorProto.FLOAT, list(prediction.shape))],
+        initializer=[const, zero],
+    )
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
     model.ir_version = 8
     onnx.save(model, str(path))
@@ -205,13 +212,15 @@ def test_letterbox_maps_a_wide_image_into_the_square_input():
 
 
 def test_decode_undoes_the_letterbox_and_suppresses_duplicates():
-    pred = planted([
-        (320, 320, 100, 50, 2, 0.9),   # kept
-        (322, 321, 100, 50, 2, 0.8),   # same class, overlaps: suppressed
-        (360, 320, 100, 50, 1, 0.7),   # other class, partly behind it (IoU 0.43): kept
-        (321, 320, 100, 50, 0, 0.6),   # other class, the same box: one object with two labels, the best stays
-        (100, 500, 40, 40, 0, 0.2),    # below the threshold
-    ])
+    pred = planted(
+        [
+            (320, 320, 100, 50, 2, 0.9),  # kept
+            (322, 321, 100, 50, 2, 0.8),  # same class, overlaps: suppressed
+            (360, 320, 100, 50, 1, 0.7),  # other class, partly behind it (IoU 0.43): kept
+            (321, 320, 100, 50, 0, 0.6),  # other class, the same box: one object with two labels, the best stays
+            (100, 500, 40, 40, 0, 0.2),  # below the threshold
+        ]
+    )
     found = decode(pred, Letterbox(0.5, 0, 160), (1280, 640), conf_threshold=0.35, iou_threshold=0.45, classes=3)
     assert [(c, round(s, 2)) for c, s, _ in found] == [(2, 0.9), (1, 0.7)]
     assert np.allclose(found[0][2], (540, 270, 200, 100))
@@ -229,12 +238,17 @@ def test_yolo_detector_runs_a_generated_model_end_to_end(tmp_path):
 
     red_candy, blue_candy = (203, 296, 106, 103), (381, 30, 107, 107)  # where they are in the photo
     model = tmp_path / "tiny.onnx"
-    tiny_yolo(model, planted([
-        (*to_input(*red_candy), 1, 0.9),
-        (*to_input(red_candy[0] + 4, red_candy[1] - 3, 106, 103), 1, 0.7),  # a duplicate NMS must drop
-        (*to_input(*blue_candy), 0, 0.6),
-        (*to_input(20, 20, 40, 40), 2, 0.1),  # under the confidence threshold
-    ]))
+    tiny_yolo(
+        model,
+        planted(
+            [
+                (*to_input(*red_candy), 1, 0.9),
+                (*to_input(red_candy[0] + 4, red_candy[1] - 3, 106, 103), 1, 0.7),  # a duplicate NMS must drop
+                (*to_input(*blue_candy), 0, 0.6),
+                (*to_input(20, 20, 40, 40), 2, 0.1),  # under the confidence threshold
+            ]
+        ),
+    )
     detector = YoloDetector(str(model), names=("sports ball", "wine glass", "bottle"))
     found = detector.detect(img)
     assert [label for label, _, _ in found] == ["wine glass", "sports ball"]
@@ -258,6 +272,7 @@ def test_a_bad_model_path_is_a_clear_error(tmp_path):
 
 def test_labels_file_maps_colours_to_language_classes(tmp_path):
     from services.vision.segment import read_labels
+
     assert read_labels(DATA / "demo" / "labels.json") == ({"*": "candy"}, [])
     good = tmp_path / "labels.json"
     good.write_text('{"red": "mug", "blue": "box", "*": "widget"}')

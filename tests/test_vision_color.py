@@ -19,10 +19,19 @@ SMARTIES = DATA / "images" / "tabletop" / "smarties.png"
 FRUITS = DATA / "images" / "tabletop" / "fruits.jpg"
 MESSI = DATA / "images" / "messi5.jpg"
 # Candies of smarties.png, boxed as the colour backend boxes them; the colour as a person names it (by eye).
-CANDIES = [((192, 278, 56, 57), "red"), ((72, 232, 56, 55), "red"), ((261, 188, 54, 52), "red"),
-           ((7, 203, 53, 51), "red"), ((267, 293, 55, 55), "blue"), ((351, 55, 53, 54), "blue"),
-           ((321, 212, 53, 53), "blue"), ((360, 144, 53, 54), "green"), ((242, 91, 54, 54), "green"),
-           ((179, 184, 53, 54), "orange"), ((125, 247, 52, 51), "brown")]
+CANDIES = [
+    ((192, 278, 56, 57), "red"),
+    ((72, 232, 56, 55), "red"),
+    ((261, 188, 54, 52), "red"),
+    ((7, 203, 53, 51), "red"),
+    ((267, 293, 55, 55), "blue"),
+    ((351, 55, 53, 54), "blue"),
+    ((321, 212, 53, 53), "blue"),
+    ((360, 144, 53, 54), "green"),
+    ((242, 91, 54, 54), "green"),
+    ((179, 184, 53, 54), "orange"),
+    ((125, 247, 52, 51), "brown"),
+]
 
 
 def names(colors):
@@ -54,10 +63,10 @@ def test_a_dark_brown_candy_is_brown_not_black():
 def test_a_real_banana_is_yellow_not_orange_and_a_lime_green():
     img = cv2.imread(str(FRUITS))
     gains = illuminant_gains(img)
-    _, banana = object_colour(img, (0, 100, 120, 190), gains)   # the pale banana at the left edge (by eye)
+    _, banana = object_colour(img, (0, 100, 120, 190), gains)  # the pale banana at the left edge (by eye)
     p = dict(banana)
     assert banana[0][0] == "yellow" and p.get("orange", 0.0) < p["yellow"] / 2, banana
-    _, lime = object_colour(img, (330, 120, 180, 170), gains)   # the lime, top right
+    _, lime = object_colour(img, (330, 120, 180, 170), gains)  # the lime, top right
     assert lime[0][0] == "green", lime
 
 
@@ -89,7 +98,7 @@ def test_highlights_and_shadows_are_left_out():
     """A red patch with a clipped specular highlight (10 %) and a deep shadow band (10 %) measures as the patch."""
     plain = hsv_patch(0, 0.85, 0.75, (100, 100))
     marked = plain.copy()
-    marked[10:20, 10:110] = 255                       # highlight: every channel clipped
+    marked[10:20, 10:110] = 255  # highlight: every channel clipped
     marked[80:90] = (plain[80:90] * 0.15).astype(np.uint8)  # shadow
     a, b = measure_lab(plain.reshape(-1, 3)), measure_lab(marked.reshape(-1, 3))
     assert delta_e94(a, b) < 3.0, (a, b)
@@ -102,8 +111,8 @@ def test_a_warm_colour_cast_is_corrected():
     lin = SRGB_TO_LINEAR[img] * np.array([0.65, 0.85, 1.0], np.float32)
     warm = linear_to_srgb8(lin)
     base, cast = illuminant_gains(img), illuminant_gains(warm)
-    ratio = (cast[0] / cast[2]) / (base[0] / base[2])   # the correction's B/R balance, relative to the plain photo
-    assert 1.2 < ratio < 1.7, (ratio, base, cast)       # the cast's B/R is 0.65, undone by 1.54 (measured 1.35)
+    ratio = (cast[0] / cast[2]) / (base[0] / base[2])  # the correction's B/R balance, relative to the plain photo
+    assert 1.2 < ratio < 1.7, (ratio, base, cast)  # the cast's B/R is 0.65, undone by 1.54 (measured 1.35)
     for box, colour in CANDIES:
         _, colors = object_colour(warm, box, cast)
         assert names(colors)[0] == colour, (box, colour, colors)
@@ -121,6 +130,7 @@ def test_the_colour_backend_publishes_no_measurement():
 def yolox():
     from services.vision.yolo import YoloDetector
     from tests.shared import yolox_model
+
     return YoloDetector(str(yolox_model()))
 
 
@@ -134,15 +144,18 @@ def test_the_detector_path_publishes_lab_and_names(yolox):
 
 
 # Real photos of people (../shared/data/people, HaGRID frames): what they wear, by eye.
-PEOPLE = {"call_044768ad-1709-44ba-b041-c2f8cbe4c166.jpg": ("black",),     # black hoodie
-          "rock_1bed937b-7ae4-4070-891c-daf69415da41.jpg": ("black",),     # black T-shirt
-          "four_15a73593-b13e-4a1b-99bb-51775cfdfc42.jpg": ("blue",),      # blue T-shirt
-          "rock_0cc7ad09-ae5f-45a8-b264-4216176369b6.jpg": ("white", "green", "grey")}  # pale mint T-shirt
+PEOPLE = {
+    "call_044768ad-1709-44ba-b041-c2f8cbe4c166.jpg": ("black",),  # black hoodie
+    "rock_1bed937b-7ae4-4070-891c-daf69415da41.jpg": ("black",),  # black T-shirt
+    "four_15a73593-b13e-4a1b-99bb-51775cfdfc42.jpg": ("blue",),  # blue T-shirt
+    "rock_0cc7ad09-ae5f-45a8-b264-4216176369b6.jpg": ("white", "green", "grey"),
+}  # pale mint T-shirt
 
 
 def test_a_person_is_the_colour_they_wear_not_their_skin(yolox):
     """The issue: "a black T-shirt makes an orange person". Skin is left out of a person's pixels."""
     from tests.shared import shared_path
+
     folder = shared_path("data/people")
     for name, colours in PEOPLE.items():
         img = cv2.imread(str(folder / name))

@@ -53,8 +53,8 @@ def ycb(name: str) -> tuple[np.ndarray, np.ndarray]:
 def reference_position(depth_units16: np.ndarray, box) -> np.ndarray:
     """Independent of the module: region growing from the centre, hand-written pinhole back-projection."""
     x, y, w, h = box
-    region = depth_units16[y:y + h, x:x + w].astype(np.float32) * YCB_SCALE
-    patch = region[h * 2 // 5:h * 3 // 5, w * 2 // 5:w * 3 // 5]
+    region = depth_units16[y : y + h, x : x + w].astype(np.float32) * YCB_SCALE
+    patch = region[h * 2 // 5 : h * 3 // 5, w * 2 // 5 : w * 3 // 5]
     seed = np.median(patch[patch > 0])
     pv, pu = np.nonzero(np.abs(patch - seed) < 0.003)  # a centre pixel at the seed's depth
     seed_pixel = (int(pu[0] + w * 2 // 5), int(pv[0] + h * 2 // 5))
@@ -91,9 +91,9 @@ def test_the_object_not_the_wall_behind_it():
     x, y, w, h = box
     before = object_depth(metres(depth, YCB_SCALE), YCB_INFO, box)
     walled = depth.copy()
-    walled[y:y + h, x:x + int(0.6 * w)] = 18000  # 1.8 m
+    walled[y : y + h, x : x + int(0.6 * w)] = 18000  # 1.8 m
     m = metres(walled, YCB_SCALE)
-    assert np.nanmedian(m[y:y + h, x:x + w]) > 1.7
+    assert np.nanmedian(m[y : y + h, x : x + w]) > 1.7
     after = object_depth(m, YCB_INFO, box)
     assert abs(after.position[2] - before.position[2]) < 0.02
     assert after.position[0] > before.position[0]  # the visible part is the right 40 %
@@ -106,14 +106,14 @@ def test_holes_inside_a_box_lower_the_support_not_the_position():
     before = object_depth(metres(depth, YCB_SCALE), YCB_INFO, box)
     holed = depth.copy()
     x, y, w, h = box
-    holed[y + h // 4:y + 3 * h // 4, x + w // 4:x + 3 * w // 4] = 0  # a quarter of the box: no measurement
+    holed[y + h // 4 : y + 3 * h // 4, x + w // 4 : x + 3 * w // 4] = 0  # a quarter of the box: no measurement
     after = object_depth(metres(holed, YCB_SCALE), YCB_INFO, box)
     assert after is not None
     assert np.linalg.norm(np.subtract(after.position, before.position)) < 0.02
     assert after.support < before.support - 0.2
     # all holes: no position (absent, never zero)
     empty = depth.copy()
-    empty[y:y + h, x:x + w] = 0
+    empty[y : y + h, x : x + w] = 0
     assert object_depth(metres(empty, YCB_SCALE), YCB_INFO, box) is None
     obj = DetectedObject(id="o1", label="can", score=0.9, bbox=list(box), center=[x + w / 2, y + h / 2])
     assert with_depth(obj, DepthImage(empty, YCB_SCALE, YCB_INFO)).position is None
@@ -154,16 +154,32 @@ def test_foreground_takes_the_nearest_substantial_mode():
 
 def test_a_wrong_resolution_k_is_refused():
     with pytest.raises(InvalidSample, match="intrinsics are for 1280x720, the image is 640x480"):
-        depth_frame(np.zeros((480, 640), np.uint16), stamp=1.0, source="t/x", seq=0, cam="c", depth_scale=0.001,
-                    camera_info=CameraInfo(width=1280, height=720, k=[905.6, 0, 648.8, 0, 904.5, 387.8, 0, 0, 1],
-                                           frame_id="rs"))
+        depth_frame(
+            np.zeros((480, 640), np.uint16),
+            stamp=1.0,
+            source="t/x",
+            seq=0,
+            cam="c",
+            depth_scale=0.001,
+            camera_info=CameraInfo(
+                width=1280, height=720, k=[905.6, 0, 648.8, 0, 904.5, 387.8, 0, 0, 1], frame_id="rs"
+            ),
+        )
 
 
 @pytest.mark.parametrize("compression", ["none", "png"])
 def test_depth_frames_round_trip_losslessly(compression):
     _, depth = ycb("000002")
-    frame = depth_frame(depth, stamp=1.0, source="t/x", seq=3, cam="c", depth_scale=YCB_SCALE,
-                        camera_info=YCB_INFO, compression=compression)
+    frame = depth_frame(
+        depth,
+        stamp=1.0,
+        source="t/x",
+        seq=3,
+        cam="c",
+        depth_scale=YCB_SCALE,
+        camera_info=YCB_INFO,
+        compression=compression,
+    )
     assert np.array_equal(depth_units(frame), depth)
     m = depth_metres(frame)
     assert np.isnan(m[depth == 0]).all() and np.allclose(m[depth > 0], depth[depth > 0] * YCB_SCALE)
@@ -181,14 +197,29 @@ def test_float_depth_and_a_bad_png_payload():
     assert np.isnan(m[0, 0]) and np.isnan(m[0, 1]) and m[1, 0] == 1.5 and np.isnan(m[1, 1])
     with pytest.raises(ValueError, match="16UC1 only"):
         encode_depth(f, "png")
-    bad = depth_frame(np.zeros((2, 2), np.uint16), stamp=1.0, source="t/x", seq=0, cam="c", depth_scale=0.001,
-                      camera_info=info, compression="png")
+    bad = depth_frame(
+        np.zeros((2, 2), np.uint16),
+        stamp=1.0,
+        source="t/x",
+        seq=0,
+        cam="c",
+        depth_scale=0.001,
+        camera_info=info,
+        compression="png",
+    )
     bad.data = bad.data[:30] + b"garbage"
     with pytest.raises(UndecodableDepth):
         depth_units(bad)
-    bigger = depth_frame(np.zeros((4, 4), np.uint16), stamp=1.0, source="t/x", seq=0, cam="c", depth_scale=0.001,
-                         camera_info=CameraInfo(width=4, height=4, k=[1, 0, 2, 0, 1, 2, 0, 0, 1], frame_id="f"),
-                         compression="png")
+    bigger = depth_frame(
+        np.zeros((4, 4), np.uint16),
+        stamp=1.0,
+        source="t/x",
+        seq=0,
+        cam="c",
+        depth_scale=0.001,
+        camera_info=CameraInfo(width=4, height=4, k=[1, 0, 2, 0, 1, 2, 0, 0, 1], frame_id="f"),
+        compression="png",
+    )
     bad.data = bigger.data  # a PNG of another size than declared: refused before decoding
     with pytest.raises(UndecodableDepth, match="header says 4x4"):
         depth_units(bad)
@@ -198,8 +229,17 @@ def test_the_matcher_pairs_depth_and_colour_by_seq_and_stamp():
     info = CameraInfo(width=2, height=2, k=[1, 0, 0.5, 0, 1, 0.5, 0, 0, 1], frame_id="f")
     matcher = DepthMatcher(keep=2)
     for seq in range(3):
-        matcher.add(depth_frame(np.zeros((2, 2), np.uint16), stamp=10.0 + seq, source="t/x", seq=seq, cam="c",
-                                depth_scale=0.001, camera_info=info))
+        matcher.add(
+            depth_frame(
+                np.zeros((2, 2), np.uint16),
+                stamp=10.0 + seq,
+                source="t/x",
+                seq=seq,
+                cam="c",
+                depth_scale=0.001,
+                camera_info=info,
+            )
+        )
     assert matcher.match("c", 2, 12.0).seq == 2
     assert matcher.match("c", 0, 10.0) is None  # older than the kept ones
     assert matcher.match("c", 2, 12.5) is None  # same seq, another capture (a restarted camera)
@@ -208,11 +248,19 @@ def test_the_matcher_pairs_depth_and_colour_by_seq_and_stamp():
 
 def test_a_colour_frame_served_before_its_depth_waits_for_it_but_colour_only_cameras_never_wait():
     from types import SimpleNamespace
+
     info = CameraInfo(width=2, height=2, k=[1, 0, 0.5, 0, 1, 0.5, 0, 0, 1], frame_id="f")
 
     def depth(seq, cam="c"):
-        return depth_frame(np.ones((2, 2), np.uint16), stamp=10.0 + seq / 30, source="t/x", seq=seq, cam=cam,
-                           depth_scale=0.001, camera_info=info)
+        return depth_frame(
+            np.ones((2, 2), np.uint16),
+            stamp=10.0 + seq / 30,
+            source="t/x",
+            seq=seq,
+            cam=cam,
+            depth_scale=0.001,
+            camera_info=info,
+        )
 
     def colour(seq, cam="c"):
         return SimpleNamespace(cam=cam, seq=seq, stamp=10.0 + seq / 30)

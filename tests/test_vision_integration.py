@@ -27,13 +27,14 @@ def test_camera_folder_to_vision_to_echo(group, tmp_path):
         by_scene[d["width"]] = colours
         assert all(o["label"] == "candy" for o in d["objects"])
         assert set(d["quality"]) == {"brightness", "contrast", "sharpness"}
-    assert by_scene[506] == ["blue", "blue", "green", "green", "red"]   # table.png
-    assert by_scene[640] == ["blue", "red"]                               # pointing.png
+    assert by_scene[506] == ["blue", "blue", "green", "green", "red"]  # table.png
+    assert by_scene[640] == ["blue", "red"]  # pointing.png
 
 
 def test_every_frame_gets_detections_even_when_nothing_is_seen(group, tmp_path):
     import cv2
     import numpy as np
+
     blank = tmp_path / "blank"
     blank.mkdir()
     cv2.imwrite(str(blank / "white.png"), np.full((240, 320, 3), 255, np.uint8))
@@ -53,25 +54,51 @@ def test_every_frame_gets_detections_even_when_nothing_is_seen(group, tmp_path):
 
 
 def test_a_missing_model_is_a_clear_error_and_exit_code_2():
-    res = subprocess.run([sys.executable, "-m", "services.vision", "--backend", "onnx", "--model", "/no/such.onnx",
-                          "--connect", "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "services.vision",
+            "--backend",
+            "onnx",
+            "--model",
+            "/no/such.onnx",
+            "--connect",
+            "tcp/127.0.0.1:9",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert res.returncode == 2
     assert "not found" in res.stderr and "--backend color" in res.stderr
 
 
 def _frame(img, seq: int, stamp: float, encoding: str = "jpeg", data: bytes | None = None, cam: str = "cam0"):
     import cv2
+
     from common.schema import Frame
+
     if data is None:
         data = cv2.imencode(".jpg" if encoding == "jpeg" else ".png", img)[1].tobytes()
-    return Frame(stamp=stamp, source="test/cam", seq=seq, cam=cam, width=img.shape[1], height=img.shape[0],
-                 encoding=encoding, data=data)
+    return Frame(
+        stamp=stamp,
+        source="test/cam",
+        seq=seq,
+        cam=cam,
+        width=img.shape[1],
+        height=img.shape[0],
+        encoding=encoding,
+        data=data,
+    )
 
 
 def test_undecodable_frames_are_counted_and_the_service_goes_on(group):
     import time
 
     import cv2
+
     img = cv2.imread(str(DATA / "demo" / "table.png"))
     group.router()
     proc = group.service("vision")
@@ -81,18 +108,20 @@ def test_undecodable_frames_are_counted_and_the_service_goes_on(group):
         out = client.collect("hri/vision/cam0/objects")
         good_jpeg = cv2.imencode(".jpg", img)[1].tobytes()
         # two cameras: each has its own latest-frame slot, so neither bad frame can be skipped for the other
-        client.publish("hri/camera/bad1/frame", _frame(img, 1, time.time(), data=good_jpeg[:len(good_jpeg) // 3],
-                                                       cam="bad1"))
+        client.publish(
+            "hri/camera/bad1/frame", _frame(img, 1, time.time(), data=good_jpeg[: len(good_jpeg) // 3], cam="bad1")
+        )
         small = cv2.imencode(".png", cv2.resize(img, (100, 80)))[1].tobytes()  # header says 506×460
         client.publish("hri/camera/bad2/frame", _frame(img, 2, time.time(), "png", data=small, cam="bad2"))
         time.sleep(0.5)
         client.publish("hri/camera/cam0/frame", _frame(img, 3, time.time()))
-        (_, det), = out.wait(1, timeout=30)
+        ((_, det),) = out.wait(1, timeout=30)
         assert det.seq == 3 and len(det.objects) >= 6
         stats = client.stats("vision")
         # the truncated JPEG fails to decode; the PNG's header (100x80) contradicts its frame: rejected unread
         assert stats["rejected"].get("undecodable", 0) == 1 and stats["rejected"].get("bad_value", 0) == 1, stats
-        assert proc.alive() and "does not decode" in proc.output() and "png header says 100x80, the frame declares 506x460" in proc.output()
+        assert proc.alive() and "does not decode" in proc.output()
+        assert "png header says 100x80, the frame declares 506x460" in proc.output()
     finally:
         client.close()
 
@@ -101,6 +130,7 @@ def test_a_burst_of_frames_is_skipped_to_the_latest_not_queued(group):
     import time
 
     import cv2
+
     big = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (1280, 1104))
     group.router()
     group.service("vision")
@@ -129,8 +159,13 @@ def test_a_burst_of_frames_is_skipped_to_the_latest_not_queued(group):
 def test_a_bad_labels_file_is_a_clear_error_and_exit_code_2(tmp_path):
     bad = tmp_path / "labels.json"
     bad.write_text('{"pink": "candy"}')
-    res = subprocess.run([sys.executable, "-m", "services.vision", "--labels", str(bad), "--connect",
-                          "tcp/127.0.0.1:9"], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    res = subprocess.run(
+        [sys.executable, "-m", "services.vision", "--labels", str(bad), "--connect", "tcp/127.0.0.1:9"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert res.returncode == 2
     assert "not colours" in res.stderr
 
@@ -139,6 +174,7 @@ def test_onnx_backend_without_a_model_runs_the_color_backend(group):
     import time
 
     import cv2
+
     img = cv2.imread(str(DATA / "demo" / "table.png"))
     group.router()
     proc = group.service("vision", "--backend", "onnx")
@@ -147,9 +183,14 @@ def test_onnx_backend_without_a_model_runs_the_color_backend(group):
         client.wait_alive("vision", timeout=60)
         out = client.collect("hri/vision/cam0/objects")
         client.publish("hri/camera/cam0/frame", _frame(img, 0, time.time()))
-        (_, det), = out.wait(1, timeout=30)
-        assert sorted(o.color for o in det.objects if o.color in ("red", "green", "blue")) == \
-            ["blue", "blue", "green", "green", "red"]
+        ((_, det),) = out.wait(1, timeout=30)
+        assert sorted(o.color for o in det.objects if o.color in ("red", "green", "blue")) == [
+            "blue",
+            "blue",
+            "green",
+            "green",
+            "red",
+        ]
         assert "without --model" in proc.output()
     finally:
         client.close()
@@ -159,6 +200,7 @@ def test_the_real_yolox_model_through_the_service_finds_the_cup(group, tmp_path)
     """`--backend onnx --model yolox_nano.onnx` as a real process: the family is logged, the cup is published."""
     pytest.importorskip("onnxruntime")
     from tests.shared import yolox_model
+
     model = yolox_model()
     folder = tmp_path / "scene"
     folder.mkdir()

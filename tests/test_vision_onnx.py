@@ -12,17 +12,25 @@ import pytest
 from services.vision.color import color_name
 from services.vision.core import VisionPipeline, object_color
 from services.vision.track import iou
-from services.vision.yolo import (Letterbox, ModelError, YoloDetector, decode, grid_cells, identify_family,
-                                  letterbox, read_names)
+from services.vision.yolo import (
+    Letterbox,
+    ModelError,
+    YoloDetector,
+    decode,
+    grid_cells,
+    identify_family,
+    letterbox,
+    read_names,
+)
 from tests.harness import DATA, ROOT
 from tests.shared import yolox_model
 from tests.test_vision import tiny_yolo
 
-COFFEE = DATA / "images" / "coffee.png"       # scikit-image's coffee cup on a saucer on a wooden table (CC0)
-MESSI = DATA / "images" / "messi5.jpg"        # OpenCV's footballer and ball (opencv-doc sample data)
+COFFEE = DATA / "images" / "coffee.png"  # scikit-image's coffee cup on a saucer on a wooden table (CC0)
+MESSI = DATA / "images" / "messi5.jpg"  # OpenCV's footballer and ball (opencv-doc sample data)
 
 # Boxes measured by eye on the photos (x, y, w, h px), after drawing the detector's boxes on them.
-COFFEE_CUP = (170, 18, 245, 285)   # rim top to handle bottom, left rim edge to the spoon's top
+COFFEE_CUP = (170, 18, 245, 285)  # rim top to handle bottom, left rim edge to the spoon's top
 MESSI_PLAYER = (68, 62, 390, 272)  # raised left hand to right boot, hair to the left boot's sole
 MESSI_BALL = (338, 290, 50, 48)
 # Measured (2 runs, identical): cup score 0.90, IoU 0.92; player 0.85, 0.92; ball 0.89, 0.94. Asserted: score
@@ -81,7 +89,7 @@ def test_the_colour_of_a_detection_is_the_objects_not_the_boxes(yolox):
     assert ball.color == "yellow"  # a yellow ball on green grass
     player = max((o for o in objects if o.label == "person"), key=lambda o: o.score)
     x, y, w, h = (int(v) for v in player.bbox)
-    assert color_name(hsv[y:y + h, x:x + w])[0] == "black"  # most of the player's box is the dark crowd...
+    assert color_name(hsv[y : y + h, x : x + w])[0] == "black"  # most of the player's box is the dark crowd...
     assert player.color in ("blue", "red")  # ...the player wears Barcelona's blue and claret stripes
 
 
@@ -126,9 +134,9 @@ def test_yolox_rows_are_grid_cells_decoded_with_their_stride(tmp_path):
 def test_yolov5_rows_are_three_anchors_per_cell_with_objectness(tmp_path):
     size = 64
     pred = np.zeros((1, 3 * grid_cells((size, size)), 5 + 3), np.float32)
-    pred[0, 7] = (32, 32, 20, 10, 0.9, 0.0, 0.0, 1.0)     # obj 0.9 × cls 1.0
-    pred[0, 8] = (33, 32, 20, 10, 0.5, 0.0, 0.0, 1.0)     # a duplicate NMS drops
-    pred[0, 9] = (10, 50, 8, 8, 0.25, 1.0, 0.0, 0.0)      # obj 0.25 × cls 1.0: under 0.3
+    pred[0, 7] = (32, 32, 20, 10, 0.9, 0.0, 0.0, 1.0)  # obj 0.9 × cls 1.0
+    pred[0, 8] = (33, 32, 20, 10, 0.5, 0.0, 0.0, 1.0)  # a duplicate NMS drops
+    pred[0, 9] = (10, 50, 8, 8, 0.25, 1.0, 0.0, 0.0)  # obj 0.25 × cls 1.0: under 0.3
     model = tmp_path / "tiny_v5.onnx"
     tiny_yolo(model, pred, size=size)
     det = YoloDetector(str(model), names=("a", "b", "c"))
@@ -184,12 +192,13 @@ def test_decode_of_a_transposed_v8_output_matches_the_usual_one():
 
 def test_letterbox_top_left_bgr_0_255_as_yolox_wants_it():
     from services.vision.yolo import PREPROCESS
+
     img = np.zeros((100, 200, 3), np.uint8)
     img[..., 0] = 200  # blue in BGR
     tensor, lb = letterbox(img, (416, 416), PREPROCESS["yolox"])
     assert lb.pad_x == 0 and lb.pad_y == 0 and lb.scale == 416 / 200
-    assert tensor[0, 0, 0, 0] == 200 and tensor[0, 2, 0, 0] == 0     # channel 0 is blue, 0–255
-    assert tensor[0, 0, 300, 0] == 114                                 # padding below the image
+    assert tensor[0, 0, 0, 0] == 200 and tensor[0, 2, 0, 0] == 0  # channel 0 is blue, 0–255
+    assert tensor[0, 0, 300, 0] == 114  # padding below the image
 
 
 def test_class_names_from_text_or_json(tmp_path):
@@ -211,7 +220,7 @@ def test_object_color_on_a_small_object_in_a_box_of_table():
     img[70:127, 70:128] = candy
     box = (55.0, 55.0, 88.0, 88.0)  # a loose box: more table than candy
     x, y, w, h = (int(v) for v in box)
-    assert color_name(cv2.cvtColor(img[y:y + h, x:x + w], cv2.COLOR_BGR2HSV))[0] == "green"
+    assert color_name(cv2.cvtColor(img[y : y + h, x : x + w], cv2.COLOR_BGR2HSV))[0] == "green"
     assert object_color(img, box) == "red"
 
 
@@ -219,11 +228,33 @@ def test_hri_up_passes_the_model_labels_and_extra_flags_to_vision():
     import argparse
 
     from common.launcher import add_up_arguments, services_from_args
+
     p = argparse.ArgumentParser()
     add_up_arguments(p)
-    args = p.parse_args(["--camera", "none", "--vision-backend", "onnx", "--model", "/models/yolox_nano.onnx",
-                         "--vision-labels", "classes.txt", "--vision-arg=--conf=0.4", "--speech-input", "none"])
+    args = p.parse_args(
+        [
+            "--camera",
+            "none",
+            "--vision-backend",
+            "onnx",
+            "--model",
+            "/models/yolox_nano.onnx",
+            "--vision-labels",
+            "classes.txt",
+            "--vision-arg=--conf=0.4",
+            "--speech-input",
+            "none",
+        ]
+    )
     args.camera = None
     (vision,) = [s for s in services_from_args(args) if s.name == "vision"]
-    assert vision.argv == ["services.vision", "--backend", "onnx", "--model", "/models/yolox_nano.onnx",
-                           "--labels", "classes.txt", "--conf=0.4"]
+    assert vision.argv == [
+        "services.vision",
+        "--backend",
+        "onnx",
+        "--model",
+        "/models/yolox_nano.onnx",
+        "--labels",
+        "classes.txt",
+        "--conf=0.4",
+    ]

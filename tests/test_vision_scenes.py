@@ -49,15 +49,18 @@ def test_the_apple_photo_is_a_close_up_in_front_of_a_coloured_wall():
     edge = np.concatenate([vivid[0], vivid[-1], vivid[:, 0], vivid[:, -1]])
     assert edge.mean() > 0.4  # the wall is saturated: a chromatic backdrop along top, left and right
     x, y, w, h = APPLE
-    body = hsv[y + h // 4:y + 3 * h // 4, x + w // 4:x + 3 * w // 4, 0]
+    body = hsv[y + h // 4 : y + 3 * h // 4, x + w // 4 : x + 3 * w // 4, 0]
     assert 8 <= np.median(body) <= 14  # the apple: hue 10-13, orange in the palette (a red apple in warm light)
     apple_pixels = vivid & (hsv[..., 0] >= 5) & (hsv[..., 0] < 21)
     assert apple_pixels.mean() > 0.45  # it fills about half the frame: over the old 25 % cap
 
 
 # hue shift -> (the apple's colour, the wall's colour): the wall's hue 31-39 straddles yellow/green
-@pytest.mark.parametrize("shift, apple_colour", [(0, "orange"), (-12, "red"), (60, "green"), (103, "blue")],
-                         ids=["as-shot", "red-across-the-wrap", "green-on-blue", "blue-on-purple"])
+@pytest.mark.parametrize(
+    "shift, apple_colour",
+    [(0, "orange"), (-12, "red"), (60, "green"), (103, "blue")],
+    ids=["as-shot", "red-across-the-wrap", "green-on-blue", "blue-on-purple"],
+)
 def test_the_apple_is_one_object_of_its_colour_and_the_wall_is_none(shift, apple_colour):
     img = rotate_hue(apple(), shift)
     found = chromatic(ColorSegmenter().detect(img))
@@ -72,7 +75,7 @@ def test_the_apple_is_one_object_of_its_colour_and_the_wall_is_none(shift, apple
 def test_red_across_the_wrap_really_straddles_it():
     hsv, vivid = vivid_hsv(rotate_hue(apple(), -12))
     x, y, w, h = APPLE
-    inner = hsv[y + h // 4:y + 3 * h // 4, x + w // 4:x + 3 * w // 4].reshape(-1, 3)
+    inner = hsv[y + h // 4 : y + 3 * h // 4, x + w // 4 : x + 3 * w // 4].reshape(-1, 3)
     hue = inner[:, 0]
     assert (hue >= 170).mean() > 0.2 and (hue < 5).mean() > 0.2
 
@@ -96,8 +99,9 @@ def test_a_candy_filling_half_the_frame_is_kept():
     found = sorted(chromatic(ColorSegmenter().detect(img)), key=lambda d: -d.bbox[2] * d.bbox[3])
     assert found[0].color == "red" and iou(found[0].bbox, eye) >= 0.5, found
     # the only other thing: the blue candy's reflection on its right edge (the blue candy is just outside the crop)
-    assert all(d.color == "blue" and d.bbox[0] > 200 and d.bbox[2] * d.bbox[3] < 0.03 * 256 * 248
-               for d in found[1:]), found
+    assert all(d.color == "blue" and d.bbox[0] > 200 and d.bbox[2] * d.bbox[3] < 0.03 * 256 * 248 for d in found[1:]), (
+        found
+    )
 
 
 def test_a_distinct_object_inside_a_bigger_objects_box_stays():
@@ -137,6 +141,7 @@ def test_cubes_on_a_blue_table():
 
 def test_background_rules_on_their_own():
     from services.vision.segment import is_background
+
     w, h = 640, 480
     # a candy cut off in a corner (two borders, small) is an object; a wall piece along two borders is not
     assert not is_background(38, 28, 800, w, h, borders=2, edge_share=0.02)
@@ -147,4 +152,4 @@ def test_background_rules_on_their_own():
     # a piece of a wall touching one border is background when the wall's hue owns much of the frame's edge
     assert is_background(120, 100, 9000, w, h, borders=1, edge_share=0.4)
     assert not is_background(120, 100, 9000, w, h, borders=1, edge_share=0.05)  # a cut-off object
-    assert not is_background(120, 100, 9000, w, h, borders=0, edge_share=0.4)   # an object in front of that wall
+    assert not is_background(120, 100, 9000, w, h, borders=0, edge_share=0.4)  # an object in front of that wall

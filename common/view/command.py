@@ -18,25 +18,49 @@ examples:
 
 def add_view_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("recording", nargs="?", default=None, help="an .mcap from `hri record` to open instead of the bus")
-    p.add_argument("--host", default="127.0.0.1", help="address to serve the page on (default 127.0.0.1; "
-                                                       "0.0.0.0 for other machines)")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to serve the page on (default 127.0.0.1; 0.0.0.0 for other machines)",
+    )
     p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 picks a free one)")
-    p.add_argument("--max-fps", type=float, default=DEFAULT_MAX_FPS,
-                   help=f"frames per second per camera sent to the page (default {DEFAULT_MAX_FPS:g})")
-    p.add_argument("--snapshot", metavar="OUT.png", default=None,
-                   help="write the annotated frame of a camera to this PNG and exit (no server)")
-    p.add_argument("--at", type=float, default=None, metavar="STAMP",
-                   help="with --snapshot and a recording: the session as of this source stamp (UNIX seconds; "
-                        "a value below 1e9 counts seconds from the recording's start). Default: its end")
+    p.add_argument(
+        "--max-fps",
+        type=float,
+        default=DEFAULT_MAX_FPS,
+        help=f"frames per second per camera sent to the page (default {DEFAULT_MAX_FPS:g})",
+    )
+    p.add_argument(
+        "--snapshot",
+        metavar="OUT.png",
+        default=None,
+        help="write the annotated frame of a camera to this PNG and exit (no server)",
+    )
+    p.add_argument(
+        "--at",
+        type=float,
+        default=None,
+        metavar="STAMP",
+        help="with --snapshot and a recording: the session as of this source stamp (UNIX seconds; "
+        "a value below 1e9 counts seconds from the recording's start). Default: its end",
+    )
     p.add_argument("--cam", default=None, help="with --snapshot: the camera (default the first with a frame)")
-    p.add_argument("--wait", type=float, default=2.0,
-                   help="with --snapshot on the live bus: seconds to watch after the first frame (default 2)")
-    p.add_argument("--timeout", type=float, default=30.0,
-                   help="with --snapshot on the live bus: give up after S seconds without a frame (default 30)")
+    p.add_argument(
+        "--wait",
+        type=float,
+        default=2.0,
+        help="with --snapshot on the live bus: seconds to watch after the first frame (default 2)",
+    )
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=30.0,
+        help="with --snapshot on the live bus: give up after S seconds without a frame (default 30)",
+    )
     p.set_defaults(func=cmd_view)
-
 
 
 def cmd_view(args: argparse.Namespace) -> int:
     from common.view.server import cmd_view as run  # aiohttp, OpenCV: only when `hri view` runs
+
     return run(args)

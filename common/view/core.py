@@ -21,7 +21,16 @@ from common.codec import decode
 from common.image import UndecodableFrame, frame_image
 from common.keys import Keys
 from common.schema import (
-    Clarification, DepthFrame, Detections, Frame, FusedCommand, GestureEvent, Hands, InvalidSample, Sample, Stats,
+    Clarification,
+    DepthFrame,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    InvalidSample,
+    Sample,
+    Stats,
     Transcript,
 )
 from common.view import DEFAULT_MAX_FPS
@@ -38,6 +47,7 @@ JPEG_QUALITY = 85
 @dataclass
 class ShownFrame:
     """A frame as the page gets it: JPEG bytes and where it came from."""
+
     seq: int
     stamp: float
     width: int
@@ -154,14 +164,30 @@ class ViewState:
             self._camera(sample.cam).depth = sample
         elif isinstance(sample, GestureEvent):
             if sample.phase == "start":  # "hold" comes every 100 ms; the start is the event a person sees
-                self._add_entry(sample.stamp, {
-                    "kind": "gesture", "gesture": sample.gesture, "hand": sample.hand, "cam": sample.cam,
-                    "score": sample.score, "source": sample.source})
+                self._add_entry(
+                    sample.stamp,
+                    {
+                        "kind": "gesture",
+                        "gesture": sample.gesture,
+                        "hand": sample.hand,
+                        "cam": sample.cam,
+                        "score": sample.score,
+                        "source": sample.source,
+                    },
+                )
         elif isinstance(sample, Transcript):
             if sample.final:
-                self._add_entry(sample.stamp, {
-                    "kind": "transcript", "text": sample.text, "confidence": sample.confidence,
-                    "mic": sample.mic, "backend": sample.backend, "source": sample.source})
+                self._add_entry(
+                    sample.stamp,
+                    {
+                        "kind": "transcript",
+                        "text": sample.text,
+                        "confidence": sample.confidence,
+                        "mic": sample.mic,
+                        "backend": sample.backend,
+                        "source": sample.source,
+                    },
+                )
         elif isinstance(sample, FusedCommand):
             if self.command is None or sample.stamp >= self.command.stamp:
                 self.command = sample
@@ -221,6 +247,7 @@ class ViewState:
                 return state.depth_jpeg
         from common.depth import UndecodableDepth, depth_metres
         from common.view.draw import colourize_depth
+
         try:
             picture = colourize_depth(depth_metres(depth))
         except UndecodableDepth:
@@ -242,10 +269,10 @@ class ViewState:
 
     def set_stats(self, stats: Stats) -> None:
         with self.lock:
-            entry = self.services.setdefault((stats.service, stats.instance),
-                                             ServiceState(stats.service, stats.instance))
-            entry.stats = {k: v for k, v in stats.to_dict().items() if k not in ("v", "source", "service",
-                                                                                 "instance")}
+            entry = self.services.setdefault(
+                (stats.service, stats.instance), ServiceState(stats.service, stats.instance)
+            )
+            entry.stats = {k: v for k, v in stats.to_dict().items() if k not in ("v", "source", "service", "instance")}
             self.version += 1
 
     # -- output -----------------------------------------------------------------
@@ -260,7 +287,8 @@ class ViewState:
                 "quality": det.quality.to_dict() if det else None,
                 "objects_seq": det.seq if det else None,
                 "hands": [h.to_dict() for h in hands.hands] if hands else [],
-                "target": None, "candidates": [],
+                "target": None,
+                "candidates": [],
             }
             # the newer of the latest command and clarification decides what is highlighted
             command, question = self.command, self.clarification
@@ -280,22 +308,41 @@ class ViewState:
             for cam, state in sorted(self.cameras.items()):
                 shown = state.shown
                 cameras[cam] = {
-                    "frame": None if shown is None else {"n": shown.n, "seq": shown.seq, "stamp": shown.stamp,
-                                                         "width": shown.width, "height": shown.height},
-                    "received": state.received, "released": state.released,
+                    "frame": None
+                    if shown is None
+                    else {
+                        "n": shown.n,
+                        "seq": shown.seq,
+                        "stamp": shown.stamp,
+                        "width": shown.width,
+                        "height": shown.height,
+                    },
+                    "received": state.received,
+                    "released": state.released,
                     "depth": None if state.depth is None else {"seq": state.depth.seq, "stamp": state.depth.stamp},
-                    **self.overlay(cam)}
+                    **self.overlay(cam),
+                }
             ignored: dict[str, dict[str, int]] = {}
             for (key, reason), count in sorted(self.ignored.items()):
                 ignored.setdefault(key, {})[reason] = count
             return {
-                "epoch": self.epoch, "version": self.version, "last_stamp": self.last_stamp,
+                "epoch": self.epoch,
+                "version": self.version,
+                "last_stamp": self.last_stamp,
                 "cameras": cameras,
                 "timeline": [entry for _, n, entry in self.timeline if n > after_n],
-                "services": [{"service": s.service, "instance": s.instance, "alive": s.alive, "stats": s.stats,
-                              "last_sample": s.last_sample}
-                             for _, s in sorted(self.services.items())],
-                "ignored": ignored, "ignored_total": sum(self.ignored.values()),
+                "services": [
+                    {
+                        "service": s.service,
+                        "instance": s.instance,
+                        "alive": s.alive,
+                        "stats": s.stats,
+                        "last_sample": s.last_sample,
+                    }
+                    for _, s in sorted(self.services.items())
+                ],
+                "ignored": ignored,
+                "ignored_total": sum(self.ignored.values()),
             }
 
 

@@ -13,16 +13,35 @@ import cv2
 import numpy as np
 
 # BGR. The same colours as static/view.css / view.js (kept in one table there too).
-BOX = (80, 220, 0)            # detection boxes
-TARGET = (255, 0, 255)         # the target of the latest command: magenta, a colour scenes rarely have
-CANDIDATE = (0, 165, 255)      # candidates of a clarification question: orange
-HAND = (255, 255, 0)           # hand skeleton: cyan
-RAY = (0, 255, 255)            # pointing ray: yellow
+BOX = (80, 220, 0)  # detection boxes
+TARGET = (255, 0, 255)  # the target of the latest command: magenta, a colour scenes rarely have
+CANDIDATE = (0, 165, 255)  # candidates of a clarification question: orange
+HAND = (255, 255, 0)  # hand skeleton: cyan
+RAY = (0, 255, 255)  # pointing ray: yellow
 TEXT_BG = (0, 0, 0)
 
 HAND_CONNECTIONS = (
-    (0, 1), (1, 2), (2, 3), (3, 4), (0, 5), (5, 6), (6, 7), (7, 8), (5, 9), (9, 10), (10, 11), (11, 12),
-    (9, 13), (13, 14), (14, 15), (15, 16), (13, 17), (17, 18), (18, 19), (19, 20), (0, 17),
+    (0, 1),
+    (1, 2),
+    (2, 3),
+    (3, 4),
+    (0, 5),
+    (5, 6),
+    (6, 7),
+    (7, 8),
+    (5, 9),
+    (9, 10),
+    (10, 11),
+    (11, 12),
+    (9, 13),
+    (13, 14),
+    (14, 15),
+    (15, 16),
+    (13, 17),
+    (17, 18),
+    (18, 19),
+    (19, 20),
+    (0, 17),
 )
 
 
@@ -59,8 +78,13 @@ def draw_objects(img: np.ndarray, layers: dict[str, Any]) -> None:
     for obj in layers.get("objects", []):
         _box(img, obj["bbox"], BOX, 2)
         if obj["id"] not in decided:
-            _label(img, f"{object_name(obj)} {obj['id']} {obj['score']:.2f}{object_position(obj)}", obj["bbox"][0],
-                   obj["bbox"][1], BOX)
+            _label(
+                img,
+                f"{object_name(obj)} {obj['id']} {obj['score']:.2f}{object_position(obj)}",
+                obj["bbox"][0],
+                obj["bbox"][1],
+                BOX,
+            )
 
 
 def draw_hands(img: np.ndarray, layers: dict[str, Any]) -> None:
@@ -80,8 +104,7 @@ def draw_hands(img: np.ndarray, layers: dict[str, Any]) -> None:
 
 def draw_ray(img: np.ndarray, ray: dict[str, Any], length: float) -> None:
     (ox, oy), (dx, dy) = ray["origin"], ray["direction"]
-    cv2.arrowedLine(img, _pt([ox, oy]), _pt([ox + dx * length, oy + dy * length]), RAY, 2, cv2.LINE_AA,
-                    tipLength=0.02)
+    cv2.arrowedLine(img, _pt([ox, oy]), _pt([ox + dx * length, oy + dy * length]), RAY, 2, cv2.LINE_AA, tipLength=0.02)
 
 
 def draw_decision(img: np.ndarray, layers: dict[str, Any]) -> None:
@@ -93,8 +116,13 @@ def draw_decision(img: np.ndarray, layers: dict[str, Any]) -> None:
         _box(img, target["bbox"], TARGET, 4)
         cx, cy = _pt(target["center"])
         cv2.drawMarker(img, (cx, cy), TARGET, cv2.MARKER_CROSS, 18, 3)
-        _label(img, f"{target.get('intent', 'target')}: {object_name(target)} {target['id']}"
-                    f"{object_position(target)}", target["bbox"][0], target["bbox"][1], TARGET)
+        _label(
+            img,
+            f"{target.get('intent', 'target')}: {object_name(target)} {target['id']}{object_position(target)}",
+            target["bbox"][0],
+            target["bbox"][1],
+            TARGET,
+        )
     loc = layers.get("location")
     if loc:
         cv2.drawMarker(img, _pt([loc["x"], loc["y"]]), TARGET, cv2.MARKER_TILTED_CROSS, 24, 3)
@@ -103,8 +131,13 @@ def draw_decision(img: np.ndarray, layers: dict[str, Any]) -> None:
 def draw_quality(img: np.ndarray, layers: dict[str, Any]) -> None:
     q = layers.get("quality")
     if q:
-        _label(img, f"brightness {q['brightness']:.2f}  contrast {q['contrast']:.2f}  sharpness "
-                    f"{q['sharpness']:.2f}", 4, img.shape[0] - 4, (255, 255, 255))
+        _label(
+            img,
+            f"brightness {q['brightness']:.2f}  contrast {q['contrast']:.2f}  sharpness {q['sharpness']:.2f}",
+            4,
+            img.shape[0] - 4,
+            (255, 255, 255),
+        )
 
 
 def colourize_depth(metres: np.ndarray) -> np.ndarray:
@@ -123,7 +156,11 @@ def colourize_depth(metres: np.ndarray) -> np.ndarray:
 
 # bottom to top: the decision is drawn last so it is never hidden
 LAYERS: tuple[Callable[[np.ndarray, dict[str, Any]], None], ...] = (
-    draw_objects, draw_hands, draw_decision, draw_quality)
+    draw_objects,
+    draw_hands,
+    draw_decision,
+    draw_quality,
+)
 
 
 def render(image: np.ndarray, layers: dict[str, Any]) -> np.ndarray:

@@ -50,7 +50,7 @@ class Player:
             self.state.reset()
             self.index = 0
         end = bisect.bisect_right(self.times, target)
-        for log_ns, key, payload, _ in self.messages[self.index:end]:
+        for log_ns, key, payload, _ in self.messages[self.index : end]:
             # frame budget in recording time, so a seek lands on the newest frame before the cursor
             self.state.ingest(key, payload, now=log_ns / NS)
         self.index = max(self.index, end)
@@ -69,9 +69,15 @@ class Player:
         return (self.position_ns - self.start_ns) / NS
 
     def status(self) -> dict[str, Any]:
-        return {"duration": self.duration_s, "position": self.offset_s, "playing": self.playing,
-                "speed": self.speed, "start": self.start_ns / NS, "samples": len(self.messages),
-                "index": self.index}
+        return {
+            "duration": self.duration_s,
+            "position": self.offset_s,
+            "playing": self.playing,
+            "speed": self.speed,
+            "start": self.start_ns / NS,
+            "samples": len(self.messages),
+            "index": self.index,
+        }
 
     def at_stamp(self, stamp: float) -> None:
         """Feed every sample whose source stamp is at or before `stamp` (for `--snapshot --at`)."""

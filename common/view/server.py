@@ -37,7 +37,6 @@ LONG_POLL_S = 10.0
 STATS_EVERY_S = 2.0
 
 
-
 class Changes:
     """Wakes long-polling requests when the state changes; `notify` may be called from any thread."""
 
@@ -87,16 +86,18 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
         changes: Changes = request.app["changes"]
         epoch, version = _int(request, "epoch"), _int(request, "version", -1)
         deadline = time.monotonic() + LONG_POLL_S
-        while (state.epoch == epoch and state.version == version and time.monotonic() < deadline
-               and not changes.closed):
+        while state.epoch == epoch and state.version == version and time.monotonic() < deadline and not changes.closed:
             await changes.wait(deadline - time.monotonic())
         after = _int(request, "after") if state.epoch == epoch else 0
         body = state.snapshot(after)
         body["mode"] = mode
         if player is not None:
             body["player"] = player.status()
-        return web.Response(text=json.dumps(body, separators=(",", ":")), content_type="application/json",
-                            headers={"Cache-Control": "no-store"})
+        return web.Response(
+            text=json.dumps(body, separators=(",", ":")),
+            content_type="application/json",
+            headers={"Cache-Control": "no-store"},
+        )
 
     async def api_frame(request: web.Request) -> web.Response:
         changes: Changes = request.app["changes"]
@@ -105,22 +106,31 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
         while True:
             shown = state.frame(cam)
             if shown is not None and shown.n != after:
-                return web.Response(body=shown.jpeg, content_type="image/jpeg", headers={
-                    "Cache-Control": "no-store", "X-Frame-N": str(shown.n), "X-Seq": str(shown.seq),
-                    "X-Stamp": repr(shown.stamp)})
+                return web.Response(
+                    body=shown.jpeg,
+                    content_type="image/jpeg",
+                    headers={
+                        "Cache-Control": "no-store",
+                        "X-Frame-N": str(shown.n),
+                        "X-Seq": str(shown.seq),
+                        "X-Stamp": repr(shown.stamp),
+                    },
+                )
             if time.monotonic() >= deadline or changes.closed:
                 return web.Response(status=204, headers={"Cache-Control": "no-store"})
             await changes.wait(deadline - time.monotonic())
 
     async def api_depth(request: web.Request) -> web.Response:
         """The camera's latest depth frame as a colourized JPEG (the page's depth toggle); 204 without depth."""
-        picture = await asyncio.get_running_loop().run_in_executor(None, state.depth_picture,
-                                                                   request.match_info["cam"])
+        picture = await asyncio.get_running_loop().run_in_executor(None, state.depth_picture, request.match_info["cam"])
         if picture is None:
             return web.Response(status=204, headers={"Cache-Control": "no-store"})
         seq, stamp, jpeg = picture
-        return web.Response(body=jpeg, content_type="image/jpeg", headers={
-            "Cache-Control": "no-store", "X-Seq": str(seq), "X-Stamp": repr(stamp)})
+        return web.Response(
+            body=jpeg,
+            content_type="image/jpeg",
+            headers={"Cache-Control": "no-store", "X-Seq": str(seq), "X-Stamp": repr(stamp)},
+        )
 
     async def api_player(request: web.Request) -> web.Response:
         if player is None:
@@ -140,8 +150,10 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
                 else:
                     raise ValueError(action)
         except (ValueError, KeyError, TypeError) as exc:
-            return web.json_response({"error": f"bad player request ({exc}); send {{'action': 'play'|'pause'|"
-                                               f"'seek', 'position': seconds}}"}, status=400)
+            return web.json_response(
+                {"error": f"bad player request ({exc}); send {{'action': 'play'|'pause'|'seek', 'position': seconds}}"},
+                status=400,
+            )
         request.app["changes"].notify()
         return web.json_response(player.status())
 
@@ -163,6 +175,7 @@ class LiveInput:
 
     def __init__(self, session: Any, state: ViewState, on_change: Any, log: logging.Logger):
         import zenoh
+
         self.session, self.state, self.on_change, self.log = session, state, on_change, log
         keys = state.keys
         audio = keys.audio("*")
@@ -182,8 +195,10 @@ class LiveInput:
                 on_change()
 
         self._ignored_logged = 0
-        self.declared = [session.declare_subscriber(f"{keys.prefix}/**", on_sample),
-                         session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)]
+        self.declared = [
+            session.declare_subscriber(f"{keys.prefix}/**", on_sample),
+            session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True),
+        ]
         self.stop = threading.Event()
         self.poller = threading.Thread(target=self._poll_stats, name="view-stats", daemon=True)
         self.poller.start()
@@ -197,6 +212,7 @@ class LiveInput:
     def _poll_stats(self) -> None:
         from common.codec import decode
         from common.schema import InvalidSample, Stats
+
         while not self.stop.is_set():
             try:
                 for reply in self.session.get(self.state.keys.stats("*", "*"), timeout=1.0):
@@ -238,9 +254,9 @@ async def _clock(state: ViewState, changes: Changes, player: Any) -> None:
         last = now
 
 
-async def serve(args: argparse.Namespace, state: ViewState, mode: dict[str, Any], player: Any,
-                start_input: Any) -> int:
+async def serve(args: argparse.Namespace, state: ViewState, mode: dict[str, Any], player: Any, start_input: Any) -> int:
     from aiohttp import web
+
     loop = asyncio.get_running_loop()
     changes = Changes(loop)
     app = make_app(state, mode, player)
@@ -251,8 +267,11 @@ async def serve(args: argparse.Namespace, state: ViewState, mode: dict[str, Any]
     try:
         await site.start()
     except OSError as exc:
-        print(f"hri view: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}; choose another "
-              f"--port (0 picks a free one)", file=sys.stderr)
+        print(
+            f"hri view: cannot listen on {args.host}:{args.port}: {exc.strerror or exc}; choose another "
+            f"--port (0 picks a free one)",
+            file=sys.stderr,
+        )
         await runner.cleanup()
         return 2
     port = site._server.sockets[0].getsockname()[1]  # the real port when --port 0
@@ -260,6 +279,7 @@ async def serve(args: argparse.Namespace, state: ViewState, mode: dict[str, Any]
     print(f"hri view: http://{host}:{port}/  ({mode['label']}; Ctrl-C to stop)", flush=True)
     stop = asyncio.Event()
     import signal
+
     for sig in (signal.SIGINT, signal.SIGTERM):
         loop.add_signal_handler(sig, stop.set)
     feed = start_input(changes.notify)
@@ -296,13 +316,16 @@ def _write_snapshot(state: ViewState, args: argparse.Namespace, where: str) -> i
     got = annotated(state, args.cam)
     if got is None:
         which = f"camera {args.cam!r}" if args.cam else "any camera"
-        print(f"hri view: no frame of {which} {where}; cameras seen: {', '.join(state.cameras) or 'none'}",
-              file=sys.stderr)
+        print(
+            f"hri view: no frame of {which} {where}; cameras seen: {', '.join(state.cameras) or 'none'}",
+            file=sys.stderr,
+        )
         return 1
     cam, image = got
     if not cv2.imwrite(args.snapshot, image, [cv2.IMWRITE_PNG_COMPRESSION, 9]):  # small enough for a bug report
-        print(f"hri view: cannot write {args.snapshot} (does the folder exist? is the extension .png?)",
-              file=sys.stderr)
+        print(
+            f"hri view: cannot write {args.snapshot} (does the folder exist? is the extension .png?)", file=sys.stderr
+        )
         return 2
     print(f"hri view: wrote {args.snapshot} (camera {cam}, {image.shape[1]}x{image.shape[0]})")
     return 0
@@ -328,6 +351,7 @@ def cmd_view(args: argparse.Namespace) -> int:
     if args.recording:
         from common.recording import RecordingError
         from common.view.player import Player
+
         try:
             player = Player.open(args.recording, state)
         except RecordingError as exc:
@@ -345,8 +369,11 @@ def cmd_view(args: argparse.Namespace) -> int:
             return _write_snapshot(state, args, f"at or before stamp {at:.3f} in {args.recording}")
         with state.lock:
             player.seek(0.0)
-        mode = {"live": False, "label": f"recording {Path(args.recording).name}",
-                "file": str(Path(args.recording).name)}
+        mode = {
+            "live": False,
+            "label": f"recording {Path(args.recording).name}",
+            "file": str(Path(args.recording).name),
+        }
         return asyncio.run(serve(args, state, mode, player, lambda notify: None))
 
     stop = threading.Event()

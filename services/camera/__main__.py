@@ -12,8 +12,8 @@ import numpy as np
 from common.depth import depth_frame
 from common.runner import Service, main_exit, service_parser
 from common.schema import Frame
-from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.opener import open_source
+from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.source import SourceError, encode_image
 
 EPILOG = """\
@@ -29,25 +29,42 @@ examples:
 
 def main(argv: list[str] | None = None) -> None:
     parser = service_parser("camera", "Publish camera frames (Frame) on <prefix>/camera/<cam>/frame.", EPILOG)
-    parser.add_argument("--source", required=True,
-                        help="device index (0), 'realsense' or 'realsense:SERIAL', video file, image file, folder of "
-                             "images (name order), or folder of colour/depth pairs with an intrinsics.json (RGB-D)")
+    parser.add_argument(
+        "--source",
+        required=True,
+        help="device index (0), 'realsense' or 'realsense:SERIAL', video file, image file, folder of "
+        "images (name order), or folder of colour/depth pairs with an intrinsics.json (RGB-D)",
+    )
     parser.add_argument("--cam", default="cam0", help="camera id used in keys and samples (default cam0)")
-    parser.add_argument("--fps", type=float, default=None,
-                        help="publish rate; default: the video's own rate, 10 for images, as fast as the device")
+    parser.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="publish rate; default: the video's own rate, 10 for images, as fast as the device",
+    )
     parser.add_argument("--loop", action="store_true", help="start over at the end of a file or folder")
     parser.add_argument("--count", type=int, default=None, help="stop after N frames")
     parser.add_argument("--encoding", choices=("jpeg", "png", "bgr8"), default="jpeg", help="default jpeg")
     parser.add_argument("--quality", type=int, default=90, help="JPEG quality 1–100 (default 90)")
-    parser.add_argument("--intrinsics", default=None,
-                        help="intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
-                             "docs/vision.md): sent with every frame; overrides an RGB-D folder's own")
-    parser.add_argument("--depth-compression", choices=("none", "png"), default="none",
-                        help="depth frames as raw 16-bit rows (default) or a lossless 16-bit PNG (about 6x smaller "
-                             "on YCB-Video depth, ~24 ms to encode a 640x480 frame: for slow links)")
-    parser.add_argument("--mirror", action="store_true",
-                        help="flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
-                             "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)")
+    parser.add_argument(
+        "--intrinsics",
+        default=None,
+        help="intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
+        "docs/vision.md): sent with every frame; overrides an RGB-D folder's own",
+    )
+    parser.add_argument(
+        "--depth-compression",
+        choices=("none", "png"),
+        default="none",
+        help="depth frames as raw 16-bit rows (default) or a lossless 16-bit PNG (about 6x smaller "
+        "on YCB-Video depth, ~24 ms to encode a 640x480 frame: for slow links)",
+    )
+    parser.add_argument(
+        "--mirror",
+        action="store_true",
+        help="flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
+        "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
+    )
     parser.add_argument("--rs-size", default="640x480", help="RealSense resolution WxH (default 640x480)")
     args = parser.parse_args(argv)
     if not 1 <= args.quality <= 100:
@@ -105,15 +122,35 @@ def main(argv: list[str] | None = None) -> None:
                 h, w = img.shape[:2]
                 if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:
                     # depth first: whoever matches depth to colour has it when the colour frame arrives
-                    service.publish(depth_key, depth_frame(
-                        capture.depth, stamp=stamp, source=service.source, seq=seq, cam=args.cam,
-                        depth_scale=capture.depth_scale, camera_info=capture.camera_info,
-                        compression=args.depth_compression), lossless=False)
-                service.publish(key, Frame(stamp=stamp, source=service.source, seq=seq, cam=args.cam, width=w,
-                                           height=h, encoding=args.encoding,
-                                           data=encode_image(img, args.encoding, args.quality),
-                                           camera_info=capture.camera_info),
-                                lossless=False)
+                    service.publish(
+                        depth_key,
+                        depth_frame(
+                            capture.depth,
+                            stamp=stamp,
+                            source=service.source,
+                            seq=seq,
+                            cam=args.cam,
+                            depth_scale=capture.depth_scale,
+                            camera_info=capture.camera_info,
+                            compression=args.depth_compression,
+                        ),
+                        lossless=False,
+                    )
+                service.publish(
+                    key,
+                    Frame(
+                        stamp=stamp,
+                        source=service.source,
+                        seq=seq,
+                        cam=args.cam,
+                        width=w,
+                        height=h,
+                        encoding=args.encoding,
+                        data=encode_image(img, args.encoding, args.quality),
+                        camera_info=capture.camera_info,
+                    ),
+                    lossless=False,
+                )
                 seq += 1
                 if stop.is_set() or (args.count is not None and seq >= args.count):
                     stop.set()

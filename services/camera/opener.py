@@ -12,8 +12,9 @@ from services.camera.rgbd import RgbdFolderSource, is_rgbd_folder, open_realsens
 from services.camera.source import IMAGE_EXTENSIONS, CaptureSource, ImageListSource, Source, SourceError
 
 
-def open_source(spec: str, realsense_size: tuple[int, int] = (640, 480), fps: float | None = None,
-                intrinsics=None) -> Source:
+def open_source(
+    spec: str, realsense_size: tuple[int, int] = (640, 480), fps: float | None = None, intrinsics=None
+) -> Source:
     """'0' -> V4L2 device 0, 'realsense[:SERIAL]' -> an Intel RealSense (RGB-D), a folder of colour/depth pairs
     with an intrinsics.json -> RGB-D captures, another folder -> its images in name order, an image file, else a
     video file."""
@@ -22,13 +23,16 @@ def open_source(spec: str, realsense_size: tuple[int, int] = (640, 480), fps: fl
     if spec.isdigit():
         cap = cv2.VideoCapture(int(spec))
         if not cap.isOpened():
-            raise SourceError(f"cannot open camera device {spec} (/dev/video{spec}): is a camera attached and "
-                              f"readable by this user? Use --source PATH for a video file or image folder.")
+            raise SourceError(
+                f"cannot open camera device {spec} (/dev/video{spec}): is a camera attached and "
+                f"readable by this user? Use --source PATH for a video file or image folder."
+            )
         return CaptureSource(cap, f"camera device {spec}", finite=False)
     path = Path(spec)
     if not path.exists():
-        raise SourceError(f"source {spec!r} does not exist: give a device index, a video file, an image file "
-                          f"or a folder of images")
+        raise SourceError(
+            f"source {spec!r} does not exist: give a device index, a video file, an image file or a folder of images"
+        )
     if path.is_dir():
         if is_rgbd_folder(path):
             return RgbdFolderSource(path, intrinsics)

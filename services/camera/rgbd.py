@@ -38,6 +38,7 @@ PAIR = re.compile(r"^(?P<name>.+)[-_](?P<kind>color|colour|rgb|depth)$", re.IGNO
 @dataclass
 class Capture:
     """One capture: a BGR colour image and, from an RGB-D source, its aligned depth (uint16 units or float32)."""
+
     color: np.ndarray
     depth: np.ndarray | None = None
     depth_scale: float | None = None  # metres per unit of `depth`
@@ -72,8 +73,9 @@ def parse_intrinsics(spec: dict[str, Any], where: str = "intrinsics") -> Intrins
 
     for name in ("width", "height"):
         if not isinstance(spec.get(name), int) or spec[name] <= 0:
-            raise SourceError(f"{where}: {name} must be a positive integer (the resolution K belongs to), "
-                              f"not {spec.get(name)!r}")
+            raise SourceError(
+                f"{where}: {name} must be a positive integer (the resolution K belongs to), not {spec.get(name)!r}"
+            )
     if "K" in spec or "k" in spec:
         raw = spec.get("K", spec.get("k"))
         flat = [v for row in raw for v in row] if raw and isinstance(raw[0], list) else raw
@@ -91,10 +93,14 @@ def parse_intrinsics(spec: dict[str, Any], where: str = "intrinsics") -> Intrins
         raise SourceError(f"{where}: depth_scale must be > 0 metres per unit (RealSense 0.001, YCB-Video 0.0001)")
     distortion = spec.get("distortion", []) or []
     try:
-        info = CameraInfo(width=spec["width"], height=spec["height"], k=k,
-                          distortion_model=str(spec.get("distortion_model", "none")),
-                          distortion=[number("distortion", v) for v in distortion],
-                          frame_id=str(spec.get("frame_id", DEFAULT_FRAME_ID)))
+        info = CameraInfo(
+            width=spec["width"],
+            height=spec["height"],
+            k=k,
+            distortion_model=str(spec.get("distortion_model", "none")),
+            distortion=[number("distortion", v) for v in distortion],
+            frame_id=str(spec.get("frame_id", DEFAULT_FRAME_ID)),
+        )
     except InvalidSample as exc:
         raise SourceError(f"{where}: {exc.detail}") from None
     return Intrinsics(info, None if depth_scale is None else float(depth_scale))
@@ -103,9 +109,11 @@ def parse_intrinsics(spec: dict[str, Any], where: str = "intrinsics") -> Intrins
 def check_intrinsics(info: CameraInfo, width: int, height: int, what: str) -> None:
     """Refuse intrinsics of another resolution (SourceError with the remedy)."""
     if (info.width, info.height) != (width, height):
-        raise SourceError(f"{what}: the intrinsics are for {info.width}x{info.height} but the images are "
-                          f"{width}x{height}: give the intrinsics of this resolution (scale fx, fy, cx, cy by the "
-                          f"same factor as the image)")
+        raise SourceError(
+            f"{what}: the intrinsics are for {info.width}x{info.height} but the images are "
+            f"{width}x{height}: give the intrinsics of this resolution (scale fx, fy, cx, cy by the "
+            f"same factor as the image)"
+        )
 
 
 def mirror_camera_info(info: CameraInfo) -> CameraInfo:
@@ -121,10 +129,12 @@ def mirror_camera_info(info: CameraInfo) -> CameraInfo:
 
 def mirror_capture(capture: Capture) -> Capture:
     """The capture flipped left–right (colour and depth together), with its intrinsics adjusted."""
-    return Capture(color=np.ascontiguousarray(capture.color[:, ::-1]),
-                   depth=None if capture.depth is None else np.ascontiguousarray(capture.depth[:, ::-1]),
-                   depth_scale=capture.depth_scale,
-                   camera_info=None if capture.camera_info is None else mirror_camera_info(capture.camera_info))
+    return Capture(
+        color=np.ascontiguousarray(capture.color[:, ::-1]),
+        depth=None if capture.depth is None else np.ascontiguousarray(capture.depth[:, ::-1]),
+        depth_scale=capture.depth_scale,
+        camera_info=None if capture.camera_info is None else mirror_camera_info(capture.camera_info),
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -151,8 +161,10 @@ def read_depth(path: Path) -> np.ndarray:
     if depth is None:
         raise SourceError(f"cannot decode depth image {path}: is it a valid 16-bit PNG?")
     if depth.ndim != 2 or depth.dtype not in (np.uint16, np.float32):
-        raise SourceError(f"depth image {path} is {depth.dtype} with {1 if depth.ndim == 2 else depth.shape[2]} "
-                          f"channel(s): a depth image is one channel of 16-bit units (or 32-bit float metres)")
+        raise SourceError(
+            f"depth image {path} is {depth.dtype} with {1 if depth.ndim == 2 else depth.shape[2]} "
+            f"channel(s): a depth image is one channel of 16-bit units (or 32-bit float metres)"
+        )
     return depth
 
 
@@ -165,8 +177,10 @@ class RgbdFolderSource(Source):
             raise SourceError(f"folder {folder} holds no colour/depth pairs (NAME-color.png + NAME-depth.png)")
         if intrinsics is None:
             if not (folder / INTRINSICS_FILE).is_file():
-                raise SourceError(f"RGB-D folder {folder} has no {INTRINSICS_FILE}: write one (width, height, fx, fy, "
-                                  f"cx, cy, depth_scale; docs/vision.md) or give --intrinsics FILE")
+                raise SourceError(
+                    f"RGB-D folder {folder} has no {INTRINSICS_FILE}: write one (width, height, fx, fy, "
+                    f"cx, cy, depth_scale; docs/vision.md) or give --intrinsics FILE"
+                )
             intrinsics = read_intrinsics(folder / INTRINSICS_FILE)
         super().__init__(f"RGB-D folder {folder} ({len(pairs)} pairs)", None, True)
         self.pairs = pairs
@@ -174,8 +188,10 @@ class RgbdFolderSource(Source):
         self.depth_scale = intrinsics.depth_scale
         first_colour, first_depth = self._read(*pairs[0])  # refuse a wrong resolution at start-up
         if first_depth.dtype == np.uint16 and self.depth_scale is None:
-            raise SourceError(f"{folder / INTRINSICS_FILE}: 16-bit depth images need depth_scale (metres per "
-                              f"unit: RealSense 0.001, YCB-Video 0.0001, TUM 0.0002)")
+            raise SourceError(
+                f"{folder / INTRINSICS_FILE}: 16-bit depth images need depth_scale (metres per "
+                f"unit: RealSense 0.001, YCB-Video 0.0001, TUM 0.0002)"
+            )
 
     def _read(self, colour_path: Path, depth_path: Path) -> tuple[np.ndarray, np.ndarray]:
         colour = cv2.imread(str(colour_path), cv2.IMREAD_COLOR)
@@ -183,8 +199,10 @@ class RgbdFolderSource(Source):
             raise SourceError(f"cannot decode image {colour_path}: is it a valid image file?")
         depth = read_depth(depth_path)
         if depth.shape != colour.shape[:2]:
-            raise SourceError(f"{depth_path.name} is {depth.shape[1]}x{depth.shape[0]} but {colour_path.name} is "
-                              f"{colour.shape[1]}x{colour.shape[0]}: depth must be aligned to the colour image")
+            raise SourceError(
+                f"{depth_path.name} is {depth.shape[1]}x{depth.shape[0]} but {colour_path.name} is "
+                f"{colour.shape[1]}x{colour.shape[0]}: depth must be aligned to the colour image"
+            )
         check_intrinsics(self.info, colour.shape[1], colour.shape[0], str(colour_path))
         return colour, depth
 
@@ -197,16 +215,19 @@ class RgbdFolderSource(Source):
 # ---------------------------------------------------------------------------
 # Intel RealSense
 # ---------------------------------------------------------------------------
-REALSENSE_INSTALL = ("pip install 'hri-fusion[realsense]' (pyrealsense2; on Linux it also needs libusb-1.0-0: "
-                     "apt-get install libusb-1.0-0)")
+REALSENSE_INSTALL = (
+    "pip install 'hri-fusion[realsense]' (pyrealsense2; on Linux it also needs libusb-1.0-0: "
+    "apt-get install libusb-1.0-0)"
+)
 
 
 def import_realsense() -> Any:
     try:
         import pyrealsense2 as rs
     except ImportError as exc:
-        raise SourceError(f"a RealSense source needs pyrealsense2, which is not usable here ({exc}): "
-                          f"{REALSENSE_INSTALL}") from None
+        raise SourceError(
+            f"a RealSense source needs pyrealsense2, which is not usable here ({exc}): {REALSENSE_INSTALL}"
+        ) from None
     return rs
 
 
@@ -219,14 +240,27 @@ def realsense_camera_info(rs: Any, intrinsics: Any, frame_id: str) -> CameraInfo
         model = "plumb_bob"  # same k1 k2 p1 p2 k3 order as OpenCV
     else:
         model = str(intrinsics.model).rsplit(".", 1)[-1]  # e.g. inverse_brown_conrady: say what it is
-    return CameraInfo(width=intrinsics.width, height=intrinsics.height,
-                      k=[float(intrinsics.fx), 0.0, float(intrinsics.ppx), 0.0, float(intrinsics.fy),
-                         float(intrinsics.ppy), 0.0, 0.0, 1.0],
-                      distortion_model=model, distortion=coeffs, frame_id=frame_id)
+    return CameraInfo(
+        width=intrinsics.width,
+        height=intrinsics.height,
+        k=[
+            float(intrinsics.fx),
+            0.0,
+            float(intrinsics.ppx),
+            0.0,
+            float(intrinsics.fy),
+            float(intrinsics.ppy),
+            0.0,
+            0.0,
+            1.0,
+        ],
+        distortion_model=model,
+        distortion=coeffs,
+        frame_id=frame_id,
+    )
 
 
-def realsense_capture(rs: Any, frameset: Any, depth_scale: float, frame_id: str = DEFAULT_FRAME_ID
-                      ) -> Capture | None:
+def realsense_capture(rs: Any, frameset: Any, depth_scale: float, frame_id: str = DEFAULT_FRAME_ID) -> Capture | None:
     """A Capture from a frameset whose depth is aligned to colour (after `rs.align(rs.stream.color)`);
     None when the frameset lacks one of the two."""
     colour_frame = frameset.get_color_frame()
@@ -249,14 +283,22 @@ def realsense_capture(rs: Any, frameset: Any, depth_scale: float, frame_id: str 
 class RealSenseSource(Source):
     """An Intel RealSense: colour (bgr8) and depth (z16) at one resolution and rate, depth aligned to colour."""
 
-    def __init__(self, serial: str | None = None, width: int = 640, height: int = 480, fps: int = 30,
-                 frame_id: str = DEFAULT_FRAME_ID):
+    def __init__(
+        self,
+        serial: str | None = None,
+        width: int = 640,
+        height: int = 480,
+        fps: int = 30,
+        frame_id: str = DEFAULT_FRAME_ID,
+    ):
         rs = import_realsense()
         self.rs = rs
         devices = [d.get_info(rs.camera_info.serial_number) for d in rs.context().query_devices()]
         if not devices:
-            raise SourceError("no RealSense device found: is it plugged in (a USB 3 port) and readable by this user "
-                              "(librealsense's udev rules)? Use --source FOLDER for recorded colour/depth pairs.")
+            raise SourceError(
+                "no RealSense device found: is it plugged in (a USB 3 port) and readable by this user "
+                "(librealsense's udev rules)? Use --source FOLDER for recorded colour/depth pairs."
+            )
         if serial and serial not in devices:
             raise SourceError(f"no RealSense with serial {serial}; connected: {', '.join(devices)}")
         config = rs.config()
@@ -268,8 +310,10 @@ class RealSenseSource(Source):
         try:
             profile = self.pipeline.start(config)
         except RuntimeError as exc:
-            raise SourceError(f"the RealSense could not start {width}x{height} at {fps} fps ({exc}): try another "
-                              f"--rs-size/--fps the camera supports") from None
+            raise SourceError(
+                f"the RealSense could not start {width}x{height} at {fps} fps ({exc}): try another "
+                f"--rs-size/--fps the camera supports"
+            ) from None
         self.depth_scale = float(profile.get_device().first_depth_sensor().get_depth_scale())
         self.align = rs.align(rs.stream.color)
         self.frame_id = frame_id

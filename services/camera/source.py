@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator
@@ -21,6 +20,7 @@ class SourceError(RuntimeError):
 class Source:
     """An opened source. `frames()` yields BGR images (colour sources) or `rgbd.Capture`s (RGB-D sources);
     `native_fps` is None when the source has no clock."""
+
     description: str
     native_fps: float | None
     finite: bool

@@ -43,30 +43,64 @@ def positive(text: str) -> float:
 
 def main(argv: list[str] | None = None) -> None:
     defaults = Config()
-    parser = service_parser("fusion", "Join speech, vision and gesture on source time and publish grounded "
-                                      "commands (FusedCommand) and questions (Clarification).", EPILOG)
-    parser.add_argument("--window-before", type=positive, default=defaults.window_before, metavar="S",
-                        help=f"seconds before the utterance start searched for gestures/objects "
-                             f"(default {defaults.window_before})")
-    parser.add_argument("--window-after", type=positive, default=defaults.window_after, metavar="S",
-                        help=f"seconds after the utterance end (default {defaults.window_after})")
-    parser.add_argument("--max-wait", type=positive, default=defaults.max_wait, metavar="S",
-                        help=f"wall seconds after a transcript arrives before deciding with what is there "
-                             f"(default {defaults.max_wait})")
-    parser.add_argument("--weights", choices=("adaptive", "fixed"), default=defaults.weights,
-                        help="modality weights from each modality's evidence (adaptive, default) or constant")
-    parser.add_argument("--fallback-most-confident", action="store_true",
-                        help="when nothing matches the words, act on the most confident detection instead of "
-                             "asking (off by default: acting on the wrong object is worse than asking)")
-    parser.add_argument("--dialogue-timeout", type=positive, default=defaults.dialogue_timeout, metavar="S",
-                        help=f"seconds a clarification question stays open for an answer "
-                             f"(default {defaults.dialogue_timeout})")
+    parser = service_parser(
+        "fusion",
+        "Join speech, vision and gesture on source time and publish grounded "
+        "commands (FusedCommand) and questions (Clarification).",
+        EPILOG,
+    )
+    parser.add_argument(
+        "--window-before",
+        type=positive,
+        default=defaults.window_before,
+        metavar="S",
+        help=f"seconds before the utterance start searched for gestures/objects (default {defaults.window_before})",
+    )
+    parser.add_argument(
+        "--window-after",
+        type=positive,
+        default=defaults.window_after,
+        metavar="S",
+        help=f"seconds after the utterance end (default {defaults.window_after})",
+    )
+    parser.add_argument(
+        "--max-wait",
+        type=positive,
+        default=defaults.max_wait,
+        metavar="S",
+        help=f"wall seconds after a transcript arrives before deciding with what is there "
+        f"(default {defaults.max_wait})",
+    )
+    parser.add_argument(
+        "--weights",
+        choices=("adaptive", "fixed"),
+        default=defaults.weights,
+        help="modality weights from each modality's evidence (adaptive, default) or constant",
+    )
+    parser.add_argument(
+        "--fallback-most-confident",
+        action="store_true",
+        help="when nothing matches the words, act on the most confident detection instead of "
+        "asking (off by default: acting on the wrong object is worse than asking)",
+    )
+    parser.add_argument(
+        "--dialogue-timeout",
+        type=positive,
+        default=defaults.dialogue_timeout,
+        metavar="S",
+        help=f"seconds a clarification question stays open for an answer (default {defaults.dialogue_timeout})",
+    )
     args = parser.parse_args(argv)
 
     service = Service("fusion", args, recovering=True)
-    config = Config(window_before=args.window_before, window_after=args.window_after, max_wait=args.max_wait,
-                    weights=args.weights, fallback_most_confident=args.fallback_most_confident,
-                    dialogue_timeout=args.dialogue_timeout)
+    config = Config(
+        window_before=args.window_before,
+        window_after=args.window_after,
+        max_wait=args.max_wait,
+        weights=args.weights,
+        fallback_most_confident=args.fallback_most_confident,
+        dialogue_timeout=args.dialogue_timeout,
+    )
     core = FusionCore(config, service.source, count=service.counters.add, log=service.log)
     if not service.connect():
         main_exit(0)
@@ -80,8 +114,13 @@ def main(argv: list[str] | None = None) -> None:
             if isinstance(sample, FusedCommand):
                 # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
                 service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
-                service.log.info("command %s %s%s: %s", sample.id, sample.intent,
-                                 f" -> {sample.target.id}" if sample.target else "", sample.explanation)
+                service.log.info(
+                    "command %s %s%s: %s",
+                    sample.id,
+                    sample.intent,
+                    f" -> {sample.target.id}" if sample.target else "",
+                    sample.explanation,
+                )
             elif isinstance(sample, Clarification):
                 service.publish(clarification_key, sample, lossless=True, recovering=True)
                 service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
@@ -112,6 +151,7 @@ def main(argv: list[str] | None = None) -> None:
             service.log.debug("in %s %.3f", d.key, d.sample.stamp)
             clocks.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
             emit(feed(d.key, d.sample, d.received_at))
+
         return handle
 
     service.subscribe(keys.transcript("*"), Transcript, handler(core.on_transcript, delayed=True), maxlen=200)
@@ -133,11 +173,14 @@ def main(argv: list[str] | None = None) -> None:
             service.counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
             verdict = clock_verdict(offset, ahead_tol, behind_tol)
             if verdict == "ahead" or (verdict == "behind" and source not in delayed_sources):
-                clock_log.warn(f"clock:{source}", f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
-                               f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
-                               f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
-                               f"at the wrong moment. Keep the hosts in step with chrony or PTP "
-                               f"(docs/foundation.md); `hri stats fusion` shows every source's offset")
+                clock_log.warn(
+                    f"clock:{source}",
+                    f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
+                    f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
+                    f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
+                    f"at the wrong moment. Keep the hosts in step with chrony or PTP "
+                    f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
+                )
 
     def tick() -> None:
         while True:
@@ -153,9 +196,14 @@ def main(argv: list[str] | None = None) -> None:
         report_clocks(now)
         emit(core.tick(now))
 
-    service.log.info("fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s", config.window_before,
-                     config.window_after, config.max_wait, config.weights,
-                     ", fallback to the most confident detection" if config.fallback_most_confident else "")
+    service.log.info(
+        "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
+        config.window_before,
+        config.window_after,
+        config.max_wait,
+        config.weights,
+        ", fallback to the most confident detection" if config.fallback_most_confident else "",
+    )
     main_exit(service.run(tick=tick, tick_interval=0.02))
 
 

@@ -21,11 +21,11 @@ import numpy as np
 
 from common.colour import name_similarity, term_fits
 
-PLAUSIBLE = 0.2         # a measured colour fits the term this well (ΔE94 ≈ 1.8 σ): plausibly that colour
-PLAUSIBLE_NAME = 0.5    # from a name alone: the name's prototype within ≈ 1.2 σ of the term (red/orange, grey/white)
-ABOUT_EQUAL = 0.75      # fits within this share of the best one are the same answer to the words
+PLAUSIBLE = 0.2  # a measured colour fits the term this well (ΔE94 ≈ 1.8 σ): plausibly that colour
+PLAUSIBLE_NAME = 0.5  # from a name alone: the name's prototype within ≈ 1.2 σ of the term (red/orange, grey/white)
+ABOUT_EQUAL = 0.75  # fits within this share of the best one are the same answer to the words
 SHARPNESS = 4.0
-UNKNOWN = 0.5           # no colour reported: neither fits nor excluded
+UNKNOWN = 0.5  # no colour reported: neither fits nor excluded
 
 
 class Coloured(Protocol):

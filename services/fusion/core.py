@@ -50,14 +50,20 @@ def modality_of(service: str) -> str | None:
 
 
 class FusionCore:
-    def __init__(self, config: Config, source: str, count: Callable[[str], None] = lambda name: None,
-                 log: logging.Logger | None = None):
+    def __init__(
+        self,
+        config: Config,
+        source: str,
+        count: Callable[[str], None] = lambda name: None,
+        log: logging.Logger | None = None,
+    ):
         self.cfg = config
         self.source = source
         self.count = count
         self.log = log or logging.getLogger("hri.fusion.core")
-        self.join: Join[PendingTranscript] = Join(config.horizon, config.vision_lookback, config.max_wait,
-                                                  config.live_recent_s)
+        self.join: Join[PendingTranscript] = Join(
+            config.horizon, config.vision_lookback, config.max_wait, config.live_recent_s
+        )
         self.gestures = Gestures(config.gesture_min_score, config.episode_gap, config.horizon)
         self.outputs = Outputs(source)
         self.dialogue = Dialogue(self.outputs, config.dialogue_timeout, self.count, self.log)
@@ -72,9 +78,13 @@ class FusionCore:
             return False
         if status == "reset":
             self.count("timeline_reset")
-            self.log.info("%s went back in time (consistent samples older than the %.0f s horizon: a replay "
-                          "restarted or a clock stepped back): buffer for %s restarted", key, self.cfg.horizon,
-                          modality)
+            self.log.info(
+                "%s went back in time (consistent samples older than the %.0f s horizon: a replay "
+                "restarted or a clock stepped back): buffer for %s restarted",
+                key,
+                self.cfg.horizon,
+                modality,
+            )
         return True
 
     def on_detections(self, key: str, det: Detections, wall: float) -> list[Output]:
@@ -109,16 +119,20 @@ class FusionCore:
             self.count("duplicate")
             return []
         u = parse(t.text)
-        near = None if u.intent == "stop" else stop_near_miss(
-            [(w.word, w.confidence) for w in t.words] or [(t.text, t.confidence)])
+        near = (
+            None
+            if u.intent == "stop"
+            else stop_near_miss([(w.word, w.confidence) for w in t.words] or [(t.text, t.confidence)])
+        )
         if u.intent == "stop" or near:  # no window to wait for: stop now
             self.dialogue.close()
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
             if near:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
             return [self.outputs.command(t, "stop", None, confidence=t.confidence, explanation=why, realtime=True)]
-        self.join.open(PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before,
-                                         t.end + self.cfg.window_after))
+        self.join.open(
+            PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before, t.end + self.cfg.window_after)
+        )
         return []
 
     def on_liveliness(self, service: str, instance: str, present: bool) -> None:
@@ -134,8 +148,15 @@ class FusionCore:
         return out
 
     def context(self, p: PendingTranscript, how: Ready) -> Context:
-        return gather(self.join.streams, p, how, weights_mode=self.cfg.weights,
-                      vision_lookback=self.cfg.vision_lookback, margin=self.cfg.margin, log=self.log)
+        return gather(
+            self.join.streams,
+            p,
+            how,
+            weights_mode=self.cfg.weights,
+            vision_lookback=self.cfg.vision_lookback,
+            margin=self.cfg.margin,
+            log=self.log,
+        )
 
     # -- decisions ------------------------------------------------------------
     def decide(self, p: PendingTranscript, how: Ready) -> list[Output]:
@@ -177,10 +198,14 @@ class FusionCore:
             self.log.info("'%s': %s", t.text, why)
         speech_rel = ctx.reliabilities["speech"] or 0.0
         named = u.obj.specific or u.obj.noun is not None
-        wants_object = intent in TARGET_INTENTS or (intent in ("look_at", "follow") and (
-            named or u.obj.deictic)) or (intent == "go_to" and named)
+        wants_object = (
+            intent in TARGET_INTENTS
+            or (intent in ("look_at", "follow") and (named or u.obj.deictic))
+            or (intent == "go_to" and named)
+        )
         wants_location = (intent == "go_to" and not wants_object and not u.place) or (
-            intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj))
+            intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj)
+        )
         target: Scored | None = None
         runner_up: Scored | None = None
         overruled = None
@@ -188,16 +213,21 @@ class FusionCore:
             choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
             if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
                 self.count("unknown_noun")
-                return [self.dialogue.clarify(t, u, ctx, Choice("not_found", None, ()),
-                                              Draft(intent, t.text, place=u.place))]
+                return [
+                    self.dialogue.clarify(
+                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
+                    )
+                ]
             target, runner_up = choice.winner, choice.runner_up
         elif wants_object:
             choice = self._choose(u.obj, ctx)
             if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
                 best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
                 scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
-                expl = (f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
-                        f"detection {best.id} ({best.name()}, score {best.score:.2f})")
+                expl = (
+                    f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
+                    f"detection {best.id} ({best.name()}, score {best.score:.2f})"
+                )
                 return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
             if choice.kind not in ("target", "low_confidence"):
                 return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, place=u.place))]
@@ -205,8 +235,9 @@ class FusionCore:
             runner_up = choice.runner_up
             overruled = choice.overruled
             if choice.kind == "low_confidence":
-                return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target.obj,
-                                                                       place=u.place))]
+                return [
+                    self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target.obj, place=u.place))
+                ]
         elif intent == "put_down" and u.obj.specific:
             choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
             target = choice.winner if choice.kind == "target" else None
@@ -214,13 +245,14 @@ class FusionCore:
         if wants_location:
             location = self._location(u, ctx)
             if location is None:
-                return [self.dialogue.clarify_place(t, u, Draft(intent, t.text,
-                                                                target=target.obj if target else None))]
-        gesture_carried = target is not None and (target.gesture or 0.0) >= 0.5 and \
-            ctx.weights.gesture >= ctx.weights.speech
+                return [self.dialogue.clarify_place(t, u, Draft(intent, t.text, target=target.obj if target else None))]
+        gesture_carried = (
+            target is not None and (target.gesture or 0.0) >= 0.5 and ctx.weights.gesture >= ctx.weights.speech
+        )
         if speech_rel < self.cfg.low_speech_confidence and not gesture_carried:
-            draft = Draft(intent, t.text, target=target.obj if target else None, location=location, place=u.place,
-                          motion=u.motion)
+            draft = Draft(
+                intent, t.text, target=target.obj if target else None, location=location, place=u.place, motion=u.motion
+            )
             choice = Choice("low_confidence", target, (target,) if target else ())
             return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
         if target is not None:
@@ -231,12 +263,25 @@ class FusionCore:
                 expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
             self.dialogue.acted(t, intent, t.text, target.obj, u.obj, u.place)
             return [self.outputs.target_command(t, intent, target, location, ctx, expl, place=u.place)]
-        expl = f"'{t.text}' -> {intent}" + (f" to the {u.place}" if u.place else "") + (
-            f"; location from the pointing ray at ({location.x:.0f}, {location.y:.0f})" if location else "") + (
-            f": {describe.motion_words(u.motion)}" if u.motion else "")
-        return [self.outputs.command(t, intent, ctx, confidence=speech_rel, explanation=expl, location=location,
-                                     gesture="point" if location and ctx.pointing else None, place=u.place,
-                                     motion=u.motion)]
+        expl = (
+            f"'{t.text}' -> {intent}"
+            + (f" to the {u.place}" if u.place else "")
+            + (f"; location from the pointing ray at ({location.x:.0f}, {location.y:.0f})" if location else "")
+            + (f": {describe.motion_words(u.motion)}" if u.motion else "")
+        )
+        return [
+            self.outputs.command(
+                t,
+                intent,
+                ctx,
+                confidence=speech_rel,
+                explanation=expl,
+                location=location,
+                gesture="point" if location and ctx.pointing else None,
+                place=u.place,
+                motion=u.motion,
+            )
+        ]
 
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
         return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)

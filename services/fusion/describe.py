@@ -6,7 +6,7 @@ from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
 from common.schema import Location
 from services.fusion import space
 from services.fusion.evidence import Pointing
-from services.fusion.ground import Scored, SceneObject
+from services.fusion.ground import SceneObject, Scored
 from services.fusion.parse import Motion, ObjectPhrase
 from services.fusion.relations import fit_matrix
 
@@ -46,7 +46,7 @@ def positions_clear(objs: list[SceneObject], where: list[str]) -> bool:
     if len(set(where)) < len(where):
         return False
     for i, a in enumerate(objs):
-        for b in objs[i + 1:]:
+        for b in objs[i + 1 :]:
             dx, dy = abs(a.center[0] - b.center[0]), abs(a.center[1] - b.center[1])
             if dx < 0.5 * (a.bbox[2] + b.bbox[2]) / 2 and dy < 0.5 * (a.bbox[3] + b.bbox[3]) / 2:
                 return False
@@ -111,18 +111,25 @@ def ambiguous_question(phrase: ObjectPhrase, candidates: list[Scored], scene: li
     objs = [c.obj for c in candidates]
     labels = {o.label for o in objs}
     what = next(iter(labels)) if len(labels) == 1 else phrase.label if phrase.label in OBJECT_CATEGORIES else "one"
-    if len(objs) > 3 and len({o.color for o in objs}) == 1 and len(set(relative_positions(objs))) < len(objs) \
-            and not (scene and landmarks(objs, scene)):
-        return (f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{plural(what)} that fit. "
-                f"Which one? Point at it, or say where it is (left, right, top, bottom).")
+    if (
+        len(objs) > 3
+        and len({o.color for o in objs}) == 1
+        and len(set(relative_positions(objs))) < len(objs)
+        and not (scene and landmarks(objs, scene))
+    ):
+        return (
+            f"I see {len(objs)} {(objs[0].color + ' ') if objs[0].color else ''}{plural(what)} that fit. "
+            f"Which one? Point at it, or say where it is (left, right, top, bottom)."
+        )
     unchecked = f"I can't tell {' '.join(phrase.unmatched)} by sight. " if phrase.unmatched else ""
     return f"{unchecked}Which {what}: {or_list(candidate_phrases(objs, scene))}?"
 
 
 def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> str:
     a, b = candidate_phrases([said.obj, pointed.obj])
-    return (f"You said the {phrase.describe()} but pointed at the {pointed.obj.name()}. "
-            f"Which one do you mean: {a} or {b}?")
+    return (
+        f"You said the {phrase.describe()} but pointed at the {pointed.obj.name()}. Which one do you mean: {a} or {b}?"
+    )
 
 
 def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
@@ -136,8 +143,11 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
         what = f"the {phrase.describe()}" if phrase.specific else "what you mean"
         lead = f"I can't see {what}."
     if vision_missing:
-        return f"{lead} I can't see anything right now (no camera input). Can you show me?" if phrase.noun else \
-            f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
+        return (
+            f"{lead} I can't see anything right now (no camera input). Can you show me?"
+            if phrase.noun
+            else f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
+        )
     if not visible:
         return f"{lead} I don't see any objects. Can you show me?"
     if phrase.relations and not unknown and phrase.label:
@@ -145,8 +155,9 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
         if kind:  # the thing is there, the relation is not: say which part did not fit
             where = " and ".join(r.describe() for r in phrase.relations)
             noun = phrase.label if phrase.label != ANY_OBJECT else "one"
-            return f"I can see {and_list([a(o.name()) for o in kind[:3]])}, but no {noun} {where}. " \
-                f"Which one do you mean?"
+            return (
+                f"I can see {and_list([a(o.name()) for o in kind[:3]])}, but no {noun} {where}. Which one do you mean?"
+            )
     shown = sorted(visible[:4], key=lambda o: (o.cam, o.center[0], o.id))  # read left to right, like the scene
     names = [o.name() for o in shown]
     if len(set(names)) < len(names):  # two of a kind: say where each is
@@ -157,11 +168,16 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
 def confirm_question(text: str, candidate: Scored | None) -> str:
     if candidate is not None:
         return f"I'm not sure. Do you mean the {candidate.obj.name()} {region(candidate.obj)}?"
-    return f"I'm not sure I heard you. Did you say: \"{text}\"?"
+    return f'I\'m not sure I heard you. Did you say: "{text}"?'
 
 
-def explain_target(choice_winner: Scored, runner_up: Scored | None, weights: dict[str, float],
-                   phrase: ObjectPhrase, overruled: str | None) -> str:
+def explain_target(
+    choice_winner: Scored,
+    runner_up: Scored | None,
+    weights: dict[str, float],
+    phrase: ObjectPhrase,
+    overruled: str | None,
+) -> str:
     o = choice_winner.obj
     reasons = []
     if phrase.specific:
@@ -169,8 +185,11 @@ def explain_target(choice_winner: Scored, runner_up: Scored | None, weights: dic
         fit = "fits" if choice_winner.match >= 0.5 else "does not fit"
         reasons.append(f"it {fit} '{said}' (speech {choice_winner.speech:.2f}, vision trust {choice_winner.trust:.2f})")
     if choice_winner.gesture is not None:
-        angle = f"{choice_winner.angle:.0f} deg off the pointing ray" if choice_winner.angle is not None else \
-            "not on the pointing ray"
+        angle = (
+            f"{choice_winner.angle:.0f} deg off the pointing ray"
+            if choice_winner.angle is not None
+            else "not on the pointing ray"
+        )
         reasons.append(f"{angle} (gesture {choice_winner.gesture:.2f})")
     if not reasons:
         reasons.append("it is the only object in view")
@@ -178,12 +197,16 @@ def explain_target(choice_winner: Scored, runner_up: Scored | None, weights: dic
     if runner_up is not None:
         text += f"; runner-up {runner_up.obj.id} ({runner_up.obj.name()}) {runner_up.total:.2f}"
     if overruled == "speech":
-        text += (f". Speech and pointing disagreed; pointing won (gesture weight {weights['gesture']:.2f} vs "
-                 f"speech {weights['speech']:.2f}, and vision trusts its labels for the said object only "
-                 f"{choice_winner.trust:.2f})")
+        text += (
+            f". Speech and pointing disagreed; pointing won (gesture weight {weights['gesture']:.2f} vs "
+            f"speech {weights['speech']:.2f}, and vision trusts its labels for the said object only "
+            f"{choice_winner.trust:.2f})"
+        )
     elif overruled == "gesture":
-        text += (f". Speech and pointing disagreed; speech won (speech weight {weights['speech']:.2f} vs "
-                 f"gesture {weights['gesture']:.2f})")
+        text += (
+            f". Speech and pointing disagreed; speech won (speech weight {weights['speech']:.2f} vs "
+            f"gesture {weights['gesture']:.2f})"
+        )
     return text
 
 
@@ -195,41 +218,64 @@ def motion_words(m: Motion) -> str:
     return f"move {m.direction} {amount}"
 
 
-def planner_prompt(*, text: str | None, intent: str, target: SceneObject | None, location: Location | None,
-                   place: str | None, pointing: Pointing | None, gesture: str | None,
-                   objects: list[SceneObject], missing: list[str], explanation: str,
-                   motion: Motion | None = None) -> str:
+def planner_prompt(
+    *,
+    text: str | None,
+    intent: str,
+    target: SceneObject | None,
+    location: Location | None,
+    place: str | None,
+    pointing: Pointing | None,
+    gesture: str | None,
+    objects: list[SceneObject],
+    missing: list[str],
+    explanation: str,
+    motion: Motion | None = None,
+) -> str:
     """Everything a planner needs, in plain text, from the same data the decision used."""
     lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
     if motion is not None:
         said = f', said as "{motion.amount}"' if motion.amount else ""
-        lines.append(f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces, "
-                     f"left/right = its own left/right{said})")
+        lines.append(
+            f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces, "
+            f"left/right = its own left/right{said})"
+        )
     if target is not None:
-        lines.append(f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
-                     f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}"
-                     + space.metres_words(target.position, target.frame_id, target.extent))
+        lines.append(
+            f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
+            f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}"
+            + space.metres_words(target.position, target.frame_id, target.extent)
+        )
     if location is not None:
-        lines.append(f"Location: pixel ({location.x:.0f}, {location.y:.0f}) in camera {location.cam}"
-                     + space.metres_words(location.position, location.frame_id))
+        lines.append(
+            f"Location: pixel ({location.x:.0f}, {location.y:.0f}) in camera {location.cam}"
+            + space.metres_words(location.position, location.frame_id)
+        )
     if place:
         lines.append(f"Place: {place}")
     if pointing is not None:
-        lines.append(f"Gesture: {pointing.hand} hand pointing from ({pointing.origin[0]:.0f}, "
-                     f"{pointing.origin[1]:.0f}) towards ({pointing.direction[0]:.2f}, {pointing.direction[1]:.2f}) "
-                     f"in camera {pointing.cam}" + space.ray_words(pointing.ray3d))
+        lines.append(
+            f"Gesture: {pointing.hand} hand pointing from ({pointing.origin[0]:.0f}, "
+            f"{pointing.origin[1]:.0f}) towards ({pointing.direction[0]:.2f}, {pointing.direction[1]:.2f}) "
+            f"in camera {pointing.cam}" + space.ray_words(pointing.ray3d)
+        )
     elif gesture:
         lines.append(f"Gesture: {gesture}")
     if objects:
         shown = sorted(objects, key=lambda o: (-o.score, o.cam, o.id))[:PROMPT_MAX_OBJECTS]
         if target is not None and target not in shown:
             shown[-1] = target
-        lines.append(f"Objects in view ({len(objects)}" + (f", {len(shown)} most confident listed" if
-                                                        len(shown) < len(objects) else "") + "):")
+        lines.append(
+            f"Objects in view ({len(objects)}"
+            + (f", {len(shown)} most confident listed" if len(shown) < len(objects) else "")
+            + "):"
+        )
         for o in sorted(shown, key=lambda o: (o.cam, o.center[0], o.id)):
-            lines.append(f"- {o.id}: {o.name()} at ({o.center[0]:.0f}, {o.center[1]:.0f}) size "
-                         f"{o.bbox[2]:.0f}x{o.bbox[3]:.0f} in camera {o.cam} ({o.width}x{o.height}), {region(o)}, "
-                         f"score {o.score:.2f}" + space.metres_words(o.position, o.frame_id))
+            lines.append(
+                f"- {o.id}: {o.name()} at ({o.center[0]:.0f}, {o.center[1]:.0f}) size "
+                f"{o.bbox[2]:.0f}x{o.bbox[3]:.0f} in camera {o.cam} ({o.width}x{o.height}), {region(o)}, "
+                f"score {o.score:.2f}" + space.metres_words(o.position, o.frame_id)
+            )
     else:
         lines.append("Objects in view: none reported")
     if missing:

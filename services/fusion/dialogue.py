@@ -27,6 +27,7 @@ from services.fusion.window import Context
 @dataclass
 class Draft:
     """A command that is ready except for the person's answer."""
+
     intent: str
     text: str
     target: SceneObject | None = None
@@ -38,6 +39,7 @@ class Draft:
 @dataclass
 class LastCommand:
     """The latest command that acted on an object: "no, the other one" corrects it."""
+
     intent: str
     text: str
     target: SceneObject
@@ -49,6 +51,7 @@ class LastCommand:
 @dataclass
 class Question:
     """The open clarification."""
+
     clarification_id: str
     reason: str
     draft: Draft
@@ -85,14 +88,16 @@ class Dialogue:
         if self.last is not None and said_at > self.last.expires:
             self.last = None
 
-    def acted(self, t: Transcript, intent: str, text: str, target: SceneObject, phrase: ObjectPhrase,
-              place: str | None) -> None:
+    def acted(
+        self, t: Transcript, intent: str, text: str, target: SceneObject, phrase: ObjectPhrase, place: str | None
+    ) -> None:
         """A command acted on `target`: "no, the other one" may follow."""
         self.last = LastCommand(intent, text, target, phrase, place, t.end + self.timeout)
 
     # -- asking ---------------------------------------------------------------------
-    def clarify(self, t: Transcript, u: Utterance, ctx: Context, choice: Choice, draft: Draft,
-                heard: bool = False) -> Output:
+    def clarify(
+        self, t: Transcript, u: Utterance, ctx: Context, choice: Choice, draft: Draft, heard: bool = False
+    ) -> Output:
         """Ask about the object of `draft`: which one (ambiguous, conflict), did you say (low confidence), or what
         (not found: the answer may pick any visible object)."""
         if choice.kind == "conflict":
@@ -108,29 +113,41 @@ class Dialogue:
             visible = sorted(ctx.objects, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
             question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing)
             candidates = visible
-        return self._ask(t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates,
-                         question)
+        return self._ask(
+            t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates, question
+        )
 
     def clarify_place(self, t: Transcript, u: Utterance, draft: Draft) -> Output:
-        question = "Where do you mean? Please point at the place." if u.deictic_place or not u.dest_obj else \
-            f"I can't see the {u.dest_obj.describe()}. Where should I put it?"
+        question = (
+            "Where do you mean? Please point at the place."
+            if u.deictic_place or not u.dest_obj
+            else f"I can't see the {u.dest_obj.describe()}. Where should I put it?"
+        )
         return self._ask(t, "not_found", draft, ObjectPhrase(), [], [], question)
 
-    def _ask(self, t: Transcript, reason: str, draft: Draft, phrase: ObjectPhrase, shown: list[SceneObject],
-             candidates: list[SceneObject], question: str) -> Output:
+    def _ask(
+        self,
+        t: Transcript,
+        reason: str,
+        draft: Draft,
+        phrase: ObjectPhrase,
+        shown: list[SceneObject],
+        candidates: list[SceneObject],
+        question: str,
+    ) -> Output:
         out = self.outputs.clarification(t, reason, question, shown)
         self.question = Question(out.sample.id, reason, draft, phrase, candidates, t.end + self.timeout, question)
         self.count(f"clarification_{reason}")
         return out
 
-    def _reask(self, t: Transcript, q: Question, candidates: list[SceneObject],
-               scene: list[SceneObject] | None = None) -> Output:
+    def _reask(
+        self, t: Transcript, q: Question, candidates: list[SceneObject], scene: list[SceneObject] | None = None
+    ) -> Output:
         self.count("dialogue_unresolved")
         scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
         question = describe.ambiguous_question(q.phrase, scored, scene) if len(candidates) > 1 else q.question
         out = self.outputs.clarification(t, q.reason, question, candidates)
-        self.question = Question(out.sample.id, q.reason, q.draft, q.phrase, candidates, t.end + self.timeout,
-                                 question)
+        self.question = Question(out.sample.id, q.reason, q.draft, q.phrase, candidates, t.end + self.timeout, question)
         return out
 
     # -- answers and corrections -------------------------------------------------------
@@ -157,20 +174,24 @@ class Dialogue:
                 draft = q.draft
                 if draft.target is None and q.candidates:
                     draft.target = q.candidates[0]
-                return [self._from_draft(t, draft, ctx, f"confirmed by '{t.text}' (question {q.clarification_id})",
-                                         phrase=q.phrase)]
+                return [
+                    self._from_draft(
+                        t, draft, ctx, f"confirmed by '{t.text}' (question {q.clarification_id})", phrase=q.phrase
+                    )
+                ]
             return [self._reask(t, q, q.candidates, ctx.objects)]
         pool = q.candidates if q.candidates and q.reason != "not_found" else ctx.objects or q.candidates
         choice = ctx.choose(u.obj, pool, ctx.pointing, None, check_evidence=False)
         if choice.kind == "target" and choice.winner is not None:
             q.draft.target = choice.winner.obj
             why = f"'{t.text}' answered question {q.clarification_id}: " + describe.explain_target(
-                choice.winner, choice.runner_up, ctx.weights.to_dict(), u.obj, None)
+                choice.winner, choice.runner_up, ctx.weights.to_dict(), u.obj, None
+            )
             return [self._from_draft(t, q.draft, ctx, why, confidence=choice.winner.total, phrase=q.phrase)]
         return [self._reask(t, q, [c.obj for c in choice.candidates] or q.candidates, ctx.objects)]
 
     def _other_answer(self, t: Transcript, u: Utterance, ctx: Context, q: Question) -> list[Output]:
-        """"The other one" / "not that one": every candidate but the one proposed, pointed at or acted on."""
+        """ "The other one" / "not that one": every candidate but the one proposed, pointed at or acted on."""
         excluded: SceneObject | None = q.draft.target
         if excluded is None and u.obj.deictic and ctx.pointing is not None and q.candidates:
             pointed = best_pointed(ctx.pointing, q.candidates)
@@ -184,19 +205,24 @@ class Dialogue:
             pool = [o for o in ctx.objects if label_matches(kind, o.label)]
         remaining = [o for o in pool if excluded is None or o.key != excluded.key]
         if u.obj.specific:
-            fit = [s.obj for s in score(u.obj, remaining, None, ctx.weights, adaptive=False, scene=ctx.objects)
-                   if s.match >= 0.5]
+            fit = [
+                s.obj
+                for s in score(u.obj, remaining, None, ctx.weights, adaptive=False, scene=ctx.objects)
+                if s.match >= 0.5
+            ]
             remaining = fit or remaining
         if excluded is not None and len(remaining) == 1:
             q.draft.target = remaining[0]
-            why = (f"'{t.text}' answered question {q.clarification_id}: not {excluded.id} ({excluded.name()}), "
-                   f"so the other candidate {remaining[0].id} ({remaining[0].name()})")
+            why = (
+                f"'{t.text}' answered question {q.clarification_id}: not {excluded.id} ({excluded.name()}), "
+                f"so the other candidate {remaining[0].id} ({remaining[0].name()})"
+            )
             return [self._from_draft(t, q.draft, ctx, why, phrase=q.phrase)]
         q.draft.target = None
         return [self._reask(t, q, remaining if excluded is not None and remaining else pool, ctx.objects)]
 
     def _correct_last(self, t: Transcript, u: Utterance, ctx: Context, last: LastCommand) -> list[Output]:
-        """"No, the other one" / "not that one" / "no, the blue one" just after a command: the same command on
+        """ "No, the other one" / "not that one" / "no, the blue one" just after a command: the same command on
         another object — of the same kind as the one acted on, unless the correction names another kind."""
         self.last = None
         self.count("corrected_by_speech")
@@ -207,20 +233,39 @@ class Dialogue:
         choice = ctx.choose(phrase, pool, None, ctx.ref, check_evidence=False)
         if choice.kind == "target" and choice.winner is not None:
             draft.target = choice.winner.obj
-            why = (f"'{t.text}' corrected '{last.text}': not {last.target.id} ({last.target.name()}); "
-                   + describe.explain_target(choice.winner, choice.runner_up, ctx.weights.to_dict(), phrase, None))
+            why = (
+                f"'{t.text}' corrected '{last.text}': not {last.target.id} ({last.target.name()}); "
+                + describe.explain_target(choice.winner, choice.runner_up, ctx.weights.to_dict(), phrase, None)
+            )
             return [self._from_draft(t, draft, ctx, why, confidence=choice.winner.total, phrase=phrase)]
         if choice.kind != "ambiguous":
             choice = Choice("not_found", None, ())
         return [self.clarify(t, replace(u, obj=phrase), ctx, choice, draft)]
 
-    def _from_draft(self, t: Transcript, draft: Draft, ctx: Context, why: str, confidence: float | None = None,
-                    phrase: ObjectPhrase | None = None) -> Output:
+    def _from_draft(
+        self,
+        t: Transcript,
+        draft: Draft,
+        ctx: Context,
+        why: str,
+        confidence: float | None = None,
+        phrase: ObjectPhrase | None = None,
+    ) -> Output:
         """The drafted command, now decided: the question is over."""
         self.question = None
         if draft.target is not None:
             self.acted(t, draft.intent, draft.text, draft.target, phrase or ObjectPhrase(), draft.place)
         conf = confidence if confidence is not None else (ctx.reliabilities["speech"] or 0.0)
-        return self.outputs.command(t, draft.intent, ctx, confidence=conf, explanation=why,
-                                    text=f"{draft.text} / {t.text}", target=draft.target, location=draft.location,
-                                    gesture="point" if ctx.pointing else None, place=draft.place, motion=draft.motion)
+        return self.outputs.command(
+            t,
+            draft.intent,
+            ctx,
+            confidence=conf,
+            explanation=why,
+            text=f"{draft.text} / {t.text}",
+            target=draft.target,
+            location=draft.location,
+            gesture="point" if ctx.pointing else None,
+            place=draft.place,
+            motion=draft.motion,
+        )

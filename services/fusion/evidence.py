@@ -58,6 +58,7 @@ def vision_reliability(detections: list[Detections]) -> float:
 @dataclass(frozen=True)
 class PointingObs:
     """One observation of a pointing ray (from a Hands frame or a point GestureEvent)."""
+
     stamp: float
     cam: str
     hand: str
@@ -73,6 +74,7 @@ class PointingObs:
 @dataclass(frozen=True)
 class Pointing:
     """The pointing gesture nearest the reference time, averaged over its cluster."""
+
     stamp: float
     cam: str
     hand: str
@@ -98,17 +100,39 @@ def pointing_from_hands(hands: Hands) -> list[PointingObs]:
         if h.ray is None or h.gesture not in (None, "point"):
             continue
         xs, ys = [p[0] for p in h.landmarks], [p[1] for p in h.landmarks]
-        out.append(PointingObs(hands.stamp, hands.cam, h.hand, tuple(h.ray.origin), tuple(h.ray.direction),
-                               h.ray.confidence * h.score, hands.width, hands.height,
-                               (min(xs), min(ys), max(xs), max(ys)), ray3d=space.from_wire(h.ray.ray3d)))
+        out.append(
+            PointingObs(
+                hands.stamp,
+                hands.cam,
+                h.hand,
+                tuple(h.ray.origin),
+                tuple(h.ray.direction),
+                h.ray.confidence * h.score,
+                hands.width,
+                hands.height,
+                (min(xs), min(ys), max(xs), max(ys)),
+                ray3d=space.from_wire(h.ray.ray3d),
+            )
+        )
     return out
 
 
 def pointing_from_event(ev: GestureEvent) -> list[PointingObs]:
     if ev.gesture != "point" or ev.ray is None:
         return []
-    return [PointingObs(ev.stamp, ev.cam, ev.hand, tuple(ev.ray.origin), tuple(ev.ray.direction),
-                        ev.ray.confidence * ev.score, ev.width, ev.height, ray3d=space.from_wire(ev.ray.ray3d))]
+    return [
+        PointingObs(
+            ev.stamp,
+            ev.cam,
+            ev.hand,
+            tuple(ev.ray.origin),
+            tuple(ev.ray.direction),
+            ev.ray.confidence * ev.score,
+            ev.width,
+            ev.height,
+            ray3d=space.from_wire(ev.ray.ray3d),
+        )
+    ]
 
 
 def _angle_deg(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -121,9 +145,14 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
     if not observations:
         return None
     nearest = min(observations, key=lambda o: (abs(o.stamp - ref), o.stamp, o.cam, o.hand))
-    cluster = sorted((o for o in observations if o.cam == nearest.cam and o.hand == nearest.hand
-                      and abs(o.stamp - nearest.stamp) <= POINTING_CLUSTER_S),
-                     key=lambda o: (o.stamp, o.origin, o.direction))
+    cluster = sorted(
+        (
+            o
+            for o in observations
+            if o.cam == nearest.cam and o.hand == nearest.hand and abs(o.stamp - nearest.stamp) <= POINTING_CLUSTER_S
+        ),
+        key=lambda o: (o.stamp, o.origin, o.direction),
+    )
     wsum = sum(max(o.confidence, 1e-6) for o in cluster)
     ox = sum(o.origin[0] * max(o.confidence, 1e-6) for o in cluster) / wsum
     oy = sum(o.origin[1] * max(o.confidence, 1e-6) for o in cluster) / wsum
@@ -138,12 +167,26 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
         spread, stability = 0.0, SINGLE_SAMPLE_STABILITY
     confidence = sum(o.confidence for o in cluster) / len(cluster)
     boxes = [o.hand_box for o in cluster if o.hand_box is not None]
-    hand_box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes),
-                max(b[3] for b in boxes)) if boxes else None
-    return Pointing(stamp=nearest.stamp, cam=nearest.cam, hand=nearest.hand, origin=(ox, oy), direction=direction,
-                    confidence=confidence, stability=stability, spread_deg=spread, n=len(cluster),
-                    width=nearest.width, height=nearest.height, hand_box=hand_box,
-                    ray3d=space.mean_ray([(o.ray3d, o.confidence) for o in cluster]))
+    hand_box = (
+        (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes), max(b[3] for b in boxes))
+        if boxes
+        else None
+    )
+    return Pointing(
+        stamp=nearest.stamp,
+        cam=nearest.cam,
+        hand=nearest.hand,
+        origin=(ox, oy),
+        direction=direction,
+        confidence=confidence,
+        stability=stability,
+        spread_deg=spread,
+        n=len(cluster),
+        width=nearest.width,
+        height=nearest.height,
+        hand_box=hand_box,
+        ray3d=space.mean_ray([(o.ray3d, o.confidence) for o in cluster]),
+    )
 
 
 def modality_weights(mode: str, reliabilities: dict[str, float | None]) -> Weights:

@@ -43,8 +43,9 @@ class Gestures:
             return None
         if ev.gesture == "open_palm":
             self.stops.append(ev.start)
-            return GestureCommand("stop", True, f"open palm shown by the {ev.hand} hand (score {ev.score:.2f}): "
-                                                f"stop at once")
+            return GestureCommand(
+                "stop", True, f"open palm shown by the {ev.hand} hand (score {ev.score:.2f}): stop at once"
+            )
         self.waves.append(ev.start)
         return GestureCommand("come_here", False, f"{ev.hand} hand waving (score {ev.score:.2f}): come here")
 
@@ -61,8 +62,9 @@ class Gestures:
             return True
         frames = 0
         for item in gesture_items:
-            if isinstance(item, Hands) and any(h.gesture == "open_palm" and h.score >= self.min_score
-                                               for h in item.hands):
+            if isinstance(item, Hands) and any(
+                h.gesture == "open_palm" and h.score >= self.min_score for h in item.hands
+            ):
                 frames += 1
         return frames >= OPEN_PALM_FRAMES
 

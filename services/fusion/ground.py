@@ -48,6 +48,7 @@ FARTHER_ALONG = 0.5  # the gesture evidence of the other objects when one is und
 @dataclass(frozen=True)
 class SceneObject:
     """A detected object with the context of the sample it came from."""
+
     id: str
     label: str  # the detector's label in the language's spelling (common.language.canonical_label)
     raw_label: str
@@ -64,14 +65,21 @@ class SceneObject:
     extent: tuple[float, float, float] | None = None
     frame_id: str | None = None
     lab: tuple[float, float, float] | None = None  # measured colour (CIELAB), when vision's colour model sent one
-    colors: tuple[tuple[str, float], ...] = ()      # likeliest colour names with probabilities
+    colors: tuple[tuple[str, float], ...] = ()  # likeliest colour names with probabilities
 
     def to_target(self) -> Target:
-        return Target(id=self.id, label=self.raw_label, color=self.color, bbox=list(self.bbox),
-                      center=list(self.center), score=self.score, cam=self.cam,
-                      position=list(self.position) if self.position else None,
-                      extent=list(self.extent) if self.extent else None,
-                      frame_id=self.frame_id if self.position else None)
+        return Target(
+            id=self.id,
+            label=self.raw_label,
+            color=self.color,
+            bbox=list(self.bbox),
+            center=list(self.center),
+            score=self.score,
+            cam=self.cam,
+            position=list(self.position) if self.position else None,
+            extent=list(self.extent) if self.extent else None,
+            frame_id=self.frame_id if self.position else None,
+        )
 
     @property
     def key(self) -> tuple[str, str]:
@@ -86,13 +94,27 @@ def scene_objects(detections: list[Detections]) -> list[SceneObject]:
     for det in detections:
         q = image_quality(det.quality)
         for o in det.objects:
-            out.append(SceneObject(id=o.id, label=canonical_label(o.label), raw_label=o.label, color=o.color,
-                                   bbox=tuple(o.bbox), center=tuple(o.center), score=o.score, cam=det.cam,
-                                   width=det.width, height=det.height, stamp=det.stamp, quality=q,
-                                   position=tuple(o.position) if o.position else None,
-                                   extent=tuple(o.extent) if o.extent else None, frame_id=det.frame_id,
-                                   lab=None if o.lab is None else tuple(o.lab),
-                                   colors=tuple((c.name, c.p) for c in o.colors)))
+            out.append(
+                SceneObject(
+                    id=o.id,
+                    label=canonical_label(o.label),
+                    raw_label=o.label,
+                    color=o.color,
+                    bbox=tuple(o.bbox),
+                    center=tuple(o.center),
+                    score=o.score,
+                    cam=det.cam,
+                    width=det.width,
+                    height=det.height,
+                    stamp=det.stamp,
+                    quality=q,
+                    position=tuple(o.position) if o.position else None,
+                    extent=tuple(o.extent) if o.extent else None,
+                    frame_id=det.frame_id,
+                    lab=None if o.lab is None else tuple(o.lab),
+                    colors=tuple((c.name, c.p) for c in o.colors),
+                )
+            )
     return out
 
 
@@ -121,8 +143,10 @@ def _attribute_match(phrase: ObjectPhrase, o: SceneObject) -> float:
 
 def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str], float]:
     """Preference in [0, 1] for each object of `group` (1 for the best fit)."""
+
     def expo(gap: float, size: float) -> float:
         return math.exp(-max(gap, 0.0) / (SPATIAL_SCALE * size))
+
     xs = {o.key: o.center[0] for o in group}
     ys = {o.key: o.center[1] for o in group}
     bottoms = {o.key: o.bbox[1] + o.bbox[3] for o in group}
@@ -230,8 +254,7 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     tip = fingertip(p.origin, p.direction, p.hand_box)
     # Objects in metres are judged by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may
     # lie far behind it.
-    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o)
-            and not in_3d(p, o)]
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o) and not in_3d(p, o)]
     hit, _ = touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
 
@@ -245,8 +268,10 @@ def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, s
     if not near:
         near = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
     if near:
-        out = {k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
-               for k, (g, a) in out.items()}
+        out = {
+            k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
+            for k, (g, a) in out.items()
+        }
     return out
 
 
@@ -261,12 +286,12 @@ def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[S
     the anchor's colour and spatial words count exactly as they would for the object itself."""
     if anchor.unknown_nouns or (anchor.label is None and not anchor.color):
         return []
-    return [(s.obj, s.match) for s in score(anchor, scene, None, ANCHOR_WEIGHTS, adaptive=False)
-            if s.match >= 0.5]
+    return [(s.obj, s.match) for s in score(anchor, scene, None, ANCHOR_WEIGHTS, adaptive=False) if s.match >= 0.5]
 
 
-def _relation_scores(relation: Relation, group: list[SceneObject],
-                     scene: list[SceneObject]) -> dict[tuple[str, str], float]:
+def _relation_scores(
+    relation: Relation, group: list[SceneObject], scene: list[SceneObject]
+) -> dict[tuple[str, str], float]:
     """Preference in [0, 1] for each object of `group` (1 for the best fit; 0 for all when no anchor is seen or
     nothing is in that relation to one). An object is never its own anchor; anchors in another camera do not count.
     Vectorised over candidates x anchors (services/fusion/relations.py): 1000 objects stay within milliseconds."""
@@ -277,23 +302,29 @@ def _relation_scores(relation: Relation, group: list[SceneObject],
     cams: dict[str, int] = {}
 
     def index(objs: list[SceneObject]) -> tuple[np.ndarray, np.ndarray]:
-        return (np.array([ids.setdefault(o.key, len(ids)) for o in objs]),
-                np.array([cams.setdefault(o.cam, len(cams)) for o in objs]))
+        return (
+            np.array([ids.setdefault(o.key, len(ids)) for o in objs]),
+            np.array([cams.setdefault(o.cam, len(cams)) for o in objs]),
+        )
+
     cand_id, cand_cam = index(group)
     boxes = [o.bbox for o in group]
     if relation.kind == "between":
         first = sorted(anchor_sets[0], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS]
-        second = sorted(anchor_sets[1], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS] if len(anchor_sets) > 1 \
-            else first
+        second = sorted(anchor_sets[1], key=lambda f: -f[1])[:BETWEEN_MAX_ANCHORS] if len(anchor_sets) > 1 else first
         if not first or not second:
             return {o.key: 0.0 for o in group}
         a_id, a_cam = index([a for a, _ in first])
         b_id, b_cam = index([b for b, _ in second])
         m = between_matrix(boxes, [a.bbox for a, _ in first], [b.bbox for b, _ in second])
         m = m * np.array([w for _, w in first])[None, :, None] * np.array([w for _, w in second])[None, None, :]
-        ok = ((cand_id[:, None, None] != a_id[None, :, None]) & (cand_id[:, None, None] != b_id[None, None, :])
-              & (a_id[None, :, None] != b_id[None, None, :]) & (cand_cam[:, None, None] == a_cam[None, :, None])
-              & (cand_cam[:, None, None] == b_cam[None, None, :]))
+        ok = (
+            (cand_id[:, None, None] != a_id[None, :, None])
+            & (cand_id[:, None, None] != b_id[None, None, :])
+            & (a_id[None, :, None] != b_id[None, None, :])
+            & (cand_cam[:, None, None] == a_cam[None, :, None])
+            & (cand_cam[:, None, None] == b_cam[None, None, :])
+        )
         raw = np.where(ok, m, 0.0).reshape(len(group), -1).max(axis=1)
     else:
         best: dict[tuple[str, str], tuple[SceneObject, float]] = {}
@@ -317,13 +348,17 @@ def _relation_scores(relation: Relation, group: list[SceneObject],
 ORDINAL_OTHERS = 0.2  # preference of the objects that are not in the said place of the order
 
 
-def _ordinal_scores(ordinal: int, counted_from: str | None,
-                    group: list[SceneObject]) -> dict[tuple[str, str], float]:
-    """"The second bottle from the left": 1 for the object in that place of the order, ORDINAL_OTHERS for the rest
+def _ordinal_scores(ordinal: int, counted_from: str | None, group: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """ "The second bottle from the left": 1 for the object in that place of the order, ORDINAL_OTHERS for the rest
     (all 0 when there are fewer objects than the ordinal)."""
-    key = {"left": lambda o: o.center[0], "right": lambda o: -o.center[0], "top": lambda o: o.center[1],
-           "bottom": lambda o: -o.center[1], "nearest": lambda o: -(o.bbox[1] + o.bbox[3]),
-           "farthest": lambda o: o.bbox[1] + o.bbox[3]}[counted_from or "left"]
+    key = {
+        "left": lambda o: o.center[0],
+        "right": lambda o: -o.center[0],
+        "top": lambda o: o.center[1],
+        "bottom": lambda o: -o.center[1],
+        "nearest": lambda o: -(o.bbox[1] + o.bbox[3]),
+        "farthest": lambda o: o.bbox[1] + o.bbox[3],
+    }[counted_from or "left"]
     order = sorted(group, key=lambda o: (o.cam, key(o), o.id))
     index = ordinal - 1 if ordinal > 0 else len(order) + ordinal
     if not 0 <= index < len(order):
@@ -331,8 +366,9 @@ def _ordinal_scores(ordinal: int, counted_from: str | None,
     return {o.key: 1.0 if i == index else ORDINAL_OTHERS for i, o in enumerate(order)}
 
 
-def _relations_and_order(phrase: ObjectPhrase, objects: list[SceneObject], match: dict[tuple[str, str], float],
-                         scene: list[SceneObject]) -> None:
+def _relations_and_order(
+    phrase: ObjectPhrase, objects: list[SceneObject], match: dict[tuple[str, str], float], scene: list[SceneObject]
+) -> None:
     """Relations ("next to the bowl"), then the ordinal ("the second … from the left"), each choosing among the
     objects the other words fit (match >= 0.5); `match` is updated in place."""
     for relation in phrase.relations:
@@ -346,8 +382,16 @@ def _relations_and_order(phrase: ObjectPhrase, objects: list[SceneObject], match
             match[o.key] *= prefs.get(o.key, 0.0)
 
 
-def score(phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, weights: Weights,
-          *, adaptive: bool = True, ref: float | None = None, scene: list[SceneObject] | None = None) -> list[Scored]:
+def score(
+    phrase: ObjectPhrase,
+    objects: list[SceneObject],
+    pointing: Pointing | None,
+    weights: Weights,
+    *,
+    adaptive: bool = True,
+    ref: float | None = None,
+    scene: list[SceneObject] | None = None,
+) -> list[Scored]:
     """All objects scored and ranked (best first; ties broken by camera and id for determinism). `scene`: every
     object in view, where a relation's anchors are looked for (default: `objects`; the dialogue scores only the
     candidates of its question, but "the one next to the laptop" may name a laptop that is not one of them)."""
@@ -400,9 +444,14 @@ def _whole_objects(candidates: list[Scored]) -> list[Scored]:
     out = []
     for c in candidates:
         o = c.obj
-        if not any(d is not c and d.obj.label == o.label and d.obj.cam == o.cam
-                   and d.obj.bbox[2] * d.obj.bbox[3] > o.bbox[2] * o.bbox[3]
-                   and _inside(o.bbox, d.obj.bbox) >= PART_OF for d in candidates):
+        if not any(
+            d is not c
+            and d.obj.label == o.label
+            and d.obj.cam == o.cam
+            and d.obj.bbox[2] * d.obj.bbox[3] > o.bbox[2] * o.bbox[3]
+            and _inside(o.bbox, d.obj.bbox) >= PART_OF
+            for d in candidates
+        ):
             out.append(c)
     return out
 
@@ -418,8 +467,9 @@ class Choice:
     runner_up: Scored | None = None
 
 
-def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAULT_MARGIN,
-           check_evidence: bool = True) -> Choice:
+def choose(
+    phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAULT_MARGIN, check_evidence: bool = True
+) -> Choice:
     """Decide from a ranked list (as `score` returns it). Linear in the number of candidates."""
     if not scored:
         return Choice("not_found", None, ())
@@ -432,20 +482,26 @@ def choose(phrase: ObjectPhrase, scored: list[Scored], *, margin: float = DEFAUL
         return Choice("not_found", None, (), speech_best, gesture_best)
     winner = scored[0]
     runner_up = scored[1] if len(scored) > 1 else None
-    disagree = (speech_best is not None and gesture_best is not None and pointed
-                and speech_best is not gesture_best and speech_best.match >= 0.5)
+    disagree = (
+        speech_best is not None
+        and gesture_best is not None
+        and pointed
+        and speech_best is not gesture_best
+        and speech_best.match >= 0.5
+    )
     # Without pointing, two objects the words fit equally well ("the fruit": an apple and an orange) are a
     # question, whatever their detection scores: a more confident detector is not what the person meant.
-    tie_in_words = (runner_up is not None and not pointing and winner.match >= 0.5
-                    and abs(winner.match - runner_up.match) < 1e-6)
+    tie_in_words = (
+        runner_up is not None and not pointing and winner.match >= 0.5 and abs(winner.match - runner_up.match) < 1e-6
+    )
     if runner_up is not None and (winner.total - runner_up.total < margin or tie_in_words):
         if disagree and {id(winner), id(runner_up)} == {id(speech_best), id(gesture_best)}:
-            return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best,
-                          runner_up=runner_up)
+            return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best, runner_up=runner_up)
         close = []
         for c in scored:  # ranked: stop at the first that is clearly behind
-            if (winner.total - c.total >= margin and not (tie_in_words and abs(c.match - winner.match) < 1e-6)) \
-                    or len(close) == MAX_CANDIDATES:
+            if (winner.total - c.total >= margin and not (tie_in_words and abs(c.match - winner.match) < 1e-6)) or len(
+                close
+            ) == MAX_CANDIDATES:
                 break
             close.append(c)
         whole = _whole_objects(close)

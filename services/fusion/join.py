@@ -81,7 +81,7 @@ class StreamBuffer:
             del self.idents[:cut]
 
     def between(self, lo: float, hi: float) -> list[Any]:
-        return self.items[bisect.bisect_left(self.stamps, lo):bisect.bisect_right(self.stamps, hi)]
+        return self.items[bisect.bisect_left(self.stamps, lo) : bisect.bisect_right(self.stamps, hi)]
 
     def __len__(self) -> int:
         return len(self.stamps)
@@ -95,8 +95,9 @@ class Streams:
         self.max_items = max_items
         self.buffers: dict[str, dict[str, StreamBuffer]] = {}
 
-    def add(self, modality: str, key: str, stamp: float, item: Any, ident: Any = None,
-            keep_from: float | None = None) -> str:
+    def add(
+        self, modality: str, key: str, stamp: float, item: Any, ident: Any = None, keep_from: float | None = None
+    ) -> str:
         per_key = self.buffers.setdefault(modality, {})
         buf = per_key.get(key)
         if buf is None:
@@ -162,6 +163,7 @@ class Liveness:
 class Ready:
     """Decide the window now: every live modality's watermark passed its end (`by="watermarks"`), or the
     deadline expired while the live modalities in `behind` had not got there yet."""
+
     by: Literal["watermarks", "deadline"]
     behind: tuple[str, ...] = ()
 
@@ -172,11 +174,18 @@ class Ready:
 @dataclass(frozen=True)
 class Wait:
     """Not yet: the live modalities in `behind` have not reached the window end and the deadline is ahead."""
+
     behind: tuple[str, ...]
 
 
-def ready(window_end: float, arrived_wall: float, now_wall: float, max_wait: float,
-          watermarks: dict[str, float], live: Iterable[str]) -> Ready | Wait:
+def ready(
+    window_end: float,
+    arrived_wall: float,
+    now_wall: float,
+    max_wait: float,
+    watermarks: dict[str, float],
+    live: Iterable[str],
+) -> Ready | Wait:
     """Watermarks pass the window end for every live modality, or the deadline hit."""
     behind = tuple(sorted(m for m in live if watermarks.get(m, 0.0) < window_end))
     if not behind:
@@ -295,7 +304,7 @@ class ClockOffsets:
 
 
 def clock_verdict(offset: float, ahead_tolerance: float, behind_tolerance: float) -> str | None:
-    """"ahead" / "behind" when an offset uses more than the join window allows, else None."""
+    """ "ahead" / "behind" when an offset uses more than the join window allows, else None."""
     if offset > ahead_tolerance:
         return "ahead"
     if offset < -behind_tolerance:

@@ -7,7 +7,14 @@ import hashlib
 from dataclasses import dataclass
 
 from common.schema import (
-    Clarification, FusedCommand, GestureEvent, Location, Motion as WireMotion, Sample, Transcript, Weights,
+    Clarification,
+    FusedCommand,
+    GestureEvent,
+    Location,
+    Motion as WireMotion,
+    Sample,
+    Transcript,
+    Weights,
 )
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, SceneObject, Scored
@@ -35,48 +42,127 @@ class Outputs:
     def __init__(self, source: str):
         self.source = source
 
-    def command(self, t: Transcript, intent: str, ctx: Context | None, *, confidence: float, explanation: str,
-                text: str | None = None, target: SceneObject | None = None, location: Location | None = None,
-                gesture: str | None = None, place: str | None = None, motion: Motion | None = None,
-                realtime: bool = False) -> Output:
+    def command(
+        self,
+        t: Transcript,
+        intent: str,
+        ctx: Context | None,
+        *,
+        confidence: float,
+        explanation: str,
+        text: str | None = None,
+        target: SceneObject | None = None,
+        location: Location | None = None,
+        gesture: str | None = None,
+        place: str | None = None,
+        motion: Motion | None = None,
+        realtime: bool = False,
+    ) -> Output:
         """A command on an utterance, with the window's weights, inputs and scene (`ctx`); without a window
         (a spoken stop, decided on arrival) speech alone."""
         text = text if text is not None else t.text
-        prompt = describe.planner_prompt(text=text, intent=intent, target=target, location=location, place=place,
-                                         pointing=ctx.pointing if ctx else None, gesture=None,
-                                         objects=ctx.objects if ctx else [], missing=ctx.missing if ctx else [],
-                                         explanation=explanation, motion=motion)
-        wire_motion = WireMotion(direction=motion.direction, distance=motion.distance, angle=motion.angle) \
-            if motion is not None else None
-        cmd = FusedCommand(stamp=t.stamp, source=self.source, id=stable_id("cmd", t.source, t.stamp, t.mic),
-                           intent=intent, text=text, target=target.to_target() if target else None,
-                           location=location, place=place, gesture=gesture, confidence=unit(confidence),
-                           weights=ctx.weights if ctx else Weights(speech=1.0, vision=0.0, gesture=0.0),
-                           inputs=ctx.inputs if ctx else {"speech": t.stamp, "vision": None, "gesture": None},
-                           explanation=explanation, prompt=prompt, motion=wire_motion)
+        prompt = describe.planner_prompt(
+            text=text,
+            intent=intent,
+            target=target,
+            location=location,
+            place=place,
+            pointing=ctx.pointing if ctx else None,
+            gesture=None,
+            objects=ctx.objects if ctx else [],
+            missing=ctx.missing if ctx else [],
+            explanation=explanation,
+            motion=motion,
+        )
+        wire_motion = (
+            WireMotion(direction=motion.direction, distance=motion.distance, angle=motion.angle)
+            if motion is not None
+            else None
+        )
+        cmd = FusedCommand(
+            stamp=t.stamp,
+            source=self.source,
+            id=stable_id("cmd", t.source, t.stamp, t.mic),
+            intent=intent,
+            text=text,
+            target=target.to_target() if target else None,
+            location=location,
+            place=place,
+            gesture=gesture,
+            confidence=unit(confidence),
+            weights=ctx.weights if ctx else Weights(speech=1.0, vision=0.0, gesture=0.0),
+            inputs=ctx.inputs if ctx else {"speech": t.stamp, "vision": None, "gesture": None},
+            explanation=explanation,
+            prompt=prompt,
+            motion=wire_motion,
+        )
         return Output(cmd, realtime=realtime)
 
-    def target_command(self, t: Transcript, intent: str, target: Scored, location: Location | None, ctx: Context,
-                       explanation: str, place: str | None = None) -> Output:
+    def target_command(
+        self,
+        t: Transcript,
+        intent: str,
+        target: Scored,
+        location: Location | None,
+        ctx: Context,
+        explanation: str,
+        place: str | None = None,
+    ) -> Output:
         """A command on the object grounding chose; the explanation says what was missing from the window."""
         if ctx.missing:
             explanation += "; missing: " + ", ".join(ctx.missing) + f" (window closed by {ctx.how})"
-        return self.command(t, intent, ctx, confidence=target.total, explanation=explanation, target=target.obj,
-                            location=location, gesture="point" if target.gesture is not None else None, place=place)
+        return self.command(
+            t,
+            intent,
+            ctx,
+            confidence=target.total,
+            explanation=explanation,
+            target=target.obj,
+            location=location,
+            gesture="point" if target.gesture is not None else None,
+            place=place,
+        )
 
     def gesture_command(self, ev: GestureEvent, intent: str, why: str, realtime: bool) -> Output:
         """A command from a gesture alone (stop, come here)."""
-        prompt = describe.planner_prompt(text=None, intent=intent, target=None, location=None, place=None,
-                                         pointing=None, gesture=f"{ev.gesture} ({ev.hand} hand)", objects=[],
-                                         missing=[], explanation=why)
-        cmd = FusedCommand(stamp=ev.stamp, source=self.source, id=stable_id("cmd", ev.source, ev.stamp, ev.gesture),
-                           intent=intent, text=None, target=None, location=None, gesture=ev.gesture,
-                           confidence=round(ev.score, 4), weights=Weights(speech=0.0, vision=0.0, gesture=1.0),
-                           inputs={"speech": None, "vision": None, "gesture": ev.stamp}, explanation=why,
-                           prompt=prompt)
+        prompt = describe.planner_prompt(
+            text=None,
+            intent=intent,
+            target=None,
+            location=None,
+            place=None,
+            pointing=None,
+            gesture=f"{ev.gesture} ({ev.hand} hand)",
+            objects=[],
+            missing=[],
+            explanation=why,
+        )
+        cmd = FusedCommand(
+            stamp=ev.stamp,
+            source=self.source,
+            id=stable_id("cmd", ev.source, ev.stamp, ev.gesture),
+            intent=intent,
+            text=None,
+            target=None,
+            location=None,
+            gesture=ev.gesture,
+            confidence=round(ev.score, 4),
+            weights=Weights(speech=0.0, vision=0.0, gesture=1.0),
+            inputs={"speech": None, "vision": None, "gesture": ev.stamp},
+            explanation=why,
+            prompt=prompt,
+        )
         return Output(cmd, realtime=realtime)
 
     def clarification(self, t: Transcript, reason: str, question: str, candidates: list[SceneObject]) -> Output:
-        return Output(Clarification(stamp=t.stamp, source=self.source, id=stable_id("clr", t.source, t.stamp, t.mic),
-                                    text=t.text, reason=reason, question=question,
-                                    candidates=[o.to_target() for o in candidates[:MAX_CANDIDATES]]))
+        return Output(
+            Clarification(
+                stamp=t.stamp,
+                source=self.source,
+                id=stable_id("clr", t.source, t.stamp, t.mic),
+                text=t.text,
+                reason=reason,
+                question=question,
+                candidates=[o.to_target() for o in candidates[:MAX_CANDIDATES]],
+            )
+        )

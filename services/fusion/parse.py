@@ -46,9 +46,14 @@ _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
     ("spatial", L.phrases(L.SPATIAL_PHRASES)),
     ("spatial", L.phrases(L.SPATIAL_EXTRA_PHRASES)),
     ("place", L.phrases(L.PLACE_PHRASES)),
-    ("object", {**{p: L.canonical_label(key) for p, key in L.phrases(L.OBJECT_PHRASES).items()},
-                **L.phrases(L.LABEL_PHRASES), **{p: lab for p, lab in L.OBJECT_SYNONYMS.items()
-                                                 if p not in L.OBJECT_CATEGORIES}}),
+    (
+        "object",
+        {
+            **{p: L.canonical_label(key) for p, key in L.phrases(L.OBJECT_PHRASES).items()},
+            **L.phrases(L.LABEL_PHRASES),
+            **{p: lab for p, lab in L.OBJECT_SYNONYMS.items() if p not in L.OBJECT_CATEGORIES},
+        },
+    ),
     ("color", L.phrases(L.COLOR_PHRASES)),
     ("direction", L.phrases(L.DIRECTION_PHRASES)),
     ("unit", L.phrases(L.UNIT_PHRASES)),
@@ -57,8 +62,19 @@ _TABLES: tuple[tuple[str, dict[str, str]], ...] = (
 _DEICTIC = {**{w: "object" for w in L.DEICTIC_OBJECT_WORDS}, **{w: "place" for w in L.DEICTIC_PLACE_WORDS}}
 _FILLER = set(L.FILLER_WORDS)
 COLOR_WORDS = L.phrases(L.COLOR_PHRASES)
-CONTENT_KINDS = ("intent", "object", "color", "spatial", "motion", "direction", "deictic_object", "place", "unit",
-                 "number", "amount")
+CONTENT_KINDS = (
+    "intent",
+    "object",
+    "color",
+    "spatial",
+    "motion",
+    "direction",
+    "deictic_object",
+    "place",
+    "unit",
+    "number",
+    "amount",
+)
 
 
 def _phrase_index() -> dict[tuple[str, ...], tuple[str, str]]:
@@ -84,10 +100,18 @@ PHRASES = _phrase_index()
 MAX_PHRASE = max(len(p) for p in PHRASES)
 # Content words the fuzzy matcher may correct to. Intent words need a closer match so that
 # "want" does not become "wait" (= stop) while "grabb" still becomes "grab".
-FUZZY_TARGETS = sorted({p for kind, table in _TABLES if kind in ("color", "object", "spatial", "place")
-                        for p in table if " " not in p and p not in _FILLER and len(p) >= 3})
-FUZZY_INTENT_TARGETS = sorted({p[0] for p, (kind, _) in PHRASES.items() if len(p) == 1 and kind == "intent"
-                               and len(p[0]) >= 4})
+FUZZY_TARGETS = sorted(
+    {
+        p
+        for kind, table in _TABLES
+        if kind in ("color", "object", "spatial", "place")
+        for p in table
+        if " " not in p and p not in _FILLER and len(p) >= 3
+    }
+)
+FUZZY_INTENT_TARGETS = sorted(
+    {p[0] for p, (kind, _) in PHRASES.items() if len(p) == 1 and kind == "intent" and len(p[0]) >= 4}
+)
 FUZZY_INTENT_CUTOFF = 0.85
 # ASR sometimes glues a phrase into one word ("pickup", "putdown").
 GLUED = {"".join(p): p for p in PHRASES if len(p) > 1}
@@ -102,16 +126,26 @@ class Tag:
     words: tuple[str, ...]  # the tokens as heard
 
 
-RELATION_WORDS = {"next_to": "next to", "behind": "behind", "in_front_of": "in front of", "left_of": "left of",
-                  "right_of": "right of", "on": "on", "in": "in", "under": "under", "above": "above",
-                  "between": "between"}
+RELATION_WORDS = {
+    "next_to": "next to",
+    "behind": "behind",
+    "in_front_of": "in front of",
+    "left_of": "left of",
+    "right_of": "right of",
+    "on": "on",
+    "in": "in",
+    "under": "under",
+    "above": "above",
+    "between": "between",
+}
 ORDINAL_NAMES = {1: "first", 2: "second", 3: "third", 4: "fourth", 5: "fifth", -1: "last", -2: "second last"}
 
 
 @dataclass(frozen=True)
 class Relation:
-    """"next to the bowl": `kind` (common.language.RELATION_PHRASES) and the anchor(s) it relates the head to
+    """ "next to the bowl": `kind` (common.language.RELATION_PHRASES) and the anchor(s) it relates the head to
     (one phrase, or two for "between the cup and the bowl"; "between the two bottles" is one phrase)."""
+
     kind: str
     anchors: tuple["ObjectPhrase", ...]
 
@@ -134,8 +168,9 @@ class ObjectPhrase:
     @property
     def specific(self) -> bool:
         """True if the words constrain which object (not just "it"/"that one")."""
-        return bool(self.color or (self.label and self.label != L.ANY_OBJECT) or self.spatial or self.relations
-                    or self.ordinal)
+        return bool(
+            self.color or (self.label and self.label != L.ANY_OBJECT) or self.spatial or self.relations or self.ordinal
+        )
 
     @property
     def names_kind(self) -> bool:
@@ -149,8 +184,7 @@ class ObjectPhrase:
         if self.ordinal and self.ordinal_from:
             words.append(f"from the {self.ordinal_from}")
         words.extend(r.describe() for r in self.relations)
-        return " ".join(w for w in words if w) if self.specific or self.noun else (
-            "that one" if self.deictic else "it")
+        return " ".join(w for w in words if w) if self.specific or self.noun else ("that one" if self.deictic else "it")
 
     @property
     def unknown_nouns(self) -> tuple[str, ...]:
@@ -162,6 +196,7 @@ class ObjectPhrase:
 @dataclass(frozen=True)
 class Motion:
     """The robot moving itself: kind "move" (direction, distance in metres) or "turn" (direction, angle)."""
+
     kind: str
     direction: str | None = None  # forward, back, left, right, around
     distance: float | None = None  # metres; None: as far as the robot deems a small move
@@ -192,8 +227,15 @@ class Utterance:
 
     @property
     def has_content(self) -> bool:
-        return bool(self.intent or self.answer or self.obj.specific or self.obj.deictic or self.place
-                    or self.deictic_place or self.other)
+        return bool(
+            self.intent
+            or self.answer
+            or self.obj.specific
+            or self.obj.deictic
+            or self.place
+            or self.deictic_place
+            or self.other
+        )
 
     @property
     def deictic(self) -> bool:
@@ -240,8 +282,9 @@ def singular(word: str) -> str:
 def _fuzzy(token: str) -> str | None:
     if len(token) < FUZZY_MIN_LEN:
         return None
-    match = (difflib.get_close_matches(token, FUZZY_INTENT_TARGETS, n=1, cutoff=FUZZY_INTENT_CUTOFF)
-             or difflib.get_close_matches(token, FUZZY_TARGETS, n=1, cutoff=FUZZY_CUTOFF))
+    match = difflib.get_close_matches(
+        token, FUZZY_INTENT_TARGETS, n=1, cutoff=FUZZY_INTENT_CUTOFF
+    ) or difflib.get_close_matches(token, FUZZY_TARGETS, n=1, cutoff=FUZZY_CUTOFF)
     return match[0] if match else None
 
 
@@ -269,7 +312,7 @@ def tag(tokens: list[str], labels: tuple[str, ...] = ()) -> tuple[list[Tag], lis
     i = 0
     while i < len(toks):
         for n in range(min(longest, len(toks) - i), 0, -1):
-            key = tuple(toks[i:i + n])
+            key = tuple(toks[i : i + n])
             hit = PHRASES.get(key) or extra.get(key)
             if hit is not None:
                 tags.append(Tag(hit[0], hit[1], i, key))
@@ -291,8 +334,9 @@ def tag(tokens: list[str], labels: tuple[str, ...] = ()) -> tuple[list[Tag], lis
                 tags.append(Tag("unknown", word, i, (word,)))
             i += 1
     tags = _person_pronouns(tags)  # "give it to her"
-    unknown = [w for w in unknown if w not in L.PERSON_PRONOUNS or any(
-        t.kind == "unknown" and t.value == w for t in tags)]
+    unknown = [
+        w for w in unknown if w not in L.PERSON_PRONOUNS or any(t.kind == "unknown" and t.value == w for t in tags)
+    ]
     return tags, corrections, unknown
 
 
@@ -319,8 +363,13 @@ def _object_phrase(tags: list[Tag], tokens: tuple[str, ...] = ()) -> ObjectPhras
     # word before it that is also a colour is the colour ("the orange cup").
     # A word that is a colour and a label ("orange") followed by a noun ("the orange one", "the orange cup") is
     # the colour.
-    as_color = [t for t in objects if " ".join(t.words) in COLOR_WORDS and t.value != L.ANY_OBJECT
-                and any(x.index > t.index and x.kind in ("object", "unknown") for x in tags)]
+    as_color = [
+        t
+        for t in objects
+        if " ".join(t.words) in COLOR_WORDS
+        and t.value != L.ANY_OBJECT
+        and any(x.index > t.index and x.kind in ("object", "unknown") for x in tags)
+    ]
     named = [t for t in objects if t.value != L.ANY_OBJECT and t not in as_color]
     label = named[-1].value if named else next((t.value for t in objects if t not in as_color), None)
     if color is None and as_color:
@@ -357,56 +406,74 @@ def _read_object(tags: list[Tag], tokens: tuple[str, ...]) -> ObjectPhrase:
     first relation: "the bottle next to the bowl" is a bottle. Words after an anchor's noun ("… next to the sink
     on the left") describe the head again."""
     cuts = [k for k, t in enumerate(tags) if t.kind == "relation"]
-    head = list(tags[:cuts[0]] if cuts else tags)
+    head = list(tags[: cuts[0]] if cuts else tags)
     relations: list[Relation] = []
     spatial_alone: list[str] = []
     for n, k in enumerate(cuts):
-        segment = _anchor_tags(list(tags[k + 1:cuts[n + 1]] if n + 1 < len(cuts) else tags[k + 1:]))
+        segment = _anchor_tags(list(tags[k + 1 : cuts[n + 1]] if n + 1 < len(cuts) else tags[k + 1 :]))
         kind = tags[k].value
-        nouns = [j for j, t in enumerate(segment) if t.kind in _NOUN_KINDS and not (
-            t.kind == "object" and t.value == L.ANY_OBJECT and t.words != ("one",))]
+        nouns = [
+            j
+            for j, t in enumerate(segment)
+            if t.kind in _NOUN_KINDS and not (t.kind == "object" and t.value == L.ANY_OBJECT and t.words != ("one",))
+        ]
         if not nouns:  # "the chair in front", "the cup behind": a position, no anchor
             if kind in L.RELATION_ALONE:
                 spatial_alone.append(L.RELATION_ALONE[kind])
             head.extend(t for t in segment if t.kind != "place")
             continue
         last = nouns[-1]
-        anchor_part, after = segment[:last + 1], segment[last + 1:]
+        anchor_part, after = segment[: last + 1], segment[last + 1 :]
         head.extend(t for t in after if t.kind in ("spatial", "ordinal", "ordinal_from"))
         named = [j for j in nouns if segment[j].kind == "object" and segment[j].value != L.ANY_OBJECT]
         if kind == "between" and len(named) >= 2:  # "between the cup and the bowl"
             parts, start = [], 0
             for j in named:
-                parts.append(_object_phrase(anchor_part[start:j + 1], tokens))
+                parts.append(_object_phrase(anchor_part[start : j + 1], tokens))
                 start = j + 1
             anchors = tuple(parts)
         else:
             anchors = (_object_phrase(anchor_part, tokens),)
         relations.append(Relation(kind, anchors))
     if relations:  # "the bottle that is next to the bowl": "that" is not pointing
-        head = [t for t in head if t.kind != "deictic_object" or not any(
-            x.kind == "object" and x.index < t.index for x in head)]
+        head = [
+            t
+            for t in head
+            if t.kind != "deictic_object" or not any(x.kind == "object" and x.index < t.index for x in head)
+        ]
     head = [t for t in head if t.kind != "place"]
     phrase = _object_phrase(head, tokens)
     ordinal = next((int(t.value) for t in head if t.kind == "ordinal"), None)
     ordinal_from = next((t.value for t in head if t.kind == "ordinal_from"), None)
     spatial = tuple(dict.fromkeys((*phrase.spatial, *spatial_alone)))
     head_noun = next((t for t in reversed(head) if t.kind == "object" and t.value == phrase.label), None)
-    unmatched = tuple(t.value for t in head if t.kind == "unknown" and head_noun is not None
-                      and t.index < head_noun.index and phrase.noun is None)
+    unmatched = tuple(
+        t.value
+        for t in head
+        if t.kind == "unknown" and head_noun is not None and t.index < head_noun.index and phrase.noun is None
+    )
     if ordinal is not None and phrase.label is None:
         phrase = replace(phrase, label=L.ANY_OBJECT)
-    return replace(phrase, spatial=spatial, relations=tuple(relations), ordinal=ordinal,
-                   ordinal_from=ordinal_from if ordinal is not None else None, unmatched=unmatched)
+    return replace(
+        phrase,
+        spatial=spatial,
+        relations=tuple(relations),
+        ordinal=ordinal,
+        ordinal_from=ordinal_from if ordinal is not None else None,
+        unmatched=unmatched,
+    )
 
 
 def _person_pronouns(tags: list[Tag]) -> list[Tag]:
-    """"give it to her": "her" with no noun after it is the person; "her cup" keeps it a determiner."""
+    """ "give it to her": "her" with no noun after it is the person; "her cup" keeps it a determiner."""
     out = []
     for k, t in enumerate(tags):
         nxt = tags[k + 1] if k + 1 < len(tags) else None
-        if t.kind == "unknown" and t.value in L.PERSON_PRONOUNS and (
-                nxt is None or nxt.kind not in ("object", "unknown", "color", "spatial")):
+        if (
+            t.kind == "unknown"
+            and t.value in L.PERSON_PRONOUNS
+            and (nxt is None or nxt.kind not in ("object", "unknown", "color", "spatial"))
+        ):
             t = Tag("object", "person", t.index, t.words)
         out.append(t)
     return out
@@ -419,13 +486,17 @@ def _merge(before: ObjectPhrase, after: ObjectPhrase) -> ObjectPhrase:
     if names_kind:
         return after
     moved = bool(after.spatial or after.relations or after.ordinal)  # a new position replaces the old colour too
-    return ObjectPhrase(color=after.color or (before.color if not moved else None),
-                        label=before.label, spatial=after.spatial or (before.spatial if not moved else ()),
-                        deictic=after.deictic or before.deictic, noun=before.noun,
-                        relations=after.relations or (before.relations if not moved else ()),
-                        ordinal=after.ordinal if moved else before.ordinal,
-                        ordinal_from=after.ordinal_from if moved else before.ordinal_from,
-                        unmatched=after.unmatched or before.unmatched)
+    return ObjectPhrase(
+        color=after.color or (before.color if not moved else None),
+        label=before.label,
+        spatial=after.spatial or (before.spatial if not moved else ()),
+        deictic=after.deictic or before.deictic,
+        noun=before.noun,
+        relations=after.relations or (before.relations if not moved else ()),
+        ordinal=after.ordinal if moved else before.ordinal,
+        ordinal_from=after.ordinal_from if moved else before.ordinal_from,
+        unmatched=after.unmatched or before.unmatched,
+    )
 
 
 def _is_number(t: Tag) -> bool:
@@ -438,7 +509,7 @@ def _number(tags: list[Tag], k: int, tokens: tuple[str, ...]) -> tuple[float | N
     value: float | None = None
     j = k
     while j < len(tags) and _is_number(tags[j]):
-        if j > k and not set(tokens[tags[j - 1].index + 1:tags[j].index]) <= {"and", "a", "an"}:
+        if j > k and not set(tokens[tags[j - 1].index + 1 : tags[j].index]) <= {"and", "a", "an"}:
             break
         word = tags[j].value if tags[j].kind == "number" else "one"
         if _NUMBER.match(word):
@@ -468,21 +539,23 @@ def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> Motion | Non
         elif t.kind == "direction":
             direction = t.value
         elif t.kind == "amount":
-            distance, angle = (None, L.VAGUE_AMOUNTS[t.value][1]) if kind == "turn" else (
-                L.VAGUE_AMOUNTS[t.value][0], None)
+            distance, angle = (
+                (None, L.VAGUE_AMOUNTS[t.value][1]) if kind == "turn" else (L.VAGUE_AMOUNTS[t.value][0], None)
+            )
             amount = t.value
         elif _is_number(t):
             value, j = _number(after, k, tokens)
             unit = after[j] if j < len(after) and after[j].kind == "unit" else None
             if value is not None:
-                quantity, scale = L.UNIT_SCALE[unit.value] if unit else (
-                    ("angle", 1.0) if kind == "turn" else ("distance", 1.0))
+                quantity, scale = (
+                    L.UNIT_SCALE[unit.value] if unit else (("angle", 1.0) if kind == "turn" else ("distance", 1.0))
+                )
                 if quantity == "angle":
                     angle, kind = value * scale, "turn"
                 else:
                     distance = value * scale
                 last = after[j] if unit else after[j - 1]
-                amount = " ".join(tokens[t.index:last.index + len(last.words)])  # as said: "one and a half meters"
+                amount = " ".join(tokens[t.index : last.index + len(last.words)])  # as said: "one and a half meters"
                 k = j + (1 if unit else 0)
                 continue
         elif t.kind == "unit":  # "a meter", "a step": the article is the number
@@ -516,7 +589,7 @@ def _split_correction(tags: list[Tag]) -> int | None:
         if not is_marker:
             continue
         said_before = any(x.kind in CONTENT_KINDS for x in tags[:k])
-        said_after = any(x.kind in CONTENT_KINDS or x.kind == "unknown" for x in tags[k + 1:])
+        said_after = any(x.kind in CONTENT_KINDS or x.kind == "unknown" for x in tags[k + 1 :])
         if said_before and said_after:
             split = k
     return split
@@ -533,10 +606,13 @@ def stop_requested(tags: list[Tag], tokens: tuple[str, ...]) -> Tag | None:
     for i, token in enumerate(tokens):
         run = run + 1 if token == L.STOP_REPEATED_WORD else 0
         if run == L.STOP_REPEATS:
-            return Tag("intent", "stop", i - run + 1, tokens[i - run + 1:i + 1])
+            return Tag("intent", "stop", i - run + 1, tokens[i - run + 1 : i + 1])
     for k, t in enumerate(tags):
-        if t.kind == "correction" and any(w in SAFETY_STOP_WORDS for w in t.words) and not any(
-                x.kind in CONTENT_KINDS or x.kind == "unknown" for x in tags[k + 1:]):
+        if (
+            t.kind == "correction"
+            and any(w in SAFETY_STOP_WORDS for w in t.words)
+            and not any(x.kind in CONTENT_KINDS or x.kind == "unknown" for x in tags[k + 1 :])
+        ):
             return Tag("intent", "stop", t.index, t.words)
     return None
 
@@ -553,12 +629,19 @@ def stop_near_miss(words: list[tuple[str, float]]) -> tuple[str, str] | None:
     Words the language knows never count ("want" is not "wait", "step" not "stop", "top" not "stop")."""
     for heard, confidence in words:
         for word in tokenize(heard):
-            if confidence >= NEAR_STOP_MAX_CONFIDENCE or len(word) < 4 or word in SAFETY_STOP_WORDS \
-                    or (word,) in PHRASES or word in _FILLER or word in DESTINATION_MARKERS:
+            if (
+                confidence >= NEAR_STOP_MAX_CONFIDENCE
+                or len(word) < 4
+                or word in SAFETY_STOP_WORDS
+                or (word,) in PHRASES
+                or word in _FILLER
+                or word in DESTINATION_MARKERS
+            ):
                 continue
             # the same onset: a recogniser slips on a vowel or an ending ("stap"), and "what" is not "wait"
-            match = difflib.get_close_matches(word, [w for w in SAFETY_STOP_WORDS if w[:2] == word[:2]], n=1,
-                                              cutoff=NEAR_STOP_CUTOFF)
+            match = difflib.get_close_matches(
+                word, [w for w in SAFETY_STOP_WORDS if w[:2] == word[:2]], n=1, cutoff=NEAR_STOP_CUTOFF
+            )
             if match:
                 return word, match[0]
     return None
@@ -572,7 +655,7 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     split = _split_correction(tags)
     before: list[Tag] = []
     if split is not None:
-        before, tags = tags[:split], tags[split + 1:]
+        before, tags = tags[:split], tags[split + 1 :]
         if not any(t.kind in ("intent", "motion") for t in tags):  # "pick up the red, no, the blue cup"
             tags = [t for t in before if t.kind in ("intent", "motion")] + tags
             before = [t for t in before if t.kind not in ("intent", "motion")]
@@ -590,8 +673,9 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     start = chosen.index + len(chosen.words) if chosen else 0
     rest = [t for t in tags if t.index >= start and t.kind not in ("intent", "answer")]
     if intent == "put_down":  # "put <object> on|in|there <destination>"
-        split_at = next((k for k, t in enumerate(rest) if t.kind in ("dest", "deictic_place", "place", "relation")),
-                        len(rest))
+        split_at = next(
+            (k for k, t in enumerate(rest) if t.kind in ("dest", "deictic_place", "place", "relation")), len(rest)
+        )
         obj_tags, dest_tags = rest[:split_at], rest[split_at:]
     else:  # the object phrase *is* the destination of go_to / look_at
         obj_tags, dest_tags = [t for t in rest if t.kind not in ("dest", "deictic_place")], rest
@@ -599,8 +683,15 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     if before:
         obj = _merge(_read_object([t for t in before if t.index >= start], tokens), obj)
     first_relation = next((t.index for t in obj_tags if t.kind == "relation"), None)
-    anchored = {t.index for t in obj_tags if t.kind == "place" and " ".join(t.words) in L.PLACE_AS_OBJECT
-                and first_relation is not None and t.index > first_relation and obj.relations}  # "on the table"
+    anchored = {
+        t.index
+        for t in obj_tags
+        if t.kind == "place"
+        and " ".join(t.words) in L.PLACE_AS_OBJECT
+        and first_relation is not None
+        and t.index > first_relation
+        and obj.relations
+    }  # "on the table"
     place = next((t.value for t in dest_tags if t.kind == "place" and t.index not in anchored), None)
     deictic_place = next((t.value for t in dest_tags if t.kind == "deictic_place"), None)
     dest_obj = None
@@ -613,13 +704,29 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
     verb = next((t for t in tags if t.kind == "motion"), None)
     if verb is None and chosen is not None and chosen.value == "go_to":
         verb = chosen
-    if verb is not None and intent in (None, "go_to") and not (
-            obj.label not in (None, L.ANY_OBJECT) or obj.color or obj.deictic or obj.noun or place or deictic_place):
+    if (
+        verb is not None
+        and intent in (None, "go_to")
+        and not (
+            obj.label not in (None, L.ANY_OBJECT) or obj.color or obj.deictic or obj.noun or place or deictic_place
+        )
+    ):
         motion = _motion(before + tags if before else tags, tokens, verb)
         if motion is not None:
             intent = motion.kind
             obj = ObjectPhrase()
-    return Utterance(text=text, tokens=tokens, intent=intent,
-                     answer=answer_tag.value if answer_tag else None, obj=obj, place=place,
-                     deictic_place=deictic_place, dest_obj=dest_obj, corrections=tuple(corrections),
-                     unknown=tuple(unknown), motion=motion, other=other, self_corrected=split is not None)
+    return Utterance(
+        text=text,
+        tokens=tokens,
+        intent=intent,
+        answer=answer_tag.value if answer_tag else None,
+        obj=obj,
+        place=place,
+        deictic_place=deictic_place,
+        dest_obj=dest_obj,
+        corrections=tuple(corrections),
+        unknown=tuple(unknown),
+        motion=motion,
+        other=other,
+        self_corrected=split is not None,
+    )

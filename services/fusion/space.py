@@ -21,14 +21,20 @@ DEFAULT_RADIUS = 0.03  # m: an object's core radius when its extent is unknown
 DEPTH_SCALE = 0.05  # m: how much nearer an object must be for "the nearest" to prefer it clearly (about e^-1)
 # Distance from the ray's origin to the pointing fingertip (m), per method: an object within TOUCH of the ray's
 # line near there is under the fingertip (touched or almost).
-FINGERTIP_REACH = {"eye_fingertip": 0.75, "world_landmarks": 0.75, "shoulder_wrist": 0.75, "forearm": 0.45,
-                   "index_finger": 0.1}
+FINGERTIP_REACH = {
+    "eye_fingertip": 0.75,
+    "world_landmarks": 0.75,
+    "shoulder_wrist": 0.75,
+    "forearm": 0.45,
+    "index_finger": 0.1,
+}
 TOUCH = 0.1  # m beyond the object's radius, along and across the ray
 
 
 @dataclass(frozen=True)
 class Ray3:
     """A 3-D pointing ray as fusion uses it (the average of a pointing gesture's observations)."""
+
     origin: tuple[float, float, float]
     direction: tuple[float, float, float]
     method: str
@@ -39,8 +45,13 @@ class Ray3:
 def from_wire(ray: Ray3D | None) -> Ray3 | None:
     if ray is None:
         return None
-    return Ray3(tuple(ray.origin), tuple(ray.direction), ray.method, ray.frame_id,
-                tuple(ray.hit) if ray.hit is not None else None)
+    return Ray3(
+        tuple(ray.origin),
+        tuple(ray.direction),
+        ray.method,
+        ray.frame_id,
+        tuple(ray.hit) if ray.hit is not None else None,
+    )
 
 
 def _sub(a, b) -> tuple[float, float, float]:
@@ -120,7 +131,7 @@ def under_fingertip(ray: Ray3, position, extent) -> bool:
 
 
 def distance_preferences(word: str, positions: dict) -> dict:
-    """"nearest" / "farthest" by distance from the camera (m): 1 for the best, e^(-gap / DEPTH_SCALE) for others."""
+    """ "nearest" / "farthest" by distance from the camera (m): 1 for the best, e^(-gap / DEPTH_SCALE) for others."""
     dist = {k: _norm(p) for k, p in positions.items()}
     if word == "nearest":
         best = min(dist.values())
@@ -172,17 +183,22 @@ def project(point, projection: tuple[float, float, float]) -> tuple[float, float
 
 
 def hit_location(ray: Ray3, objects, cam: str, fallback_px: tuple[float, float]) -> Location:
-    """"There" in metres: where the ray meets the floor or table (`ray.hit`). Its pixel is the hit projected with the
+    """ "There" in metres: where the ray meets the floor or table (`ray.hit`). Its pixel is the hit projected with the
     pinhole fitted to the objects in view (`fit_projection`), else `fallback_px` (the 2-D ray's point)."""
     projection = fit_projection([o for o in objects if o.position is not None and same_frame(ray, o.frame_id)])
     px = project(ray.hit, projection) if projection is not None else None
     x, y = px if px is not None else fallback_px
-    return Location(x=round(float(x), 1), y=round(float(y), 1), cam=cam, position=[round(c, 4) for c in ray.hit],
-                    frame_id=ray.frame_id)
+    return Location(
+        x=round(float(x), 1),
+        y=round(float(y), 1),
+        cam=cam,
+        position=[round(c, 4) for c in ray.hit],
+        frame_id=ray.frame_id,
+    )
 
 
 def metres_words(position, frame_id: str | None, extent=None) -> str:
-    """", at (x, y, z) m in <frame>" for a planner prompt; "" without a position."""
+    """ ", at (x, y, z) m in <frame>" for a planner prompt; "" without a position."""
     if position is None:
         return ""
     where = f", at ({position[0]:.2f}, {position[1]:.2f}, {position[2]:.2f}) m in {frame_id or 'the camera frame'}"
@@ -192,12 +208,14 @@ def metres_words(position, frame_id: str | None, extent=None) -> str:
 
 
 def ray_words(ray: Ray3 | None) -> str:
-    """"; 3-D ray (method) from (x, y, z) m along (dx, dy, dz)[, meeting a surface at (…) m]" for a planner prompt."""
+    """ "; 3-D ray (method) from (x, y, z) m along (dx, dy, dz)[, meeting a surface at (…) m]" for a planner prompt."""
     if ray is None:
         return ""
     o, d = ray.origin, ray.direction
-    words = (f"; 3-D ray ({ray.method}) from ({o[0]:.2f}, {o[1]:.2f}, {o[2]:.2f}) m along "
-             f"({d[0]:.2f}, {d[1]:.2f}, {d[2]:.2f}) in {ray.frame_id}")
+    words = (
+        f"; 3-D ray ({ray.method}) from ({o[0]:.2f}, {o[1]:.2f}, {o[2]:.2f}) m along "
+        f"({d[0]:.2f}, {d[1]:.2f}, {d[2]:.2f}) in {ray.frame_id}"
+    )
     if ray.hit is not None:
         words += f", meeting a surface at ({ray.hit[0]:.2f}, {ray.hit[1]:.2f}, {ray.hit[2]:.2f}) m"
     return words
@@ -259,8 +277,9 @@ class Facing:
             return spatial, "the speaker's back is to the camera: their left is the camera's left"
         swap = {"left": "right", "right": "left"}
         words = tuple(swap[w] if w in mine else w for w in spatial)
-        why = ("the speaker faces the camera" if facing else "the speaker, not seen, is taken to face the robot") + \
-            f": their {'/'.join(sorted(mine))} is the camera's {'/'.join(sorted(swap[w] for w in mine))}"
+        why = (
+            "the speaker faces the camera" if facing else "the speaker, not seen, is taken to face the robot"
+        ) + f": their {'/'.join(sorted(mine))} is the camera's {'/'.join(sorted(swap[w] for w in mine))}"
         return words, why
 
 
@@ -271,9 +290,10 @@ def holds(position, extent, point, margin: float = 0.05) -> bool:
     return all(abs(point[i] - position[i]) <= extent[i] / 2 + margin for i in range(3))
 
 
-def there(ray: Ray3, objects, cam: str, fallback_px: tuple[float, float], on_ray: float = 0.7,
-          sigma_deg: float = SIGMA_DEG) -> Location:
-    """"There" when the ray met a surface: the object the ray points at (G >= `on_ray`, in metres) if the ray
+def there(
+    ray: Ray3, objects, cam: str, fallback_px: tuple[float, float], on_ray: float = 0.7, sigma_deg: float = SIGMA_DEG
+) -> Location:
+    """ "There" when the ray met a surface: the object the ray points at (G >= `on_ray`, in metres) if the ray
     reaches it before the surface and the surface's spot is not on that object (a table holds the spot: the spot
     is meant), else the spot itself (`hit_location`). Objects without a position cannot say they are before it."""
     best, best_g = None, on_ray
@@ -284,6 +304,11 @@ def there(ray: Ray3, objects, cam: str, fallback_px: tuple[float, float], on_ray
         if g >= best_g and before_hit(ray, o.position, o.extent) and not holds(o.position, o.extent, ray.hit):
             best, best_g = o, g
     if best is not None:
-        return Location(x=float(best.center[0]), y=float(best.center[1]), cam=cam, position=list(best.position),
-                        frame_id=best.frame_id or ray.frame_id)
+        return Location(
+            x=float(best.center[0]),
+            y=float(best.center[1]),
+            cam=cam,
+            position=list(best.position),
+            frame_id=best.frame_id or ray.frame_id,
+        )
     return hit_location(ray, objects, cam, fallback_px)

@@ -20,8 +20,9 @@ EDGE_MIN_PX = 3.0
 NESTED = 0.8  # the smaller box lies this much inside the bigger one: the bigger one is its support
 
 
-def fingertip(origin: tuple[float, float], direction: tuple[float, float],
-              hand_box: tuple[float, float, float, float] | None) -> tuple[float, float]:
+def fingertip(
+    origin: tuple[float, float], direction: tuple[float, float], hand_box: tuple[float, float, float, float] | None
+) -> tuple[float, float]:
     """The fingertip in the image. `hand_box`: x0, y0, x1, y1 of the pointing hand's landmarks for a hand ray (its
     origin is the index knuckle); None for a body ray (its origin is the fingertip)."""
     if hand_box is None:
@@ -55,8 +56,12 @@ def touched(point: tuple[float, float], boxes: list[Box]) -> tuple[list[int], li
         return [], []
     b = np.asarray(boxes, dtype=float).reshape(-1, 4)  # vectorised: a scene of 1000 boxes in microseconds
     tol = np.maximum(EDGE_MIN_PX, EDGE_TOLERANCE * np.hypot(b[:, 2], b[:, 3]))
-    mask = ((b[:, 0] - tol <= point[0]) & (point[0] <= b[:, 0] + b[:, 2] + tol)
-            & (b[:, 1] - tol <= point[1]) & (point[1] <= b[:, 1] + b[:, 3] + tol))
+    mask = (
+        (b[:, 0] - tol <= point[0])
+        & (point[0] <= b[:, 0] + b[:, 2] + tol)
+        & (b[:, 1] - tol <= point[1])
+        & (point[1] <= b[:, 1] + b[:, 3] + tol)
+    )
     inside = sorted(np.flatnonzero(mask).tolist(), key=lambda i: boxes[i][2] * boxes[i][3])
     hit: list[int] = []
     supports: list[int] = []

@@ -9,7 +9,12 @@ from dataclasses import dataclass
 from common.language import DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS
 from common.schema import Detections, Hands, Transcript, Weights
 from services.fusion.evidence import (
-    Pointing, modality_weights, pointing_from_event, pointing_from_hands, select_pointing, speech_reliability,
+    Pointing,
+    modality_weights,
+    pointing_from_event,
+    pointing_from_hands,
+    select_pointing,
+    speech_reliability,
     vision_reliability,
 )
 from services.fusion.ground import Choice, SceneObject, choose, scene_objects, score
@@ -35,6 +40,7 @@ class PendingTranscript:
 @dataclass
 class Context:
     """What the window holds for one transcript, and the rules it is weighed by."""
+
     objects: list[SceneObject]
     detections: list[Detections]
     pointing: Pointing | None
@@ -47,8 +53,14 @@ class Context:
     adaptive: bool  # --weights adaptive
     margin: float  # the lead a winner needs
 
-    def choose(self, phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None, ref: float | None,
-               check_evidence: bool = True) -> Choice:
+    def choose(
+        self,
+        phrase: ObjectPhrase,
+        objects: list[SceneObject],
+        pointing: Pointing | None,
+        ref: float | None,
+        check_evidence: bool = True,
+    ) -> Choice:
         """Score `objects` against the words (and `pointing`) with this window's weights, and decide."""
         scored = score(phrase, objects, pointing, self.weights, adaptive=self.adaptive, ref=ref, scene=self.objects)
         return choose(phrase, scored, margin=self.margin, check_evidence=check_evidence)
@@ -65,8 +77,16 @@ def ref_time(t: Transcript, u: Utterance) -> float:
     return (t.start + t.end) / 2
 
 
-def gather(streams: Streams, p: PendingTranscript, how: Ready, *, weights_mode: str, vision_lookback: float,
-           margin: float, log: logging.Logger) -> Context:
+def gather(
+    streams: Streams,
+    p: PendingTranscript,
+    how: Ready,
+    *,
+    weights_mode: str,
+    vision_lookback: float,
+    margin: float,
+    log: logging.Logger,
+) -> Context:
     """The window's evidence: per camera the detections nearest the reference time (looking back
     `vision_lookback` before the window), the pointing nearest it, each modality's reliability and weight."""
     t, u = p.transcript, p.utterance
@@ -81,16 +101,39 @@ def gather(streams: Streams, p: PendingTranscript, how: Ready, *, weights_mode: 
     for _, item in streams.between("gesture", p.lo, p.hi):
         obs.extend(pointing_from_hands(item) if isinstance(item, Hands) else pointing_from_event(item))
     pointing = select_pointing(obs, ref)
-    rel = {"speech": speech_reliability(t, u),
-           "vision": vision_reliability(detections) if detections else None,
-           "gesture": pointing.reliability if pointing else None}
+    rel = {
+        "speech": speech_reliability(t, u),
+        "vision": vision_reliability(detections) if detections else None,
+        "gesture": pointing.reliability if pointing else None,
+    }
     weights = modality_weights(weights_mode, rel)
-    inputs = {"speech": t.stamp, "vision": max((d.stamp for d in detections), default=None),
-              "gesture": pointing.stamp if pointing else None}
+    inputs = {
+        "speech": t.stamp,
+        "vision": max((d.stamp for d in detections), default=None),
+        "gesture": pointing.stamp if pointing else None,
+    }
     missing = [m for m in WAITED_MODALITIES if inputs[m] is None]
     if log.isEnabledFor(logging.DEBUG):
-        log.debug("window [%.3f, %.3f] of '%s' closed by %s: %d detections, %d pointing observations, "
-                  "watermarks %s", p.lo, p.hi, t.text, how, len(detections), len(obs),
-                  {m: round(streams.watermark(m), 3) for m in WAITED_MODALITIES})
-    return Context(scene_objects(detections), detections, pointing, weights, rel, inputs, missing, ref, how,
-                   adaptive=weights_mode == "adaptive", margin=margin)
+        log.debug(
+            "window [%.3f, %.3f] of '%s' closed by %s: %d detections, %d pointing observations, watermarks %s",
+            p.lo,
+            p.hi,
+            t.text,
+            how,
+            len(detections),
+            len(obs),
+            {m: round(streams.watermark(m), 3) for m in WAITED_MODALITIES},
+        )
+    return Context(
+        scene_objects(detections),
+        detections,
+        pointing,
+        weights,
+        rel,
+        inputs,
+        missing,
+        ref,
+        how,
+        adaptive=weights_mode == "adaptive",
+        margin=margin,
+    )

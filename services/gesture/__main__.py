@@ -28,38 +28,69 @@ DEPTH_KEPT = 4  # depth frames kept per camera to find the one of a colour frame
 def to_ray(ray, ray3d=None) -> Ray | None:
     if ray is None:
         return None
-    return Ray(origin=[round(v, 2) for v in ray.origin], direction=list(ray.direction), confidence=ray.confidence,
-               source=ray.source, ray3d=ray3d)
+    return Ray(
+        origin=[round(v, 2) for v in ray.origin],
+        direction=list(ray.direction),
+        confidence=ray.confidence,
+        source=ray.source,
+        ray3d=ray3d,
+    )
 
 
 def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
     """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body` (3-D rays when depth is known)."""
     rays = {arm.side: to_ray(ray, rays3d.arm(arm.side) if rays3d and ray else None) for arm, ray in arms}
-    return Body(landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
-                visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
-                left_ray=rays.get("left"), right_ray=rays.get("right"))
+    return Body(
+        landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
+        visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
+        left_ray=rays.get("left"),
+        right_ray=rays.get("right"),
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = service_parser("gesture", "Find hands and the body (MediaPipe), classify gestures over time, "
-                            "publish Hands and Bodies for every frame and GestureEvents (start/hold/end) with a "
-                            "pointing ray from the finger or the arm.", EPILOG)
+    parser = service_parser(
+        "gesture",
+        "Find hands and the body (MediaPipe), classify gestures over time, "
+        "publish Hands and Bodies for every frame and GestureEvents (start/hold/end) with a "
+        "pointing ray from the finger or the arm.",
+        EPILOG,
+    )
     parser.add_argument("--model", choices=("lite", "full"), default="lite", help="hand landmark model (default lite)")
     parser.add_argument("--max-hands", type=int, default=2, help="hands to track per camera (default 2)")
-    parser.add_argument("--mirrored", action="store_true",
-                        help="the camera image is mirrored (selfie view); default: a robot's normal camera")
+    parser.add_argument(
+        "--mirrored",
+        action="store_true",
+        help="the camera image is mirrored (selfie view); default: a robot's normal camera",
+    )
     parser.add_argument("--start-frames", type=int, default=3, help="frames a gesture must hold to start (3)")
-    parser.add_argument("--start-ms", type=float, default=0.0,
-                        help="or: milliseconds it must hold to start, whichever comes first (default 0: frames only)")
+    parser.add_argument(
+        "--start-ms",
+        type=float,
+        default=0.0,
+        help="or: milliseconds it must hold to start, whichever comes first (default 0: frames only)",
+    )
     parser.add_argument("--end-frames", type=int, default=3, help="frames it must be absent to end (3)")
-    parser.add_argument("--idle-end", type=float, default=1.0,
-                        help="seconds without frames from a camera after which its gestures end (default 1)")
-    parser.add_argument("--body", action=argparse.BooleanOptionalAction, default=True,
-                        help="run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs "
-                             "resting palms; publishes Bodies (default on; --no-body for hands only)")
-    parser.add_argument("--ray", choices=("eyes", "forearm"), default="eyes",
-                        help="body ray: eyes -> fingertip (forearm when the eyes are out of view; default) or "
-                             "forearm (elbow -> fingertip)")
+    parser.add_argument(
+        "--idle-end",
+        type=float,
+        default=1.0,
+        help="seconds without frames from a camera after which its gestures end (default 1)",
+    )
+    parser.add_argument(
+        "--body",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs "
+        "resting palms; publishes Bodies (default on; --no-body for hands only)",
+    )
+    parser.add_argument(
+        "--ray",
+        choices=("eyes", "forearm"),
+        default="eyes",
+        help="body ray: eyes -> fingertip (forearm when the eyes are out of view; default) or "
+        "forearm (elbow -> fingertip)",
+    )
     parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
     args = parser.parse_args(argv)
     for flag in ("max_hands", "start_frames", "end_frames"):
@@ -91,8 +122,12 @@ def main(argv: list[str] | None = None) -> None:
         went_back = frame.cam in last_frame and frame.stamp < last_frame[frame.cam][1].stamp
         if frame.cam not in trackers or went_back:
             # new stream, or the runner accepted a new timeline (common/stamps.py): gestures start afresh
-            trackers[frame.cam] = GestureTracker(start_frames=args.start_frames, end_frames=args.end_frames,
-                                                 start_time=args.start_ms / 1000.0, ray_from=args.ray)
+            trackers[frame.cam] = GestureTracker(
+                start_frames=args.start_frames,
+                end_frames=args.end_frames,
+                start_time=args.start_ms / 1000.0,
+                ray_from=args.ray,
+            )
             if args.body:
                 posers[frame.cam] = PoseLandmarker()
         observations = landmarkers[frame.cam].detect(img)
@@ -100,19 +135,46 @@ def main(argv: list[str] | None = None) -> None:
         tracker = trackers[frame.cam]
         tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
         rays3d = frame_rays(frame, skeleton, posers[frame.cam].world if args.body and skeleton is not None else None)
-        hand_rays3d = {o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
-                       for o, t in zip(observations, tracked) if rays3d is not None and t.ray is not None}
-        hands = [Hand(hand=o.hand, score=round(o.score, 4), landmarks=[[round(x, 2), round(y, 2)] for x, y in
-                                                                       o.landmarks.tolist()],
-                      gesture=t.gesture, ray=to_ray(t.ray, hand_rays3d.get(o.hand)))
-                 for o, t in zip(observations, tracked)]
-        service.publish(service.keys.hands(frame.cam), Hands(
-            stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
-            height=frame.height, hands=hands))
+        hand_rays3d = {
+            o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
+            for o, t in zip(observations, tracked)
+            if rays3d is not None and t.ray is not None
+        }
+        hands = [
+            Hand(
+                hand=o.hand,
+                score=round(o.score, 4),
+                landmarks=[[round(x, 2), round(y, 2)] for x, y in o.landmarks.tolist()],
+                gesture=t.gesture,
+                ray=to_ray(t.ray, hand_rays3d.get(o.hand)),
+            )
+            for o, t in zip(observations, tracked)
+        ]
+        service.publish(
+            service.keys.hands(frame.cam),
+            Hands(
+                stamp=frame.stamp,
+                source=service.source,
+                seq=frame.seq,
+                cam=frame.cam,
+                width=frame.width,
+                height=frame.height,
+                hands=hands,
+            ),
+        )
         if args.body:
-            service.publish(service.keys.bodies(frame.cam), Bodies(
-                stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
-                height=frame.height, bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)]))
+            service.publish(
+                service.keys.bodies(frame.cam),
+                Bodies(
+                    stamp=frame.stamp,
+                    source=service.source,
+                    seq=frame.seq,
+                    cam=frame.cam,
+                    width=frame.width,
+                    height=frame.height,
+                    bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)],
+                ),
+            )
         publish_events(frame, events, rays3d, hand_rays3d)
         if rays3d is not None and rays3d.error:
             service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {rays3d.error}")
@@ -121,8 +183,9 @@ def main(argv: list[str] | None = None) -> None:
 
     def frame_rays(frame: Frame, skeleton, world) -> FrameRays | None:
         """The 3-D rays of this frame, when the depth of the same capture (same seq and stamp) has come."""
-        depth = next((d for d in reversed(depths.get(frame.cam, ())) if d.seq == frame.seq
-                      and d.stamp == frame.stamp), None)
+        depth = next(
+            (d for d in reversed(depths.get(frame.cam, ())) if d.seq == frame.seq and d.stamp == frame.stamp), None
+        )
         if depth is None:
             if frame.cam in depths:
                 service.counters.add("depth_unmatched")  # a camera with depth, but not of this capture (yet)
@@ -132,16 +195,32 @@ def main(argv: list[str] | None = None) -> None:
     def on_depth(d) -> None:
         depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)
 
-    def publish_events(frame: Frame, events: list, rays3d: FrameRays | None = None,
-                       hand_rays3d: dict | None = None) -> None:
+    def publish_events(
+        frame: Frame, events: list, rays3d: FrameRays | None = None, hand_rays3d: dict | None = None
+    ) -> None:
         for ev in events:
             ray3d = None
             if ev.ray is not None and rays3d is not None:
                 ray3d = rays3d.arm(ev.hand) if ev.ray.source == "body" else (hand_rays3d or {}).get(ev.hand)
-            service.publish(service.keys.gesture_event(frame.cam), GestureEvent(
-                stamp=frame.stamp, source=service.source, cam=frame.cam, width=frame.width, height=frame.height,
-                gesture=ev.gesture, phase=ev.phase, start=ev.start, end=ev.end, score=ev.score, hand=ev.hand,
-                ray=to_ray(ev.ray, ray3d)), lossless=True, realtime=ev.gesture == "open_palm")
+            service.publish(
+                service.keys.gesture_event(frame.cam),
+                GestureEvent(
+                    stamp=frame.stamp,
+                    source=service.source,
+                    cam=frame.cam,
+                    width=frame.width,
+                    height=frame.height,
+                    gesture=ev.gesture,
+                    phase=ev.phase,
+                    start=ev.start,
+                    end=ev.end,
+                    score=ev.score,
+                    hand=ev.hand,
+                    ray=to_ray(ev.ray, ray3d),
+                ),
+                lossless=True,
+                realtime=ev.gesture == "open_palm",
+            )
             if ev.phase != "hold":
                 service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)
 
@@ -158,8 +237,9 @@ def main(argv: list[str] | None = None) -> None:
                     publish_events(frame, ended)
 
     for cam in args.cams.split(","):
-        service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
-                          monotonic=True)
+        service.subscribe(
+            service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True, monotonic=True
+        )
         # a camera without depth sends none: nothing changes (2-D rays only)
         service.subscribe(service.keys.depth(cam.strip()), DepthFrame, on_depth, maxlen=DEPTH_KEPT)
     main_exit(service.run(tick=end_idle_streams, tick_interval=0.1))

@@ -26,14 +26,14 @@ ARMS = {"left": (11, 13, 15, 19, 23), "right": (12, 14, 16, 20, 24)}  # shoulder
 MIDDLE_MCP = 9  # hand landmark
 
 MIN_VISIBILITY = 0.5
-EXTENDED_DEG = 150.0     # elbow at least this straight to start pointing...
-RELEASE_DEG = 135.0      # ...and to keep pointing
-AWAY_DEG = 35.0          # arm (shoulder -> wrist) away from the torso line (shoulder -> hip) to start...
+EXTENDED_DEG = 150.0  # elbow at least this straight to start pointing...
+RELEASE_DEG = 135.0  # ...and to keep pointing
+AWAY_DEG = 35.0  # arm (shoulder -> wrist) away from the torso line (shoulder -> hip) to start...
 RELEASE_AWAY_DEG = 25.0  # ...and to keep
 TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are out of frame
-FINGERS_UP_DEG = 60.0    # a raised palm: wrist -> middle knuckle within this of image-up
+FINGERS_UP_DEG = 60.0  # a raised palm: wrist -> middle knuckle within this of image-up
 RAISED_ABOVE_SHOULDER = 0.3  # a raised hand (no hand seen): wrist this many body scales above its shoulder...
-FOREARM_UP_DEG = 45.0        # ...and the forearm (elbow -> wrist) within this of image-up
+FOREARM_UP_DEG = 45.0  # ...and the forearm (elbow -> wrist) within this of image-up
 
 
 @dataclass(frozen=True)
@@ -83,8 +83,9 @@ def eyes_in_view(p: np.ndarray, width: int, height: int) -> np.ndarray | None:
     return eyes[:, :2].mean(axis=0)
 
 
-def arm(landmarks: np.ndarray | list, side: str, width: int, height: int, was_pointing: bool = False,
-        ray_from: str = "eyes") -> Arm:
+def arm(
+    landmarks: np.ndarray | list, side: str, width: int, height: int, was_pointing: bool = False, ray_from: str = "eyes"
+) -> Arm:
     """One arm of a 33x3 [x px, y px, visibility] skeleton. `was_pointing`: the hysteresis state of this arm."""
     p = np.asarray(landmarks, dtype=float).reshape(33, 3)
     s, e, w, i, _ = ARMS[side]
@@ -105,8 +106,9 @@ def arm(landmarks: np.ndarray | list, side: str, width: int, height: int, was_po
     return Arm(side, pointing, vis, elbow, away, wrist, forearm, ray, source if pointing else None, confidence)
 
 
-def arm_ray(landmarks: np.ndarray | list, side: str, width: int, height: int, ray_from: str = "eyes"
-            ) -> tuple[tuple[tuple[float, float], tuple[float, float]] | None, str | None]:
+def arm_ray(
+    landmarks: np.ndarray | list, side: str, width: int, height: int, ray_from: str = "eyes"
+) -> tuple[tuple[tuple[float, float], tuple[float, float]] | None, str | None]:
     """((origin = index fingertip, or the wrist when the fingertip is unseen; unit direction), "eyes"/"forearm"):
     eyes -> fingertip when `ray_from` is "eyes" and both eyes are in view, else elbow -> fingertip."""
     p = np.asarray(landmarks, dtype=float).reshape(33, 3)

@@ -22,19 +22,32 @@ class LandmarkError(RuntimeError):
 class HandLandmarker:
     """One MediaPipe hands graph for one video stream (it tracks between frames). Not thread-safe."""
 
-    def __init__(self, model: str = "lite", max_hands: int = 2, mirrored: bool = False, video: bool = True,
-                 min_detection: float = 0.5, min_tracking: float = 0.5):
+    def __init__(
+        self,
+        model: str = "lite",
+        max_hands: int = 2,
+        mirrored: bool = False,
+        video: bool = True,
+        min_detection: float = 0.5,
+        min_tracking: float = 0.5,
+    ):
         try:
             from mediapipe.python.solutions import hands as mp_hands
         except ImportError as exc:
-            raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
-                                f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)") from None
+            raise LandmarkError(
+                f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
+                f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)"
+            ) from None
         if model not in MODELS:
             raise LandmarkError(f"unknown hand model {model!r}: use one of {', '.join(MODELS)}")
         self.mirrored = mirrored
-        self._hands = mp_hands.Hands(static_image_mode=not video, max_num_hands=max_hands,
-                                     model_complexity=MODELS[model], min_detection_confidence=min_detection,
-                                     min_tracking_confidence=min_tracking)
+        self._hands = mp_hands.Hands(
+            static_image_mode=not video,
+            max_num_hands=max_hands,
+            model_complexity=MODELS[model],
+            min_detection_confidence=min_detection,
+            min_tracking_confidence=min_tracking,
+        )
 
     def detect(self, bgr: np.ndarray) -> list[Observation]:
         h, w = bgr.shape[:2]
@@ -65,11 +78,17 @@ class PoseLandmarker:
         try:
             from mediapipe.python.solutions import pose as mp_pose
         except ImportError as exc:
-            raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
-                                f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)") from None
+            raise LandmarkError(
+                f"mediapipe cannot be imported ({exc}); run `make setup` (it installs "
+                f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)"
+            ) from None
         self.world: np.ndarray | None = None  # the last detect()'s 33x3 world landmarks
-        self._pose = mp_pose.Pose(static_image_mode=not video, model_complexity=POSE_FULL,
-                                  min_detection_confidence=min_detection, min_tracking_confidence=min_tracking)
+        self._pose = mp_pose.Pose(
+            static_image_mode=not video,
+            model_complexity=POSE_FULL,
+            min_detection_confidence=min_detection,
+            min_tracking_confidence=min_tracking,
+        )
 
     def detect(self, bgr: np.ndarray) -> np.ndarray | None:
         """33x3 [x px, y px, visibility], or None when no person is seen."""

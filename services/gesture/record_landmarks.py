@@ -1,7 +1,8 @@
 """Record the real landmark arrays the rule tests turn every way (tests/data/landmarks/real_hands.json).
 
 Runs the service's own HandLandmarker on real photos, one still image at a time, with the full model (the more
-accurate one: these arrays stand for "a real hand") and writes each hand's 21 [x, y] pixel landmarks. Usage: python -m services.gesture.record_landmarks [--out FILE]
+accurate one: these arrays stand for "a real hand") and writes each hand's 21 [x, y] pixel landmarks.
+Usage: python -m services.gesture.record_landmarks [--out FILE]
 """
 
 from __future__ import annotations
@@ -40,8 +41,12 @@ def record(sources: dict[str, str] = SOURCES, data: Path = ROOT / "data") -> dic
             hands = landmarker.detect(img)
             if len(hands) != 1:
                 raise ValueError(f"{rel}: expected one hand, MediaPipe found {len(hands)}")
-            out[name] = {"source": Path(rel).name, "width": img.shape[1], "height": img.shape[0],
-                         "landmarks": [[round(x, 2), round(y, 2)] for x, y in hands[0].landmarks.tolist()]}
+            out[name] = {
+                "source": Path(rel).name,
+                "width": img.shape[1],
+                "height": img.shape[0],
+                "landmarks": [[round(x, 2), round(y, 2)] for x, y in hands[0].landmarks.tolist()],
+            }
         return out
     finally:
         landmarker.close()

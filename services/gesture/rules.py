@@ -31,13 +31,13 @@ WRIST, THUMB_MCP, THUMB_IP, THUMB_TIP = 0, 2, 3, 4
 INDEX_MCP, INDEX_TIP, MIDDLE_MCP, LITTLE_MCP = 5, 8, 9, 17
 FINGERS = (5, 9, 13, 17)  # MCP of index, middle, ring, little; PIP = +1, TIP = +3
 
-EXTENDED_REACH = 0.5     # |tip - MCP| / palm at least this: extended
-CURLED_REACH = 0.45      # below this: curled
-STRAIGHT = 0.9           # |tip - MCP| / length of its three bones: a straight finger...
-SHORT_REACH = 0.3        # ...this long counts as extended too (a hand tilted away looks short, not bent)
-TIP_BEYOND_PIP = 1.1     # |tip - wrist| / |PIP - wrist| at least this for an extended finger
+EXTENDED_REACH = 0.5  # |tip - MCP| / palm at least this: extended
+CURLED_REACH = 0.45  # below this: curled
+STRAIGHT = 0.9  # |tip - MCP| / length of its three bones: a straight finger...
+SHORT_REACH = 0.3  # ...this long counts as extended too (a hand tilted away looks short, not bent)
+TIP_BEYOND_PIP = 1.1  # |tip - wrist| / |PIP - wrist| at least this for an extended finger
 FORESHORTENED_REACH = 0.2  # a straight index aimed at the camera may look this short and still point
-THUMB_OUT = 0.65         # |thumb tip - index MCP| / palm at least this: thumb sticks out
+THUMB_OUT = 0.65  # |thumb tip - index MCP| / palm at least this: thumb sticks out
 THUMB_UP_DEG = 50.0
 PALM_LENGTH_PER_WIDTH = 1.45
 

@@ -35,8 +35,13 @@ TORSO = (11, 12, 23, 24)
 MIN_VISIBILITY = 0.5
 HAND_INDEX_MCP, HAND_INDEX_DIP, HAND_INDEX_TIP = 5, 7, 8
 # Plausible 3-D lengths (m) of each method's segment: adult arms with a wide margin (depth noise, children).
-SEGMENTS = {"eye_fingertip": (0.15, 1.2), "forearm": (0.1, 0.6), "shoulder_wrist": (0.2, 0.95),
-            "index_finger": (0.02, 0.2), "world_landmarks": (0.15, 1.2)}
+SEGMENTS = {
+    "eye_fingertip": (0.15, 1.2),
+    "forearm": (0.1, 0.6),
+    "shoulder_wrist": (0.2, 0.95),
+    "index_finger": (0.02, 0.2),
+    "world_landmarks": (0.15, 1.2),
+}
 
 # Plane fit (RANSAC) near the ray
 CLOUD_POINTS = 20000  # about this many back-projected depth samples per frame (every 4th px of 640x480)
@@ -58,6 +63,7 @@ def inlier_tolerance(z: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class DepthView:
     """An aligned depth image in metres (0 = no measurement) with the intrinsics that belong to it."""
+
     metres: np.ndarray  # H x W float32
     fx: float
     fy: float
@@ -80,7 +86,7 @@ class DepthView:
         col, row, half = int(round(x)), int(round(y)), window // 2
         if not (0 <= col < self.width and 0 <= row < self.height):
             return None
-        patch = self.metres[max(0, row - half):row + half + 1, max(0, col - half):col + half + 1]
+        patch = self.metres[max(0, row - half) : row + half + 1, max(0, col - half) : col + half + 1]
         valid = patch[patch > 0]
         return float(np.median(valid)) if valid.size >= MIN_VALID else None
 
@@ -115,6 +121,7 @@ def depth_view(msg: DepthFrame) -> DepthView:
 @dataclass(frozen=True)
 class Lifted:
     """A 3-D pointing ray before it goes on the wire."""
+
     origin: np.ndarray
     direction: np.ndarray  # unit
     method: str
@@ -148,8 +155,9 @@ def _tip_pixels(pose: np.ndarray, side: str, hand: np.ndarray | None) -> tuple[t
     return tuple(pose[index, :2]), tuple(pose[index, :2])
 
 
-def arm_ray3d(view: DepthView, pose: np.ndarray, side: str, hand: np.ndarray | None = None,
-              world: np.ndarray | None = None) -> Lifted | None:
+def arm_ray3d(
+    view: DepthView, pose: np.ndarray, side: str, hand: np.ndarray | None = None, world: np.ndarray | None = None
+) -> Lifted | None:
     """The 3-D ray of one arm of a 33x3 [x px, y px, visibility] skeleton (the person's own `side`), its hand's 21
     landmarks if the hand stage saw it, MediaPipe's 33x3 world landmarks (m) if known. Methods in the module's
     order; None when none has depth."""
@@ -188,7 +196,7 @@ def torso_point(view: DepthView, pose: np.ndarray) -> np.ndarray | None:
     # the middle half of the box: inside the torso whatever the person's lean
     cx0, cx1 = x0 + (x1 - x0) // 4, x1 - (x1 - x0) // 4
     cy0, cy1 = y0 + (y1 - y0) // 4, y1 - (y1 - y0) // 4
-    patch = view.metres[cy0:cy1 + 1, cx0:cx1 + 1]
+    patch = view.metres[cy0 : cy1 + 1, cx0 : cx1 + 1]
     valid = patch[patch > 0]
     if valid.size < MIN_VALID:
         return None
@@ -217,8 +225,9 @@ def hand_ray3d(view: DepthView, hand: np.ndarray) -> Lifted | None:
     """A hand seen without its body: index knuckle -> fingertip (the tip's depth read halfway back to its joint)."""
     q = np.asarray(hand, dtype=float).reshape(21, 2)
     tip_depth_at = tuple((q[HAND_INDEX_TIP] + q[HAND_INDEX_DIP]) / 2)
-    return _segment(view.lift(*q[HAND_INDEX_MCP]), view.lift(*q[HAND_INDEX_TIP], depth_from=tip_depth_at),
-                    "index_finger")
+    return _segment(
+        view.lift(*q[HAND_INDEX_MCP]), view.lift(*q[HAND_INDEX_TIP], depth_from=tip_depth_at), "index_finger"
+    )
 
 
 # ---------------------------------------------------------------------------
@@ -298,9 +307,13 @@ def surface_hit(view: DepthView, ray: Lifted, cloud: np.ndarray | None = None) -
 def to_wire(ray: Lifted, frame_id: str, hit: np.ndarray | None) -> Ray3D:
     direction = [float(c) for c in ray.direction]
     norm = math.sqrt(sum(c * c for c in direction))
-    return Ray3D(origin=[round(float(c), 4) for c in ray.origin], direction=[c / norm for c in direction],
-                 method=ray.method, frame_id=frame_id,
-                 hit=None if hit is None else [round(float(c), 4) for c in hit])
+    return Ray3D(
+        origin=[round(float(c), 4) for c in ray.origin],
+        direction=[c / norm for c in direction],
+        method=ray.method,
+        frame_id=frame_id,
+        hit=None if hit is None else [round(float(c), 4) for c in hit],
+    )
 
 
 def side_of_hand(pose: np.ndarray | None, hand: np.ndarray) -> str | None:
@@ -356,8 +369,10 @@ class FrameRays:
     def arm(self, side: str, hand: np.ndarray | None = None) -> Ray3D | None:
         if self.pose is None:
             return None
-        return self._wire(("arm", side, hand is not None and hand.tobytes()),
-                          lambda view: arm_ray3d(view, self.pose, side, hand, self.world))
+        return self._wire(
+            ("arm", side, hand is not None and hand.tobytes()),
+            lambda view: arm_ray3d(view, self.pose, side, hand, self.world),
+        )
 
     def hand(self, hand: np.ndarray, tip: bool = True) -> Ray3D | None:
         """A pointing hand: its arm's ray when the body stage sees that arm (through the hand's own index tip when

@@ -34,6 +34,7 @@ CLOSE_UP_PALM_PER_BODY = 0.75  # palm / body_scale at least this: a close-up han
 @dataclass
 class Observation:
     """One hand in one frame."""
+
     hand: str  # "left" / "right"
     score: float
     landmarks: np.ndarray  # 21×2 px
@@ -50,6 +51,7 @@ class Ray:
 @dataclass
 class Cue:
     """One hand-or-arm in one frame, after fusing the hand stage with the body stage."""
+
     hand: str
     score: float
     wrist: np.ndarray
@@ -67,8 +69,11 @@ def body_scale(body: np.ndarray) -> float:
     that is larger (a person turned sideways has narrow shoulders in the image, not a short torso)."""
     p = np.asarray(body, dtype=float).reshape(33, 3)
     shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2]))
-    torsos = [float(np.linalg.norm(p[hip, :2] - p[s, :2])) for s, hip in ((11, 23), (12, 24))
-              if min(p[s, 2], p[hip, 2]) >= MIN_VISIBILITY]
+    torsos = [
+        float(np.linalg.norm(p[hip, :2] - p[s, :2]))
+        for s, hip in ((11, 23), (12, 24))
+        if min(p[s, 2], p[hip, 2]) >= MIN_VISIBILITY
+    ]
     return max([shoulders, *(t / TORSO_PER_SHOULDERS for t in torsos)]) or 1.0
 
 
@@ -95,8 +100,12 @@ def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float 
     return "extended" not in finger_states(landmarks)[1:]
 
 
-def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray | None,
-              hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> list[Cue]:
+def fuse_arms(
+    observations: list[Observation],
+    arms: list[Arm],
+    body: np.ndarray | None,
+    hand_ray_min_palm: float = HAND_RAY_MIN_PALM,
+) -> list[Cue]:
     """Hands and arms of one frame -> cues. A hand whose wrist is at the arm's wrist is that arm's hand. Its class
     decides (a fist on an extended arm is not pointing; an open palm never becomes a point); the arm adds only
     what the hand stage cannot see: a small or unclear hand with no other finger out on a pointing arm points
@@ -113,8 +122,11 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
     for k, obs in enumerate(observations):
         palm = palms[k]
         raw = hand_class = classify(obs.landmarks)
-        near = [a for a in free if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0])))
-                <= max(1.5 * palm, 0.5 * a.forearm)]
+        near = [
+            a
+            for a in free
+            if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))) <= max(1.5 * palm, 0.5 * a.forearm)
+        ]
         match = min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
         if match is None or close_up(palm, body):
             if match is not None:
@@ -140,11 +152,35 @@ def fuse_arms(observations: list[Observation], arms: list[Arm], body: np.ndarray
         if any_close_up:
             continue
         if a.pointing:
-            cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "point", a.ray,
-                            "body", a.confidence, None, a))
+            cues.append(
+                Cue(
+                    a.side,
+                    a.visibility,
+                    np.array(a.wrist),
+                    max(0.5 * a.forearm, 1.0),
+                    "point",
+                    a.ray,
+                    "body",
+                    a.confidence,
+                    None,
+                    a,
+                )
+            )
         elif raised_hand(body, a.side, body_scale(body)):  # a hand raised at room distance, too small to be seen
-            cues.append(Cue(a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "open_palm", None,
-                            "body", 1.0, None, a))
+            cues.append(
+                Cue(
+                    a.side,
+                    a.visibility,
+                    np.array(a.wrist),
+                    max(0.5 * a.forearm, 1.0),
+                    "open_palm",
+                    None,
+                    "body",
+                    1.0,
+                    None,
+                    a,
+                )
+            )
     return cues
 
 
@@ -162,6 +198,7 @@ class Event:
 @dataclass
 class TrackedHand:
     """What one observation became: its track, this frame's class and (if pointing) the steadied ray."""
+
     track_id: int
     gesture: str | None
     ray: Ray | None
@@ -207,8 +244,13 @@ class GestureTracker:
     _arm_pointing: dict = field(default_factory=dict)
     _next_id: int = 1
 
-    def update(self, stamp: float, observations: list[Observation], body: np.ndarray | None = None,
-               size: tuple[int, int] = (0, 0)) -> tuple[list[TrackedHand], list[Event]]:
+    def update(
+        self,
+        stamp: float,
+        observations: list[Observation],
+        body: np.ndarray | None = None,
+        size: tuple[int, int] = (0, 0),
+    ) -> tuple[list[TrackedHand], list[Event]]:
         """One frame: the hands seen and, if the body stage runs, the person's 33x3 pose landmarks (None: no
         body seen) in an image of `size` (width, height). Hand and arm of one side become one cue (fuse_arms)."""
         arms = self._judge_arms(body, size)
@@ -250,8 +292,10 @@ class GestureTracker:
         if body is None:
             self._arm_pointing = {}
             return []
-        arms = [arm(body, side, size[0], size[1], self._arm_pointing.get(side, False), self.ray_from)
-                for side in ("left", "right")]
+        arms = [
+            arm(body, side, size[0], size[1], self._arm_pointing.get(side, False), self.ray_from)
+            for side in ("left", "right")
+        ]
         self._arm_pointing = {a.side: a.pointing for a in arms}
         return arms
 
@@ -282,10 +326,9 @@ class GestureTracker:
         direction = mean / (resultant or 1.0)
         frames = len(track.rays) / self.ray_frames  # a ray seen for one frame is less sure than one held
         # steadiness only: consumers weigh the hand's own landmark score separately
-        confidence = max(0.0, min(1.0, weight * resultant ** 8 * (0.5 + 0.5 * frames)))
+        confidence = max(0.0, min(1.0, weight * resultant**8 * (0.5 + 0.5 * frames)))
         o = origins.mean(axis=0)
-        return Ray((float(o[0]), float(o[1])), (float(direction[0]), float(direction[1])), round(confidence, 4),
-                   source)
+        return Ray((float(o[0]), float(o[1])), (float(direction[0]), float(direction[1])), round(confidence, 4), source)
 
     def _waving(self, track: _Track, stamp: float) -> bool:
         xs = [x for t, x in track.wrist_x if stamp - t <= self.wave_window]
@@ -320,15 +363,15 @@ class GestureTracker:
                 track.misses += 1
                 replaced = raw == "wave" and track.active == "open_palm"
                 if track.misses >= self.end_frames or replaced:
-                    events.append(Event(track.active, "end", track.active_start, track.active_last, score,
-                                        track.hand, None))
+                    events.append(
+                        Event(track.active, "end", track.active_start, track.active_last, score, track.hand, None)
+                    )
                     track.active = None
         if track.active is None and raw is not None and (self._held(track, stamp) or raw == "wave"):
             track.active, track.active_start, track.active_last = raw, track.run_start, stamp
             track.misses, track.last_emit = 0, stamp
             events.append(Event(raw, "start", track.run_start, stamp, score, track.hand, ray))
         return events
-
 
     def _held(self, track: _Track, stamp: float) -> bool:
         """Has the current per-frame class lasted long enough to start? Never on a single frame."""
@@ -342,9 +385,19 @@ class GestureTracker:
 
     def flush(self) -> list[Event]:
         """End every gesture going on and forget all hands: the stream stopped, so nothing will end them."""
-        events = [Event(t.active, "end", t.active_start, t.active_last,
-                        round(float(np.mean(t.scores)) if t.scores else 0.0, 4), t.hand, None)
-                  for t in self.tracks if t.active is not None]
+        events = [
+            Event(
+                t.active,
+                "end",
+                t.active_start,
+                t.active_last,
+                round(float(np.mean(t.scores)) if t.scores else 0.0, 4),
+                t.hand,
+                None,
+            )
+            for t in self.tracks
+            if t.active is not None
+        ]
         self.tracks, self.last_arms, self._arm_pointing = [], [], {}
         return events
 

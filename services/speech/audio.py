@@ -32,8 +32,10 @@ def pcm_to_mono(data: bytes, channels: int) -> np.ndarray:
 
 def check_rate(rate: int) -> None:
     if rate < MIN_RATE:
-        raise AudioError("unsupported_rate", f"sample rate {rate} Hz is below {MIN_RATE} Hz; speech needs at "
-                                             f"least 8 kHz (16 kHz or more recommended)")
+        raise AudioError(
+            "unsupported_rate",
+            f"sample rate {rate} Hz is below {MIN_RATE} Hz; speech needs at least 8 kHz (16 kHz or more recommended)",
+        )
 
 
 class Resampler:
@@ -111,18 +113,23 @@ def read_wav(path: str | Path) -> WavAudio:
     except FileNotFoundError:
         raise AudioError("missing_file", f"{path}: no such file") from None
     except (wave.Error, EOFError) as exc:
-        raise AudioError("unreadable_wav", f"{path}: not a PCM WAV file we can read ({exc}); convert it with "
-                                           f"`sox IN -r 16000 -c 1 -b 16 OUT.wav`") from None
+        raise AudioError(
+            "unreadable_wav",
+            f"{path}: not a PCM WAV file we can read ({exc}); convert it with `sox IN -r 16000 -c 1 -b 16 OUT.wav`",
+        ) from None
     if width != 2:
-        raise AudioError("bad_format", f"{path}: {8 * width}-bit samples; only 16-bit PCM is supported "
-                                       f"(`sox IN -b 16 OUT.wav`)")
+        raise AudioError(
+            "bad_format", f"{path}: {8 * width}-bit samples; only 16-bit PCM is supported (`sox IN -b 16 OUT.wav`)"
+        )
     frame_bytes = 2 * channels
     if len(data) < n * frame_bytes:
         usable = len(data) - len(data) % frame_bytes
         if usable == 0:
             raise AudioError("truncated_wav", f"{path}: header promises {n} frames but the file holds no audio")
-        raise AudioError("truncated_wav", f"{path}: truncated, {len(data) // frame_bytes} of {n} frames present; "
-                                          f"re-record or re-export the file")
+        raise AudioError(
+            "truncated_wav",
+            f"{path}: truncated, {len(data) // frame_bytes} of {n} frames present; re-record or re-export the file",
+        )
     check_rate(rate)
     return WavAudio(path, rate, channels, pcm_to_mono(data, channels))
 

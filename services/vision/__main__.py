@@ -25,39 +25,76 @@ examples:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = service_parser("vision", "Detect objects (label, colour, box, score, stable id) and image quality "
-                            "in camera frames; publish Detections for every processed frame.", EPILOG)
-    parser.add_argument("--backend", choices=("color", "onnx"), default="color",
-                        help="color: HSV segmentation, no model (default); onnx: a YOLO model given by --model")
+    parser = service_parser(
+        "vision",
+        "Detect objects (label, colour, box, score, stable id) and image quality "
+        "in camera frames; publish Detections for every processed frame.",
+        EPILOG,
+    )
+    parser.add_argument(
+        "--backend",
+        choices=("color", "onnx"),
+        default="color",
+        help="color: HSV segmentation, no model (default); onnx: a YOLO model given by --model",
+    )
     parser.add_argument("--model", default=None, help="ONNX detector path (YOLOX, YOLOv5 or YOLOv8/11 export)")
-    parser.add_argument("--labels", default=None,
-                        help='color backend: JSON file mapping colour -> label, "*" for any colour (default: every '
-                             'object is "object"); onnx backend: the model\'s class names, one per line in class '
-                             'order, or a JSON list (default: the 80 COCO names)')
+    parser.add_argument(
+        "--labels",
+        default=None,
+        help='color backend: JSON file mapping colour -> label, "*" for any colour (default: every '
+        'object is "object"); onnx backend: the model\'s class names, one per line in class '
+        "order, or a JSON list (default: the 80 COCO names)",
+    )
     parser.add_argument("--names", default=None, help=argparse.SUPPRESS)  # old spelling of --labels for onnx
     parser.add_argument("--conf", type=float, default=0.3, help="onnx confidence threshold (default 0.3)")
     parser.add_argument("--iou", type=float, default=0.45, help="onnx NMS IoU threshold (default 0.45)")
-    parser.add_argument("--family", choices=("auto", *FAMILIES), default="auto",
-                        help="onnx export family (default: read from the output shape)")
-    parser.add_argument("--channels", choices=("rgb", "bgr"), default=None,
-                        help="onnx input channel order (default: the family's: BGR for yolox, RGB otherwise)")
-    parser.add_argument("--input-scale", type=float, default=None,
-                        help="multiply 0-255 pixels by this for the model (default: 1 for yolox, 1/255 otherwise)")
-    parser.add_argument("--letterbox", choices=("center", "topleft"), default=None,
-                        help="where the resized frame sits in the model input (default: topleft for yolox)")
+    parser.add_argument(
+        "--family",
+        choices=("auto", *FAMILIES),
+        default="auto",
+        help="onnx export family (default: read from the output shape)",
+    )
+    parser.add_argument(
+        "--channels",
+        choices=("rgb", "bgr"),
+        default=None,
+        help="onnx input channel order (default: the family's: BGR for yolox, RGB otherwise)",
+    )
+    parser.add_argument(
+        "--input-scale",
+        type=float,
+        default=None,
+        help="multiply 0-255 pixels by this for the model (default: 1 for yolox, 1/255 otherwise)",
+    )
+    parser.add_argument(
+        "--letterbox",
+        choices=("center", "topleft"),
+        default=None,
+        help="where the resized frame sits in the model input (default: topleft for yolox)",
+    )
     parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
     args = parser.parse_args(argv)
 
     service = Service("vision", args)
     try:
         if args.backend == "onnx" and not args.model:
-            service.log.warning("--backend onnx without --model: no model ships with hri-fusion, so the color "
-                                "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to "
-                                "ONNX)")
+            service.log.warning(
+                "--backend onnx without --model: no model ships with hri-fusion, so the color "
+                "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to "
+                "ONNX)"
+            )
         if args.model:  # a model given means the onnx backend
             names_file = args.names or args.labels
-            detector = YoloDetector(args.model, read_names(names_file) if names_file else None, args.conf,
-                                    args.iou, args.family, args.channels, args.input_scale, args.letterbox)
+            detector = YoloDetector(
+                args.model,
+                read_names(names_file) if names_file else None,
+                args.conf,
+                args.iou,
+                args.family,
+                args.channels,
+                args.input_scale,
+                args.letterbox,
+            )
             service.log.info("%s: %s", args.model, detector.describe())
         else:
             labels, warnings = read_labels(args.labels) if args.labels else ({}, [])
@@ -76,9 +113,12 @@ def main(argv: list[str] | None = None) -> None:
     def depth_image(frame: Frame, depth) -> DepthImage | None:
         """The decoded depth image of this capture, or None (counted) when it does not fit the colour frame."""
         if (depth.width, depth.height) != (frame.width, frame.height):
-            service.counters.reject("bad_value", f"depth {depth.width}x{depth.height} is not aligned to the colour "
-                                    f"frame {frame.width}x{frame.height} (seq {frame.seq}): no positions",
-                                    service.keys.depth(frame.cam))
+            service.counters.reject(
+                "bad_value",
+                f"depth {depth.width}x{depth.height} is not aligned to the colour "
+                f"frame {frame.width}x{frame.height} (seq {frame.seq}): no positions",
+                service.keys.depth(frame.cam),
+            )
             return None
         try:
             return DepthImage.from_frame(depth)
@@ -88,10 +128,20 @@ def main(argv: list[str] | None = None) -> None:
 
     def process(frame: Frame, img, depth: DepthImage | None) -> None:
         objects, quality = pipeline.process(frame.cam, img, depth)
-        service.publish(service.keys.objects(frame.cam), Detections(
-            stamp=frame.stamp, source=service.source, seq=frame.seq, cam=frame.cam, width=frame.width,
-            height=frame.height, objects=objects, quality=quality,
-            frame_id=depth.camera_info.frame_id if depth is not None else None))
+        service.publish(
+            service.keys.objects(frame.cam),
+            Detections(
+                stamp=frame.stamp,
+                source=service.source,
+                seq=frame.seq,
+                cam=frame.cam,
+                width=frame.width,
+                height=frame.height,
+                objects=objects,
+                quality=quality,
+                frame_id=depth.camera_info.frame_id if depth is not None else None,
+            ),
+        )
 
     def on_depth(delivery) -> None:
         ready = depths.add(delivery.sample)  # decoded only when a colour frame claims it
@@ -112,8 +162,9 @@ def main(argv: list[str] | None = None) -> None:
     for cam in args.cams.split(","):
         # the camera sends depth just before colour, so its slot is usually served first
         service.subscribe(service.keys.depth(cam.strip()), DepthFrame, on_depth, latest=True, monotonic=True)
-        service.subscribe(service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True,
-                          monotonic=True)
+        service.subscribe(
+            service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True, monotonic=True
+        )
     main_exit(service.run())
 
 

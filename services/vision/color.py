@@ -22,9 +22,9 @@ HUE_RANGES: dict[str, tuple[tuple[int, int], ...]] = {
     "blue": ((85, 130),),
     "purple": ((130, 170),),
 }
-ACHROMATIC_SATURATION = 60   # below: no hue (0–255 scale)
-DARK_VALUE = 75              # below: black, whatever the hue (a black lid under a blue cast is V≈64)
-WHITE_VALUE = 180            # achromatic and at least this bright: white
+ACHROMATIC_SATURATION = 60  # below: no hue (0–255 scale)
+DARK_VALUE = 75  # below: black, whatever the hue (a black lid under a blue cast is V≈64)
+WHITE_VALUE = 180  # achromatic and at least this bright: white
 
 PALETTE: tuple[str, ...] = (*HUE_RANGES, "white", "black", "grey")  # the colour backend's names
 assert set(PALETTE) <= set(COLOR_PHRASES), "palette and language disagree"
@@ -50,9 +50,11 @@ def color_name(hsv_pixels: np.ndarray) -> tuple[str | None, float]:
     dark = val < DARK_VALUE
     achromatic = ~dark & (sat < ACHROMATIC_SATURATION)
     chromatic = ~dark & ~achromatic
-    votes = {"black": int(dark.sum()),
-             "white": int((achromatic & (val >= WHITE_VALUE)).sum()),
-             "grey": int((achromatic & (val < WHITE_VALUE)).sum())}
+    votes = {
+        "black": int(dark.sum()),
+        "white": int((achromatic & (val >= WHITE_VALUE)).sum()),
+        "grey": int((achromatic & (val < WHITE_VALUE)).sum()),
+    }
     hist = np.bincount(_HUE_TO_COLOR[pixels[chromatic, 0].astype(np.int64)], minlength=len(CHROMATIC))
     votes.update({name: int(n) for name, n in zip(CHROMATIC, hist)})
     best = max(votes, key=votes.__getitem__)
@@ -70,21 +72,27 @@ def hue_name(hue_hist: np.ndarray) -> tuple[str, float]:
 # docs/vision.md "Colour of a detection". The pixels are sampled (core.foreground_mask picks the object's own),
 # corrected for the scene's illuminant, trimmed of highlights and shadows, and averaged in linear light.
 
-SRGB_TO_LINEAR = np.array([c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
-                           for c in np.arange(256) / 255.0], np.float32)
-_XYZ_FROM_LINEAR_BGR = np.array([[0.1804375, 0.3575761, 0.4124564],   # rows X, Y, Z; columns B, G, R
-                                 [0.0721750, 0.7151522, 0.2126729],
-                                 [0.9503041, 0.1191920, 0.0193339]], np.float32)
+SRGB_TO_LINEAR = np.array(
+    [c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4 for c in np.arange(256) / 255.0], np.float32
+)
+_XYZ_FROM_LINEAR_BGR = np.array(
+    [
+        [0.1804375, 0.3575761, 0.4124564],  # rows X, Y, Z; columns B, G, R
+        [0.0721750, 0.7151522, 0.2126729],
+        [0.9503041, 0.1191920, 0.0193339],
+    ],
+    np.float32,
+)
 _D65 = np.array([0.95047, 1.0, 1.08883], np.float32)
 
-ILLUMINANT_SIDE = 64        # px: the frame is shrunk to about this for the illuminant estimate
-SHADES_OF_GREY_P = 6        # Minkowski norm of the estimate (1 = grey-world, ∞ = max-RGB / white-patch)
-MAX_GAIN = 1.2              # no channel is scaled by more than this (or less than its inverse) for colour
-BRIGHT_QUANTILE = 0.95      # the scene's bright surfaces: this luminance quantile of its unclipped pixels …
-BRIGHT_REFERENCE = 0.85     # … is brought up to this luminance (lightness is judged relative to the scene)
-MAX_EXPOSURE = 1.5          # at most this much brighter; never darker
-CLIPPED = 250               # 8-bit: a channel at or above this is clipped (a highlight, or a window)
-TRIM = (0.15, 0.90)         # luminance quantiles of the object's pixels kept: deep shadows and highlights out
+ILLUMINANT_SIDE = 64  # px: the frame is shrunk to about this for the illuminant estimate
+SHADES_OF_GREY_P = 6  # Minkowski norm of the estimate (1 = grey-world, ∞ = max-RGB / white-patch)
+MAX_GAIN = 1.2  # no channel is scaled by more than this (or less than its inverse) for colour
+BRIGHT_QUANTILE = 0.95  # the scene's bright surfaces: this luminance quantile of its unclipped pixels …
+BRIGHT_REFERENCE = 0.85  # … is brought up to this luminance (lightness is judged relative to the scene)
+MAX_EXPOSURE = 1.5  # at most this much brighter; never darker
+CLIPPED = 250  # 8-bit: a channel at or above this is clipped (a highlight, or a window)
+TRIM = (0.15, 0.90)  # luminance quantiles of the object's pixels kept: deep shadows and highlights out
 
 
 def linear_to_lab(linear_bgr: np.ndarray) -> np.ndarray:
@@ -102,13 +110,13 @@ def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
 
 
 def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
-    """Per-channel (B, G, R) gains that make the scene's light neutral: shades of grey (Finlayson & Trezzi 2004),
-    the p-norm mean of each channel over the unclipped pixels of the whole frame, shrunk first. p = 6 lies
-    between grey-world (fooled by one dominant colour: a wooden kitchen) and white-patch (fooled by one bright
-    coloured surface); on the published benchmark sets it beats both (Gijsenij et al. 2011). The colour gains keep the mean luminance and are
-    clamped to 1/MAX_GAIN–MAX_GAIN: a scene that is really all one colour is not turned grey. Then exposure: a
-    dim scene is brightened (at most MAX_EXPOSURE×) until its bright surfaces (the BRIGHT_QUANTILE of luminance)
-    reach BRIGHT_REFERENCE, as a person judges a white cup in a dim kitchen white, not grey."""
+    """Per-channel (B, G, R) gains that make the scene's light neutral: shades of grey (Finlayson & Trezzi 2004), the
+    p-norm mean of each channel over the unclipped pixels of the whole frame, shrunk first. p = 6 lies between
+    grey-world (fooled by one dominant colour: a wooden kitchen) and white-patch (fooled by one bright coloured
+    surface); on the published benchmark sets it beats both (Gijsenij et al. 2011). The colour gains keep the mean
+    luminance and are clamped to 1/MAX_GAIN–MAX_GAIN: a scene that is really all one colour is not turned grey. Then
+    exposure: a dim scene is brightened (at most MAX_EXPOSURE×) until its bright surfaces (the BRIGHT_QUANTILE of
+    luminance) reach BRIGHT_REFERENCE, as a person judges a white cup in a dim kitchen white, not grey."""
     h, w = bgr.shape[:2]
     step = max(1, max(h, w) // ILLUMINANT_SIDE)
     small = bgr[::step, ::step].reshape(-1, 3)
@@ -157,7 +165,7 @@ def _group_lut() -> np.ndarray:
     lut = np.zeros((20, 39), bool)
     for k in range(18):
         for h in ((k - 1) % 18, k, (k + 1) % 18):
-            lut[k, 2 * h:2 * h + 2] = True
+            lut[k, 2 * h : 2 * h + 2] = True
     lut[18, [36, 37]] = True
     lut[19, [37, 38]] = True
     return lut

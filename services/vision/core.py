@@ -8,28 +8,33 @@ import numpy as np
 from common.colour import name_distribution
 from common.language import BASIC_COLORS, canonical_label
 from common.schema import ColorShare, DetectedObject, ImageQuality
-from services.vision.color import (ACHROMATIC_SATURATION, DARK_VALUE, WHITE_VALUE, colour_groups, illuminant_gains,
-                                   measure_lab)
+from services.vision.color import (
+    ACHROMATIC_SATURATION,
+    DARK_VALUE,
+    WHITE_VALUE,
+    colour_groups,
+    illuminant_gains,
+    measure_lab,
+)
 from services.vision.depth import DepthImage, with_depth
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
 from services.vision.track import Tracker
 from services.vision.yolo import YoloDetector
 
-
 # Colour of a detector's box from the object's own pixels. The box of a cup on a table is mostly table, so the
 # box is compared with a ring around it: colour bins (hue × saturation, or black/grey/white) at least 1.5× more
 # frequent inside the box than in the ring are the object's; their main colour is measured (CIELAB, the scene's
 # light corrected) and named (docs/vision.md "Colour of a detection").
-COLOR_SIDE = 32     # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
-RING = 0.25         # the ring reaches this share of the box's size beyond each side
+COLOR_SIDE = 32  # px: the box is sampled so that its longer side is about this (cheap, and enough for a hue)
+RING = 0.25  # the ring reaches this share of the box's size beyond each side
 FOREGROUND_RATIO = 1.5
-MIN_OWN = 0.15      # what stands out must be at least this share of the box to be the object
+MIN_OWN = 0.15  # what stands out must be at least this share of the box to be the object
 CENTRE_WEIGHT = 2.0  # the middle half of the box (in each direction) counts this much in the main colour
-SKIN_HUE = 17                 # OpenCV hue (0–179) up to which, or from 170, a pixel may be skin
-SKIN_SATURATION = (40, 170)   # 0–255
+SKIN_HUE = 17  # OpenCV hue (0–179) up to which, or from 170, a pixel may be skin
+SKIN_SATURATION = (40, 170)  # 0–255
 SKIN_VALUE = 60
-MIN_CLOTHES = 0.3             # a person's pixels left without skin must be this share of them to be used
+MIN_CLOTHES = 0.3  # a person's pixels left without skin must be this share of them to be used
 
 
 _HUE_BIN = (np.arange(256) // 10 * 2).astype(np.uint8)  # hue -> 2 × (hue // 10)
@@ -45,8 +50,9 @@ def _colour_bins(hsv: np.ndarray) -> np.ndarray:
     return bins
 
 
-def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def foreground_mask(
+    bgr: np.ndarray, bbox: tuple[float, float, float, float]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(BGR of the box and the ring around it, every step-th pixel so that the box's longer side is about
     COLOR_SIDE; their colour bins (_colour_bins); boolean mask of the object's own pixels among them; per-pixel
     weights, CENTRE_WEIGHT in the middle half of the box, 1 elsewhere)."""
@@ -68,7 +74,7 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
     if ring.sum() < 0.1 * inbox.sum():  # the box fills the frame: its own outer band stands for the surroundings
         band = max(1, int(0.12 * min(by1 - by0, bx1 - bx0)))
         ring = inbox.copy()
-        ring[by0 + band:by1 - band, bx0 + band:bx1 - band] = False
+        ring[by0 + band : by1 - band, bx0 + band : bx1 - band] = False
     in_hist = np.bincount(bins[inbox], minlength=39) / max(1, int(inbox.sum()))
     ring_hist = np.bincount(bins[ring], minlength=39) / max(1, int(ring.sum()))
     own = inbox & (in_hist > FOREGROUND_RATIO * ring_hist + 0.005)[bins]
@@ -77,7 +83,7 @@ def foreground_mask(bgr: np.ndarray, bbox: tuple[float, float, float, float]
         own = inbox
     centre = np.ones(bins.shape, np.float32)  # the object is where the box's middle is: its pixels count double
     cy0, cx0 = by0 + (by1 - by0) // 4, bx0 + (bx1 - bx0) // 4
-    centre[cy0:max(cy0 + 1, by1 - (by1 - by0) // 4), cx0:max(cx0 + 1, bx1 - (bx1 - bx0) // 4)] = CENTRE_WEIGHT
+    centre[cy0 : max(cy0 + 1, by1 - (by1 - by0) // 4), cx0 : max(cx0 + 1, bx1 - (bx1 - bx0) // 4)] = CENTRE_WEIGHT
     return small, bins, own, centre
 
 
@@ -89,8 +95,9 @@ def skin(bgr_pixels: np.ndarray) -> np.ndarray:
     return ((h <= SKIN_HUE) | (h >= 170)) & (s >= SKIN_SATURATION[0]) & (s <= SKIN_SATURATION[1]) & (v >= SKIN_VALUE)
 
 
-def object_colour(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None,
-                  label: str | None = None) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
+def object_colour(
+    bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None, label: str | None = None
+) -> tuple[tuple[float, float, float] | None, list[tuple[str, float]]]:
     """(CIELAB of the object's main colour, its likeliest colour names with probabilities, best first).
     The object's own pixels (foreground_mask; a person's without skin) in colour groups (color.colour_groups: the
     main one, and a second big one), each measured (color.measure_lab, corrected by the scene's illuminant
@@ -125,8 +132,9 @@ def mixed_names(groups: list[tuple[tuple[float, float, float], float]], top: int
     return sorted(mixed.items(), key=lambda np_: -np_[1])[:top]
 
 
-def object_color(bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
-                 ) -> str | None:
+def object_color(
+    bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
+) -> str | None:
     """The likeliest colour name of the object in this box (see object_colour)."""
     _, names = object_colour(bgr, bbox, gains)
     return names[0][0] if names else None
@@ -147,19 +155,25 @@ class VisionPipeline:
         for label, score, box in self.detector.detect(bgr):
             label = canonical_label(label)  # the language's class where one fits ("mug" -> "cup")
             lab, names = object_colour(bgr, box, gains, label)
-            out.append(Detection(label, names[0][0] if names else None, score, box,
-                                 lab=lab, colors=tuple(names)))
+            out.append(Detection(label, names[0][0] if names else None, score, box, lab=lab, colors=tuple(names)))
         return out
 
-    def process(self, cam: str, bgr: np.ndarray, depth: DepthImage | None = None
-                ) -> tuple[list[DetectedObject], ImageQuality]:
+    def process(
+        self, cam: str, bgr: np.ndarray, depth: DepthImage | None = None
+    ) -> tuple[list[DetectedObject], ImageQuality]:
         """`depth`: the depth image aligned to `bgr`, with its intrinsics, when known."""
         tracker = self.trackers.setdefault(cam, Tracker(prefix=f"{cam}-o"))
         objects = [
-            DetectedObject(id=obj_id, label=d.label, color=d.color, score=round(d.score, 4),
-                           bbox=[round(v, 1) for v in d.bbox], center=[round(v, 1) for v in d.center],
-                           lab=None if d.lab is None else [round(v, 1) for v in d.lab],
-                           colors=[ColorShare(name=n, p=round(p, 3)) for n, p in d.colors])
+            DetectedObject(
+                id=obj_id,
+                label=d.label,
+                color=d.color,
+                score=round(d.score, 4),
+                bbox=[round(v, 1) for v in d.bbox],
+                center=[round(v, 1) for v in d.center],
+                lab=None if d.lab is None else [round(v, 1) for v in d.lab],
+                colors=[ColorShare(name=n, p=round(p, 3)) for n, p in d.colors],
+            )
             for obj_id, d in tracker.update(self.detections(bgr))
         ]
         if depth is not None:  # positions in metres (services/vision/depth.py)

@@ -30,18 +30,19 @@ import numpy as np
 from common.depth import depth_units
 from common.schema import CameraInfo, DepthFrame, DetectedObject
 
-MAX_SAMPLES = 1024      # points sampled per box (a regular grid): a median needs no more, and 30 boxes stay cheap
-MIN_POINTS = 12         # fewer valid depths in a box than this: no position
-BIN_M = 0.01            # histogram bin: 1 cm …
-BIN_SHARE = 0.01        # … or 1 % of the depth, whichever is larger (sensor noise grows with distance)
-FLANK = 0.15            # a mode's cluster reaches down to this share of its peak's height
-MIN_MODE_SHARE = 0.15   # a mode must hold this share of the box's valid depths to be an object
+MAX_SAMPLES = 1024  # points sampled per box (a regular grid): a median needs no more, and 30 boxes stay cheap
+MIN_POINTS = 12  # fewer valid depths in a box than this: no position
+BIN_M = 0.01  # histogram bin: 1 cm …
+BIN_SHARE = 0.01  # … or 1 % of the depth, whichever is larger (sensor noise grows with distance)
+FLANK = 0.15  # a mode's cluster reaches down to this share of its peak's height
+MIN_MODE_SHARE = 0.15  # a mode must hold this share of the box's valid depths to be an object
 
 
 class DepthImage(NamedTuple):
     """An aligned depth image as it came (uint16 or float32 units: converted per sampled pixel, not per frame)."""
+
     units: np.ndarray
-    depth_scale: float   # metres per unit
+    depth_scale: float  # metres per unit
     camera_info: CameraInfo
 
     @classmethod
@@ -53,13 +54,14 @@ class DepthImage(NamedTuple):
 @dataclass(frozen=True)
 class ObjectDepth:
     position: tuple[float, float, float]  # m, optical frame (x right, y down, z forward)
-    extent: tuple[float, float, float]    # m
-    support: float                        # share of the box's pixels with a valid depth
-    points: int                           # foreground points used
+    extent: tuple[float, float, float]  # m
+    support: float  # share of the box's pixels with a valid depth
+    points: int  # foreground points used
 
 
-def box_samples(depth: np.ndarray, bbox: tuple[float, float, float, float], max_samples: int = MAX_SAMPLES,
-                depth_scale: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+def box_samples(
+    depth: np.ndarray, bbox: tuple[float, float, float, float], max_samples: int = MAX_SAMPLES, depth_scale: float = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """(u, v, z metres) of the valid pixels of a regular grid over the box (at most about `max_samples`), and
     how many grid pixels there were in all."""
     h, w = depth.shape
@@ -72,7 +74,7 @@ def box_samples(depth: np.ndarray, bbox: tuple[float, float, float, float], max_
     step = max(1, int(math.ceil(math.sqrt((x1 - x0) * (y1 - y0) / max_samples))))
     # centred grid: the samples sit symmetrically in the box (a mirrored box samples the mirrored pixels)
     ox, oy = ((x1 - x0 - 1) % step) // 2, ((y1 - y0 - 1) % step) // 2
-    grid = depth[y0 + oy:y1:step, x0 + ox:x1:step]
+    grid = depth[y0 + oy : y1 : step, x0 + ox : x1 : step]
     z = grid.ravel().astype(np.float64) * depth_scale
     with np.errstate(invalid="ignore"):
         index = np.flatnonzero((z > 0) & (z < np.inf))  # NaN compares False: 0, NaN and inf are no depth
@@ -105,7 +107,7 @@ def foreground(z: np.ndarray) -> np.ndarray:
         b = peak
         while b < n_bins - 1 and smooth[b + 1] >= floor and smooth[b + 1] <= smooth[b] * 1.5:
             b += 1
-        mass = float(counts[a:b + 1].sum())
+        mass = float(counts[a : b + 1].sum())
         if mass >= MIN_MODE_SHARE * z.size:
             best = (a, b)
             break
@@ -122,9 +124,11 @@ def back_project(u: np.ndarray, v: np.ndarray, z: np.ndarray, info: CameraInfo) 
     fx, skew, cx, _, fy, cy = info.k[:6]
     if info.distortion_model == "plumb_bob" and any(info.distortion):
         import cv2
+
         k = np.array(info.k, np.float64).reshape(3, 3)
-        pts = cv2.undistortPoints(np.stack([u, v], 1).astype(np.float64).reshape(-1, 1, 2), k,
-                                  np.array(info.distortion, np.float64)).reshape(-1, 2)
+        pts = cv2.undistortPoints(
+            np.stack([u, v], 1).astype(np.float64).reshape(-1, 1, 2), k, np.array(info.distortion, np.float64)
+        ).reshape(-1, 2)
         xn, yn = pts[:, 0], pts[:, 1]
     else:
         yn = (v - cy) / fy
@@ -132,8 +136,13 @@ def back_project(u: np.ndarray, v: np.ndarray, z: np.ndarray, info: CameraInfo) 
     return np.stack([xn * z, yn * z, z], 1)
 
 
-def object_depth(depth: np.ndarray, info: CameraInfo, bbox: tuple[float, float, float, float],
-                 max_samples: int = MAX_SAMPLES, depth_scale: float = 1.0) -> ObjectDepth | None:
+def object_depth(
+    depth: np.ndarray,
+    info: CameraInfo,
+    bbox: tuple[float, float, float, float],
+    max_samples: int = MAX_SAMPLES,
+    depth_scale: float = 1.0,
+) -> ObjectDepth | None:
     """Position, extent and depth support of the object in `bbox` ([x, y, w, h] px) from a depth image aligned
     to the image K belongs to (units × `depth_scale` = metres; 0 or NaN = no measurement); None without enough
     valid depth."""
@@ -146,8 +155,12 @@ def object_depth(depth: np.ndarray, info: CameraInfo, bbox: tuple[float, float, 
         return None
     pts = np.sort(back_project(u[own], v[own], z[own], info), axis=0)
     p5, position, p95 = _quantiles(pts, n_own).tolist()
-    return ObjectDepth(position=tuple(position), extent=(p95[0] - p5[0], p95[1] - p5[1], p95[2] - p5[2]),
-                       support=z.size / total, points=n_own)
+    return ObjectDepth(
+        position=tuple(position),
+        extent=(p95[0] - p5[0], p95[1] - p5[1], p95[2] - p5[2]),
+        support=z.size / total,
+        points=n_own,
+    )
 
 
 QUANTILES = np.array([0.05, 0.5, 0.95])
@@ -167,9 +180,12 @@ def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:
     measured = object_depth(depth.units, depth.camera_info, tuple(obj.bbox), depth_scale=depth.depth_scale)
     if measured is None or measured.position[2] <= 0:
         return obj
-    return msgspec.structs.replace(obj, position=[round(c, 4) for c in measured.position],
-                                   extent=[round(c, 4) for c in measured.extent],
-                                   depth_support=round(measured.support, 3))
+    return msgspec.structs.replace(
+        obj,
+        position=[round(c, 4) for c in measured.position],
+        extent=[round(c, 4) for c in measured.extent],
+        depth_support=round(measured.support, 3),
+    )
 
 
 EXPECT_DEPTH_S = 1.0  # a camera that sent depth this recently (source time) is expected to send it again
@@ -196,7 +212,7 @@ class DepthMatcher:
         """Keep a depth frame; returns the waiting (colour frame, image) it belongs to, if any."""
         kept = self.frames.setdefault(frame.cam, [])
         kept.append(frame)
-        del kept[:-self.keep]
+        del kept[: -self.keep]
         waiting = self.waiting.get(frame.cam)
         if waiting is not None and self._same(frame, waiting[0].seq, waiting[0].stamp):
             return self.waiting.pop(frame.cam)

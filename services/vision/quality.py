@@ -22,8 +22,9 @@ WIDTH = 320
 def image_quality(bgr: np.ndarray) -> tuple[float, float, float]:
     grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)
     if grey.shape[1] != WIDTH:
-        grey = cv2.resize(grey, (WIDTH, max(1, round(grey.shape[0] * WIDTH / grey.shape[1]))),
-                          interpolation=cv2.INTER_AREA)
+        grey = cv2.resize(
+            grey, (WIDTH, max(1, round(grey.shape[0] * WIDTH / grey.shape[1]))), interpolation=cv2.INTER_AREA
+        )
     mean, std = cv2.meanStdDev(grey)
     lap_var = float(cv2.Laplacian(grey, cv2.CV_64F).var())
     brightness = float(mean[0, 0]) / 255.0

@@ -32,19 +32,27 @@ import cv2
 import numpy as np
 
 from common.language import OBJECT_PHRASES, canonical_label
-from services.vision.color import (ACHROMATIC_SATURATION, CHROMATIC, DARK_VALUE, HUE_RANGES, PALETTE, WHITE_VALUE,
-                                   hue_name)
+from services.vision.color import (
+    ACHROMATIC_SATURATION,
+    CHROMATIC,
+    DARK_VALUE,
+    HUE_RANGES,
+    PALETTE,
+    WHITE_VALUE,
+    hue_name,
+)
 
 
 @dataclass
 class Detection:
     """One object in one frame, before tracking gives it an id."""
+
     label: str
     color: str | None
     score: float
     bbox: tuple[float, float, float, float]  # x, y, w, h (px)
     lab: tuple[float, float, float] | None = None  # CIELAB of the object's own pixels (the ONNX path's colour model)
-    colors: tuple[tuple[str, float], ...] = ()     # likeliest colour names with probabilities, best first
+    colors: tuple[tuple[str, float], ...] = ()  # likeliest colour names with probabilities, best first
 
     @property
     def center(self) -> tuple[float, float]:
@@ -91,8 +99,9 @@ class ColorSegmenter:
             self._name(blob)
         if self.achromatic:
             found += self._components(hsv, cv2.inRange(hsv, (0, 0, 0), (180, 255, DARK_VALUE - 1)), "black")
-            found += self._components(hsv, cv2.inRange(hsv, (0, 0, WHITE_VALUE), (180, ACHROMATIC_SATURATION - 1, 255)),
-                                      "white")
+            found += self._components(
+                hsv, cv2.inRange(hsv, (0, 0, WHITE_VALUE), (180, ACHROMATIC_SATURATION - 1, 255)), "white"
+            )
         return [b.detection for b in found]
 
     def _name(self, blob: Blob) -> None:
@@ -103,8 +112,9 @@ class ColorSegmenter:
         score = float(np.clip(0.4 + 0.3 * agreement + 0.3 * min(1.0, fill / 0.785), 0.0, 1.0))
         blob.detection = Detection(self.label_for(color), color, score, blob.detection.bbox)
 
-    def _components(self, hsv: np.ndarray, mask: np.ndarray, achromatic_color: str | None,
-                    edge_hues: np.ndarray | None = None) -> list[Blob]:
+    def _components(
+        self, hsv: np.ndarray, mask: np.ndarray, achromatic_color: str | None, edge_hues: np.ndarray | None = None
+    ) -> list[Blob]:
         """Connected components of `mask` that are objects, not background. Chromatic ones (achromatic_color
         None) are named by the hue histogram of their own pixels; achromatic ones have the colour of their mask."""
         h, w = mask.shape
@@ -113,8 +123,12 @@ class ColorSegmenter:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         min_area, max_area = self.min_area_frac * h * w, self.max_area_frac * h * w
         if achromatic_color:  # the share of the frame's edge in this mask: a white wall or a black floor owns much
-            mask_edge_share = (np.count_nonzero(m[0]) + np.count_nonzero(m[-1]) + np.count_nonzero(m[1:-1, 0])
-                               + np.count_nonzero(m[1:-1, -1])) / float(2 * (h + w) - 4)
+            mask_edge_share = (
+                np.count_nonzero(m[0])
+                + np.count_nonzero(m[-1])
+                + np.count_nonzero(m[1:-1, 0])
+                + np.count_nonzero(m[1:-1, -1])
+            ) / float(2 * (h + w) - 4)
         out = []
         for i in range(1, n):
             x, y, bw, bh, area = (int(v) for v in stats[i])
@@ -133,8 +147,8 @@ class ColorSegmenter:
                 score = float(np.clip(0.7 + 0.3 * min(1.0, fill / 0.785), 0.0, 1.0))
                 out.append(Blob(Detection(self.label_for(achromatic_color), achromatic_color, score, box), area))
                 continue
-            inside = (labels[y:y + bh, x:x + bw] == i).view(np.uint8)
-            hist = cv2.calcHist([hsv[y:y + bh, x:x + bw]], [0], inside, [180], [0, 180]).ravel()
+            inside = (labels[y : y + bh, x : x + bw] == i).view(np.uint8)
+            hist = cv2.calcHist([hsv[y : y + bh, x : x + bw]], [0], inside, [180], [0, 180]).ravel()
             edge_share = 0.0 if edge_hues is None else hue_window_share(edge_hues, int(np.argmax(hist)))
             if is_background(bw, bh, area, w, h, borders, edge_share):
                 continue
@@ -145,6 +159,7 @@ class ColorSegmenter:
 @dataclass
 class Blob:
     """A detection, the number of pixels of its component and (chromatic) their hue histogram."""
+
     detection: Detection
     area: int
     hist: np.ndarray | None = None
@@ -159,10 +174,10 @@ def hue_window_share(edge_hues: np.ndarray, hue: int) -> float:
     return float(edge_hues[idx].sum())
 
 
-BACKGROUND_EDGE_SHARE = 0.25   # a colour covering this share of the frame's edge is a wall or table colour
-CORNER_OBJECT_FRAC = 0.02      # a component touching two borders but smaller than this (of the frame) is an object
-SPAN_FRAC = 0.2                # a box spanning at least this share of the frame ...
-SPARSE_FILL = 0.7              # ... that it fills less than this × that share is scattered backdrop (a ring, speckle)
+BACKGROUND_EDGE_SHARE = 0.25  # a colour covering this share of the frame's edge is a wall or table colour
+CORNER_OBJECT_FRAC = 0.02  # a component touching two borders but smaller than this (of the frame) is an object
+SPAN_FRAC = 0.2  # a box spanning at least this share of the frame ...
+SPARSE_FILL = 0.7  # ... that it fills less than this × that share is scattered backdrop (a ring, speckle)
 
 
 def is_background(bw: int, bh: int, area: int, w: int, h: int, borders: int, edge_share: float) -> bool:
@@ -220,8 +235,11 @@ def merge_slivers(found: list[Blob], share: float, sliver_area: float) -> list[B
         b = blob.detection.bbox
         for j, k in enumerate(kept):
             kb = k.detection.bbox
-            if (same_or_neighbour_hue(name, names[j]) and overlap_of_smaller(b, kb) > share
-                    and (blob.area < sliver_area * k.area or min(b[2:]) < sliver_area * min(kb[2:]))):
+            if (
+                same_or_neighbour_hue(name, names[j])
+                and overlap_of_smaller(b, kb) > share
+                and (blob.area < sliver_area * k.area or min(b[2:]) < sliver_area * min(kb[2:]))
+            ):
                 x0, y0 = min(kb[0], b[0]), min(kb[1], b[1])
                 x1, y1 = max(kb[0] + kb[2], b[0] + b[2]), max(kb[1] + kb[3], b[1] + b[3])
                 k.detection = Detection("", None, 0.0, (x0, y0, x1 - x0, y1 - y0))
@@ -256,14 +274,19 @@ def read_labels(path: str | Path) -> tuple[dict[str, str], list[str]]:
         raise ValueError(f"cannot read --labels file {path}: {exc.strerror}") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"--labels file {path} is not JSON: {exc}") from None
-    if not isinstance(raw, dict) or not all(isinstance(k, str) and isinstance(v, str) and v.strip()
-                                            for k, v in raw.items()):
+    if not isinstance(raw, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) and v.strip() for k, v in raw.items()
+    ):
         raise ValueError(f'--labels file {path} must be a JSON object of colour -> label, e.g. {{"*": "candy"}}')
     unknown = sorted(set(raw) - set(PALETTE) - {"*"})
     if unknown:
-        raise ValueError(f"--labels file {path}: {unknown} are not colours of this backend; use {', '.join(PALETTE)} "
-                         f"or \"*\"")
+        raise ValueError(
+            f'--labels file {path}: {unknown} are not colours of this backend; use {", ".join(PALETTE)} or "*"'
+        )
     labels = {colour: canonical_label(label) for colour, label in raw.items()}
-    warnings = [f"label {label!r} is not a class of common.language: speech cannot name it"
-                for label in sorted(set(labels.values())) if label not in OBJECT_PHRASES]
+    warnings = [
+        f"label {label!r} is not a class of common.language: speech cannot name it"
+        for label in sorted(set(labels.values()))
+        if label not in OBJECT_PHRASES
+    ]
     return labels, warnings

@@ -39,9 +39,10 @@ class ModelError(RuntimeError):
 @dataclass(frozen=True)
 class Preprocess:
     """How a family wants its input: channel order, value scale, letterbox alignment."""
-    channels: str = "rgb"     # "rgb" or "bgr"
+
+    channels: str = "rgb"  # "rgb" or "bgr"
     scale: float = 1 / 255.0  # multiply 0–255 pixel values by this (1.0: keep 0–255)
-    align: str = "center"     # "center" (pad split on both sides) or "topleft" (image at 0,0)
+    align: str = "center"  # "center" (pad split on both sides) or "topleft" (image at 0,0)
 
 
 PREPROCESS = {
@@ -58,8 +59,9 @@ class Letterbox:
     pad_y: float
 
 
-def letterbox(bgr: np.ndarray, size: int | tuple[int, int],
-              pre: Preprocess = Preprocess()) -> tuple[np.ndarray, Letterbox]:
+def letterbox(
+    bgr: np.ndarray, size: int | tuple[int, int], pre: Preprocess = Preprocess()
+) -> tuple[np.ndarray, Letterbox]:
     """Resize keeping the aspect ratio, pad to the input size (an int: square; or (height, width)) with grey 114;
     returns the 1×3×H×W float32 tensor and the mapping back to the frame."""
     in_h, in_w = (size, size) if isinstance(size, int) else size
@@ -72,7 +74,7 @@ def letterbox(bgr: np.ndarray, size: int | tuple[int, int],
         nw, nh = round(w * scale), round(h * scale)
         left, top = int(round((in_w - nw) / 2 - 0.1)), int(round((in_h - nh) / 2 - 0.1))
     canvas = np.full((in_h, in_w, 3), 114, np.uint8)
-    canvas[top:top + nh, left:left + nw] = cv2.resize(bgr, (nw, nh), interpolation=cv2.INTER_LINEAR)
+    canvas[top : top + nh, left : left + nw] = cv2.resize(bgr, (nw, nh), interpolation=cv2.INTER_LINEAR)
     if pre.channels == "rgb":
         canvas = cv2.cvtColor(canvas, cv2.COLOR_BGR2RGB)
     tensor = canvas.transpose(2, 0, 1)[None].astype(np.float32)
@@ -101,7 +103,7 @@ def yolox_grid(input_hw: tuple[int, int], strides: tuple[int, ...] = STRIDES) ->
     """cells×3 (gx, gy, stride), in YOLOX's row order: stride 8 first, then 16, 32; y outer, x inner."""
     parts = []
     for s in strides:
-        gy, gx = np.mgrid[0:input_hw[0] // s, 0:input_hw[1] // s]
+        gy, gx = np.mgrid[0 : input_hw[0] // s, 0 : input_hw[1] // s]
         parts.append(np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, s)], 1))
     grid = np.concatenate(parts).astype(np.float32)
     grid.flags.writeable = False  # cached: shared by every call
@@ -145,8 +147,9 @@ def attributes_last(shape: tuple[int, ...], classes: int | None) -> bool:
     return shape[1] > shape[2]
 
 
-def candidates(output: np.ndarray, family: str, input_hw: tuple[int, int], classes: int | None = None,
-               min_objectness: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def candidates(
+    output: np.ndarray, family: str, input_hw: tuple[int, int], classes: int | None = None, min_objectness: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """(N×4 cx, cy, w, h in input px, N×C class scores) of one family's raw output."""
     pred = np.asarray(output, np.float32)[0]
     if family == "yolov8":
@@ -156,21 +159,31 @@ def candidates(output: np.ndarray, family: str, input_hw: tuple[int, int], class
     if family == "yolox":
         grid = yolox_grid(input_hw)
         if len(grid) != len(pred):
-            raise ModelError(f"a YOLOX output has one row per grid cell ({len(grid)} at {input_hw[1]}×{input_hw[0]}), "
-                             f"this one has {len(pred)}: give --family yolov5 if its boxes are already decoded")
+            raise ModelError(
+                f"a YOLOX output has one row per grid cell ({len(grid)} at {input_hw[1]}×{input_hw[0]}), "
+                f"this one has {len(pred)}: give --family yolov5 if its boxes are already decoded"
+            )
     sel = pred[:, 4] >= min_objectness  # score = obj × cls ≤ obj: rows under the threshold cannot reach it
     pred = pred[sel]
     boxes, scores = pred[:, :4], pred[:, 5:] * pred[:, 4:5]  # objectness × class score
     if family == "yolox":
         grid = grid[sel]
-        boxes = np.concatenate([(boxes[:, :2] + grid[:, :2]) * grid[:, 2:],
-                                np.exp(np.clip(boxes[:, 2:], -20, 20)) * grid[:, 2:]], 1)
+        boxes = np.concatenate(
+            [(boxes[:, :2] + grid[:, :2]) * grid[:, 2:], np.exp(np.clip(boxes[:, 2:], -20, 20)) * grid[:, 2:]], 1
+        )
     return boxes, scores
 
 
-def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_threshold: float,
-           iou_threshold: float, classes: int | None = None, family: str | None = None,
-           input_hw: tuple[int, int] = (640, 640)) -> Found:
+def decode(
+    output: np.ndarray,
+    lb: Letterbox,
+    image_size: tuple[int, int],
+    conf_threshold: float,
+    iou_threshold: float,
+    classes: int | None = None,
+    family: str | None = None,
+    input_hw: tuple[int, int] = (640, 640),
+) -> Found:
     """(class index, score, (x, y, w, h) in original image px) of one raw model output.
 
     `family` None: identified from the shape (`identify_family`). Boxes are undone from the letterbox, clipped
@@ -179,8 +192,10 @@ def decode(output: np.ndarray, lb: Letterbox, image_size: tuple[int, int], conf_
     shape = tuple(np.asarray(output).shape)
     family = family or identify_family(shape, classes, input_hw)
     if family is None:
-        raise ModelError(f"output shape {shape} fits no detector family: YOLOX 1×cells×(5+C), YOLOv5 "
-                         f"1×(3·cells)×(5+C), YOLOv8/11 1×(4+C)×N" + (f" (C = {classes})" if classes else ""))
+        raise ModelError(
+            f"output shape {shape} fits no detector family: YOLOX 1×cells×(5+C), YOLOv5 "
+            f"1×(3·cells)×(5+C), YOLOv8/11 1×(4+C)×N" + (f" (C = {classes})" if classes else "")
+        )
     boxes, class_scores = candidates(output, family, input_hw, classes, conf_threshold)
     if not len(boxes):
         return []
@@ -213,13 +228,23 @@ class YoloDetector:
     """One ONNX detector: frame in, (label, score, box) out. The family is found from the output shape unless
     given; `channels`, `scale`, `align` override the family's preprocessing."""
 
-    def __init__(self, model_path: str, names: tuple[str, ...] | None = None, conf_threshold: float = 0.3,
-                 iou_threshold: float = 0.45, family: str | None = None, channels: str | None = None,
-                 scale: float | None = None, align: str | None = None):
+    def __init__(
+        self,
+        model_path: str,
+        names: tuple[str, ...] | None = None,
+        conf_threshold: float = 0.3,
+        iou_threshold: float = 0.45,
+        family: str | None = None,
+        channels: str | None = None,
+        scale: float | None = None,
+        align: str | None = None,
+    ):
         path = Path(model_path)
         if not path.is_file():
-            raise ModelError(f"ONNX model {model_path!r} not found: give the path of a YOLOX, YOLOv5 or YOLOv8/11 "
-                             f"detector exported to ONNX, or use --backend color")
+            raise ModelError(
+                f"ONNX model {model_path!r} not found: give the path of a YOLOX, YOLOv5 or YOLOv8/11 "
+                f"detector exported to ONNX, or use --backend color"
+            )
         if family not in (None, "auto", *FAMILIES):
             raise ModelError(f"unknown family {family!r}: use one of auto, {', '.join(FAMILIES)}")
         try:
@@ -238,8 +263,7 @@ class YoloDetector:
         self.input_name = inp.name
         dims = [d if isinstance(d, int) and d > 0 else None for d in inp.shape]
         if len(dims) != 4:
-            raise ModelError(f"{model_path!r} takes a {len(dims)}-D input {inp.shape}; "
-                             f"a YOLO detector takes 1×3×H×W")
+            raise ModelError(f"{model_path!r} takes a {len(dims)}-D input {inp.shape}; a YOLO detector takes 1×3×H×W")
         side = dims[2] or dims[3] or 640
         self.input_hw = (dims[2] or side, dims[3] or side)
         self.conf_threshold, self.iou_threshold = conf_threshold, iou_threshold
@@ -247,8 +271,12 @@ class YoloDetector:
         self.names = names if names is not None else (COCO_NAMES if classes == len(COCO_NAMES) else ())
         self.classes = classes
         pre = PREPROCESS[self.family]
-        self.preprocess = replace(pre, channels=channels or pre.channels,
-                                  scale=pre.scale if scale is None else scale, align=align or pre.align)
+        self.preprocess = replace(
+            pre,
+            channels=channels or pre.channels,
+            scale=pre.scale if scale is None else scale,
+            align=align or pre.align,
+        )
 
     def _identify(self, model_path: str, names: tuple[str, ...] | None, family: str | None) -> tuple[str, int, int]:
         """(family, index of the output to read, class count) from the declared output shapes, or else from one run
@@ -262,23 +290,30 @@ class YoloDetector:
         tries = (len(names),) if names is not None else (len(COCO_NAMES), None)
         for wanted in tries:
             for k, shape in enumerate(shapes):
-                found = identify_family(shape, wanted, self.input_hw) if family in (None, "auto") else (
-                    family if len(shape) == 3 and shape[0] == 1 else None)
+                found = (
+                    identify_family(shape, wanted, self.input_hw)
+                    if family in (None, "auto")
+                    else (family if len(shape) == 3 and shape[0] == 1 else None)
+                )
                 if found:
                     attrs = shape[2] if found != "yolov8" or attributes_last(shape, wanted) else shape[1]
                     return found, k, attrs - (4 if found == "yolov8" else 5)
         wanted = tries[0] if names is not None else None
         outputs = ", ".join(f"{o.name} {list(s)}" for o, s in zip(self.session.get_outputs(), shapes))
         classes = f" with {wanted} classes (--labels)" if wanted else ""
-        raise ModelError(f"{model_path!r}: outputs {outputs} fit no known detector family{classes}: expected YOLOX "
-                         f"1×{grid_cells(self.input_hw)}×(5+C), YOLOv5 1×{3 * grid_cells(self.input_hw)}×(5+C) or "
-                         f"YOLOv8/11 1×(4+C)×N; give --family and --labels if it is one of them")
+        raise ModelError(
+            f"{model_path!r}: outputs {outputs} fit no known detector family{classes}: expected YOLOX "
+            f"1×{grid_cells(self.input_hw)}×(5+C), YOLOv5 1×{3 * grid_cells(self.input_hw)}×(5+C) or "
+            f"YOLOv8/11 1×(4+C)×N; give --family and --labels if it is one of them"
+        )
 
     def describe(self) -> str:
         pre = self.preprocess
-        return (f"{self.family} detector, input {self.input_hw[1]}×{self.input_hw[0]} {pre.channels.upper()} "
-                f"{'0–255' if pre.scale == 1.0 else '0–1'} letterbox {pre.align}, {self.classes} classes, "
-                f"conf ≥ {self.conf_threshold}, NMS IoU {self.iou_threshold}")
+        return (
+            f"{self.family} detector, input {self.input_hw[1]}×{self.input_hw[0]} {pre.channels.upper()} "
+            f"{'0–255' if pre.scale == 1.0 else '0–1'} letterbox {pre.align}, {self.classes} classes, "
+            f"conf ≥ {self.conf_threshold}, NMS IoU {self.iou_threshold}"
+        )
 
     def raw(self, bgr: np.ndarray) -> tuple[np.ndarray, Letterbox]:
         tensor, lb = letterbox(bgr, self.input_hw, self.preprocess)
@@ -286,8 +321,16 @@ class YoloDetector:
 
     def detect(self, bgr: np.ndarray) -> list[tuple[str, float, tuple[float, float, float, float]]]:
         output, lb = self.raw(bgr)
-        found = decode(output, lb, (bgr.shape[1], bgr.shape[0]), self.conf_threshold, self.iou_threshold,
-                       self.classes, self.family, self.input_hw)
+        found = decode(
+            output,
+            lb,
+            (bgr.shape[1], bgr.shape[0]),
+            self.conf_threshold,
+            self.iou_threshold,
+            self.classes,
+            self.family,
+            self.input_hw,
+        )
         return [(self.names[c] if c < len(self.names) else f"class{c}", s, box) for c, s, box in found]
 
 
@@ -300,6 +343,7 @@ def read_names(path: str) -> tuple[str, ...]:
     stripped = text.strip()
     if stripped.startswith("[") or stripped.startswith("{"):
         import json
+
         try:
             raw = json.loads(stripped)
         except json.JSONDecodeError as exc:

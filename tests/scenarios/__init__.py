@@ -18,8 +18,18 @@ from typing import Any, Callable
 
 from common.keys import Keys
 from common.schema import (
-    Clarification, DetectedObject, Detections, FusedCommand, GestureEvent, Hand, Hands, ImageQuality, Ray, Sample,
-    Transcript, Word,
+    Clarification,
+    DetectedObject,
+    Detections,
+    FusedCommand,
+    GestureEvent,
+    Hand,
+    Hands,
+    ImageQuality,
+    Ray,
+    Sample,
+    Transcript,
+    Word,
 )
 
 BASE_STAMP = 1_700_000_000.0
@@ -41,8 +51,14 @@ class Obj:
 
     def detected(self) -> DetectedObject:
         w, h = self.size
-        return DetectedObject(id=self.id, label=self.label, color=self.color, score=self.score,
-                              bbox=[self.center[0] - w / 2, self.center[1] - h / 2, w, h], center=list(self.center))
+        return DetectedObject(
+            id=self.id,
+            label=self.label,
+            color=self.color,
+            score=self.score,
+            bbox=[self.center[0] - w / 2, self.center[1] - h / 2, w, h],
+            center=list(self.center),
+        )
 
 
 @dataclass
@@ -121,17 +137,43 @@ class Scenario:
 # ---------------------------------------------------------------------------
 # Sample builders. Each returns a Step; times are relative to the scenario base.
 # ---------------------------------------------------------------------------
-def say(start: float, end: float, text: str, conf: float = 0.92, mic: str = "mic0", word_conf: float | None = None,
-        final: bool = True, lag: float = 0.2) -> Step:
+def say(
+    start: float,
+    end: float,
+    text: str,
+    conf: float = 0.92,
+    mic: str = "mic0",
+    word_conf: float | None = None,
+    final: bool = True,
+    lag: float = 0.2,
+) -> Step:
     """A final transcript; words spread evenly over [start, end]; published `lag` s after the end."""
+
     def build(base: float) -> tuple[str, Sample]:
         tokens = text.split()
         span = (end - start) / max(len(tokens), 1)
-        words = [Word(word=w.strip(",.!?"), start=base + start + i * span, end=base + start + (i + 1) * span,
-                      confidence=word_conf if word_conf is not None else conf) for i, w in enumerate(tokens)]
+        words = [
+            Word(
+                word=w.strip(",.!?"),
+                start=base + start + i * span,
+                end=base + start + (i + 1) * span,
+                confidence=word_conf if word_conf is not None else conf,
+            )
+            for i, w in enumerate(tokens)
+        ]
         return KEYS.transcript(mic), Transcript(
-            stamp=base + end + lag, source=f"speech/{mic}", mic=mic, start=base + start, end=base + end, text=text,
-            confidence=conf, words=words, final=final, backend="test")
+            stamp=base + end + lag,
+            source=f"speech/{mic}",
+            mic=mic,
+            start=base + start,
+            end=base + end,
+            text=text,
+            confidence=conf,
+            words=words,
+            final=final,
+            backend="test",
+        )
+
     return Step(end + lag, build, f"say {text!r}")
 
 
@@ -139,8 +181,16 @@ def see(t: float, objects: list[Obj], quality: tuple[float, float, float] = GOOD
     def build(base: float) -> tuple[str, Sample]:
         b, c, s = quality
         return KEYS.objects(cam), Detections(
-            stamp=base + t, source=f"vision/{cam}", seq=int(t * 10) + 1000, cam=cam, width=W, height=H,
-            objects=[o.detected() for o in objects], quality=ImageQuality(brightness=b, contrast=c, sharpness=s))
+            stamp=base + t,
+            source=f"vision/{cam}",
+            seq=int(t * 10) + 1000,
+            cam=cam,
+            width=W,
+            height=H,
+            objects=[o.detected() for o in objects],
+            quality=ImageQuality(brightness=b, contrast=c, sharpness=s),
+        )
+
     return Step(t, build, f"see {len(objects)} objects")
 
 
@@ -148,40 +198,79 @@ def landmarks_at(x: float, y: float) -> list[list[float]]:
     return [[x + 3 * math.cos(i), y + 3 * math.sin(i)] for i in range(21)]
 
 
-def ray_towards(origin: tuple[float, float], target: tuple[float, float], jitter_deg: float = 0.0
-                ) -> tuple[float, float]:
+def ray_towards(
+    origin: tuple[float, float], target: tuple[float, float], jitter_deg: float = 0.0
+) -> tuple[float, float]:
     a = math.atan2(target[1] - origin[1], target[0] - origin[0]) + math.radians(jitter_deg)
     return (math.cos(a), math.sin(a))
 
 
-def hands(t: float, point_at: tuple[float, float] | None = None, origin: tuple[float, float] = (320.0, 470.0),
-          score: float = 0.95, ray_conf: float = 0.9, jitter_deg: float = 0.0, cam: str = "cam0",
-          hand: str = "right", show: str | None = None) -> Step:
+def hands(
+    t: float,
+    point_at: tuple[float, float] | None = None,
+    origin: tuple[float, float] = (320.0, 470.0),
+    score: float = 0.95,
+    ray_conf: float = 0.9,
+    jitter_deg: float = 0.0,
+    cam: str = "cam0",
+    hand: str = "right",
+    show: str | None = None,
+) -> Step:
     """A Hands frame: one pointing hand if `point_at`, else no hands. `jitter_deg`: the ray wobbles
     by up to that much from frame to frame (a shaky or badly tracked hand)."""
+
     def build(base: float) -> tuple[str, Sample]:
         found = []
         if point_at is not None:
             d = ray_towards(origin, point_at, jitter_deg * math.sin(t * 37.0))
-            found.append(Hand(hand=hand, score=score, landmarks=landmarks_at(*origin), gesture="point",
-                              ray=Ray(origin=list(origin), direction=list(d), confidence=ray_conf)))
+            found.append(
+                Hand(
+                    hand=hand,
+                    score=score,
+                    landmarks=landmarks_at(*origin),
+                    gesture="point",
+                    ray=Ray(origin=list(origin), direction=list(d), confidence=ray_conf),
+                )
+            )
         elif show is not None:  # a hand showing another gesture (open_palm, fist …), no ray
             found.append(Hand(hand=hand, score=score, landmarks=landmarks_at(*origin), gesture=show))
-        return KEYS.hands(cam), Hands(stamp=base + t, source=f"gesture/{cam}", seq=int(t * 30) + 5000, cam=cam,
-                                      width=W, height=H, hands=found)
+        return KEYS.hands(cam), Hands(
+            stamp=base + t, source=f"gesture/{cam}", seq=int(t * 30) + 5000, cam=cam, width=W, height=H, hands=found
+        )
+
     return Step(t, build, "hands" + (f" pointing at {point_at}" if point_at else " (none)"))
 
 
-def gesture(t: float, name: str, phase: str = "start", score: float = 0.9, duration: float = 0.4,
-            point_at: tuple[float, float] | None = None, origin: tuple[float, float] = (320.0, 470.0),
-            cam: str = "cam0", hand: str = "right") -> Step:
+def gesture(
+    t: float,
+    name: str,
+    phase: str = "start",
+    score: float = 0.9,
+    duration: float = 0.4,
+    point_at: tuple[float, float] | None = None,
+    origin: tuple[float, float] = (320.0, 470.0),
+    cam: str = "cam0",
+    hand: str = "right",
+) -> Step:
     def build(base: float) -> tuple[str, Sample]:
         ray = None
         if point_at is not None:
             ray = Ray(origin=list(origin), direction=list(ray_towards(origin, point_at)), confidence=0.9)
         return KEYS.gesture_event(cam), GestureEvent(
-            stamp=base + t, source=f"gesture/{cam}", cam=cam, width=W, height=H, gesture=name, phase=phase,
-            start=base + t - duration, end=base + t, score=score, hand=hand, ray=ray)
+            stamp=base + t,
+            source=f"gesture/{cam}",
+            cam=cam,
+            width=W,
+            height=H,
+            gesture=name,
+            phase=phase,
+            start=base + t - duration,
+            end=base + t,
+            score=score,
+            hand=hand,
+            ray=ray,
+        )
+
     return Step(t, build, f"gesture {name} {phase}")
 
 
@@ -190,13 +279,25 @@ def stream(t0: float, t1: float, every: float, make: Callable[[float], Step]) ->
     return [make(round(t0 + i * every, 6)) for i in range(n + 1)]
 
 
-def scene(objects: list[Obj], t0: float = -1.5, t1: float = 2.5, every: float = 0.2,
-          quality: tuple[float, float, float] = GOOD, cam: str = "cam0") -> list[Step]:
+def scene(
+    objects: list[Obj],
+    t0: float = -1.5,
+    t1: float = 2.5,
+    every: float = 0.2,
+    quality: tuple[float, float, float] = GOOD,
+    cam: str = "cam0",
+) -> list[Step]:
     return stream(t0, t1, every, lambda t: see(t, objects, quality, cam))
 
 
-def pointing(point_at: tuple[float, float] | None, t0: float = -1.5, t1: float = 2.5, every: float = 0.1,
-             active: tuple[float, float] = (-10.0, 10.0), **kw: Any) -> list[Step]:
+def pointing(
+    point_at: tuple[float, float] | None,
+    t0: float = -1.5,
+    t1: float = 2.5,
+    every: float = 0.1,
+    active: tuple[float, float] = (-10.0, 10.0),
+    **kw: Any,
+) -> list[Step]:
     """Hands frames over [t0, t1]; the hand points at `point_at` only during `active`."""
     return stream(t0, t1, every, lambda t: hands(t, point_at if active[0] <= t <= active[1] else None, **kw))
 
@@ -208,11 +309,13 @@ def by_time(steps: list[Step]) -> list[Step]:
 # ---------------------------------------------------------------------------
 # Running a scenario in process (no zenoh): the unit tests and the evaluation use this.
 # ---------------------------------------------------------------------------
-def run_in_process(scenario: Scenario, config: Any = None, base: float = BASE_STAMP,
-                   order: list[int] | None = None) -> list[Sample]:
+def run_in_process(
+    scenario: Scenario, config: Any = None, base: float = BASE_STAMP, order: list[int] | None = None
+) -> list[Sample]:
     """Feed the steps (in `order` if given) with 2 ms of wall time between arrivals, ticking after each
     like the service's worker; then let every deadline expire. Returns the published samples."""
     from services.fusion.core import Config, FusionCore
+
     cfg = config or Config(**scenario.config)
     core = FusionCore(cfg, "fusion/test")
     out: list[Sample] = []
@@ -222,8 +325,12 @@ def run_in_process(scenario: Scenario, config: Any = None, base: float = BASE_ST
     steps = [scenario.steps[i] for i in order] if order is not None else scenario.steps
     for step in steps:
         key, sample = step.build(base)
-        feed = {Transcript: core.on_transcript, Detections: core.on_detections, Hands: core.on_hands,
-                GestureEvent: core.on_gesture_event}[type(sample)]
+        feed = {
+            Transcript: core.on_transcript,
+            Detections: core.on_detections,
+            Hands: core.on_hands,
+            GestureEvent: core.on_gesture_event,
+        }[type(sample)]
         out.extend(o.sample for o in feed(key, sample, wall))
         out.extend(o.sample for o in core.tick(wall))
         wall += 0.002
@@ -235,8 +342,9 @@ def check(scenario: Scenario, outputs: list[Sample]) -> str:
     """'' if the outputs are exactly what the scenario expects, else what differs."""
     problems = []
     if len(outputs) != len(scenario.expect):
-        problems.append(f"expected {len(scenario.expect)} outputs, got {len(outputs)}: "
-                        f"{[describe(o) for o in outputs]}")
+        problems.append(
+            f"expected {len(scenario.expect)} outputs, got {len(outputs)}: {[describe(o) for o in outputs]}"
+        )
     for i, (exp, got) in enumerate(zip(scenario.expect, outputs)):
         why = exp.mismatch(got)
         if why:

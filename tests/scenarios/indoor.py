@@ -44,6 +44,7 @@ def load_lines(folder: Path) -> list[Line]:
 @dataclass(frozen=True)
 class Seen:
     """One photo as vision sees it: what the vision service would publish for it."""
+
     objects: list[DetectedObject]
     quality: ImageQuality
     width: int
@@ -53,8 +54,10 @@ class Seen:
 def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
     """photo -> what the vision service publishes (its own pipeline on the upright photo, longest side <= 960)."""
     import cv2
+
     from services.vision.core import VisionPipeline
     from services.vision.yolo import YoloDetector
+
     pipeline = VisionPipeline(YoloDetector(str(model)))
 
     def see(path: Path) -> Seen:
@@ -68,16 +71,26 @@ def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
         pipeline.trackers.clear()  # every photo is a new scene: fresh ids
         objects, quality = pipeline.process("cam0", img)
         return Seen(objects, quality, img.shape[1], img.shape[0])
+
     return see
 
 
 def scenario(line: Line, seen: Seen) -> Scenario:
     def frame(t: float) -> Step:
         def build(base: float):
-            return KEYS.objects("cam0"), Detections(stamp=base + t, source="vision/cam0", seq=int(t * 10) + 1000,
-                                                    cam="cam0", width=seen.width, height=seen.height,
-                                                    objects=seen.objects, quality=seen.quality)
+            return KEYS.objects("cam0"), Detections(
+                stamp=base + t,
+                source="vision/cam0",
+                seq=int(t * 10) + 1000,
+                cam="cam0",
+                width=seen.width,
+                height=seen.height,
+                objects=seen.objects,
+                quality=seen.quality,
+            )
+
         return Step(t, build, f"see {len(seen.objects)} objects")
+
     steps = [frame(round(-1.5 + 0.2 * i, 6)) for i in range(21)] + pointing(None) + [say(0.0, 1.5, line.say)]
     return Scenario(line.name, by_time(steps), [])
 
@@ -88,8 +101,10 @@ def judge(line: Line, outputs: list[Any]) -> tuple[bool, str]:
     if out is None:
         return False, "nothing published"
     if isinstance(out, FusedCommand):
-        got = f"{out.intent} {out.target.label if out.target else None} " \
-              f"{[round(v) for v in out.target.bbox] if out.target else ''}"
+        got = (
+            f"{out.intent} {out.target.label if out.target else None} "
+            f"{[round(v) for v in out.target.bbox] if out.target else ''}"
+        )
         if "target" in line.expect:
             ok = out.target is not None and iou(out.target.bbox, line.expect["target"]) >= IOU_MATCH
             return ok, got
@@ -99,8 +114,11 @@ def judge(line: Line, outputs: list[Any]) -> tuple[bool, str]:
         return False, got
     boxes = [c.bbox for c in out.candidates]
     want = line.expect["ask"]
-    ok = len(boxes) == len(want) and all(any(iou(b, w) >= IOU_MATCH for b in boxes) for w in want) \
+    ok = (
+        len(boxes) == len(want)
+        and all(any(iou(b, w) >= IOU_MATCH for b in boxes) for w in want)
         and all(any(iou(b, w) >= IOU_MATCH for w in want) for b in boxes)
+    )
     return ok, got
 
 

@@ -24,7 +24,9 @@ def yolox_detector(model: Path) -> Callable[[Path], tuple[Found, int, int]]:
     """A function photo -> (detections, width, height): the vision service's own ONNX backend
     (services/vision/yolo.py, which reads the YOLOX family from the model's output) on the CPU."""
     import cv2
+
     from services.vision.yolo import YoloDetector
+
     detector = YoloDetector(str(model), conf_threshold=MIN_SCORE, iou_threshold=NMS_IOU)
     assert detector.family == "yolox", detector.describe()
 
@@ -34,10 +36,16 @@ def yolox_detector(model: Path) -> Callable[[Path], tuple[Found, int, int]]:
             raise FileNotFoundError(f"cannot read the photo {path}")
         h, w = img.shape[:2]
         # the service clips boxes to [0, w] × [0, h]; the scenes keep them inside the last pixel as before
-        found = [(label, score, [min(x, w - 1), min(y, h - 1), min(bw, w - 1 - min(x, w - 1)),
-                                 min(bh, h - 1 - min(y, h - 1))])
-                 for label, score, (x, y, bw, bh) in detector.detect(img)]
+        found = [
+            (
+                label,
+                score,
+                [min(x, w - 1), min(y, h - 1), min(bw, w - 1 - min(x, w - 1)), min(bh, h - 1 - min(y, h - 1))],
+            )
+            for label, score, (x, y, bw, bh) in detector.detect(img)
+        ]
         return found, w, h
+
     return detect
 
 
@@ -47,16 +55,33 @@ def object_id(found: Found, i: int) -> str:
 
 def scene_steps(found: Found, w: int, h: int, t0: float = -1.5, t1: float = 2.5, every: float = 0.2) -> list[Step]:
     """Detections samples of one real frame (the scene does not change) every `every` s over [t0, t1]."""
-    objects = [DetectedObject(id=object_id(found, i), label=label, color=None, score=round(score, 3), bbox=box,
-                              center=[box[0] + box[2] / 2, box[1] + box[3] / 2])
-               for i, (label, score, box) in enumerate(found)]
+    objects = [
+        DetectedObject(
+            id=object_id(found, i),
+            label=label,
+            color=None,
+            score=round(score, 3),
+            bbox=box,
+            center=[box[0] + box[2] / 2, box[1] + box[3] / 2],
+        )
+        for i, (label, score, box) in enumerate(found)
+    ]
 
     def see(t: float) -> Step:
         def build(base: float):
             return KEYS.objects("cam0"), Detections(
-                stamp=base + t, source="vision/cam0", seq=int(t * 10) + 1000, cam="cam0", width=w, height=h,
-                objects=objects, quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5))
+                stamp=base + t,
+                source="vision/cam0",
+                seq=int(t * 10) + 1000,
+                cam="cam0",
+                width=w,
+                height=h,
+                objects=objects,
+                quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5),
+            )
+
         return Step(t, build, f"see {len(objects)} real detections")
+
     n = int(round((t1 - t0) / every))
     return [see(round(t0 + i * every, 6)) for i in range(n + 1)]
 
@@ -96,13 +121,22 @@ def real_scenarios(detect: Callable[[Path], tuple[Found, int, int]], photo: Call
         found, w, h = cache[image]
         if kind == "command":
             ids = [object_id(found, i) for i, f in enumerate(found) if f[0] == what]
-            expect = Expect("command", intent=intent[0],
-                            target=ids[0] if len(ids) == 1 else f"<{len(ids)} {what} detections: not one>")
+            expect = Expect(
+                "command",
+                intent=intent[0],
+                target=ids[0] if len(ids) == 1 else f"<{len(ids)} {what} detections: not one>",
+            )
         elif kind == "ambiguous":
-            expect = Expect("clarification", reason="ambiguous",  # up to 5 of them are listed
-                            among=tuple(object_id(found, i) for i, f in enumerate(found) if f[0] in what))
+            expect = Expect(
+                "clarification",
+                reason="ambiguous",  # up to 5 of them are listed
+                among=tuple(object_id(found, i) for i, f in enumerate(found) if f[0] in what),
+            )
         else:
             expect = Expect("clarification", reason="not_found", question=what)
-        out.append(Scenario(f"real photo {Path(image).name}: {text}", real_scene(found, w, h, text), [expect],
-                            ("real photos",)))
+        out.append(
+            Scenario(
+                f"real photo {Path(image).name}: {text}", real_scene(found, w, h, text), [expect], ("real photos",)
+            )
+        )
     return out
