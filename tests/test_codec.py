@@ -448,17 +448,7 @@ def _reason(schema, data):
 
 
 def test_intrinsics_of_another_resolution_are_refused():
-    frame = Frame(
-        stamp=T,
-        source="camera/a",
-        seq=1,
-        cam="cam0",
-        width=2,
-        height=2,
-        encoding="bgr8",
-        data=bytes(12),
-        camera_info=INFO_2X2,
-    ).to_dict()
+    frame = examples()[0].to_dict()  # a 2x2 Frame with its intrinsics
     frame["camera_info"]["width"] = 640
     reason, detail = _reason(Frame, frame)
     assert reason == "bad_value" and "640x2" in detail and "2x2" in detail
