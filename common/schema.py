@@ -220,13 +220,6 @@ class Struct(msgspec.Struct, kw_only=True):
         return tuple(f.name for f in msgspec.structs.fields(cls) if f.required)
 
 
-def _check(ok: bool, reason: str, detail: str) -> None:
-    """For rare checks only: `detail` is built even when `ok` (rules run on every encode and decode, so the
-    hot ones raise directly and format their message only when they fail)."""
-    if not ok:
-        raise InvalidSample(reason, detail)
-
-
 # ---------------------------------------------------------------------------
 # Nested maps
 # ---------------------------------------------------------------------------
@@ -273,15 +266,15 @@ class DetectedObject(Struct, kw_only=True):
     def check_measurements(self, where: str) -> None:
         """The v1-extension fields' cross-field rules (called by Detections, once per object that has them)."""
         if self.lab is not None:
-            if not (0.0 <= self.lab[0] <= 100.0):
+            if not 0.0 <= self.lab[0] <= 100.0:
                 raise InvalidSample("out_of_range", f"{where}.lab: L {self.lab[0]} is outside 0–100")
         if self.position is not None:
-            if not (self.position[2] > 0.0):
+            if self.position[2] <= 0.0:
                 raise InvalidSample(
                     "bad_value", f"{where}.position: z {self.position[2]} m is not in front of the camera"
                 )
         if self.extent is not None:
-            if not (min(self.extent) >= 0.0):
+            if min(self.extent) < 0.0:
                 raise InvalidSample("bad_value", f"{where}.extent: a negative size")
 
 
@@ -302,9 +295,9 @@ class CameraInfo(Struct, kw_only=True):
 
     def __post_init__(self) -> None:
         k = self.k
-        if not (k[0] > 0.0 and k[4] > 0.0):
+        if k[0] <= 0.0 or k[4] <= 0.0:
             raise InvalidSample("bad_value", f"k: focal lengths must be > 0 (fx {k[0]}, fy {k[4]})")
-        if not (k[3] == 0.0 and k[6:] == [0.0, 0.0, 1.0]):
+        if k[3] != 0.0 or k[6:] != [0.0, 0.0, 1.0]:
             raise InvalidSample("bad_value", "k: not a camera matrix (rows 2 and 3 must be [0, fy, cy] and [0, 0, 1])")
 
     @property
@@ -325,7 +318,7 @@ class CameraInfo(Struct, kw_only=True):
 
     def check_size(self, width: int, height: int, what: str = "camera_info") -> None:
         """Intrinsics belong to one resolution: refuse them with an image of another size."""
-        if not ((self.width, self.height) == (width, height)):
+        if (self.width, self.height) != (width, height):
             raise InvalidSample(
                 "bad_value",
                 f"{what}: intrinsics are for {self.width}x{self.height}, the image is {width}x{height} "
@@ -359,7 +352,7 @@ class Ray3D(Struct, kw_only=True):
 
     def __post_init__(self) -> None:
         norm = math.sqrt(sum(c * c for c in self.direction))
-        if not (abs(norm - 1.0) <= 1e-3):
+        if abs(norm - 1.0) > 1e-3:
             raise InvalidSample("bad_value", f"direction: not a unit vector (norm {norm:.4f})")
 
 
@@ -537,13 +530,13 @@ class DepthFrame(Sample, kw_only=True):
         self.camera_info.check_size(self.width, self.height)
         if self.compression == "none":
             need = self.width * self.height * (2 if self.encoding == "16UC1" else 4)
-            if not (len(self.data) == need):
+            if len(self.data) != need:
                 raise InvalidSample(
                     "bad_value",
                     f"data: {self.encoding} {self.width}x{self.height} needs {need} bytes, got {len(self.data)}",
                 )
         else:
-            if not (self.encoding == "16UC1"):
+            if self.encoding != "16UC1":
                 raise InvalidSample("bad_value", "compression: png carries 16UC1 depth only")
 
 
