@@ -3,34 +3,13 @@ pointed location."""
 
 from __future__ import annotations
 
-from common import language as L
 from common.schema import Weights
 from services.fusion.evidence import select_pointing
-from services.fusion.ground import SceneObject, choose, pointing_score, ray_point, score
+from services.fusion.ground import choose, pointing_score, ray_point, score
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, Obj
+from tests.scenarios import BASE_STAMP, Obj, scene_of
 from tests.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
 from tests.test_fusion_evidence import _obs
-
-
-def _scene(objs, quality=1.0):
-    return [
-        SceneObject(
-            o.id,
-            L.canonical_label(o.label),
-            o.label,
-            o.color,
-            tuple(o.detected().bbox),
-            o.center,
-            o.score,
-            "cam0",
-            640,
-            480,
-            BASE_STAMP,
-            quality,
-        )
-        for o in objs
-    ]
 
 
 def _pointing_at(target, origin=(320.0, 470.0)):
@@ -42,7 +21,7 @@ EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
 
 
 def test_grounding_by_colour_class_and_position():
-    objs = _scene(TWO_CUPS + [Obj("ball", "sports ball", "red", (320, 330))])
+    objs = scene_of(TWO_CUPS + [Obj("ball", "sports ball", "red", (320, 330))])
     for text, expected in (
         ("the red cup", "cup_red"),
         ("the blue one", "cup_blue"),
@@ -56,7 +35,7 @@ def test_grounding_by_colour_class_and_position():
 
 
 def test_grounding_two_red_candies_is_ambiguous_and_unknown_colour_is_not_found():
-    objs = _scene(CANDIES)
+    objs = scene_of(CANDIES)
     phrase = parse("the red candy").obj
     choice = choose(phrase, score(phrase, objs, None, EVEN))
     assert choice.kind == "ambiguous" and {c.obj.id for c in choice.candidates} == {"candy_01", "candy_02", "candy_03"}
@@ -65,14 +44,14 @@ def test_grounding_two_red_candies_is_ambiguous_and_unknown_colour_is_not_found(
 
 
 def test_pointing_score_prefers_the_object_on_the_ray_and_ignores_what_is_behind_the_hand():
-    objs = _scene(TWO_CUPS + [Obj("behind", "cup", "green", (320, 479))])
+    objs = scene_of(TWO_CUPS + [Obj("behind", "cup", "green", (320, 479))])
     p = _pointing_at(BLUE_CUP.center)
     g = {o.id: pointing_score(p, o)[0] for o in objs}
     assert g["cup_blue"] > 0.9 and g["cup_red"] < 0.01 and g["behind"] == 0.0
 
 
 def test_conflict_is_resolved_by_the_dominant_side_or_asked():
-    objs = _scene(TWO_CUPS)
+    objs = scene_of(TWO_CUPS)
     phrase = parse("the red cup").obj
     p = _pointing_at(BLUE_CUP.center)
     clear = choose(phrase, score(phrase, objs, p, Weights(speech=0.35, vision=0.35, gesture=0.3)))
@@ -82,7 +61,7 @@ def test_conflict_is_resolved_by_the_dominant_side_or_asked():
     dark = choose(
         phrase,
         score(
-            phrase, _scene(TWO_CUPS, quality=0.05), p, Weights(speech=0.5, vision=0.02, gesture=0.48), ref=BASE_STAMP
+            phrase, scene_of(TWO_CUPS, quality=0.05), p, Weights(speech=0.5, vision=0.02, gesture=0.48), ref=BASE_STAMP
         ),
     )
     assert dark.kind == "target" and dark.winner.obj.id == "cup_blue"

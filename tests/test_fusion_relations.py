@@ -11,32 +11,12 @@ from common import language as L
 from common.schema import Weights
 from services.fusion import relations as R, touch
 from services.fusion.evidence import Pointing
-from services.fusion.ground import SceneObject, choose, deictic_scores, score
+from services.fusion.ground import choose, deictic_scores, score
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, Obj
+from tests.scenarios import BASE_STAMP, Obj, scene_of
 
 EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
 SPEECH = Weights(speech=1.0, vision=0.0, gesture=0.0)
-
-
-def _scene(objs):
-    return [
-        SceneObject(
-            o.id,
-            L.canonical_label(o.label),
-            o.label,
-            o.color,
-            tuple(o.detected().bbox),
-            o.center,
-            o.score,
-            "cam0",
-            640,
-            480,
-            BASE_STAMP,
-            1.0,
-        )
-        for o in objs
-    ]
 
 
 def _pick(text, objs, weights=SPEECH):
@@ -80,7 +60,7 @@ COUNTER = [
     ],
 )
 def test_relation_words_pick_the_object_people_mean(text, expected):
-    choice = _pick(text, _scene(COUNTER))
+    choice = _pick(text, scene_of(COUNTER))
     assert choice.kind == "target" and choice.winner.obj.id == expected, (
         text,
         choice.kind,
@@ -89,7 +69,7 @@ def test_relation_words_pick_the_object_people_mean(text, expected):
 
 
 def test_support_and_containment_on_the_table_and_in_the_bowl():
-    objs = _scene(
+    objs = scene_of(
         [
             Obj("table", "dining table", "brown", (320, 380), (600, 160)),
             Obj("cup_table", "cup", "white", (200, 330), (40, 50)),  # stands on the table top
@@ -111,7 +91,7 @@ def test_support_and_containment_on_the_table_and_in_the_bowl():
 
 
 def test_under_and_above():
-    objs = _scene(
+    objs = scene_of(
         [
             Obj("shelf_book", "book", "red", (300, 100), (60, 40)),
             Obj("table", "dining table", None, (300, 250), (300, 80)),
@@ -123,7 +103,7 @@ def test_under_and_above():
 
 
 def test_two_objects_equally_next_to_the_anchor_are_a_question_and_a_missing_anchor_is_not_found():
-    objs = _scene(
+    objs = scene_of(
         [
             Obj("cup_a", "cup", "red", (200, 300)),
             Obj("bowl", "bowl", None, (300, 300), (80, 50)),
@@ -203,7 +183,7 @@ DESK = [
 
 
 def test_a_fingertip_on_the_keyboard_is_the_laptop_not_the_table_even_with_its_centre_behind_the_ray():
-    objs = _scene(DESK)
+    objs = scene_of(DESK)
     # the finger points down-right onto the keyboard; the laptop's centre lies behind (up-left of) the tip
     p = _body_ray_at((330.0, 330.0), direction=(0.6, 0.8))
     g = deictic_scores(p, objs)
@@ -214,7 +194,7 @@ def test_a_fingertip_on_the_keyboard_is_the_laptop_not_the_table_even_with_its_c
 
 
 def test_touch_with_a_hand_ray_uses_the_tip_where_the_ray_leaves_the_hand():
-    objs = _scene(
+    objs = scene_of(
         [Obj("tray", "box", "grey", (300, 300), (240, 160)), Obj("cup", "cup", "white", (300, 300), (50, 60))]
     )
     # knuckle at (300, 240), finger straight down; the hand's landmarks end at y = 285: the tip is inside the cup
@@ -236,7 +216,7 @@ def test_touch_rules_on_boxes():
 
 # -- people ---------------------------------------------------------------------------------------------------------
 def test_people_are_objects_too():
-    objs = _scene(
+    objs = scene_of(
         [
             Obj("woman", "person", None, (150, 240), (120, 400)),
             Obj("man", "person", None, (500, 240), (120, 400)),
@@ -316,7 +296,7 @@ def test_the_question_names_what_tells_the_cups_apart_and_those_words_answer_it(
 def test_colours_and_positions_still_tell_apart_when_they_can():
     from services.fusion.describe import candidate_phrases
 
-    objs = _scene(
+    objs = scene_of(
         [
             Obj("cup_red", "cup", "red", (100, 300)),
             Obj("cup_white", "cup", "white", (500, 300)),
@@ -352,13 +332,13 @@ def test_the_parser_splits_head_relations_and_places(text, label, relations, spa
 
 def test_a_ray_from_the_tip_touches_from_there_and_a_blob_on_the_hand_is_never_touched():
     """A body ray in a Hands frame starts at the fingertip, on the edge of the hand's box: the tip stays there."""
-    objs = _scene(
+    objs = scene_of(
         [Obj("cup", "cup", "white", (300, 300), (50, 60)), Obj("tray", "box", "grey", (300, 330), (240, 160))]
     )
     ray = _hand_ray((300.0, 290.0), (0.0, 1.0), (290.0, 240.0, 310.0, 290.0))
     assert touch.fingertip(ray.origin, ray.direction, ray.hand_box) == pytest.approx((300.0, 290.0))
     assert deictic_scores(ray, objs)[("cam0", "cup")][0] == 1.0
-    blob = _scene([Obj("finger", "candy", "orange", (300, 280), (12, 12))])  # a skin blob on the hand itself
+    blob = scene_of([Obj("finger", "candy", "orange", (300, 280), (12, 12))])  # a skin blob on the hand itself
     assert deictic_scores(ray, objs + blob)[("cam0", "finger")][0] == 0.0
 
 
@@ -373,7 +353,7 @@ def test_a_second_box_on_part_of_an_object_is_not_another_candidate():
     front = Obj("front", "chair", "green", (252, 444), (286, 462))
     top_half = Obj("top_half", "chair", "green", (235, 335), (262, 218))
     right = Obj("right", "chair", "green", (435, 340), (154, 325))
-    choice = _pick("bring me the green chair", _scene([front, top_half, right]))
+    choice = _pick("bring me the green chair", scene_of([front, top_half, right]))
     assert choice.kind == "ambiguous" and {c.obj.id for c in choice.candidates} == {"front", "right"}
-    choice = _pick("bring me the green chair", _scene([front, top_half]))
+    choice = _pick("bring me the green chair", scene_of([front, top_half]))
     assert choice.kind == "target" and choice.winner.obj.id == "front"

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 from common.keys import Keys
+from common.language import canonical_label
 from common.schema import (
     Clarification,
     DetectedObject,
@@ -31,6 +32,7 @@ from common.schema import (
     Transcript,
     Word,
 )
+from services.fusion.ground import SceneObject
 
 BASE_STAMP = 1_700_000_000.0
 SCENARIO_SPACING = 200.0  # s of source time between scenarios run in one process
@@ -59,6 +61,27 @@ class Obj:
             bbox=[self.center[0] - w / 2, self.center[1] - h / 2, w, h],
             center=list(self.center),
         )
+
+
+def scene_of(objs: list[Obj], quality: float = 1.0) -> list[SceneObject]:
+    """The objects as grounding sees them (camera `cam0`, 640x480, at BASE_STAMP), for unit tests of ground.py."""
+    return [
+        SceneObject(
+            o.id,
+            canonical_label(o.label),
+            o.label,
+            o.color,
+            tuple(o.detected().bbox),
+            o.center,
+            o.score,
+            "cam0",
+            640,
+            480,
+            BASE_STAMP,
+            quality,
+        )
+        for o in objs
+    ]
 
 
 @dataclass
