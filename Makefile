@@ -35,7 +35,7 @@ fix:
 	@$(RUFF) check --fix .
 	@$(RUFF) format .
 
-BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view
+BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view pointing_3d distributed
 
 bench: setup
 	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done
