@@ -12,9 +12,9 @@ from services.fusion.join import Ready
 from services.fusion.outputs import Outputs
 from services.fusion.parse import parse
 from services.fusion.window import Context
-from tests.scenarios import BASE_STAMP, say
+from tests.scenarios import BASE_STAMP, say, scene_of
 from tests.scenarios.suite import TWO_CUPS
-from tests.test_fusion_ground import EVEN, _scene
+from tests.test_fusion_ground import EVEN
 
 
 def window(objects) -> Context:
@@ -40,7 +40,7 @@ def utterance(start: float, text: str):
 
 def asked_which_cup(counts: list[str]) -> tuple[Dialogue, Context, Clarification]:
     dialogue = Dialogue(Outputs("fusion/test"), timeout=10.0, count=counts.append, log=logging.getLogger("test"))
-    ctx = window(_scene(TWO_CUPS))
+    ctx = window(scene_of(TWO_CUPS))
     t, u = utterance(0.0, "pick up the cup")
     choice = ctx.choose(u.obj, ctx.objects, None, ctx.ref)
     assert choice.kind == "ambiguous"

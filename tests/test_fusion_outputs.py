@@ -38,13 +38,13 @@ def test_one_builder_for_commands_and_questions():
     from common.schema import Clarification, Location
     from services.fusion.ground import MAX_CANDIDATES
     from services.fusion.outputs import Outputs
+    from tests.scenarios import scene_of
     from tests.scenarios.suite import CANDIES
     from tests.test_fusion_dialogue import utterance, window
-    from tests.test_fusion_ground import _scene
 
     build = Outputs("fusion/test")
     t, _ = utterance(0.0, "put it there")
-    ctx = window(_scene(CANDIES))
+    ctx = window(scene_of(CANDIES))
     out = build.command(
         t, "put_down", ctx, confidence=1.7, explanation="why", location=Location(x=12.0, y=34.0, cam="cam0")
     )
