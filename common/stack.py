@@ -1,0 +1,186 @@
+"""The stack, declared once: every topic of the wire and every node that reads or publishes it.
+
+A *topic* is a key pattern under the prefix with the one schema published there. A *node* is a process of the
+stack (`python -m services.<name>`): the topics it reads, each with its queue policy, and the topics it
+publishes. A *client* is something outside the stack that publishes or reads (a remote microphone, `hri say`,
+`hri replay`, a planner). Derived from this file, never written again: the key table (common/keys.py), the
+access-control roles (common/security.py), the services `hri up`, the demo and docker-compose.yml start, the
+subscriptions each service makes (`Service.subscribe_input`), the modalities fusion waits for.
+
+Adding a node: one `Node(...)` entry in NODES and one package `services/<name>/` whose `main` builds its
+`Service` from `node("<name>")`.
+
+Contract layer: the schema and the standard library only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+from common.schema import (
+    AudioChunk,
+    Bodies,
+    Clarification,
+    DepthFrame,
+    Detections,
+    Frame,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    Sample,
+    Stats,
+    Transcript,
+)
+
+QueuePolicy = Literal["latest", "fifo"]
+
+
+@dataclass(frozen=True)
+class Topic:
+    name: str  # how nodes refer to it
+    pattern: str  # below the prefix; {placeholders} are one key chunk each
+    schema: type[Sample]
+    description: str = ""
+
+    def wildcard(self) -> str:
+        """The pattern with every placeholder as '*': what a subscriber to all of it declares."""
+        return "/".join("*" if chunk.startswith("{") else chunk for chunk in self.pattern.split("/"))
+
+
+# The one table of what is published where.
+TOPICS: tuple[Topic, ...] = (
+    Topic("frame", "camera/{cam}/frame", Frame, "colour images"),
+    Topic("depth", "camera/{cam}/depth", DepthFrame, "depth images aligned to the colour ones"),
+    Topic("audio", "audio/{mic}/pcm", AudioChunk, "microphone audio"),
+    Topic("objects", "vision/{cam}/objects", Detections, "detected objects"),
+    Topic("hands", "gesture/{cam}/hands", Hands, "hands and pointing rays"),
+    Topic("event", "gesture/{cam}/event", GestureEvent, "gesture starts and ends"),
+    Topic("bodies", "gesture/{cam}/bodies", Bodies, "body poses"),
+    Topic("transcript", "speech/{mic}/transcript", Transcript, "recognised utterances"),
+    Topic("command", "fusion/command", FusedCommand, "grounded commands"),
+    Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
+    Topic("stats", "stats/{service}/{instance}", Stats, "every node's counters (answered on query)"),
+)
+TOPIC = {t.name: t for t in TOPICS}
+
+
+@dataclass(frozen=True)
+class Input:
+    topic: str  # a name in TOPICS
+    policy: QueuePolicy = "fifo"  # latest: one slot per key, newest wins (frames); fifo: lossless up to maxlen
+    maxlen: int = 1000
+    monotonic: bool = False  # stamps must not go back (a camera or microphone stream)
+    joined: bool = False  # fusion's join waits for the publisher's watermark on this input
+
+
+@dataclass(frozen=True)
+class Node:
+    name: str
+    description: str
+    inputs: tuple[Input, ...] = ()
+    outputs: tuple[str, ...] = ()  # topic names
+    reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding)
+
+    @property
+    def module(self) -> str:
+        return f"services.{self.name}"
+
+    def input(self, topic: str) -> Input:
+        for i in self.inputs:
+            if i.topic == topic:
+                return i
+        raise KeyError(f"{self.name} declares no input {topic!r} (common/stack.py): it reads {self.input_names()}")
+
+    def input_names(self) -> list[str]:
+        return [i.topic for i in self.inputs]
+
+
+@dataclass(frozen=True)
+class Client:
+    """Not a process of the stack, but someone with a role on the wire (access control)."""
+
+    name: str
+    description: str
+    outputs: tuple[str, ...] = ()
+    reads_everything: bool = False
+    fixed_keys: tuple[str, ...] = field(default=())  # exact keys it may publish (below the prefix)
+
+
+# The stack, in start order after the router.
+NODES: tuple[Node, ...] = (
+    Node("camera", "frames (and depth) from a webcam, RealSense, video, folder or photo", outputs=("frame", "depth")),
+    Node(
+        "vision",
+        "objects with class, colour and position",
+        inputs=(
+            Input("depth", "latest", monotonic=True),  # the camera sends depth just before colour
+            Input("frame", "latest", monotonic=True),
+        ),
+        outputs=("objects",),
+        reads_images=True,
+    ),
+    Node(
+        "gesture",
+        "hands, bodies, pointing rays and gesture events",
+        inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=8)),
+        outputs=("hands", "bodies", "event"),
+        reads_images=True,
+    ),
+    Node(
+        "speech",
+        "voice activity -> Whisper -> transcripts with times and confidence",
+        inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
+        outputs=("transcript",),
+    ),
+    Node(
+        "fusion",
+        "joins the modalities on source time, grounds the command, asks when unsure",
+        inputs=(
+            Input("transcript", "fifo", maxlen=200),
+            Input("objects", "fifo", maxlen=300, joined=True),
+            Input("hands", "fifo", maxlen=600, joined=True),
+            Input("event", "fifo", maxlen=200, joined=True),
+            Input("bodies", "fifo", maxlen=50),  # which way the speaker faces
+        ),
+        outputs=("command", "clarification"),
+    ),
+)
+NODE = {n.name: n for n in NODES}
+
+CLIENTS: tuple[Client, ...] = (
+    Client("mic", "a microphone elsewhere sending AudioChunks", outputs=("audio",)),
+    Client("keyboard", "hri say (typed commands)", fixed_keys=("speech/kbd/transcript",)),
+    Client(
+        "replay",
+        "hri replay: puts recorded samples back",
+        outputs=tuple(t for n in NODES if n.name != "fusion" for t in n.outputs) + ("audio",),
+    ),
+    Client("reader", "hri echo / list / stats / record, a planner listening to commands", reads_everything=True),
+)
+
+
+def node(name: str) -> Node:
+    if name not in NODE:
+        raise KeyError(f"no node {name!r} in the stack (common/stack.py NODES): {', '.join(NODE)}")
+    return NODE[name]
+
+
+def publishers_of(topic: str) -> list[str]:
+    """The nodes that publish `topic`."""
+    return [n.name for n in NODES if topic in n.outputs]
+
+
+def check_stack() -> None:
+    """Every name refers to a declared topic; raises ValueError naming the first that does not."""
+    for n in NODES:
+        for t in [i.topic for i in n.inputs] + list(n.outputs):
+            if t not in TOPIC:
+                raise ValueError(f"node {n.name}: unknown topic {t!r}; topics: {', '.join(TOPIC)}")
+    for c in CLIENTS:
+        for t in c.outputs:
+            if t not in TOPIC:
+                raise ValueError(f"client {c.name}: unknown topic {t!r}")
+
+
+check_stack()
