@@ -123,7 +123,7 @@ NODES: tuple[Node, ...] = (
     Node(
         "gesture",
         "hands, bodies, pointing rays and gesture events",
-        inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=8)),
+        inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=4)),
         outputs=("hands", "bodies", "event"),
         reads_images=True,
     ),
