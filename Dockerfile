@@ -1,4 +1,4 @@
-# One image for every hri-fusion process: the router (`python -m common.cli router`) and each service
+# One image for every hri-fusion process: the router (`python -m hri.cli router`) and each service
 # (`python -m services.<name>`); docker-compose.yml picks the command.
 #
 # Python packages come from docker/wheels/ when docker/fetch-wheels.sh has filled it (no network needed
@@ -27,13 +27,14 @@ RUN --mount=type=bind,source=docker/wheels,target=/tmp/wheels \
 # The code. README.md is optional here (pyproject names it; the build only needs it to exist).
 COPY common/ common/
 COPY services/ services/
+COPY hri/ hri/
 COPY docker/healthcheck.py docker/
 RUN touch README.md && pip install --no-deps --no-build-isolation --no-index -q . \
-    && python -c "import common.cli, services" \
+    && python -c "import hri.cli, services" \
     && useradd --system --create-home --home-dir /home/hri hri
 
 # Inputs (photos, WAVs) are bind-mounted read-only at /data by docker-compose.yml (no VOLUME here: it
 # would leave an anonymous volume behind for every container that does not mount one).
 USER hri
 EXPOSE 7447
-CMD ["python", "-m", "common.cli", "--help"]
+CMD ["python", "-m", "hri.cli", "--help"]

@@ -26,7 +26,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from common.cli import make_transcript  # noqa: E402
+from hri.cli import make_transcript  # noqa: E402
 from tests.harness import DATA, Client, ProcessGroup  # noqa: E402
 from tests.netns import NetnsGroup, Network, cleanup_leftovers, unavailable  # noqa: E402
 

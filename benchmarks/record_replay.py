@@ -37,8 +37,8 @@ from mcap.writer import CompressionType, Writer  # noqa: E402
 from benchmarks.payloads import realistic_samples  # noqa: E402
 from common.codec import ENCODING, encode  # noqa: E402
 from common.keys import Keys  # noqa: E402
-from common.recording import SessionWriter  # noqa: E402
 from common.transport import open_client  # noqa: E402
+from hri.recording import SessionWriter  # noqa: E402
 from tests.harness import Proc, ProcessGroup  # noqa: E402
 
 
@@ -225,7 +225,7 @@ def main() -> None:
                 n,
                 [
                     "-m",
-                    "common.cli",
+                    "hri.cli",
                     "record",
                     "-o",
                     str(hri_out),
@@ -242,7 +242,7 @@ def main() -> None:
                 group,
                 sub_s,
                 n,
-                ["-m", "common.cli", "replay", str(hri_out), "--speed", "0", "--connect", group.endpoint],
+                ["-m", "hri.cli", "replay", str(hri_out), "--speed", "0", "--connect", group.endpoint],
             )
             print(
                 f"{label:20s} {len(payload):7d} | {cb:7.1f} {cc:7.1f} {cc / cb:5.2f}x | {rb:8.0f} {rh:8.0f} "

@@ -64,7 +64,7 @@ def main() -> int:
     stop = threading.Event()
     try:
         group.router()
-        view = group.start("view", "common.cli", "view", "--port", "0")
+        view = group.start("view", "hri.cli", "view", "--port", "0")
         bare = Proc("bare", [sys.executable, "-c", BARE_SUBSCRIBER, group.endpoint], env={"PYTHONPATH": str(ROOT)})
         group.procs.append(bare)
         deadline = time.monotonic() + 60

@@ -3,7 +3,7 @@
 Each schema is a `msgspec.Struct`: its type hints, with `Annotated[..., Meta(...)]` constraints, *are* the
 contract, and msgspec checks them in C while decoding MessagePack. Cross-field rules live in
 `__post_init__`, which msgspec runs on construction and on every decode. The field tables of docs/wire.md
-are generated from the descriptions here (`python -m common.wiredoc`; a test fails when they drift).
+are generated from the descriptions here (`python -m hri.wiredoc`; a test fails when they drift).
 
 msgspec's errors are mapped onto the contract's documented rejection reasons by `rejection()` (one table),
 so `InvalidSample.reason` is the same counter key whichever check failed.

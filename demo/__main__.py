@@ -26,9 +26,9 @@ import numpy as np
 import zenoh
 
 from common.codec import decode
-from common.launcher import Launcher, ServiceSpec
 from common.runner import SamplePublisher
 from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
+from hri.launcher import Launcher, ServiceSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "data" / "demo"

@@ -158,7 +158,7 @@ export HRI_ROUTER_PORT=${HRI_ROUTER_PORT:-$("$PYTHON" -c 'import socket; s=socke
 export COMPOSE_BAKE=false   # no buildx here: the built-in BuildKit client, without a warning
 COMPOSE=(docker compose -p "$PROJECT")
 ENDPOINT="tcp/127.0.0.1:$HRI_ROUTER_PORT"
-hri() { "$PYTHON" -m common.cli "$@" --connect "$ENDPOINT"; }
+hri() { "$PYTHON" -m hri.cli "$@" --connect "$ENDPOINT"; }
 
 "${COMPOSE[@]}" config -q || die "docker compose config -q: docker-compose.yml is invalid"
 # Services are written in parallel: start those whose code is in this checkout (and say which are not).

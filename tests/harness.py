@@ -122,7 +122,7 @@ class ProcessGroup:
         return proc
 
     def router(self) -> Proc:
-        proc = self.start("router", "common.cli", "router", "--listen", self.endpoint, connect=False)
+        proc = self.start("router", "hri.cli", "router", "--listen", self.endpoint, connect=False)
         wait_for_port(self.port)
         return proc
 
@@ -131,7 +131,7 @@ class ProcessGroup:
 
     def hri(self, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess:
         """Run an `hri` subcommand to completion against this group's router."""
-        argv = [sys.executable, "-m", "common.cli", args[0], "--connect", self.endpoint, *args[1:]]
+        argv = [sys.executable, "-m", "hri.cli", args[0], "--connect", self.endpoint, *args[1:]]
         return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
 
     def echo(self, keyexpr: str, count: int, timeout: float = 30.0) -> list[dict[str, Any]]:

@@ -167,7 +167,7 @@ class NetnsGroup(ProcessGroup):
 
     def router(self, *extra: str) -> Proc:
         listen = [a for ep in self.net.router_listen(self.port) for a in ("--listen", ep)]
-        proc = self.start("router", "common.cli", "router", *listen, *extra, connect=False, host="router")
+        proc = self.start("router", "hri.cli", "router", *listen, *extra, connect=False, host="router")
         self.wait_router()
         return proc
 

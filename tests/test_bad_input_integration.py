@@ -6,9 +6,9 @@ import cv2
 import msgpack
 import pytest
 
-from common.cli import make_transcript
 from common.codec import encode
 from common.schema import Frame
+from hri.cli import make_transcript
 from tests.harness import DATA, Client, requires_services
 
 pytestmark = pytest.mark.integration

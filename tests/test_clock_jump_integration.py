@@ -8,9 +8,9 @@ import time
 import cv2
 import pytest
 
-from common.cli import make_transcript
 from common.schema import Frame
 from common.stamps import DEFAULT_RESET_RUN
+from hri.cli import make_transcript
 from tests.harness import DATA, Client
 
 pytestmark = pytest.mark.integration

@@ -10,8 +10,8 @@ import time
 
 import pytest
 
-from common.cli import make_transcript
 from common.schema import Clarification, FusedCommand
+from hri.cli import make_transcript
 from tests.harness import DATA, Client, Proc
 from tests.netns import netns_fixture
 

@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from common.launcher import add_up_arguments, select, services_from_args, starts_router
 from common.schema import FusedCommand
+from hri.launcher import add_up_arguments, select, services_from_args, starts_router
 from tests.harness import DATA, Client
 from tests.netns import netns_fixture
 from tests.test_distributed_integration import next_result, say
@@ -51,7 +51,7 @@ def test_two_hosts_each_run_part_of_the_stack_with_hri_up(netns_group):
     net = g.net
     host_a = g.start(
         "up-perception",
-        "common.cli",
+        "hri.cli",
         "up",
         "--only",
         "router,camera,vision",
@@ -69,7 +69,7 @@ def test_two_hosts_each_run_part_of_the_stack_with_hri_up(netns_group):
     g.wait_router(30)
     host_b = g.start(
         "up-fusion",
-        "common.cli",
+        "hri.cli",
         "up",
         "--only",
         "fusion",

@@ -6,10 +6,10 @@ import time
 
 import pytest
 
-from common.cli import make_transcript
 from common.codec import encode
 from common.schema import FusedCommand, Weights
 from common.security import access_control, init_secrets, login_user, may_publish, read_passwords
+from hri.cli import make_transcript
 from tests.harness import Client, wait_for_port
 
 
@@ -44,7 +44,7 @@ def transcript(text: str, source: str):
 @pytest.mark.integration
 def test_two_robots_share_a_router_without_seeing_each_others_inputs(group, tmp_path):
     secrets = str(site(tmp_path).folder)
-    group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
+    group.start("router", "hri.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
     wait_for_port(group.port)
     fusion1 = group.service("fusion", "--prefix", "robot1", "--secure", secrets)
     fusion2 = group.service("fusion", "--prefix", "robot2", "--secure", secrets)

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from common.cli import make_transcript
 from common.schema import Clarification, Detections, FusedCommand
+from hri.cli import make_transcript
 from tests.harness import Client, ProcessGroup, requires_services
 from tests.scenarios.indoor import SCENES, evaluate, judge, load_lines, report, vision_pipeline
 from tests.shared import shared_path, yolox_model

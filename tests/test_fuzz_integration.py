@@ -14,7 +14,6 @@ from pathlib import Path
 import cv2
 import pytest
 
-from common.cli import make_transcript
 from common.schema import (
     AudioChunk,
     DetectedObject,
@@ -26,6 +25,7 @@ from common.schema import (
     ImageQuality,
     Ray,
 )
+from hri.cli import make_transcript
 from tests.fuzz import Fuzzer, image_bomb
 from tests.harness import DATA, Client
 

@@ -5,8 +5,8 @@ import time
 
 import pytest
 
-from common.cli import make_transcript
 from common.schema import Bodies, FusedCommand
+from hri.cli import make_transcript
 from tests.harness import Client, requires_services
 from tests.shared import shared_path
 

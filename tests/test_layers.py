@@ -10,13 +10,13 @@ import ast
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("common", "services")
+PACKAGES = ("common", "services", "hri")
 
 # The contract: what goes on the wire and how it is checked. msgspec/msgpack and the standard library only.
-CONTRACT = {"common.schema", "common.codec", "common.keys", "common.stamps", "common.language"}
+CONTRACT = {"common.schema", "common.codec", "common.keys", "common.stamps", "common.language", "common.stack"}
 # The tools: the `hri` command and what only it uses. No service (and nothing of the contract or runtime)
 # may import them.
-TOOLS = {"common.cli", "common.launcher", "common.recording", "common.view", "common.wiredoc"}
+TOOLS = {"hri"}
 # Third-party packages the contract may not touch: the transport and everything heavy.
 NOT_IN_CONTRACT = {"zenoh", "numpy", "cv2", "onnxruntime", "mediapipe", "faster_whisper", "aiohttp", "mcap"}
 
@@ -42,7 +42,7 @@ def imports_of(path: Path) -> set[str]:
                 anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join(anchor + ([base] if base else []))
             found.add(base)
-            # `from common import launcher` imports the module common.launcher
+            # `from hri import launcher` imports the module hri.launcher
             found.update(f"{base}.{alias.name}" for alias in node.names)
     return found
 
@@ -69,7 +69,7 @@ def all_imports(module: str) -> set[str]:
 
 
 def test_the_graph_covers_the_tree():
-    assert {"common.schema", "common.codec", "common.runner", "common.cli", "services.fusion.__main__"} <= set(GRAPH)
+    assert {"common.schema", "common.codec", "common.runner", "hri.cli", "services.fusion.__main__"} <= set(GRAPH)
     assert "common.schema" in GRAPH["common.codec"] and "common.runner" in GRAPH["services.vision.__main__"]
 
 
@@ -144,4 +144,4 @@ def test_no_import_cycle():
 def test_the_checks_catch_what_they_claim():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert cycles({"a": {"b"}, "b": set()}) == []
-    assert in_layer("common.view.core", TOOLS) and not in_layer("common.viewer", TOOLS)
+    assert in_layer("hri.view.core", TOOLS) and not in_layer("common.viewer", TOOLS)

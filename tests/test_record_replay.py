@@ -12,11 +12,11 @@ import msgpack
 import pytest
 from mcap.reader import make_reader
 
-from common.cli import make_transcript
 from common.codec import decode, encode
 from common.keys import Keys
-from common.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
 from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray
+from hri.cli import make_transcript
+from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
 from tests.harness import Client
 
 KEYS = Keys("hri")
@@ -172,7 +172,7 @@ def test_progress_prints_about_once_per_interval():
 
 
 def test_replay_explains_a_missing_or_foreign_file(tmp_path):
-    from common.recording import RecordingError
+    from hri.recording import RecordingError
 
     with pytest.raises(RecordingError, match="cannot open"):
         SessionReader(tmp_path / "nope.mcap")
@@ -242,7 +242,7 @@ JITTER_S = 0.25
 def test_record_then_replay_round_trip(group, tmp_path):
     group.router()
     path = tmp_path / "session.mcap"
-    recorder = group.start("record", "common.cli", "record", "-o", str(path), "hri/**")
+    recorder = group.start("record", "hri.cli", "record", "-o", str(path), "hri/**")
     wait_for_text(recorder, "recording 'hri/**'")
     client = Client(group.endpoint)
     try:
@@ -317,7 +317,7 @@ def test_record_then_replay_round_trip(group, tmp_path):
         # -- --speed 0 --loop: back to back, over and over until SIGTERM
         tap.clear()
         looper = group.start(
-            "replay", "common.cli", "replay", str(path), "--only", "hri/vision/*/objects", "--speed", "0", "--loop"
+            "replay", "hri.cli", "replay", str(path), "--only", "hri/vision/*/objects", "--speed", "0", "--loop"
         )
         got = tap.wait(3)
         code, _ = looper.terminate(timeout=5.0)
@@ -331,9 +331,9 @@ def test_record_then_replay_round_trip(group, tmp_path):
 def test_record_stops_by_itself_after_count_or_duration(group, tmp_path):
     group.router()
     counted, timed = tmp_path / "count.mcap", tmp_path / "duration.mcap"
-    by_count = group.start("record-count", "common.cli", "record", "-o", str(counted), "hri/speech/**", "--count", "2")
+    by_count = group.start("record-count", "hri.cli", "record", "-o", str(counted), "hri/speech/**", "--count", "2")
     wait_for_text(by_count, "recording")
-    by_time = group.start("record-duration", "common.cli", "record", "-o", str(timed), "--duration", "3")
+    by_time = group.start("record-duration", "hri.cli", "record", "-o", str(timed), "--duration", "3")
     wait_for_text(by_time, "recording")
     client = Client(group.endpoint)
     try:
@@ -426,7 +426,7 @@ def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_command
 
     group.router()
     path = tmp_path / "fusion-session.mcap"
-    recorder = group.start("record", "common.cli", "record", "-o", str(path), "hri/**")
+    recorder = group.start("record", "hri.cli", "record", "-o", str(path), "hri/**")
     wait_for_text(recorder, "recording 'hri/**'")
     client = Client(group.endpoint)
     try:

@@ -21,8 +21,8 @@ import cv2
 import numpy as np
 import pytest
 
-from common.cli import make_transcript
 from common.schema import FusedCommand, Hand, Hands, Ray, Ray3D
+from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from tests.harness import Client
 from tests.shared import shared_path, yolox_model

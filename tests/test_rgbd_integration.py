@@ -114,7 +114,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     folder = ycb_folder(tmp_path)
     group.router()
     path = tmp_path / "rgbd.mcap"
-    recorder = group.start("record", "common.cli", "record", "-o", str(path), "hri/camera/**")
+    recorder = group.start("record", "hri.cli", "record", "-o", str(path), "hri/camera/**")
     deadline = time.monotonic() + 60
     while "recording" not in recorder.output() and time.monotonic() < deadline:
         time.sleep(0.1)
@@ -144,7 +144,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
         client.wait_alive("vision", timeout=60)
         out = client.collect("hri/vision/cam0/objects")
         # looped: the liveliness token comes before the subscriptions, so the very first replayed frame may be lost
-        group.start("replay", "common.cli", "replay", str(path), "--loop")
+        group.start("replay", "hri.cli", "replay", str(path), "--loop")
         got = {}
         for seq in (0, 1):
             _, det = out.wait(1, timeout=30, where=lambda k, s, seq=seq: s.seq == seq and s.frame_id is not None)[0]
@@ -193,7 +193,7 @@ def test_on_a_secured_robot_vision_may_read_depth(group, tmp_path):
 
     folder = ycb_folder(tmp_path)
     secrets = str(init_secrets(tmp_path / "secrets", {}).folder)
-    group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
+    group.start("router", "hri.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
     wait_for_port(group.port)
     group.service("vision", "--secure", secrets)
     reader = Client(group.endpoint, secure=secrets)

@@ -1,10 +1,10 @@
-"""`hri view` with depth: positions in the object and target labels (common/view/draw.py; view.js mirrors it)."""
+"""`hri view` with depth: positions in the object and target labels (hri/view/draw.py; view.js mirrors it)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from common.view.draw import BOX, object_position, render
+from hri.view.draw import BOX, object_position, render
 
 
 def test_positions_are_written_in_metres_only_when_known():
@@ -53,7 +53,7 @@ def test_the_depth_overlay_colours_near_red_far_blue_and_holes_black():
 
     from common.codec import encode
     from common.keys import Keys
-    from common.view.core import ViewState
+    from hri.view.core import ViewState
 
     keys = Keys("hri")
     state = ViewState(keys)
@@ -78,8 +78,8 @@ def test_the_depth_endpoint_serves_the_picture_and_204_without_depth(monkeypatch
 
     from common.codec import encode
     from common.keys import Keys
-    from common.view import server
-    from common.view.core import ViewState
+    from hri.view import server
+    from hri.view.core import ViewState
 
     keys = Keys("hri")
     state = ViewState(keys)

@@ -8,9 +8,9 @@ import cv2
 import pytest
 import zenoh
 
-from common.cli import make_transcript
 from common.schema import FusedCommand, Weights
 from common.security import init_secrets, make_tls, read_passwords
+from hri.cli import make_transcript
 from tests.harness import DATA, Client, ProcessGroup, wait_for_port
 
 pytestmark = pytest.mark.integration
@@ -19,7 +19,7 @@ TABLE = DATA / "demo" / "table.png"
 
 
 def secured_router(group: ProcessGroup, secrets: str):
-    proc = group.start("router", "common.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
+    proc = group.start("router", "hri.cli", "router", "--listen", group.endpoint, "--secure", secrets, connect=False)
     wait_for_port(group.port)
     return proc
 

@@ -1,4 +1,4 @@
-"""One description of the stack: `common/launcher.py` (STACK, ROUTER_ARGV, the router's port in DEFAULT_ENDPOINT) is
+"""One description of the stack: `hri/launcher.py` (STACK, ROUTER_ARGV, the router's port in DEFAULT_ENDPOINT) is
 the source; docker-compose.yml, `hri up` and the demo are checked against it: the same services, each running its
 own module, flags every service's own parser accepts, the same router port. No process is started: each service's
 `main` runs only as far as its argument parser."""
@@ -16,8 +16,8 @@ from urllib.parse import urlsplit
 import pytest
 import yaml
 
-from common.launcher import ROUTER_ARGV, STACK, ServiceSpec, add_up_arguments, service_module, services_from_args
 from common.transport import DEFAULT_ENDPOINT
+from hri.launcher import ROUTER_ARGV, STACK, ServiceSpec, add_up_arguments, service_module, services_from_args
 
 ROOT = Path(__file__).resolve().parent.parent
 ROUTER_PORT = urlsplit(DEFAULT_ENDPOINT.replace("tcp/", "tcp://")).port

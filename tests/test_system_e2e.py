@@ -8,8 +8,8 @@ import time
 
 import pytest
 
-from common.cli import make_transcript
 from common.schema import Clarification, FusedCommand
+from hri.cli import make_transcript
 from tests.harness import DATA, ROOT, Client, Proc, free_port, requires_services, wait_for_port
 
 pytestmark = pytest.mark.integration
@@ -52,7 +52,7 @@ def test_hri_up_runs_the_pipeline_and_stops_the_whole_group_cleanly():
         [
             sys.executable,
             "-m",
-            "common.cli",
+            "hri.cli",
             "up",
             "--listen",
             endpoint,

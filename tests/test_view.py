@@ -12,10 +12,8 @@ import msgspec
 import numpy as np
 import pytest
 
-from common.cli import make_transcript
 from common.codec import encode
 from common.keys import Keys
-from common.recording import NS, SessionWriter
 from common.schema import (
     Clarification,
     Detections,
@@ -28,9 +26,11 @@ from common.schema import (
     Target,
     Weights,
 )
-from common.view.core import ViewState
-from common.view.draw import CANDIDATE, TARGET, render
-from common.view.player import Player
+from hri.cli import make_transcript
+from hri.recording import NS, SessionWriter
+from hri.view.core import ViewState
+from hri.view.draw import CANDIDATE, TARGET, render
+from hri.view.player import Player
 from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter
 from tests.harness import DATA, ROOT
@@ -339,7 +339,7 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
     write_session(path, objects)
     out = tmp_path / "snap.png"
     res = subprocess.run(
-        [sys.executable, "-m", "common.cli", "view", str(path), "--snapshot", str(out)],
+        [sys.executable, "-m", "hri.cli", "view", str(path), "--snapshot", str(out)],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -353,7 +353,7 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
     assert (np.abs(box - np.array(TARGET)).sum(axis=2) < 60).sum() > 300
     before = tmp_path / "before.png"  # before the command (1 s into the session): no highlight
     res = subprocess.run(
-        [sys.executable, "-m", "common.cli", "view", str(path), "--snapshot", str(before), "--at", "1.0"],
+        [sys.executable, "-m", "hri.cli", "view", str(path), "--snapshot", str(before), "--at", "1.0"],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -363,7 +363,7 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
     box = cv2.imread(str(before))[y - 3 : y + h + 4, x - 3 : x + w + 4].astype(int)
     assert (np.abs(box - np.array(TARGET)).sum(axis=2) < 60).sum() == 0
     res = subprocess.run(
-        [sys.executable, "-m", "common.cli", "view", str(tmp_path / "none.mcap"), "--snapshot", str(out)],
+        [sys.executable, "-m", "hri.cli", "view", str(tmp_path / "none.mcap"), "--snapshot", str(out)],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -377,7 +377,7 @@ def test_http_api_long_polls_serves_the_jpeg_and_controls_the_player(tmp_path, o
 
     from aiohttp.test_utils import TestClient, TestServer
 
-    from common.view import server
+    from hri.view import server
 
     monkeypatch.setattr(server, "LONG_POLL_S", 0.5)
     path = tmp_path / "s.mcap"

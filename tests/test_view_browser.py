@@ -23,11 +23,11 @@ from tests.harness import DATA, Client, ProcessGroup, requires_services
 pytestmark = [pytest.mark.integration, requires_services("camera", "vision", "fusion")]
 
 TABLE = DATA / "demo" / "table.png"
-TARGET_RGB = (255, 0, 255)  # magenta, common/view/draw.py TARGET
+TARGET_RGB = (255, 0, 255)  # magenta, hri/view/draw.py TARGET
 
 
 def start_view(group: ProcessGroup, *args: str, name: str = "view"):
-    proc = group.start(name, "common.cli", "view", "--port", "0", *args)
+    proc = group.start(name, "hri.cli", "view", "--port", "0", *args)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         m = re.search(r"hri view: (http://\S+/)", proc.output())
@@ -57,7 +57,7 @@ def live(tmp_path_factory):
         group.service("vision", "--labels", str(DATA / "demo" / "labels.json"))
         group.service("fusion")
         recording = tmp_path_factory.mktemp("view") / "session.mcap"
-        recorder = group.start("record", "common.cli", "record", "-o", str(recording), "hri/**")
+        recorder = group.start("record", "hri.cli", "record", "-o", str(recording), "hri/**")
         client = Client(group.endpoint)
         for name in ("camera", "vision", "fusion"):
             client.wait_alive(name, timeout=90)

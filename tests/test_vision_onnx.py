@@ -227,7 +227,7 @@ def test_object_color_on_a_small_object_in_a_box_of_table():
 def test_hri_up_passes_the_model_labels_and_extra_flags_to_vision():
     import argparse
 
-    from common.launcher import add_up_arguments, services_from_args
+    from hri.launcher import add_up_arguments, services_from_args
 
     p = argparse.ArgumentParser()
     add_up_arguments(p)

@@ -4,13 +4,14 @@ import json
 
 import msgspec
 
-from common import schema, wiredoc
+from common import schema
+from hri import wiredoc
 
 
 def test_docs_wire_md_tables_match_the_schemas():
     text = wiredoc.DOC.read_text()
     assert wiredoc.missing_tables(text) == [], "a struct on the wire has no generated table in docs/wire.md"
-    assert wiredoc.render(text) == text, "docs/wire.md is stale: run `python -m common.wiredoc`"
+    assert wiredoc.render(text) == text, "docs/wire.md is stale: run `python -m hri.wiredoc`"
 
 
 def test_every_field_of_every_wire_struct_is_in_its_table():

@@ -420,12 +420,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=cmd_secure_init)
 
-    from common import launcher
+    from hri import launcher
 
     p = command("up", "start the router and every service as one group; Ctrl-C stops them all", launcher.UP_EXAMPLES)
     launcher.add_up_arguments(p)
     p.set_defaults(func=launcher.cmd_up)
-    from common import recording  # imports mcap only when record/replay actually run
+    from hri import recording  # imports mcap only when record/replay actually run
 
     recording.add_record_arguments(
         command(
@@ -437,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     recording.add_replay_arguments(
         command("replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES)
     )
-    from common.view import command as view  # aiohttp and OpenCV are imported only when `hri view` runs
+    from hri.view import command as view  # aiohttp and OpenCV are imported only when `hri view` runs
 
     view.add_view_arguments(
         command(

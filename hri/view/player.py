@@ -10,8 +10,8 @@ from __future__ import annotations
 import bisect
 from typing import Any
 
-from common.recording import NS, SessionReader
-from common.view.core import ViewState
+from hri.recording import NS, SessionReader
+from hri.view.core import ViewState
 
 
 class Player:

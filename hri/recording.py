@@ -13,7 +13,7 @@ File layout (what a reader of the .mcap can count on):
 
 The top half of this module is the functional core (MCAP writing/reading, the replay clock,
 progress lines) and imports neither zenoh nor the transport; the `cmd_*` shells at the bottom
-import them lazily and are wired into `hri` by common/cli.py.
+import them lazily and are wired into `hri` by hri/cli.py.
 """
 
 from __future__ import annotations
@@ -136,7 +136,7 @@ class SessionWriter:
         if schema is None:
             return 0
         if schema.__name__ not in self._schemas:
-            from common.wiredoc import json_schema
+            from hri.wiredoc import json_schema
 
             self._schemas[schema.__name__] = self._writer.register_schema(
                 name=schema.__name__,

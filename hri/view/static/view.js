@@ -1,5 +1,5 @@
 // hri view: polls the server (long polls, one request in flight per stream) and draws what it says.
-// The overlay layers and colours are the same as common/view/draw.py (the PNG snapshot).
+// The overlay layers and colours are the same as hri/view/draw.py (the PNG snapshot).
 "use strict";
 
 const COLOURS = {

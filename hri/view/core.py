@@ -33,7 +33,7 @@ from common.schema import (
     Stats,
     Transcript,
 )
-from common.view import DEFAULT_MAX_FPS
+from hri.view import DEFAULT_MAX_FPS
 
 TIMELINE_MAX = 500  # entries kept; the oldest go first
 # Caps on what a stream of odd keys could make the server remember (memory stays bounded whatever arrives).
@@ -246,7 +246,7 @@ class ViewState:
             if state.depth_jpeg is not None and state.depth_jpeg[:2] == (depth.seq, depth.stamp):
                 return state.depth_jpeg
         from common.depth import UndecodableDepth, depth_metres
-        from common.view.draw import colourize_depth
+        from hri.view.draw import colourize_depth
 
         try:
             picture = colourize_depth(depth_metres(depth))

@@ -1,7 +1,7 @@
 """docs/wire.md's field tables and the recordings' JSON Schemas, generated from common/schema.py.
 
-    python -m common.wiredoc            # rewrite the generated tables in docs/wire.md
-    python -m common.wiredoc --check    # exit 1 when docs/wire.md differs from the schemas
+    python -m hri.wiredoc            # rewrite the generated tables in docs/wire.md
+    python -m hri.wiredoc --check    # exit 1 when docs/wire.md differs from the schemas
 
 A table sits between `<!-- fields: Name -->` and `<!-- /fields -->`; the prose around it is kept as written.
 """
@@ -156,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         if new != text:
             print(
-                "docs/wire.md's field tables differ from common/schema.py: run `python -m common.wiredoc`",
+                "docs/wire.md's field tables differ from common/schema.py: run `python -m hri.wiredoc`",
                 file=sys.stderr,
             )
             return 1

@@ -41,7 +41,7 @@ examples:
 # and docker-compose.yml start this set; tests/test_stack.py fails when they disagree on the services, their
 # commands and flags, or the router's port.
 STACK = ("camera", "vision", "gesture", "speech", "fusion")
-ROUTER_ARGV = ["common.cli", "router", "--listen"]  # + the endpoint
+ROUTER_ARGV = ["hri.cli", "router", "--listen"]  # + the endpoint
 
 
 def service_module(name: str) -> str:
@@ -59,7 +59,7 @@ class ServiceSpec:
         if self.name not in STACK or self.argv[:1] != [service_module(self.name)]:
             raise ValueError(
                 f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(STACK)}: "
-                f"common/launcher.py STACK) runs as `python -m {service_module(self.name)}`"
+                f"hri/launcher.py STACK) runs as `python -m {service_module(self.name)}`"
             )
 
 

@@ -29,8 +29,8 @@ import cv2
 import numpy as np
 
 from common.keys import Keys
-from common.view.core import ViewState
-from common.view.draw import render
+from hri.view.core import ViewState
+from hri.view.draw import render
 
 STATIC = Path(__file__).resolve().parent / "static"
 LONG_POLL_S = 10.0
@@ -349,8 +349,8 @@ def cmd_view(args: argparse.Namespace) -> int:
     state = ViewState(Keys(args.prefix), max_fps=args.max_fps)
 
     if args.recording:
-        from common.recording import RecordingError
-        from common.view.player import Player
+        from hri.recording import RecordingError
+        from hri.view.player import Player
 
         try:
             player = Player.open(args.recording, state)

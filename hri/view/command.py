@@ -1,10 +1,10 @@
-"""The `hri view` command line: its flags, wired into `hri` by common/cli.py without importing the server."""
+"""The `hri view` command line: its flags, wired into `hri` by hri/cli.py without importing the server."""
 
 from __future__ import annotations
 
 import argparse
 
-from common.view import DEFAULT_MAX_FPS
+from hri.view import DEFAULT_MAX_FPS
 
 VIEW_EXAMPLES = """\
 examples:
@@ -61,6 +61,6 @@ def add_view_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    from common.view.server import cmd_view as run  # aiohttp, OpenCV: only when `hri view` runs
+    from hri.view.server import cmd_view as run  # aiohttp, OpenCV: only when `hri view` runs
 
     return run(args)
