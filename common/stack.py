@@ -75,16 +75,37 @@ class Input:
 
 
 @dataclass(frozen=True)
+class Container:
+    """How docker-compose.yml runs a node (`python -m hri.compose` writes the file from NODES).
+
+    `flags` is compose text: `${VAR:-default}` is substituted by compose. With `flags_env` (the default) the
+    variable HRI_<NAME>_ARGS replaces the flags as a whole; a node with knobs of its own (the camera's
+    HRI_CAMERA_SOURCE) sets it False and writes them into `flags`.
+    """
+
+    flags: str = ""
+    flags_env: bool = True
+    note: str = ""  # a comment above its command in docker-compose.yml (why these defaults)
+    mounts: tuple[str, ...] = ()  # volumes besides HRI_DATA at /data, compose syntax
+
+
+@dataclass(frozen=True)
 class Node:
     name: str
     description: str
     inputs: tuple[Input, ...] = ()
     outputs: tuple[str, ...] = ()  # topic names
     reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding)
+    container: Container = Container()  # docker-compose.yml: no flags, HRI_<NAME>_ARGS adds some
 
     @property
     def module(self) -> str:
         return f"services.{self.name}"
+
+    @property
+    def args_variable(self) -> str:
+        """The environment variable whose value replaces the node's flags in docker-compose.yml."""
+        return f"HRI_{self.name.upper()}_ARGS"
 
     def input(self, topic: str) -> Input:
         for i in self.inputs:
@@ -109,7 +130,17 @@ class Client:
 
 # The stack, in start order after the router.
 NODES: tuple[Node, ...] = (
-    Node("camera", "frames (and depth) from a webcam, RealSense, video, folder or photo", outputs=("frame", "depth")),
+    Node(
+        "camera",
+        "frames (and depth) from a webcam, RealSense, video, folder or photo",
+        outputs=("frame", "depth"),
+        container=Container(
+            "--source ${HRI_CAMERA_SOURCE:-/data/demo/table.png} --fps 5 --loop",
+            flags_env=False,
+            note="The demo's table of candies (one red, two green, …), 5 fps; HRI_CAMERA_SOURCE=/data/images/tabletop\n"
+            "cycles the other shipped photos, a video file or folder under HRI_DATA works too.",
+        ),
+    ),
     Node(
         "vision",
         "objects with class, colour and position",
@@ -119,6 +150,12 @@ NODES: tuple[Node, ...] = (
         ),
         outputs=("objects",),
         reads_images=True,
+        container=Container(
+            "--backend color --labels /data/demo/labels.json",
+            note='Colour segmentation, objects named "candy" as in the demo scene. HRI_VISION_ARGS replaces the flags,\n'
+            'e.g. "--backend onnx --model /models/yolox_nano.onnx" with the model\'s folder in HRI_MODELS.',
+            mounts=("${HRI_MODELS:-./data}:/models:ro",),
+        ),
     ),
     Node(
         "gesture",
@@ -132,6 +169,11 @@ NODES: tuple[Node, ...] = (
         "voice activity -> Whisper -> transcripts with times and confidence",
         inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
         outputs=("transcript",),
+        container=Container(
+            "--input zenoh",
+            note="Default: AudioChunks over zenoh from a microphone elsewhere (a container has no sound card).\n"
+            'HRI_SPEECH_ARGS="--input wav --wav /data/<folder> --wait-for fusion,vision" transcribes WAV files instead.',
+        ),
     ),
     Node(
         "fusion",
