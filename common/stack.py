@@ -152,7 +152,8 @@ NODES: tuple[Node, ...] = (
         reads_images=True,
         container=Container(
             "--backend color --labels /data/demo/labels.json",
-            note='Colour segmentation, objects named "candy" as in the demo scene. HRI_VISION_ARGS replaces the flags,\n'
+            note='Colour segmentation, objects named "candy" as in the demo scene. '
+            "HRI_VISION_ARGS replaces the flags,\n"
             'e.g. "--backend onnx --model /models/yolox_nano.onnx" with the model\'s folder in HRI_MODELS.',
             mounts=("${HRI_MODELS:-./data}:/models:ro",),
         ),
@@ -172,7 +173,8 @@ NODES: tuple[Node, ...] = (
         container=Container(
             "--input zenoh",
             note="Default: AudioChunks over zenoh from a microphone elsewhere (a container has no sound card).\n"
-            'HRI_SPEECH_ARGS="--input wav --wav /data/<folder> --wait-for fusion,vision" transcribes WAV files instead.',
+            'HRI_SPEECH_ARGS="--input wav --wav /data/<folder> --wait-for fusion,vision" '
+            "transcribes WAV files instead.",
         ),
     ),
     Node(
