@@ -2,11 +2,11 @@
 
     make demo            # or: .venv/bin/python -m demo
 
-It starts the router, vision, gesture, speech (fed AudioChunks over Zenoh, as a remote microphone would)
-and fusion with `hri up`'s launcher, then plays a script: for each step a camera service shows a real
-photo, the step's sentence — spoken by a neural voice (piper) into a WAV — streams in real time to the speech service,
-and the fused command or clarification question that comes back is printed. It ends with a summary and
-exits 1 if any step did not give what it should.
+It starts the router and every service of the stack (common/stack.py) but the camera — speech fed
+AudioChunks over Zenoh, as a remote microphone would — with `hri up`'s launcher, then plays a script: for
+each step a camera service shows a real photo, the step's sentence — spoken by a neural voice (piper) into a
+WAV — streams in real time to the speech service, and the fused command or clarification question that comes
+back is printed. It ends with a summary and exits 1 if any step did not give what it should.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import zenoh
 from common.codec import decode
 from common.runner import SamplePublisher
 from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
-from hri.launcher import Launcher, ServiceSpec
+from hri.launcher import Launcher, ServiceSpec, service_module, stack_names
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "data" / "demo"
@@ -111,11 +111,26 @@ def speech_audio(text: str, voice: str) -> Path:
     return path
 
 
+CAMERA = "camera"  # the demo starts it itself, once per scene
+# The demo's own flags for some services; every other node of the stack (common/stack.py) starts with none.
+DEMO_FLAGS = {
+    "vision": ["--labels", str(SCENES / "labels.json")],
+    "speech": ["--input", "zenoh"],  # fed AudioChunks by play_wav; the default recogniser: Whisper
+}
+
+
 def camera_spec(scene: str) -> ServiceSpec:
     """The camera showing one of the script's photos (a new camera service per scene)."""
     return ServiceSpec(
-        "camera", ["services.camera", "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10", "--loop"]
+        CAMERA, [service_module(CAMERA), "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10", "--loop"]
     )
+
+
+def demo_services() -> list[ServiceSpec]:
+    """Every node of the stack but the camera, in the stack's order."""
+    return [
+        ServiceSpec(name, [service_module(name), *DEMO_FLAGS.get(name, [])]) for name in stack_names() if name != CAMERA
+    ]
 
 
 def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
@@ -219,16 +234,9 @@ def main() -> int:
     hands_seen = threading.Event()
     failures = 0
     try:
-        print(f"starting router ({endpoint}), vision, gesture, speech and fusion ...", flush=True)
-        launcher.start(
-            [
-                ServiceSpec("vision", ["services.vision", "--labels", str(SCENES / "labels.json")]),
-                ServiceSpec("gesture", ["services.gesture"]),
-                ServiceSpec("speech", ["services.speech", "--input", "zenoh"]),  # the default recogniser: Whisper
-                ServiceSpec("fusion", ["services.fusion"]),
-            ],
-            live_timeout=120,
-        )
+        services = demo_services()
+        print(f"starting router ({endpoint}), {', '.join(s.name for s in services)} ...", flush=True)
+        launcher.start(services, live_timeout=120)
         session = launcher.session
         assert session is not None
         print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {endpoint}\n")

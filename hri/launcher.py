@@ -19,6 +19,7 @@ from typing import IO, Callable
 
 import zenoh
 
+from common import stack
 from common.keys import Keys
 from common.transport import DEFAULT_ENDPOINT, live_tokens, open_client
 
@@ -30,6 +31,7 @@ examples:
   hri up --camera data/images/tabletop --speech-input text    # type commands on stdin
   hri up --camera clip.mp4 --speech-input wav --wav commands/
   hri up --no-gesture --vision-backend onnx --model ../shared/models/yolox_nano.onnx   # YOLOX/v5/v8 ONNX, COCO-80
+  hri up --fusion-arg=--weights=fixed --no-speech    # any service: --NAME-arg passes it a flag, --no-NAME skips it
   hri up --secure ~/.hri/robot1 ...                  # secured: every service logs in (hri secure init)
   hri up --only router,camera,gesture --listen tcp/0.0.0.0:7447     # host A: the router and part of the stack
   hri up --only vision,speech,fusion --connect tcp/10.0.0.2:7447    # host B: the rest, against A's router
@@ -37,11 +39,18 @@ examples:
 """
 
 
-# The stack, in start order after the router: each service runs as `python -m services.<name>`. `hri up`, the demo
-# and docker-compose.yml start this set; tests/test_stack.py fails when they disagree on the services, their
-# commands and flags, or the router's port.
-STACK = ("camera", "vision", "gesture", "speech", "fusion")
 ROUTER_ARGV = ["hri.cli", "router", "--listen"]  # + the endpoint
+
+
+# The stack, in start order after the router, is common/stack.py's NODES: each node runs as
+# `python -m services.<name>`. `hri up`, the demo and docker-compose.yml (hri/compose.py) start that set; they
+# read it at each call, never copy it, so a node added there is started everywhere with no change here.
+def stack_nodes() -> tuple[stack.Node, ...]:
+    return stack.NODES
+
+
+def stack_names() -> list[str]:
+    return [n.name for n in stack.NODES]
 
 
 def service_module(name: str) -> str:
@@ -56,48 +65,76 @@ class ServiceSpec:
     env: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.name not in STACK or self.argv[:1] != [service_module(self.name)]:
+        if self.name not in stack_names() or self.argv[:1] != [service_module(self.name)]:
             raise ValueError(
-                f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(STACK)}: "
-                f"hri/launcher.py STACK) runs as `python -m {service_module(self.name)}`"
+                f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(stack_names())}: "
+                f"common/stack.py NODES) runs as `python -m {service_module(self.name)}`"
             )
 
 
+# `hri up`'s flags that mean something to one service, translated into that service's own flags; None: not
+# started. A node with no entry here (a new one) starts with no flags but what --<name>-arg passes.
+def _camera(args: argparse.Namespace) -> ServiceSpec | None:
+    if args.camera is None:
+        return None
+    cam = ["--source", args.camera, "--cam", args.cam]
+    if args.fps:
+        cam += ["--fps", str(args.fps)]
+    if args.loop:
+        cam.append("--loop")
+    return ServiceSpec("camera", ["services.camera", *cam])
+
+
+def _vision(args: argparse.Namespace) -> ServiceSpec | None:
+    vision = ["--backend", args.vision_backend]
+    if args.model:
+        vision += ["--model", args.model]
+    if args.vision_labels:
+        vision += ["--labels", args.vision_labels]
+    return ServiceSpec("vision", ["services.vision", *vision])
+
+
+def _gesture(args: argparse.Namespace) -> ServiceSpec | None:
+    return ServiceSpec("gesture", ["services.gesture", *(["--mirrored"] if args.mirrored else [])])
+
+
+def _speech(args: argparse.Namespace) -> ServiceSpec | None:
+    if args.speech_input == "none":
+        return None
+    speech = ["--input", args.speech_input]
+    stdin: int | IO | None = subprocess.DEVNULL
+    if args.speech_input == "text":
+        speech = ["--backend", "text"]  # reads stdin; the speech service has no --input text
+        stdin = None  # the terminal's stdin goes to the speech service
+    elif args.speech_input == "wav":
+        if not args.wav:
+            raise SystemExit("hri up: --speech-input wav needs --wav FILE_OR_FOLDER")
+        speech += ["--wav", *args.wav, "--wait-for", "fusion"]
+    if args.speech_backend and args.speech_input != "text":
+        speech += ["--backend", args.speech_backend]
+    return ServiceSpec("speech", ["services.speech", *speech], stdin=stdin)
+
+
+SPECIAL_FLAGS: dict[str, Callable[[argparse.Namespace], ServiceSpec | None]] = {
+    "camera": _camera,
+    "vision": _vision,
+    "gesture": _gesture,
+    "speech": _speech,
+}
+
+
 def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
-    """The service command lines `hri up`'s flags describe (the router is separate)."""
+    """The service command lines `hri up`'s flags describe (the router is separate), in the stack's order."""
     specs: list[ServiceSpec] = []
-    if args.camera is not None:
-        cam = ["--source", args.camera, "--cam", args.cam]
-        if args.fps:
-            cam += ["--fps", str(args.fps)]
-        if args.loop:
-            cam.append("--loop")
-        specs.append(ServiceSpec("camera", ["services.camera", *cam]))
-    if not args.no_vision:
-        vision = ["--backend", args.vision_backend]
-        if args.model:
-            vision += ["--model", args.model]
-        if args.vision_labels:
-            vision += ["--labels", args.vision_labels]
-        vision += args.vision_arg
-        specs.append(ServiceSpec("vision", ["services.vision", *vision]))
-    if not args.no_gesture:
-        gesture = ["--mirrored"] if args.mirrored else []
-        specs.append(ServiceSpec("gesture", ["services.gesture", *gesture]))
-    if args.speech_input != "none":
-        speech = ["--input", args.speech_input]
-        stdin: int | IO | None = subprocess.DEVNULL
-        if args.speech_input == "text":
-            speech = ["--backend", "text"]  # reads stdin; the speech service has no --input text
-            stdin = None  # the terminal's stdin goes to the speech service
-        elif args.speech_input == "wav":
-            if not args.wav:
-                raise SystemExit("hri up: --speech-input wav needs --wav FILE_OR_FOLDER")
-            speech += ["--wav", *args.wav, "--wait-for", "fusion"]
-        if args.speech_backend and args.speech_input != "text":
-            speech += ["--backend", args.speech_backend]
-        specs.append(ServiceSpec("speech", ["services.speech", *speech], stdin=stdin))
-    specs.append(ServiceSpec("fusion", ["services.fusion", *args.fusion_arg]))
+    for node in stack_nodes():
+        if getattr(args, f"no_{node.name}", False):
+            continue
+        translate = SPECIAL_FLAGS.get(node.name)
+        spec = translate(args) if translate else ServiceSpec(node.name, [node.module])
+        if spec is None:
+            continue
+        spec.argv += getattr(args, f"{node.name}_arg", None) or []  # --<name>-arg, after the translated flags
+        specs.append(spec)
     return specs
 
 
@@ -268,15 +305,6 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
         help='colour -> label JSON for the color backend, e.g. data/demo/labels.json ({"*": "candy"}); '
         "with onnx, the model's class names, one per line (default: COCO-80)",
     )
-    p.add_argument(
-        "--vision-arg",
-        action="append",
-        default=[],
-        metavar="ARG",
-        help="extra argument for the vision service, repeatable (e.g. --vision-arg=--conf=0.4)",
-    )
-    p.add_argument("--no-vision", action="store_true", help="do not start the vision service")
-    p.add_argument("--no-gesture", action="store_true", help="do not start the gesture service")
     p.add_argument("--mirrored", action="store_true", help="the camera image is mirrored (selfie view)")
     p.add_argument(
         "--speech-input",
@@ -292,19 +320,21 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
         help="speech recogniser: whisper (the default: Whisper tiny.en, offline, from a package) or "
         "pocketsphinx (a grammar decoder for small machines)",
     )
-    p.add_argument(
-        "--fusion-arg",
-        action="append",
-        default=[],
-        metavar="ARG",
-        help="extra argument for the fusion service, repeatable (e.g. --fusion-arg=--weights=fixed)",
-    )
+    for node in stack_nodes():  # every node, a new one too: --<name>-arg and --no-<name>
+        p.add_argument(
+            f"--{node.name}-arg",
+            action="append",
+            default=[],
+            metavar="ARG",
+            help=f"extra argument for the {node.name} service, repeatable (e.g. --{node.name}-arg=--log-level=DEBUG)",
+        )
+        p.add_argument(f"--no-{node.name}", action="store_true", help=f"do not start the {node.name} service")
     p.add_argument(
         "--only",
         type=only_list,
         default=None,
         metavar="NAME[,NAME...]",
-        help=f"start only these of router,{','.join(STACK)} (the rest runs on other hosts); without "
+        help=f"start only these of router,{','.join(stack_names())} (the rest runs on other hosts); without "
         f"'router' in the list, the services connect to --connect ENDPOINT (default "
         f"{DEFAULT_ENDPOINT})",
     )
@@ -313,10 +343,10 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
 
 def only_list(text: str) -> list[str]:
     names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in ("router", *STACK)]
+    unknown = [n for n in names if n not in ("router", *stack_names())]
     if unknown or not names:
         raise argparse.ArgumentTypeError(
-            f"unknown part(s) {unknown or [text]}: name some of router,{','.join(STACK)}, comma-separated"
+            f"unknown part(s) {unknown or [text]}: name some of router,{','.join(stack_names())}, comma-separated"
         )
     return names
 
