@@ -1,5 +1,5 @@
 # The single entry point. `make demo` and `make test` set up everything they need on a fresh machine.
-.PHONY: setup demo test test-fast lint fix bench clean
+.PHONY: setup demo test test-fast lint fix bench clean compose
 
 PY := .venv/bin/python
 RUFF := .venv/bin/ruff
@@ -34,6 +34,10 @@ fix:
 	@bash scripts/setup.sh --test
 	@$(RUFF) check --fix .
 	@$(RUFF) format .
+
+# docker-compose.yml is written from common/stack.py; tests/test_stack.py fails when it is stale
+compose:
+	@$(PY) -m hri.compose --write
 
 BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view pointing_3d distributed
 
