@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import zenoh
 
@@ -33,7 +33,7 @@ import common.stack as stack
 from common.codec import ENCODING, decode, encode
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
-from common.schema import InvalidSample, Sample, Stats
+from common.schema import Frame, InvalidSample, Sample, Stats
 from common.stamps import DEFAULT_MAX_SKEW_S, DEFAULT_RESET_RUN, FUTURE, OUT_OF_ORDER, RESET, StampGuard
 from common.transport import add_zenoh_arguments, declare_recovering_publisher, open_session, resolve
 
@@ -389,8 +389,8 @@ class Service:
             self.counters.add("received")
             try:
                 sample = decode(zsample.payload.to_bytes(), schema)
-                if image:
-                    check_frame_header(sample, max_pixels)
+                if image:  # an image topic's schema is Frame (common/stack.py check_stack)
+                    check_frame_header(cast(Frame, sample), max_pixels)
             except InvalidSample as exc:
                 self.counters.reject(exc.reason, exc.detail, key)
                 return

@@ -199,6 +199,9 @@ def check_stack() -> None:
     """Every name refers to a declared topic, and a node reading images says so; raises ValueError naming the
     first entry that does not."""
     topics = {t.name: t for t in TOPICS}
+    for declared in TOPICS:
+        if declared.image and declared.schema is not Frame:
+            raise ValueError(f"topic {declared.name}: an image topic's schema is Frame (its header is checked)")
     for n in NODES:
         for t in [i.topic for i in n.inputs] + list(n.outputs):
             if t not in topics:
