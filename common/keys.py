@@ -1,38 +1,26 @@
-"""Key expressions of the wire contract, under a configurable prefix (default `hri`)."""
+"""Key expressions of the wire contract, under a configurable prefix (default `hri`).
+
+Every topic's key pattern is declared once, in common/stack.py TOPICS; `Keys.key(topic, **chunks)` builds them
+(the named methods are shorthands). Only the liveliness keys (alive/{service}/{instance}) are not a topic: no
+sample is published there."""
 
 from __future__ import annotations
 
-from common.schema import (
-    AudioChunk,
-    Bodies,
-    Clarification,
-    DepthFrame,
-    Detections,
-    Frame,
-    FusedCommand,
-    GestureEvent,
-    Hands,
-    Sample,
-    Stats,
-    Transcript,
-)
+import common.stack as stack
+from common.schema import Sample
 
 DEFAULT_PREFIX = "hri"
 
-# (path below the prefix with {placeholders}, schema). The one table of what is published where.
-KEY_TABLE: tuple[tuple[str, type[Sample]], ...] = (
-    ("camera/{cam}/frame", Frame),
-    ("camera/{cam}/depth", DepthFrame),
-    ("audio/{mic}/pcm", AudioChunk),
-    ("vision/{cam}/objects", Detections),
-    ("gesture/{cam}/hands", Hands),
-    ("gesture/{cam}/event", GestureEvent),
-    ("gesture/{cam}/bodies", Bodies),
-    ("speech/{mic}/transcript", Transcript),
-    ("fusion/command", FusedCommand),
-    ("fusion/clarification", Clarification),
-    ("stats/{service}/{instance}", Stats),
-)
+# What a placeholder of a topic's pattern names, for the error message of a bad chunk.
+CHUNK_NAMES = {"cam": "camera id", "mic": "microphone id", "service": "service", "instance": "instance"}
+
+
+def key_table() -> tuple[tuple[str, type[Sample]], ...]:
+    """(path below the prefix with {placeholders}, schema) of every topic of the stack (common/stack.py)."""
+    return tuple((t.pattern, t.schema) for t in stack.TOPICS)
+
+
+KEY_TABLE = key_table()
 
 
 def check_chunk(value: str, what: str) -> str:
@@ -51,41 +39,54 @@ class Keys:
     def _k(self, *chunks: str) -> str:
         return "/".join((self.prefix, *chunks))
 
+    def key(self, topic: str, **chunks: str) -> str:
+        """The key of `topic` (a name in common/stack.py TOPICS) with its placeholders filled from `chunks`; a
+        placeholder not given is '*'. E.g. key("objects", cam="front") -> 'hri/vision/front/objects'."""
+        t = stack.topic(topic)
+        unknown = set(chunks) - set(t.placeholders())
+        if unknown:
+            raise ValueError(f"topic {topic!r} ({t.pattern}) has no placeholder {sorted(unknown)}")
+        parts = [
+            check_chunk(chunks.get(c[1:-1], "*"), CHUNK_NAMES.get(c[1:-1], c[1:-1])) if c.startswith("{") else c
+            for c in t.pattern.split("/")
+        ]
+        return self._k(*parts)
+
     def frame(self, cam: str = "*") -> str:
-        return self._k("camera", check_chunk(cam, "camera id"), "frame")
+        return self.key("frame", cam=cam)
 
     def depth(self, cam: str = "*") -> str:
-        return self._k("camera", check_chunk(cam, "camera id"), "depth")
+        return self.key("depth", cam=cam)
 
     def audio(self, mic: str = "*") -> str:
-        return self._k("audio", check_chunk(mic, "microphone id"), "pcm")
+        return self.key("audio", mic=mic)
 
     def objects(self, cam: str = "*") -> str:
-        return self._k("vision", check_chunk(cam, "camera id"), "objects")
+        return self.key("objects", cam=cam)
 
     def hands(self, cam: str = "*") -> str:
-        return self._k("gesture", check_chunk(cam, "camera id"), "hands")
+        return self.key("hands", cam=cam)
 
     def bodies(self, cam: str = "*") -> str:
-        return self._k("gesture", check_chunk(cam, "camera id"), "bodies")
+        return self.key("bodies", cam=cam)
 
     def gesture_event(self, cam: str = "*") -> str:
-        return self._k("gesture", check_chunk(cam, "camera id"), "event")
+        return self.key("event", cam=cam)
 
     def transcript(self, mic: str = "*") -> str:
-        return self._k("speech", check_chunk(mic, "microphone id"), "transcript")
+        return self.key("transcript", mic=mic)
 
     def command(self) -> str:
-        return self._k("fusion", "command")
+        return self.key("command")
 
     def clarification(self) -> str:
-        return self._k("fusion", "clarification")
+        return self.key("clarification")
 
     def alive(self, service: str = "*", instance: str = "*") -> str:
         return self._k("alive", check_chunk(service, "service"), check_chunk(instance, "instance"))
 
     def stats(self, service: str = "*", instance: str = "*") -> str:
-        return self._k("stats", check_chunk(service, "service"), check_chunk(instance, "instance"))
+        return self.key("stats", service=service, instance=instance)
 
     def schema_for(self, key: str) -> type[Sample] | None:
         """The schema published on a concrete key, or None if the key is not in the contract."""
@@ -93,7 +94,7 @@ class Keys:
         if not key.startswith(head):
             return None
         chunks = key[len(head) :].split("/")
-        for pattern, schema in KEY_TABLE:
+        for pattern, schema in key_table():
             parts = pattern.split("/")
             if len(parts) == len(chunks) and all(p.startswith("{") or p == c for p, c in zip(parts, chunks)):
                 return schema

@@ -25,10 +25,11 @@ import sys
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, cast
 
 import zenoh
 
+import common.stack as stack
 from common.codec import ENCODING, decode, encode
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
@@ -46,7 +47,10 @@ def setup_logging(name: str, level: str | None = None) -> logging.Logger:
     return logging.getLogger(name)
 
 
-def service_parser(name: str, description: str, epilog: str = "") -> argparse.ArgumentParser:
+def service_parser(name: str | stack.Node, description: str, epilog: str = "") -> argparse.ArgumentParser:
+    """The flags every service takes; --max-pixels only for a node that reads images (common/stack.py)."""
+    node = name if isinstance(name, stack.Node) else stack.node(name)
+    name = node.name
     parser = argparse.ArgumentParser(
         prog=f"hri-{name}", description=description, epilog=epilog, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -72,13 +76,14 @@ def service_parser(name: str, description: str, epilog: str = "") -> argparse.Ar
         metavar="N",
         help=f"follow a stream that went back in time after N consistent samples (default {DEFAULT_RESET_RUN})",
     )
-    g.add_argument(
-        "--max-pixels",
-        type=_at_least(1, int),
-        default=DEFAULT_MAX_PIXELS,
-        metavar="N",
-        help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: 4096x2160)",
-    )
+    if node.reads_images:
+        g.add_argument(
+            "--max-pixels",
+            type=_at_least(1, int),
+            default=DEFAULT_MAX_PIXELS,
+            metavar="N",
+            help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: 4096x2160)",
+        )
     add_zenoh_arguments(parser)
     return parser
 
@@ -247,14 +252,25 @@ class Inbox:
         return self._closed
 
 
+class UndeclaredTopic(ValueError):
+    """A service subscribed to (or published on) a topic its node does not declare in common/stack.py."""
+
+
 class Service:
     """A running hri service: session, liveliness, stats, validated inputs, one worker thread."""
 
     def __init__(
-        self, name: str, args: argparse.Namespace, log: logging.Logger | None = None, recovering: bool = False
+        self,
+        name: str | stack.Node,
+        args: argparse.Namespace,
+        log: logging.Logger | None = None,
+        recovering: bool = False,
     ):
-        """`recovering`: this service publishes with `publish(..., recovering=True)` (its session then stamps
-        its samples itself, which Zenoh's AdvancedPublisher needs)."""
+        """`name`: the node of the stack this service runs (common/stack.py), or its name. `recovering`: this
+        service publishes with `publish(..., recovering=True)` (its session then stamps its samples itself,
+        which Zenoh's AdvancedPublisher needs)."""
+        self.node = name if isinstance(name, stack.Node) else stack.node(name)
+        name = self.node.name
         resolve(args)
         self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
@@ -293,7 +309,53 @@ class Service:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 signal.signal(sig, lambda *_: self.stop_event.set())
 
-    def subscribe(
+    def subscribe_input(self, topic: str, handler: Callable[[Delivery], None], **chunks: str) -> None:
+        """Receive `topic`, one of this node's declared inputs (common/stack.py), on the key its chunks give
+        (e.g. cam="front"; a chunk not given is '*'): validated as the topic's schema, queued with the input's
+        policy, maxlen and stamp order, and handed to `handler` on the worker thread. A topic the node does not
+        declare raises UndeclaredTopic (at start-up: the declaration is the one description of the stack)."""
+        if topic not in self.node.input_names():
+            raise UndeclaredTopic(
+                f"{self.name} subscribes to {topic!r}, which its Node in common/stack.py does not declare as an "
+                f"input (it declares {', '.join(self.node.input_names()) or 'none'}): add Input({topic!r}, ...) there"
+            )
+        declared = self.node.input(topic)
+        t = stack.topic(topic)
+        self._subscribe(
+            self.keys.key(topic, **chunks),
+            t.schema,
+            handler,
+            latest=declared.policy == "latest",
+            maxlen=declared.maxlen,
+            monotonic=declared.monotonic,
+            image=t.image,
+        )
+
+    def output_key(self, topic: str, **chunks: str) -> str:
+        """The key of `topic`, one of this node's declared outputs (common/stack.py), with these chunks."""
+        if topic not in self.node.outputs:
+            raise UndeclaredTopic(
+                f"{self.name} publishes on {topic!r}, which its Node in common/stack.py does not declare as an "
+                f"output (it declares {', '.join(self.node.outputs) or 'none'}): add it to outputs there"
+            )
+        return self.keys.key(topic, **chunks)
+
+    def publish_output(
+        self,
+        topic: str,
+        sample: Sample,
+        *,
+        lossless: bool = True,
+        realtime: bool = False,
+        recovering: bool = False,
+        **chunks: str,
+    ) -> None:
+        """`publish` on the key of `topic`, one of this node's declared outputs (see `output_key`)."""
+        self.publish(
+            self.output_key(topic, **chunks), sample, lossless=lossless, realtime=realtime, recovering=recovering
+        )
+
+    def _subscribe(
         self,
         keyexpr: str,
         schema: type[Sample],
@@ -302,13 +364,15 @@ class Service:
         latest: bool = False,
         maxlen: int = 1000,
         monotonic: bool = False,
+        image: bool = False,
     ) -> None:
         """Validate samples on `keyexpr` as `schema` and hand valid ones to `handler` on the worker thread.
 
         Every sample stamped more than --max-skew ahead of this machine's clock is rejected as future_stamp.
         `monotonic`: per key, a sample older than the newest accepted is rejected as out_of_order, until
         --timeline-run consistent older samples show the stream restarted on a new timeline (counted as
-        timeline_reset; common/stamps.py). Frames are checked against their encoded header first (common/image.py).
+        timeline_reset; common/stamps.py). `image`: the sample's encoded header is checked against its
+        width/height and --max-pixels first (common/image.py).
         """
         assert self.session is not None, "connect() first"
         channel = self._channels
@@ -325,8 +389,8 @@ class Service:
             self.counters.add("received")
             try:
                 sample = decode(zsample.payload.to_bytes(), schema)
-                if schema is Frame:
-                    check_frame_header(sample, max_pixels)
+                if image:  # an image topic's schema is Frame (common/stack.py check_stack)
+                    check_frame_header(cast(Frame, sample), max_pixels)
             except InvalidSample as exc:
                 self.counters.reject(exc.reason, exc.detail, key)
                 return

@@ -5,11 +5,12 @@ A secured robot has a *secrets folder* (`hri secure init DIR`):
 - `DIR/users.json`: `{"users": {user: [role, ...]}, "roles": {...optional extra roles...}}`.
 
 The router (`hri router --secure DIR`) authenticates every session with Zenoh's `usrpwd` and enforces the
-access-control rules generated here from ROLES: camera -> camera/**, vision -> vision/**, … fusion ->
-fusion/**; the `reader` role (the `cli` user: hri echo/list/stats/record, a planner) only reads. Everything not
-allowed is denied. A process opens its session as `--user NAME` (default: the service's own name, `cli` for
-the hri command) with the password it finds for that user in `DIR/passwords` — a machine can be given only its
-own line. Pure: nothing here opens a session.
+access-control rules generated here from ROLES, which are derived from the stack's declaration (common/stack.py):
+each node publishes exactly the keys of its outputs (camera -> camera/*/frame and camera/*/depth, … fusion ->
+fusion/command and fusion/clarification) and reads exactly those of its inputs; the `reader` role (the `cli`
+user: hri echo/list/stats/record, a planner) only reads. Everything not allowed is denied. A process opens its
+session as `--user NAME` (default: the service's own name, `cli` for the hri command) with the password it finds
+for that user in `DIR/passwords` — a machine can be given only its own line. Pure: nothing here opens a session.
 
 Several robots on one router (a site): `hri secure init SITE --robot robot1`, then `--robot robot2`, gives each
 robot its own users (`robot1-camera`, …, `robot1-cli`) bound to its prefix (users.json "prefixes"); the router
@@ -28,6 +29,8 @@ import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import common.stack as stack
 
 PASSWORDS = "passwords"
 USERS = "users.json"
@@ -48,21 +51,33 @@ class Role:
         return cls(tuple(d.get("publish", ())), tuple(d.get("subscribe", ())), d.get("service"))
 
 
-# The one description of who publishes what (key expressions under the prefix).
-ROLES: dict[str, Role] = {
-    "camera": Role(publish=("camera/**",), service="camera"),
-    "mic": Role(publish=("audio/**",)),  # a microphone elsewhere sending AudioChunks
-    # depth: aligned depth frames of RGB-D cameras (positions in metres, 3-D pointing)
-    "vision": Role(publish=("vision/**",), subscribe=("camera/*/frame", "camera/*/depth"), service="vision"),
-    "gesture": Role(publish=("gesture/**",), subscribe=("camera/*/frame", "camera/*/depth"), service="gesture"),
-    "speech": Role(publish=("speech/**",), subscribe=("audio/*/pcm",), service="speech"),
-    "fusion": Role(publish=("fusion/**",), subscribe=("speech/**", "vision/**", "gesture/**"), service="fusion"),
-    "reader": Role(subscribe=("**",)),  # hri echo / list / stats / record, a planner listening to commands
-    "keyboard": Role(publish=("speech/kbd/transcript",)),  # hri say (typed commands)
-    "replay": Role(publish=("camera/**", "audio/**", "vision/**", "gesture/**", "speech/**")),  # hri replay
-}
-SERVICE_USERS = ("camera", "vision", "gesture", "speech", "fusion")
-DEFAULT_USERS: dict[str, list[str]] = {**{s: [s] for s in SERVICE_USERS}, "mic": ["mic"], "cli": ["reader"]}
+def stack_roles() -> dict[str, Role]:
+    """The roles of the stack, derived from common/stack.py: a node publishes exactly its outputs' keys, reads
+    exactly its inputs' keys and answers as the service of its name; a client publishes its outputs' keys (and its
+    fixed keys) and the reader reads everything. Key expressions are under the prefix, one '*' per placeholder."""
+    roles: dict[str, Role] = {}
+    for n in stack.NODES:
+        roles[n.name] = Role(
+            publish=tuple(dict.fromkeys(stack.topic(t).wildcard() for t in n.outputs)),
+            subscribe=tuple(dict.fromkeys(stack.topic(i.topic).wildcard() for i in n.inputs)),
+            service=n.name,
+        )
+    for c in stack.CLIENTS:
+        roles[c.name] = Role(
+            publish=tuple(dict.fromkeys([*(stack.topic(t).wildcard() for t in c.outputs), *c.fixed_keys])),
+            subscribe=("**",) if c.reads_everything else (),
+        )
+    return roles
+
+
+def stack_default_users() -> dict[str, list[str]]:
+    """The users `hri secure init` creates: each node logs in as itself; the clients that name a user."""
+    return {**{n.name: [n.name] for n in stack.NODES}, **{c.user: [c.name] for c in stack.CLIENTS if c.user}}
+
+
+ROLES: dict[str, Role] = stack_roles()
+SERVICE_USERS = tuple(n.name for n in stack.NODES)
+DEFAULT_USERS: dict[str, list[str]] = stack_default_users()
 
 
 class SecurityError(ValueError):

@@ -42,6 +42,11 @@ class Topic:
     pattern: str  # below the prefix; {placeholders} are one key chunk each
     schema: type[Sample]
     description: str = ""
+    image: bool = False  # an encoded image: its header is checked against --max-pixels before it is decoded
+
+    def placeholders(self) -> list[str]:
+        """The names of the pattern's {placeholders}, in order (e.g. ['cam'])."""
+        return [chunk[1:-1] for chunk in self.pattern.split("/") if chunk.startswith("{")]
 
     def wildcard(self) -> str:
         """The pattern with every placeholder as '*': what a subscriber to all of it declares."""
@@ -50,7 +55,7 @@ class Topic:
 
 # The one table of what is published where.
 TOPICS: tuple[Topic, ...] = (
-    Topic("frame", "camera/{cam}/frame", Frame, "colour images"),
+    Topic("frame", "camera/{cam}/frame", Frame, "colour images", image=True),
     Topic("depth", "camera/{cam}/depth", DepthFrame, "depth images aligned to the colour ones"),
     Topic("audio", "audio/{mic}/pcm", AudioChunk, "microphone audio"),
     Topic("objects", "vision/{cam}/objects", Detections, "detected objects"),
@@ -95,7 +100,8 @@ class Node:
     description: str
     inputs: tuple[Input, ...] = ()
     outputs: tuple[str, ...] = ()  # topic names
-    reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding)
+    reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding); must be True
+    # when an input is an image topic
     container: Container = Container()  # docker-compose.yml: no flags, HRI_<NAME>_ARGS adds some
 
     @property
@@ -111,7 +117,10 @@ class Node:
         for i in self.inputs:
             if i.topic == topic:
                 return i
-        raise KeyError(f"{self.name} declares no input {topic!r} (common/stack.py): it reads {self.input_names()}")
+        raise KeyError(
+            f"{self.name} declares no input {topic!r}: declare it in {self.name}'s Node in common/stack.py "
+            f"(it reads {', '.join(self.input_names()) or 'nothing'})"
+        )
 
     def input_names(self) -> list[str]:
         return [i.topic for i in self.inputs]
@@ -126,6 +135,7 @@ class Client:
     outputs: tuple[str, ...] = ()
     reads_everything: bool = False
     fixed_keys: tuple[str, ...] = field(default=())  # exact keys it may publish (below the prefix)
+    user: str | None = None  # the user `hri secure init` creates for it (None: the role only, given with --user)
 
 
 # The stack, in start order after the router.
@@ -193,21 +203,35 @@ NODES: tuple[Node, ...] = (
 NODE = {n.name: n for n in NODES}
 
 CLIENTS: tuple[Client, ...] = (
-    Client("mic", "a microphone elsewhere sending AudioChunks", outputs=("audio",)),
+    Client("mic", "a microphone elsewhere sending AudioChunks", outputs=("audio",), user="mic"),
     Client("keyboard", "hri say (typed commands)", fixed_keys=("speech/kbd/transcript",)),
     Client(
         "replay",
         "hri replay: puts recorded samples back",
         outputs=tuple(t for n in NODES if n.name != "fusion" for t in n.outputs) + ("audio",),
     ),
-    Client("reader", "hri echo / list / stats / record, a planner listening to commands", reads_everything=True),
+    Client(
+        "reader", "hri echo / list / stats / record, a planner listening to commands", reads_everything=True, user="cli"
+    ),
 )
 
 
+# The functions below read NODES and TOPICS when called (not the NODE/TOPIC dicts built at import), so what is
+# derived from them follows the declaration, also where a test adds an entry.
+
+
 def node(name: str) -> Node:
-    if name not in NODE:
-        raise KeyError(f"no node {name!r} in the stack (common/stack.py NODES): {', '.join(NODE)}")
-    return NODE[name]
+    for n in NODES:
+        if n.name == name:
+            return n
+    raise KeyError(f"no node {name!r} in the stack (common/stack.py NODES): {', '.join(n.name for n in NODES)}")
+
+
+def topic(name: str) -> Topic:
+    for t in TOPICS:
+        if t.name == name:
+            return t
+    raise KeyError(f"no topic {name!r} in the stack (common/stack.py TOPICS): {', '.join(t.name for t in TOPICS)}")
 
 
 def publishers_of(topic: str) -> list[str]:
@@ -216,14 +240,22 @@ def publishers_of(topic: str) -> list[str]:
 
 
 def check_stack() -> None:
-    """Every name refers to a declared topic; raises ValueError naming the first that does not."""
+    """Every name refers to a declared topic, and a node reading images says so; raises ValueError naming the
+    first entry that does not."""
+    topics = {t.name: t for t in TOPICS}
+    for declared in TOPICS:
+        if declared.image and declared.schema is not Frame:
+            raise ValueError(f"topic {declared.name}: an image topic's schema is Frame (its header is checked)")
     for n in NODES:
         for t in [i.topic for i in n.inputs] + list(n.outputs):
-            if t not in TOPIC:
-                raise ValueError(f"node {n.name}: unknown topic {t!r}; topics: {', '.join(TOPIC)}")
+            if t not in topics:
+                raise ValueError(f"node {n.name}: unknown topic {t!r}; topics: {', '.join(topics)}")
+        images = [i.topic for i in n.inputs if topics[i.topic].image]
+        if images and not n.reads_images:
+            raise ValueError(f"node {n.name} reads the image topic(s) {images}: declare it with reads_images=True")
     for c in CLIENTS:
         for t in c.outputs:
-            if t not in TOPIC:
+            if t not in topics:
                 raise ValueError(f"client {c.name}: unknown topic {t!r}")
 
 

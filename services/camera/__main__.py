@@ -84,8 +84,8 @@ def main(argv: list[str] | None = None) -> None:
         main_exit(2)
     service.on_close(source.close)
     fps = args.fps or source.native_fps or (10.0 if source.finite else None)
-    key = service.keys.frame(args.cam)
-    depth_key = service.keys.depth(args.cam)
+    key = service.output_key("frame", cam=args.cam)
+    depth_key = service.output_key("depth", cam=args.cam)
     checked: set[tuple[int, int]] = set()
 
     def prepare(item) -> Capture:

@@ -8,7 +8,7 @@ import time
 import zenoh
 
 from common.runner import Delivery, RateLimitedLog, Service, main_exit, service_parser
-from common.schema import Bodies, Clarification, Detections, FusedCommand, GestureEvent, Hands, Transcript
+from common.schema import Clarification, FusedCommand
 from services.fusion.core import Config, FusionCore
 from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> None:
         main_exit(0)
     keys = service.keys
     assert service.session is not None
-    command_key, clarification_key = keys.command(), keys.clarification()
+    command_key, clarification_key = service.output_key("command"), service.output_key("clarification")
 
     def emit(outputs: list[Output]) -> None:
         for out in outputs:
@@ -154,11 +154,11 @@ def main(argv: list[str] | None = None) -> None:
 
         return handle
 
-    service.subscribe(keys.transcript("*"), Transcript, handler(core.on_transcript, delayed=True), maxlen=200)
-    service.subscribe(keys.objects("*"), Detections, handler(core.on_detections), maxlen=300)
-    service.subscribe(keys.hands("*"), Hands, handler(core.on_hands), maxlen=600)
-    service.subscribe(keys.gesture_event("*"), GestureEvent, handler(core.on_gesture_event), maxlen=200)
-    service.subscribe(keys.bodies("*"), Bodies, handler(core.on_bodies), maxlen=50)  # which way the speaker faces
+    service.subscribe_input("transcript", handler(core.on_transcript, delayed=True))
+    service.subscribe_input("objects", handler(core.on_detections))
+    service.subscribe_input("hands", handler(core.on_hands))
+    service.subscribe_input("event", handler(core.on_gesture_event))
+    service.subscribe_input("bodies", handler(core.on_bodies))  # which way the speaker faces
 
     last_clock_report = [0.0]
 

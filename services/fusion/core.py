@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from common.stack import node, publishers_of
 from services.fusion import describe, space
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
@@ -45,8 +46,18 @@ class Config:
     episode_gap: float = 1.5  # s: events of one gesture this close belong to one episode (one command)
 
 
+def input_services(fusion: str = "fusion") -> tuple[str, ...]:
+    """The services that publish one of the fusion node's inputs (common/stack.py): speech, vision, gesture.
+    Each is a modality, named after its service, whose liveliness token counts."""
+    return tuple(dict.fromkeys(p for i in node(fusion).inputs for p in publishers_of(i.topic)))
+
+
+MODALITIES = input_services()
+
+
 def modality_of(service: str) -> str | None:
-    return {"speech": "speech", "vision": "vision", "gesture": "gesture"}.get(service)
+    """The modality a service's liveliness token speaks for: the service itself if it feeds fusion, else None."""
+    return service if service in MODALITIES else None
 
 
 class FusionCore:

@@ -21,9 +21,17 @@ import collections
 from dataclasses import dataclass, field
 from typing import Any, Generic, Iterable, Literal, Protocol, TypeVar
 
+from common.stack import node, publishers_of
 from common.stamps import DEFAULT_RESET_RUN, OUT_OF_ORDER, RESET, StampGuard
 
-WAITED_MODALITIES = ("vision", "gesture")
+
+def waited_modalities(fusion: str = "fusion") -> tuple[str, ...]:
+    """The modalities whose watermark a window waits for: the services that publish the fusion node's joined
+    inputs (common/stack.py: objects -> vision; hands and event -> gesture)."""
+    return tuple(dict.fromkeys(p for i in node(fusion).inputs if i.joined for p in publishers_of(i.topic)))
+
+
+WAITED_MODALITIES = waited_modalities()
 
 
 @dataclass

@@ -8,7 +8,8 @@ import time
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Bodies, Body, DepthFrame, Frame, GestureEvent, Hand, Hands, Ray
+from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
+from common.stack import node
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
 from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
@@ -22,7 +23,8 @@ examples:
 """
 
 
-DEPTH_KEPT = 4  # depth frames kept per camera to find the one of a colour frame (latest-only otherwise)
+# depth frames kept per camera to find the one of a colour frame: the depth input's queue (common/stack.py)
+DEPTH_KEPT = node("gesture").input("depth").maxlen
 
 
 def to_ray(ray, ray3d=None) -> Ray | None:
@@ -150,8 +152,8 @@ def main(argv: list[str] | None = None) -> None:
             )
             for o, t in zip(observations, tracked)
         ]
-        service.publish(
-            service.keys.hands(frame.cam),
+        service.publish_output(
+            "hands",
             Hands(
                 stamp=frame.stamp,
                 source=service.source,
@@ -161,10 +163,11 @@ def main(argv: list[str] | None = None) -> None:
                 height=frame.height,
                 hands=hands,
             ),
+            cam=frame.cam,
         )
         if args.body:
-            service.publish(
-                service.keys.bodies(frame.cam),
+            service.publish_output(
+                "bodies",
                 Bodies(
                     stamp=frame.stamp,
                     source=service.source,
@@ -174,6 +177,7 @@ def main(argv: list[str] | None = None) -> None:
                     height=frame.height,
                     bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)],
                 ),
+                cam=frame.cam,
             )
         publish_events(frame, events, rays3d, hand_rays3d)
         if rays3d is not None and rays3d.error:
@@ -202,8 +206,8 @@ def main(argv: list[str] | None = None) -> None:
             ray3d = None
             if ev.ray is not None and rays3d is not None:
                 ray3d = rays3d.arm(ev.hand) if ev.ray.source == "body" else (hand_rays3d or {}).get(ev.hand)
-            service.publish(
-                service.keys.gesture_event(frame.cam),
+            service.publish_output(
+                "event",
                 GestureEvent(
                     stamp=frame.stamp,
                     source=service.source,
@@ -220,6 +224,7 @@ def main(argv: list[str] | None = None) -> None:
                 ),
                 lossless=True,
                 realtime=ev.gesture == "open_palm",
+                cam=frame.cam,
             )
             if ev.phase != "hold":
                 service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)
@@ -237,11 +242,9 @@ def main(argv: list[str] | None = None) -> None:
                     publish_events(frame, ended)
 
     for cam in args.cams.split(","):
-        service.subscribe(
-            service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True, monotonic=True
-        )
+        service.subscribe_input("frame", frame_handler(service, on_image), cam=cam.strip())
         # a camera without depth sends none: nothing changes (2-D rays only)
-        service.subscribe(service.keys.depth(cam.strip()), DepthFrame, on_depth, maxlen=DEPTH_KEPT)
+        service.subscribe_input("depth", on_depth, cam=cam.strip())
     main_exit(service.run(tick=end_idle_streams, tick_interval=0.1))
 
 

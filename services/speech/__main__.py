@@ -202,7 +202,7 @@ def main(argv: list[str] | None = None) -> None:
     def publish(heard: list[Heard]) -> None:
         for h in heard:
             t = h.transcript
-            service.publish(service.keys.transcript(t.mic), t, lossless=True)
+            service.publish_output("transcript", t, lossless=True, mic=t.mic)
             if t.final:
                 service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
             else:
@@ -393,13 +393,13 @@ def run_zenoh(service: Service, new_stream, publish) -> None:
 
     if not service.connect():
         main_exit(0)
-    service.subscribe(service.keys.audio("*"), AudioChunk, on_chunk, latest=False, maxlen=2000, monotonic=True)
+    service.subscribe_input("audio", on_chunk)
     main_exit(service.run(tick=tick, tick_interval=0.1))
 
 
 def read_stdin(service: Service, args, stop: threading.Event) -> None:
     """--backend text: each non-empty line of stdin becomes a final Transcript."""
-    key = service.keys.transcript(args.mic)
+    key = service.output_key("transcript", mic=args.mic)
     service.log.info("type commands, one per line (Ctrl-D ends)")
     for line in sys.stdin:
         if stop.is_set():

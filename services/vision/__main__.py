@@ -8,7 +8,7 @@ import argparse
 from common.depth import UndecodableDepth
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import DepthFrame, Detections, Frame
+from common.schema import Detections, Frame
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
@@ -128,8 +128,8 @@ def main(argv: list[str] | None = None) -> None:
 
     def process(frame: Frame, img, depth: DepthImage | None) -> None:
         objects, quality = pipeline.process(frame.cam, img, depth)
-        service.publish(
-            service.keys.objects(frame.cam),
+        service.publish_output(
+            "objects",
             Detections(
                 stamp=frame.stamp,
                 source=service.source,
@@ -141,6 +141,7 @@ def main(argv: list[str] | None = None) -> None:
                 quality=quality,
                 frame_id=depth.camera_info.frame_id if depth is not None else None,
             ),
+            cam=frame.cam,
         )
 
     def on_depth(delivery) -> None:
@@ -161,10 +162,8 @@ def main(argv: list[str] | None = None) -> None:
 
     for cam in args.cams.split(","):
         # the camera sends depth just before colour, so its slot is usually served first
-        service.subscribe(service.keys.depth(cam.strip()), DepthFrame, on_depth, latest=True, monotonic=True)
-        service.subscribe(
-            service.keys.frame(cam.strip()), Frame, frame_handler(service, on_image), latest=True, monotonic=True
-        )
+        service.subscribe_input("depth", on_depth, cam=cam.strip())
+        service.subscribe_input("frame", frame_handler(service, on_image), cam=cam.strip())
     main_exit(service.run())
 
 
