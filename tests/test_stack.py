@@ -129,7 +129,12 @@ def test_compose_runs_each_service_with_flags_it_accepts(compose, name):
         ["--vision-backend", "onnx", "--model", "m.onnx", "--speech-input", "zenoh", "--fusion-arg=--weights=fixed"],
         ["--vision-labels", "data/demo/labels.json", "--no-gesture", "--speech-input", "none", "--camera", "none"],
         ["--no-camera", "--no-speech", "--gesture-arg=--log-level=DEBUG", "--speech-arg=--log-level=DEBUG"],
-        ["--camera-arg=--max-pixels=1000000", "--vision-arg=--log-level=DEBUG", "--fusion-arg=--log-level=DEBUG"],
+        [
+            "--camera-arg=--quality=80",
+            "--vision-arg=--max-pixels=1000000",
+            "--vision-arg=--log-level=DEBUG",
+            "--fusion-arg=--log-level=DEBUG",
+        ],
     ],
 )
 def test_hri_up_starts_the_stack_with_flags_every_service_accepts(flags):
