@@ -4,6 +4,7 @@ so that a consumer holding the colour frame already has its depth)."""
 
 from __future__ import annotations
 
+import argparse
 import threading
 import time
 
@@ -12,6 +13,7 @@ import numpy as np
 from common.depth import depth_frame
 from common.runner import Service, main_exit, service_parser
 from common.schema import Frame
+from common.settings import add_option
 from services.camera.opener import open_source
 from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.source import SourceError, encode_image
@@ -27,7 +29,7 @@ examples:
 """
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = service_parser("camera", "Publish camera frames (Frame) on <prefix>/camera/<cam>/frame.", EPILOG)
     parser.add_argument(
         "--source",
@@ -36,16 +38,19 @@ def main(argv: list[str] | None = None) -> None:
         "images (name order), or folder of colour/depth pairs with an intrinsics.json (RGB-D)",
     )
     parser.add_argument("--cam", default="cam0", help="camera id used in keys and samples (default cam0)")
-    parser.add_argument(
+    add_option(
+        parser,
         "--fps",
-        type=float,
-        default=None,
-        help="publish rate; default: the video's own rate, 10 for images, as fast as the device",
+        None,
+        "frames published per second",
+        kind=float,
+        above=0,
+        default_text="the video's own rate, 10 for images, as fast as the device",
     )
     parser.add_argument("--loop", action="store_true", help="start over at the end of a file or folder")
-    parser.add_argument("--count", type=int, default=None, help="stop after N frames")
+    add_option(parser, "--count", None, "stop after N frames", kind=int, at_least=1, metavar="N", default_text="never")
     parser.add_argument("--encoding", choices=("jpeg", "png", "bgr8"), default="jpeg", help="default jpeg")
-    parser.add_argument("--quality", type=int, default=90, help="JPEG quality 1–100 (default 90)")
+    add_option(parser, "--quality", 90, "JPEG quality", at_least=1, at_most=100)
     parser.add_argument(
         "--intrinsics",
         default=None,
@@ -66,9 +71,12 @@ def main(argv: list[str] | None = None) -> None:
         "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
     )
     parser.add_argument("--rs-size", default="640x480", help="RealSense resolution WxH (default 640x480)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
     args = parser.parse_args(argv)
-    if not 1 <= args.quality <= 100:
-        parser.error("--quality must be within 1–100")
     try:
         rs_size = tuple(int(v) for v in args.rs_size.lower().split("x"))
         assert len(rs_size) == 2 and min(rs_size) > 0

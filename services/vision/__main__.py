@@ -9,6 +9,7 @@ from common.depth import UndecodableDepth
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import DepthFrame, Detections, Frame
+from common.settings import add_option
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
@@ -24,7 +25,7 @@ examples:
 """
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = service_parser(
         "vision",
         "Detect objects (label, colour, box, score, stable id) and image quality "
@@ -46,8 +47,8 @@ def main(argv: list[str] | None = None) -> None:
         "order, or a JSON list (default: the 80 COCO names)",
     )
     parser.add_argument("--names", default=None, help=argparse.SUPPRESS)  # old spelling of --labels for onnx
-    parser.add_argument("--conf", type=float, default=0.3, help="onnx confidence threshold (default 0.3)")
-    parser.add_argument("--iou", type=float, default=0.45, help="onnx NMS IoU threshold (default 0.45)")
+    add_option(parser, "--conf", 0.3, "onnx: keep detections scoring at least this", at_least=0, at_most=1)
+    add_option(parser, "--iou", 0.45, "onnx: non-maximum suppression's IoU threshold", at_least=0, at_most=1)
     parser.add_argument(
         "--family",
         choices=("auto", *FAMILIES),
@@ -60,11 +61,14 @@ def main(argv: list[str] | None = None) -> None:
         default=None,
         help="onnx input channel order (default: the family's: BGR for yolox, RGB otherwise)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--input-scale",
-        type=float,
-        default=None,
-        help="multiply 0-255 pixels by this for the model (default: 1 for yolox, 1/255 otherwise)",
+        None,
+        "onnx: multiply 0-255 pixels by this for the model",
+        kind=float,
+        above=0,
+        default_text="1 for yolox, 1/255 otherwise",
     )
     parser.add_argument(
         "--letterbox",
@@ -73,7 +77,11 @@ def main(argv: list[str] | None = None) -> None:
         help="where the resized frame sits in the model input (default: topleft for yolox)",
     )
     parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
 
     service = Service("vision", args)
     try:
