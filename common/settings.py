@@ -290,7 +290,9 @@ def table(settings: Sequence[Setting]) -> str:
     """A markdown table of settings: flag, default, range, description."""
     rows = ["| flag | default | range | what |", "|---|---|---|---|"]
     for s in settings:
-        flag = f"`{s.option}`" if s.kind is bool else f"`{s.option} {s.metavar or s.name.upper()}`"
+        # a switch or a choice names its values in the range column
+        plain = s.kind is bool or s.choices is not None
+        flag = f"`{s.option}`" if plain else f"`{s.option} {s.metavar or s.name.upper()}`"
         limits = s.limits().replace("|", "\\|")
         rows.append(f"| {flag} | {s.shown_default()} | {limits} | {s.description} |")
     return "\n".join(rows) + "\n"

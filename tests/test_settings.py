@@ -23,6 +23,7 @@ from common.settings import (
     setting,
     settings_of,
 )
+from hri import settingsdoc
 from services.fusion import __main__ as fusion_main
 from services.fusion.core import Config
 
@@ -222,3 +223,30 @@ def test_a_settings_dataclass_stays_a_plain_dataclass_and_every_field_must_be_de
 
     with pytest.raises(TypeError, match="Undeclared.rate is not declared"):
         settings_of(Undeclared)
+
+
+# -- the docs' tables ----------------------------------------------------------------------------------------
+def test_the_docs_settings_tables_are_current():
+    assert settingsdoc.missing() == [], "a page lost its `<!-- settings: NAME -->` block"
+    for page in sorted(set(settingsdoc.PAGES.values())):
+        text = (settingsdoc.DOCS / page).read_text()
+        assert settingsdoc.render(text) == text, f"docs/{page} is stale: run `python -m hri.settingsdoc`"
+
+
+def test_docs_fusion_md_has_a_row_for_every_config_field():
+    section = (settingsdoc.DOCS / "fusion.md").read_text().split("<!-- settings: fusion -->", 1)[1]
+    rows = section.split("<!-- /settings -->", 1)[0]
+    for s in settings_of(Config):
+        assert f"| `{s.option}" in rows and s.description in rows, s.name
+
+
+def test_a_changed_declaration_makes_the_check_fail(tmp_path, monkeypatch):
+    for page in set(settingsdoc.PAGES.values()):
+        (tmp_path / page).write_text((settingsdoc.DOCS / page).read_text())
+    monkeypatch.setattr(settingsdoc, "DOCS", tmp_path)
+    assert settingsdoc.main(["--check"]) == 0
+    page = tmp_path / "fusion.md"
+    page.write_text(page.read_text().replace("| `--horizon S` | 30 | > 0 |", "| `--horizon S` | 20 | > 0 |"))
+    assert settingsdoc.main(["--check"]) == 1
+    assert settingsdoc.main([]) == 0 and settingsdoc.main(["--check"]) == 0
+    assert "| `--horizon S` | 30 | > 0 |" in page.read_text()

@@ -47,8 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
         "order, or a JSON list (default: the 80 COCO names)",
     )
     parser.add_argument("--names", default=None, help=argparse.SUPPRESS)  # old spelling of --labels for onnx
-    add_option(parser, "--conf", 0.3, "onnx: keep detections scoring at least this", at_least=0, at_most=1)
-    add_option(parser, "--iou", 0.45, "onnx: non-maximum suppression's IoU threshold", at_least=0, at_most=1)
+    add_option(parser, "--conf", 0.3, "onnx: keep detections scoring at least this", at_least=0, at_most=1, metavar="P")
+    add_option(
+        parser, "--iou", 0.45, "onnx: non-maximum suppression's IoU threshold", at_least=0, at_most=1, metavar="P"
+    )
     parser.add_argument(
         "--family",
         choices=("auto", *FAMILIES),
@@ -68,6 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         "onnx: multiply 0-255 pixels by this for the model",
         kind=float,
         above=0,
+        metavar="X",
         default_text="1 for yolox, 1/255 otherwise",
     )
     parser.add_argument(
