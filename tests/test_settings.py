@@ -250,3 +250,30 @@ def test_a_changed_declaration_makes_the_check_fail(tmp_path, monkeypatch):
     assert settingsdoc.main(["--check"]) == 1
     assert settingsdoc.main([]) == 0 and settingsdoc.main(["--check"]) == 0
     assert "| `--horizon S` | 30 | > 0 |" in page.read_text()
+
+
+TOOL_REFUSALS = [
+    (["echo", "hri/**", "--count", "0"], "--count", "≥ 1"),
+    (["say", "--confidence", "1.1", "stop"], "--confidence", "0–1"),
+    (["record", "--duration", "0"], "--duration", "> 0"),
+    (["replay", "x.mcap", "--speed", "-1"], "--speed", "≥ 0"),
+    (["view", "--max-fps", "0"], "--max-fps", "> 0"),
+]
+
+
+@pytest.mark.parametrize("argv,flag,range_text", TOOL_REFUSALS, ids=[a[0][0] for a in TOOL_REFUSALS])
+def test_the_hri_tools_refuse_out_of_range_values_the_same_way(argv, flag, range_text, capsys):
+    from hri import cli
+
+    with pytest.raises(SystemExit) as exited:
+        cli.build_parser().parse_args(argv)
+    line = capsys.readouterr().err.strip().splitlines()[-1]
+    assert exited.value.code == 2 and f"argument {flag}:" in line and range_text in line, line
+
+
+def test_the_hri_tools_accept_their_boundaries():
+    from hri import cli
+
+    assert cli.build_parser().parse_args(["replay", "x.mcap", "--speed", "0"]).speed == 0.0
+    assert cli.build_parser().parse_args(["say", "--confidence", "1", "stop"]).confidence == 1.0
+    assert cli.build_parser().parse_args(["echo", "hri/**", "--count", "1"]).count == 1
