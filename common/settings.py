@@ -175,6 +175,8 @@ def settings_of(cls: type) -> list[Setting]:
         if declared is None:
             raise TypeError(f"{cls.__name__}.{f.name} is not declared with setting(...)")
         kind, optional = _kind(hints[f.name])
+        if declared["choices"] is None and typing.get_origin(hints[f.name]) is typing.Literal:
+            declared = {**declared, "choices": typing.get_args(hints[f.name])}  # a Literal's values are its choices
         found.append(Setting(f.name, kind, f.default, optional=optional, **declared))
     return found
 
@@ -283,6 +285,7 @@ def check_all(instance: Any) -> None:
 
 def declared(parser: argparse.ArgumentParser) -> list[Setting]:
     """The settings of a parser's flags that were declared here (for docs and tests), in flag order."""
+    # argparse keeps every action, those of its groups included, in _actions (stable since Python 3.2)
     return [a.setting for a in parser._actions if hasattr(a, "setting")]
 
 

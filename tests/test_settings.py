@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
+from typing import Literal
 
 import pytest
 
@@ -277,3 +278,17 @@ def test_the_hri_tools_accept_their_boundaries():
     assert cli.build_parser().parse_args(["replay", "x.mcap", "--speed", "0"]).speed == 0.0
     assert cli.build_parser().parse_args(["say", "--confidence", "1", "stop"]).confidence == 1.0
     assert cli.build_parser().parse_args(["echo", "hri/**", "--count", "1"]).count == 1
+
+
+def test_a_literal_field_takes_its_values_as_choices():
+    @dataclasses.dataclass(frozen=True)
+    class Mode:
+        weights: Literal["adaptive", "fixed"] = setting("adaptive", "how modalities are weighed")
+
+    (weights,) = settings_of(Mode)
+    assert weights.choices == ("adaptive", "fixed") and weights.kind is str
+    parser = argparse.ArgumentParser()
+    add_settings(parser, Mode)
+    assert from_args(Mode, parser.parse_args(["--weights", "fixed"])) == Mode("fixed")
+    with pytest.raises(OutOfRange, match="'equal' is not one of adaptive|fixed"):
+        weights.check("equal")
