@@ -15,17 +15,18 @@ from services.fusion.core import Config, FusionCore
 from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
 
-EPILOG = """\
+DEFAULTS = Config()
+EPILOG = f"""\
 examples:
   hri-fusion                                   # adaptive weights, defaults below
   hri-fusion --weights fixed                   # constant modality weights (for comparison)
   hri-fusion --window-before 1.5 --max-wait 0.8
   hri echo 'hri/fusion/**'                     # watch its commands and questions
 
-defaults: window [start - 1.0 s, end + 0.3 s] of source time, decide when every live modality's
-latest stamp has passed the window end or 0.5 s (wall) after the transcript arrived; a clarification
-stays open 10 s; a modality is live while its service's liveliness token exists or it sent a sample
-in the last 2 s.
+defaults: window [start - {DEFAULTS.window_before:g} s, end + {DEFAULTS.window_after:g} s] of source time,
+decide when every live modality's latest stamp has passed the window end or {DEFAULTS.max_wait:g} s (wall)
+after the transcript arrived; a clarification stays open {DEFAULTS.dialogue_timeout:g} s; a modality is live
+while its service's liveliness token exists or it sent a sample in the last {DEFAULTS.live_recent_s:g} s.
 
 clocks: each source's clock offset against this machine's is estimated from the router's Zenoh timestamps
 (`hri stats fusion`: other["clock_offset_ms:SOURCE"]); a warning is logged (at most every 30 s per source)
