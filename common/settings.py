@@ -296,6 +296,6 @@ def table(settings: Sequence[Setting]) -> str:
         # a switch or a choice names its values in the range column
         plain = s.kind is bool or s.choices is not None
         flag = f"`{s.option}`" if plain else f"`{s.option} {s.metavar or s.name.upper()}`"
-        limits = s.limits().replace("|", "\\|")
-        rows.append(f"| {flag} | {s.shown_default()} | {limits} | {s.description} |")
+        cells = [flag, s.shown_default(), s.limits(), s.description]
+        rows.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(rows) + "\n"

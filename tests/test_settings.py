@@ -292,3 +292,19 @@ def test_a_literal_field_takes_its_values_as_choices():
     assert from_args(Mode, parser.parse_args(["--weights", "fixed"])) == Mode("fixed")
     with pytest.raises(OutOfRange, match="'equal' is not one of adaptive|fixed"):
         weights.check("equal")
+
+
+# a flag that cannot be a plain setting: required, several values, or a hidden old spelling
+NOT_DECLARED = {"camera": {"--source"}, "speech": {"--wav"}, "vision": {"--names"}}
+
+
+@pytest.mark.parametrize("service", ["fusion", "vision", "gesture", "speech", "camera"])
+def test_every_flag_of_a_service_is_declared_as_a_setting(service):
+    from common.runner import service_parser
+
+    def undeclared(parser: argparse.ArgumentParser) -> set[str]:
+        return {a.option_strings[-1] for a in parser._actions if a.option_strings and not hasattr(a, "setting")}
+
+    parser = importlib.import_module(f"services.{service}.__main__").build_parser()
+    shared = undeclared(service_parser(service, ""))  # --help, --instance, --log-level, the zenoh flags
+    assert undeclared(parser) - shared == NOT_DECLARED.get(service, set())

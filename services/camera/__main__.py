@@ -37,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="device index (0), 'realsense' or 'realsense:SERIAL', video file, image file, folder of "
         "images (name order), or folder of colour/depth pairs with an intrinsics.json (RGB-D)",
     )
-    parser.add_argument("--cam", default="cam0", help="camera id used in keys and samples (default cam0)")
+    add_option(parser, "--cam", "cam0", "camera id used in keys and samples", metavar="ID")
     add_option(
         parser,
         "--fps",
@@ -47,30 +47,36 @@ def build_parser() -> argparse.ArgumentParser:
         above=0,
         default_text="the video's own rate, 10 for images, as fast as the device",
     )
-    parser.add_argument("--loop", action="store_true", help="start over at the end of a file or folder")
+    add_option(parser, "--loop", False, "start over at the end of a file or folder")
     add_option(parser, "--count", None, "stop after N frames", kind=int, at_least=1, metavar="N", default_text="never")
-    parser.add_argument("--encoding", choices=("jpeg", "png", "bgr8"), default="jpeg", help="default jpeg")
+    add_option(parser, "--encoding", "jpeg", "how frames are encoded on the wire", choices=("jpeg", "png", "bgr8"))
     add_option(parser, "--quality", 90, "JPEG quality", at_least=1, at_most=100)
-    parser.add_argument(
+    add_option(
+        parser,
         "--intrinsics",
-        default=None,
-        help="intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
+        None,
+        "intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
         "docs/vision.md): sent with every frame; overrides an RGB-D folder's own",
+        kind=str,
+        metavar="FILE",
+        default_text="the source's own, if any",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--depth-compression",
+        "none",
+        "depth frames as raw 16-bit rows or a lossless 16-bit PNG (about 6x smaller on YCB-Video depth, "
+        "~24 ms to encode a 640x480 frame: for slow links)",
         choices=("none", "png"),
-        default="none",
-        help="depth frames as raw 16-bit rows (default) or a lossless 16-bit PNG (about 6x smaller "
-        "on YCB-Video depth, ~24 ms to encode a 640x480 frame: for slow links)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--mirror",
-        action="store_true",
-        help="flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
+        False,
+        "flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
         "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
     )
-    parser.add_argument("--rs-size", default="640x480", help="RealSense resolution WxH (default 640x480)")
+    add_option(parser, "--rs-size", "640x480", "RealSense resolution WIDTHxHEIGHT", metavar="WxH")
     return parser
 
 

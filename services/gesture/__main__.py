@@ -57,12 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
         "pointing ray from the finger or the arm.",
         EPILOG,
     )
-    parser.add_argument("--model", choices=("lite", "full"), default="lite", help="hand landmark model (default lite)")
+    add_option(parser, "--model", "lite", "the hand landmark model", choices=("lite", "full"))
     add_option(parser, "--max-hands", 2, "hands to track per camera", at_least=1, metavar="N")
-    parser.add_argument(
-        "--mirrored",
-        action="store_true",
-        help="the camera image is mirrored (selfie view); default: a robot's normal camera",
+    add_option(
+        parser, "--mirrored", False, "the camera image is mirrored (a selfie view, unlike a robot's normal camera)"
     )
     add_option(parser, "--start-frames", 3, "frames a gesture must hold to start", at_least=1, metavar="N")
     add_option(
@@ -83,21 +81,21 @@ def build_parser() -> argparse.ArgumentParser:
         above=0,
         metavar="S",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--body",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs "
-        "resting palms; publishes Bodies (default on; --no-body for hands only)",
+        True,
+        "run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs resting palms; "
+        "publishes Bodies (--no-body for hands only)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--ray",
+        "eyes",
+        "body ray: eyes -> fingertip (forearm when the eyes are out of view) or forearm (elbow -> fingertip)",
         choices=("eyes", "forearm"),
-        default="eyes",
-        help="body ray: eyes -> fingertip (forearm when the eyes are out of view; default) or "
-        "forearm (elbow -> fingertip)",
     )
-    parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
+    add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
 

