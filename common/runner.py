@@ -34,6 +34,7 @@ from common.codec import ENCODING, decode, encode
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
+from common.settings import add_option
 from common.stamps import DEFAULT_MAX_SKEW_S, DEFAULT_RESET_RUN, FUTURE, OUT_OF_ORDER, RESET, StampGuard
 from common.transport import add_zenoh_arguments, declare_recovering_publisher, open_session, resolve
 
@@ -61,42 +62,34 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
     )
     parser.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING … (env HRI_LOG_LEVEL)")
     g = parser.add_argument_group("input checks (docs/foundation.md)")
-    g.add_argument(
+    add_option(
+        g,
         "--max-skew",
-        type=_at_least(0.0, float),
-        default=DEFAULT_MAX_SKEW_S,
+        DEFAULT_MAX_SKEW_S,
+        "reject samples stamped more than S seconds ahead of this machine's clock",
+        at_least=0,
         metavar="S",
-        help=f"reject samples stamped more than S seconds ahead of this machine's clock "
-        f"(default {DEFAULT_MAX_SKEW_S:g})",
     )
-    g.add_argument(
+    add_option(
+        g,
         "--timeline-run",
-        type=_at_least(1, int),
-        default=DEFAULT_RESET_RUN,
+        DEFAULT_RESET_RUN,
+        "follow a stream that went back in time after N consistent samples",
+        at_least=1,
         metavar="N",
-        help=f"follow a stream that went back in time after N consistent samples (default {DEFAULT_RESET_RUN})",
     )
     if node.reads_images:
-        g.add_argument(
+        add_option(
+            g,
             "--max-pixels",
-            type=_at_least(1, int),
-            default=DEFAULT_MAX_PIXELS,
+            DEFAULT_MAX_PIXELS,
+            "reject frames larger than N pixels before decoding them",
+            at_least=1,
             metavar="N",
-            help=f"reject frames larger than N pixels before decoding them (default {DEFAULT_MAX_PIXELS}: 4096x2160)",
+            default_text=f"{DEFAULT_MAX_PIXELS}: 4096x2160",
         )
     add_zenoh_arguments(parser)
     return parser
-
-
-def _at_least(lowest: float, kind: Callable[[str], Any]) -> Callable[[str], Any]:
-    def parse(text: str) -> Any:
-        value = kind(text)
-        if value < lowest:
-            raise argparse.ArgumentTypeError(f"must be at least {lowest}, got {text}")
-        return value
-
-    parse.__name__ = kind.__name__  # argparse names the type in its errors
-    return parse
 
 
 class RateLimitedLog:

@@ -19,6 +19,7 @@ from common.codec import decode, unpack
 from common.keys import Keys
 from common.runner import SamplePublisher, setup_logging
 from common.schema import InvalidSample, Stats, make_transcript
+from common.settings import add_option
 from common.transport import (
     add_zenoh_arguments,
     init_zenoh_logging,
@@ -336,8 +337,17 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("keyexpr", help="zenoh key expression, e.g. 'hri/**'")
     p.add_argument("--raw", action="store_true", help="print the msgpack map as is, without contract validation")
-    p.add_argument("--count", type=int, default=None, help="exit 0 after N samples (1 if the timeout comes first)")
-    p.add_argument("--timeout", type=float, default=None, help="give up after S seconds")
+    add_option(
+        p,
+        "--count",
+        None,
+        "exit 0 after N samples (1 if the timeout comes first)",
+        kind=int,
+        at_least=1,
+        metavar="N",
+        default_text="never",
+    )
+    add_option(p, "--timeout", None, "give up after S seconds", kind=float, above=0, metavar="S", default_text="never")
     p.set_defaults(func=cmd_echo)
 
     p = command(
@@ -358,11 +368,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("text", nargs="+", help="the utterance")
     p.add_argument("--mic", default="kbd", help="microphone id in the key and sample (default kbd)")
-    p.add_argument("--confidence", type=float, default=1.0, help="recogniser confidence 0–1 (default 1)")
+    add_option(p, "--confidence", 1.0, "recogniser confidence", at_least=0, at_most=1, metavar="P")
     p.set_defaults(func=cmd_say)
 
     p = command("list", "list live services from their liveliness tokens", "example:\n  hri list")
-    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
+    add_option(p, "--timeout", 1.0, "seconds to wait for answers", above=0, metavar="S")
     p.set_defaults(func=cmd_list)
 
     p = command(
@@ -371,7 +381,7 @@ def build_parser() -> argparse.ArgumentParser:
         "examples:\n  hri stats\n  hri stats --service vision",
     )
     p.add_argument("--service", default=None, help="only this service")
-    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for answers (default 1)")
+    add_option(p, "--timeout", 1.0, "seconds to wait for answers", above=0, metavar="S")
     p.set_defaults(func=cmd_stats)
 
     p = sub.add_parser(

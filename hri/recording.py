@@ -35,6 +35,7 @@ from typing import IO, Any, Callable, Iterable, Iterator
 from common.codec import ENCODING, decode
 from common.keys import Keys
 from common.schema import InvalidSample
+from common.settings import add_option
 
 MESSAGE_ENCODING = "msgpack"
 PROFILE = ""  # no well-known MCAP profile fits; the contract lives in channel metadata
@@ -391,25 +392,29 @@ def add_record_arguments(p: argparse.ArgumentParser) -> None:
         help="the .mcap file to write (default hri-YYYYmmdd-HHMMSS.mcap in the current folder)",
     )
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
-    p.add_argument("--count", type=int, default=None, help="stop after N samples")
-    p.add_argument("--duration", type=float, default=None, help="stop after S seconds")
+    add_option(p, "--count", None, "stop after N samples", kind=int, at_least=1, metavar="N", default_text="never")
+    add_option(p, "--duration", None, "stop after S seconds", kind=float, above=0, metavar="S", default_text="never")
     p.add_argument("--compression", choices=COMPRESSIONS, default="zstd", help="chunk compression (default zstd)")
-    p.add_argument(
+    add_option(
+        p,
         "--max-backlog-mb",
-        type=float,
-        default=256.0,
-        help="received but not yet written data above which new samples are dropped and counted (default 256)",
+        256.0,
+        "received but not yet written data above which new samples are dropped and counted",
+        above=0,
+        metavar="MB",
     )
     p.set_defaults(func=cmd_record)
 
 
 def add_replay_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", help="an .mcap written by `hri record`")
-    p.add_argument(
+    add_option(
+        p,
         "--speed",
-        type=float,
-        default=1.0,
-        help="time scale: 1 = original timing (default), 2 = twice as fast, 0 = as fast as possible",
+        1.0,
+        "time scale: 1 = original timing, 2 = twice as fast, 0 = as fast as possible",
+        at_least=0,
+        metavar="X",
     )
     p.add_argument(
         "--only",
@@ -419,13 +424,13 @@ def add_replay_arguments(p: argparse.ArgumentParser) -> None:
         help="replay only keys intersecting this key expression, repeatable (e.g. 'hri/speech/**')",
     )
     p.add_argument("--loop", action="store_true", help="start over at the end until Ctrl-C")
-    p.add_argument(
+    add_option(
+        p,
         "--wait-subscribers",
-        type=float,
-        default=2.0,
+        2.0,
+        "wait up to S seconds for a subscriber on a replayed key before the first send (0: do not wait)",
+        at_least=0,
         metavar="S",
-        help="wait up to S seconds for a subscriber on a replayed key before the first send "
-        "(default 2; 0 = do not wait)",
     )
     p.set_defaults(func=cmd_replay)
 
@@ -458,9 +463,6 @@ def cmd_record(args: argparse.Namespace) -> int:
     keys = Keys(args.prefix)
     exprs = args.keyexpr or [f"{keys.prefix}/**"]
     if _check_keyexprs(exprs, "record") is None:
-        return 2
-    if args.count is not None and args.count <= 0 or args.duration is not None and args.duration <= 0:
-        print("hri record: --count and --duration must be > 0", file=sys.stderr)
         return 2
     out = Path(args.output or time.strftime("hri-%Y%m%d-%H%M%S.mcap"))
     if out.exists() and not args.force:
@@ -577,9 +579,6 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from common.transport import open_session, resolve
 
     resolve(args)
-    if args.speed < 0:
-        print("hri replay: --speed must be >= 0 (0 = as fast as possible)", file=sys.stderr)
-        return 2
     only = _check_keyexprs(args.only or [], "replay")
     if only is None:
         return 2

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from common.settings import add_option
 from hri.view import DEFAULT_MAX_FPS
 
 VIEW_EXAMPLES = """\
@@ -23,13 +24,8 @@ def add_view_arguments(p: argparse.ArgumentParser) -> None:
         default="127.0.0.1",
         help="address to serve the page on (default 127.0.0.1; 0.0.0.0 for other machines)",
     )
-    p.add_argument("--port", type=int, default=8080, help="port (default 8080; 0 picks a free one)")
-    p.add_argument(
-        "--max-fps",
-        type=float,
-        default=DEFAULT_MAX_FPS,
-        help=f"frames per second per camera sent to the page (default {DEFAULT_MAX_FPS:g})",
-    )
+    add_option(p, "--port", 8080, "port (0 picks a free one)", at_least=0, at_most=65535)
+    add_option(p, "--max-fps", DEFAULT_MAX_FPS, "frames per second per camera sent to the page", above=0, metavar="FPS")
     p.add_argument(
         "--snapshot",
         metavar="OUT.png",
@@ -45,17 +41,21 @@ def add_view_arguments(p: argparse.ArgumentParser) -> None:
         "a value below 1e9 counts seconds from the recording's start). Default: its end",
     )
     p.add_argument("--cam", default=None, help="with --snapshot: the camera (default the first with a frame)")
-    p.add_argument(
+    add_option(
+        p,
         "--wait",
-        type=float,
-        default=2.0,
-        help="with --snapshot on the live bus: seconds to watch after the first frame (default 2)",
+        2.0,
+        "with --snapshot on the live bus: seconds to watch after the first frame",
+        at_least=0,
+        metavar="S",
     )
-    p.add_argument(
+    add_option(
+        p,
         "--timeout",
-        type=float,
-        default=30.0,
-        help="with --snapshot on the live bus: give up after S seconds without a frame (default 30)",
+        30.0,
+        "with --snapshot on the live bus: give up after S seconds without a frame",
+        above=0,
+        metavar="S",
     )
     p.set_defaults(func=cmd_view)
 

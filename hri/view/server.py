@@ -339,9 +339,6 @@ def cmd_view(args: argparse.Namespace) -> int:
     from common.transport import open_session, resolve
 
     resolve(args)
-    if args.max_fps <= 0:
-        print("hri view: --max-fps must be > 0", file=sys.stderr)
-        return 2
     if args.at is not None and not (args.snapshot and args.recording):
         print("hri view: --at needs --snapshot and a recording (the live bus has no past)", file=sys.stderr)
         return 2

@@ -4,6 +4,7 @@ so that a consumer holding the colour frame already has its depth)."""
 
 from __future__ import annotations
 
+import argparse
 import threading
 import time
 
@@ -12,6 +13,7 @@ import numpy as np
 from common.depth import depth_frame
 from common.runner import Service, main_exit, service_parser
 from common.schema import Frame
+from common.settings import add_option
 from services.camera.opener import open_source
 from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.source import SourceError, encode_image
@@ -27,7 +29,7 @@ examples:
 """
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = service_parser("camera", "Publish camera frames (Frame) on <prefix>/camera/<cam>/frame.", EPILOG)
     parser.add_argument(
         "--source",
@@ -35,40 +37,52 @@ def main(argv: list[str] | None = None) -> None:
         help="device index (0), 'realsense' or 'realsense:SERIAL', video file, image file, folder of "
         "images (name order), or folder of colour/depth pairs with an intrinsics.json (RGB-D)",
     )
-    parser.add_argument("--cam", default="cam0", help="camera id used in keys and samples (default cam0)")
-    parser.add_argument(
+    add_option(parser, "--cam", "cam0", "camera id used in keys and samples", metavar="ID")
+    add_option(
+        parser,
         "--fps",
-        type=float,
-        default=None,
-        help="publish rate; default: the video's own rate, 10 for images, as fast as the device",
+        None,
+        "frames published per second",
+        kind=float,
+        above=0,
+        default_text="the video's own rate, 10 for images, as fast as the device",
     )
-    parser.add_argument("--loop", action="store_true", help="start over at the end of a file or folder")
-    parser.add_argument("--count", type=int, default=None, help="stop after N frames")
-    parser.add_argument("--encoding", choices=("jpeg", "png", "bgr8"), default="jpeg", help="default jpeg")
-    parser.add_argument("--quality", type=int, default=90, help="JPEG quality 1–100 (default 90)")
-    parser.add_argument(
+    add_option(parser, "--loop", False, "start over at the end of a file or folder")
+    add_option(parser, "--count", None, "stop after N frames", kind=int, at_least=1, metavar="N", default_text="never")
+    add_option(parser, "--encoding", "jpeg", "how frames are encoded on the wire", choices=("jpeg", "png", "bgr8"))
+    add_option(parser, "--quality", 90, "JPEG quality", at_least=1, at_most=100)
+    add_option(
+        parser,
         "--intrinsics",
-        default=None,
-        help="intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
+        None,
+        "intrinsics JSON (width, height, fx, fy, cx, cy or K, depth_scale, frame_id, distortion; "
         "docs/vision.md): sent with every frame; overrides an RGB-D folder's own",
+        kind=str,
+        metavar="FILE",
+        default_text="the source's own, if any",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--depth-compression",
+        "none",
+        "depth frames as raw 16-bit rows or a lossless 16-bit PNG (about 6x smaller on YCB-Video depth, "
+        "~24 ms to encode a 640x480 frame: for slow links)",
         choices=("none", "png"),
-        default="none",
-        help="depth frames as raw 16-bit rows (default) or a lossless 16-bit PNG (about 6x smaller "
-        "on YCB-Video depth, ~24 ms to encode a 640x480 frame: for slow links)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--mirror",
-        action="store_true",
-        help="flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
+        False,
+        "flip colour and depth left-right (a selfie view); cx becomes width-1-cx and the "
         "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
     )
-    parser.add_argument("--rs-size", default="640x480", help="RealSense resolution WxH (default 640x480)")
+    add_option(parser, "--rs-size", "640x480", "RealSense resolution WIDTHxHEIGHT", metavar="WxH")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
     args = parser.parse_args(argv)
-    if not 1 <= args.quality <= 100:
-        parser.error("--quality must be within 1–100")
     try:
         rs_size = tuple(int(v) for v in args.rs_size.lower().split("x"))
         assert len(rs_size) == 2 and min(rs_size) > 0

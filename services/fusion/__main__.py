@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import queue
 import time
 
@@ -9,21 +10,23 @@ import zenoh
 
 from common.runner import Delivery, RateLimitedLog, Service, main_exit, service_parser
 from common.schema import Clarification, FusedCommand
+from common.settings import add_settings, from_args
 from services.fusion.core import Config, FusionCore
 from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
 
-EPILOG = """\
+DEFAULTS = Config()
+EPILOG = f"""\
 examples:
   hri-fusion                                   # adaptive weights, defaults below
   hri-fusion --weights fixed                   # constant modality weights (for comparison)
   hri-fusion --window-before 1.5 --max-wait 0.8
   hri echo 'hri/fusion/**'                     # watch its commands and questions
 
-defaults: window [start - 1.0 s, end + 0.3 s] of source time, decide when every live modality's
-latest stamp has passed the window end or 0.5 s (wall) after the transcript arrived; a clarification
-stays open 10 s; a modality is live while its service's liveliness token exists or it sent a sample
-in the last 2 s.
+defaults: window [start - {DEFAULTS.window_before:g} s, end + {DEFAULTS.window_after:g} s] of source time,
+decide when every live modality's latest stamp has passed the window end or {DEFAULTS.max_wait:g} s (wall)
+after the transcript arrived; a clarification stays open {DEFAULTS.dialogue_timeout:g} s; a modality is live
+while its service's liveliness token exists or it sent a sample in the last {DEFAULTS.live_recent_s:g} s.
 
 clocks: each source's clock offset against this machine's is estimated from the router's Zenoh timestamps
 (`hri stats fusion`: other["clock_offset_ms:SOURCE"]); a warning is logged (at most every 30 s per source)
@@ -34,73 +37,22 @@ when a source runs more than half the window after its end ahead, or half the wi
 CLOCK_WARN_SHARE = 0.5  # warn when a source's clock offset uses more than this share of the window's margin
 
 
-def positive(text: str) -> float:
-    value = float(text)
-    if value < 0:
-        raise ValueError(text)
-    return value
-
-
-def main(argv: list[str] | None = None) -> None:
-    defaults = Config()
+def build_parser() -> argparse.ArgumentParser:
     parser = service_parser(
         "fusion",
         "Join speech, vision and gesture on source time and publish grounded "
         "commands (FusedCommand) and questions (Clarification).",
         EPILOG,
     )
-    parser.add_argument(
-        "--window-before",
-        type=positive,
-        default=defaults.window_before,
-        metavar="S",
-        help=f"seconds before the utterance start searched for gestures/objects (default {defaults.window_before})",
-    )
-    parser.add_argument(
-        "--window-after",
-        type=positive,
-        default=defaults.window_after,
-        metavar="S",
-        help=f"seconds after the utterance end (default {defaults.window_after})",
-    )
-    parser.add_argument(
-        "--max-wait",
-        type=positive,
-        default=defaults.max_wait,
-        metavar="S",
-        help=f"wall seconds after a transcript arrives before deciding with what is there "
-        f"(default {defaults.max_wait})",
-    )
-    parser.add_argument(
-        "--weights",
-        choices=("adaptive", "fixed"),
-        default=defaults.weights,
-        help="modality weights from each modality's evidence (adaptive, default) or constant",
-    )
-    parser.add_argument(
-        "--fallback-most-confident",
-        action="store_true",
-        help="when nothing matches the words, act on the most confident detection instead of "
-        "asking (off by default: acting on the wrong object is worse than asking)",
-    )
-    parser.add_argument(
-        "--dialogue-timeout",
-        type=positive,
-        default=defaults.dialogue_timeout,
-        metavar="S",
-        help=f"seconds a clarification question stays open for an answer (default {defaults.dialogue_timeout})",
-    )
-    args = parser.parse_args(argv)
+    add_settings(parser.add_argument_group("fusion (docs/fusion.md, Settings)"), Config)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
 
     service = Service("fusion", args, recovering=True)
-    config = Config(
-        window_before=args.window_before,
-        window_after=args.window_after,
-        max_wait=args.max_wait,
-        weights=args.weights,
-        fallback_most_confident=args.fallback_most_confident,
-        dialogue_timeout=args.dialogue_timeout,
-    )
+    config = from_args(Config, args)
     core = FusionCore(config, service.source, count=service.counters.add, log=service.log)
     if not service.connect():
         main_exit(0)

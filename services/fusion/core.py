@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
 from services.fusion.dialogue import Dialogue, Draft
@@ -31,19 +32,66 @@ TARGET_INTENTS = ("pick_up", "bring")  # must name an object
 
 @dataclass
 class Config:
-    window_before: float = 1.0  # s of source time before the utterance start
-    window_after: float = 0.3  # s after its end (a point that comes just after the word)
-    max_wait: float = 0.5  # s of wall time after a transcript arrives: decide with what is there
-    weights: str = "adaptive"  # or "fixed"
-    fallback_most_confident: bool = False
-    dialogue_timeout: float = 10.0  # s of source time a clarification stays open
-    live_recent_s: float = 2.0  # a modality with samples this recent (wall) is live without a token
-    horizon: float = 30.0  # s of source time kept per stream
-    vision_lookback: float = 2.0  # detections this much older than the window still describe the scene
-    margin: float = DEFAULT_MARGIN
-    low_speech_confidence: float = 0.3  # below: confirm before acting (unless pointing carries it)
-    gesture_min_score: float = 0.5  # open_palm / wave events below this are ignored
-    episode_gap: float = 1.5  # s: events of one gesture this close belong to one episode (one command)
+    """Fusion's settings; each is also a flag of `hri-fusion` (common/settings.py, docs/fusion.md "Settings")."""
+
+    window_before: float = setting(
+        1.0,
+        "seconds of source time before the utterance start searched for gestures and objects",
+        at_least=0,
+        metavar="S",
+    )
+    window_after: float = setting(
+        0.3,
+        "seconds after the utterance end searched: a point may come just after the word",
+        at_least=0,
+        metavar="S",
+    )
+    max_wait: float = setting(
+        0.5, "wall seconds after a transcript arrives before deciding with what is there", at_least=0, metavar="S"
+    )
+    weights: str = setting(
+        "adaptive",
+        "modality weights from each modality's evidence (adaptive) or constant (fixed)",
+        choices=("adaptive", "fixed"),
+    )
+    fallback_most_confident: bool = setting(
+        False,
+        "when nothing matches the words, act on the most confident detection instead of asking "
+        "(acting on the wrong object is worse than asking)",
+    )
+    dialogue_timeout: float = setting(
+        10.0, "seconds of source time a clarification question stays open for an answer", at_least=0, metavar="S"
+    )
+    live_recent_s: float = setting(
+        2.0,
+        "a modality that sent a sample this many wall seconds ago is live without a liveliness token",
+        at_least=0,
+        metavar="S",
+        flag="--live-recent",
+    )
+    horizon: float = setting(30.0, "seconds of source time kept per input stream", above=0, metavar="S")
+    vision_lookback: float = setting(
+        2.0, "detections this many seconds older than the window still describe the scene", at_least=0, metavar="S"
+    )
+    margin: float = setting(
+        DEFAULT_MARGIN,
+        "the lead of the best object's score over the runner-up's needed to act without asking",
+        at_least=0,
+        at_most=1,
+    )
+    low_speech_confidence: float = setting(
+        0.3,
+        "speech confidence below which fusion confirms before acting (unless pointing carries the choice)",
+        at_least=0,
+        at_most=1,
+        metavar="P",
+    )
+    gesture_min_score: float = setting(
+        0.5, "open_palm and wave events scored below this are ignored", at_least=0, at_most=1, metavar="P"
+    )
+    episode_gap: float = setting(
+        1.5, "seconds: events of one gesture this close belong to one episode (one command)", at_least=0, metavar="S"
+    )
 
 
 def input_services(fusion: str = "fusion") -> tuple[str, ...]:

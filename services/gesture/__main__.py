@@ -9,6 +9,7 @@ import time
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
+from common.settings import add_option
 from common.stack import node
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
 from services.gesture.space import FrameRays
@@ -50,7 +51,7 @@ def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
     )
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = service_parser(
         "gesture",
         "Find hands and the body (MediaPipe), classify gestures over time, "
@@ -58,48 +59,50 @@ def main(argv: list[str] | None = None) -> None:
         "pointing ray from the finger or the arm.",
         EPILOG,
     )
-    parser.add_argument("--model", choices=("lite", "full"), default="lite", help="hand landmark model (default lite)")
-    parser.add_argument("--max-hands", type=int, default=2, help="hands to track per camera (default 2)")
-    parser.add_argument(
-        "--mirrored",
-        action="store_true",
-        help="the camera image is mirrored (selfie view); default: a robot's normal camera",
+    add_option(parser, "--model", "lite", "the hand landmark model", choices=("lite", "full"))
+    add_option(parser, "--max-hands", 2, "hands to track per camera", at_least=1, metavar="N")
+    add_option(
+        parser, "--mirrored", False, "the camera image is mirrored (a selfie view, unlike a robot's normal camera)"
     )
-    parser.add_argument("--start-frames", type=int, default=3, help="frames a gesture must hold to start (3)")
-    parser.add_argument(
+    add_option(parser, "--start-frames", 3, "frames a gesture must hold to start", at_least=1, metavar="N")
+    add_option(
+        parser,
         "--start-ms",
-        type=float,
-        default=0.0,
-        help="or: milliseconds it must hold to start, whichever comes first (default 0: frames only)",
+        0.0,
+        "or: milliseconds it must hold to start, whichever comes first",
+        at_least=0,
+        metavar="MS",
+        default_text="0: frames only",
     )
-    parser.add_argument("--end-frames", type=int, default=3, help="frames it must be absent to end (3)")
-    parser.add_argument(
+    add_option(parser, "--end-frames", 3, "frames it must be absent to end", at_least=1, metavar="N")
+    add_option(
+        parser,
         "--idle-end",
-        type=float,
-        default=1.0,
-        help="seconds without frames from a camera after which its gestures end (default 1)",
+        1.0,
+        "seconds without frames from a camera after which its gestures end",
+        above=0,
+        metavar="S",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--body",
-        action=argparse.BooleanOptionalAction,
-        default=True,
-        help="run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs "
-        "resting palms; publishes Bodies (default on; --no-body for hands only)",
+        True,
+        "run the body stage (MediaPipe Pose): arm pointing at room distance, raised vs resting palms; "
+        "publishes Bodies (--no-body for hands only)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--ray",
+        "eyes",
+        "body ray: eyes -> fingertip (forearm when the eyes are out of view) or forearm (elbow -> fingertip)",
         choices=("eyes", "forearm"),
-        default="eyes",
-        help="body ray: eyes -> fingertip (forearm when the eyes are out of view; default) or "
-        "forearm (elbow -> fingertip)",
     )
-    parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
-    args = parser.parse_args(argv)
-    for flag in ("max_hands", "start_frames", "end_frames"):
-        if getattr(args, flag) < 1:
-            parser.error(f"--{flag.replace('_', '-')} must be at least 1")
-    if args.start_ms < 0 or args.idle_end <= 0:
-        parser.error("--start-ms must be >= 0 and --idle-end > 0")
+    add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
 
     service = Service("gesture", args)
     try:

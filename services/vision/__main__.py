@@ -9,6 +9,7 @@ from common.depth import UndecodableDepth
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
 from common.schema import Detections, Frame
+from common.settings import add_option
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
@@ -24,56 +25,85 @@ examples:
 """
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
     parser = service_parser(
         "vision",
         "Detect objects (label, colour, box, score, stable id) and image quality "
         "in camera frames; publish Detections for every processed frame.",
         EPILOG,
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--backend",
+        "color",
+        "color: HSV segmentation, no model; onnx: a YOLO model given by --model",
         choices=("color", "onnx"),
-        default="color",
-        help="color: HSV segmentation, no model (default); onnx: a YOLO model given by --model",
     )
-    parser.add_argument("--model", default=None, help="ONNX detector path (YOLOX, YOLOv5 or YOLOv8/11 export)")
-    parser.add_argument(
+    add_option(
+        parser,
+        "--model",
+        None,
+        "ONNX detector path (YOLOX, YOLOv5 or YOLOv8/11 export); a model given means the onnx backend",
+        kind=str,
+        metavar="PATH",
+        default_text="none",
+    )
+    add_option(
+        parser,
         "--labels",
-        default=None,
-        help='color backend: JSON file mapping colour -> label, "*" for any colour (default: every '
-        'object is "object"); onnx backend: the model\'s class names, one per line in class '
-        "order, or a JSON list (default: the 80 COCO names)",
+        None,
+        'color backend: JSON file mapping colour -> label, "*" for any colour; onnx backend: the model\'s '
+        "class names, one per line in class order, or a JSON list",
+        kind=str,
+        metavar="FILE",
+        default_text='color: every object is "object"; onnx: the 80 COCO names',
     )
     parser.add_argument("--names", default=None, help=argparse.SUPPRESS)  # old spelling of --labels for onnx
-    parser.add_argument("--conf", type=float, default=0.3, help="onnx confidence threshold (default 0.3)")
-    parser.add_argument("--iou", type=float, default=0.45, help="onnx NMS IoU threshold (default 0.45)")
-    parser.add_argument(
+    add_option(parser, "--conf", 0.3, "onnx: keep detections scoring at least this", at_least=0, at_most=1, metavar="P")
+    add_option(
+        parser, "--iou", 0.45, "onnx: non-maximum suppression's IoU threshold", at_least=0, at_most=1, metavar="P"
+    )
+    add_option(
+        parser,
         "--family",
+        "auto",
+        "onnx: the export family (auto: read from the output shape)",
         choices=("auto", *FAMILIES),
-        default="auto",
-        help="onnx export family (default: read from the output shape)",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--channels",
+        None,
+        "onnx: the input channel order",
+        kind=str,
         choices=("rgb", "bgr"),
-        default=None,
-        help="onnx input channel order (default: the family's: BGR for yolox, RGB otherwise)",
+        default_text="the family's: bgr for yolox, rgb otherwise",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--input-scale",
-        type=float,
-        default=None,
-        help="multiply 0-255 pixels by this for the model (default: 1 for yolox, 1/255 otherwise)",
+        None,
+        "onnx: multiply 0-255 pixels by this for the model",
+        kind=float,
+        above=0,
+        metavar="X",
+        default_text="1 for yolox, 1/255 otherwise",
     )
-    parser.add_argument(
+    add_option(
+        parser,
         "--letterbox",
+        None,
+        "onnx: where the resized frame sits in the model input",
+        kind=str,
         choices=("center", "topleft"),
-        default=None,
-        help="where the resized frame sits in the model input (default: topleft for yolox)",
+        default_text="topleft for yolox, center otherwise",
     )
-    parser.add_argument("--cams", default="*", help="comma-separated camera ids to process (default: all)")
-    args = parser.parse_args(argv)
+    add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
 
     service = Service("vision", args)
     try:
