@@ -15,6 +15,7 @@ from pathlib import Path
 
 from common.runner import service_parser
 from common.settings import Setting, declared, table
+from common.stack import NODES
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 # where each table lives
@@ -29,8 +30,14 @@ PAGES = {
 BLOCK = re.compile(r"(<!-- settings: (\w+) -->\n)(.*?)(<!-- /settings -->)", re.S)
 
 
+def shared_settings() -> list[Setting]:
+    """The flags every node's parser has (--max-pixels only where a node reads images: common/stack.py)."""
+    per_node = [declared(service_parser(n.name, "")) for n in NODES]
+    return [s for s in per_node[0] if all(s in other for other in per_node[1:])]
+
+
 def settings_for(name: str) -> list[Setting]:
-    shared = declared(service_parser(name, ""))
+    shared = shared_settings()
     if name == "common":
         return shared
     parser = importlib.import_module(f"services.{name}.__main__").build_parser()

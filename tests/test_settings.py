@@ -137,7 +137,7 @@ REFUSED = [
     ("camera", ["--source", "0", "--quality", "101"], "--quality", "1–100"),
     ("camera", ["--source", "0", "--fps", "0"], "--fps", "> 0"),
     ("camera", ["--source", "0", "--count", "0"], "--count", "≥ 1"),
-    ("camera", ["--source", "0", "--max-pixels", "0"], "--max-pixels", "≥ 1"),
+    ("vision", ["--max-pixels", "0"], "--max-pixels", "≥ 1"),
 ]
 
 
