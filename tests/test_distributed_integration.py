@@ -1,6 +1,6 @@
 """The stack split over three (namespace) hosts: a router's, perception's and speech's, links that drop.
 
-Needs root (network namespaces); skips with the reason elsewhere. tests/netns.py builds the hosts.
+Needs root (network namespaces); skips with the reason elsewhere. testkit/netns.py builds the hosts.
 """
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ import pytest
 
 from common.schema import Clarification, FusedCommand
 from hri.cli import make_transcript
-from tests.harness import DATA, Client, Proc
-from tests.netns import netns_fixture
+from testkit.harness import DATA, Client, Proc
+from testkit.netns import netns_fixture
 
 pytestmark = pytest.mark.integration
 
@@ -137,7 +137,7 @@ def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once
     g.service("fusion", *secure, host="speech")
     consumer = g.start(
         "consumer",
-        "tests.recovering_echo",
+        "testkit.recovering_echo",
         g.net.endpoint("perception"),
         "hri/fusion/command",
         *secure[1:],

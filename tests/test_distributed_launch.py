@@ -10,8 +10,8 @@ import pytest
 
 from common.schema import FusedCommand
 from hri.launcher import add_up_arguments, select, services_from_args, starts_router
-from tests.harness import DATA, Client
-from tests.netns import netns_fixture
+from testkit.harness import DATA, Client
+from testkit.netns import netns_fixture
 from tests.test_distributed_integration import next_result, say
 
 TABLE = DATA / "demo" / "table.png"

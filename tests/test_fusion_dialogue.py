@@ -12,8 +12,8 @@ from services.fusion.join import Ready
 from services.fusion.outputs import Outputs
 from services.fusion.parse import parse
 from services.fusion.window import Context
-from tests.scenarios import BASE_STAMP, say, scene_of
-from tests.scenarios.suite import TWO_CUPS
+from testkit.scenarios import BASE_STAMP, say, scene_of
+from testkit.scenarios.suite import TWO_CUPS
 from tests.test_fusion_ground import EVEN
 
 

@@ -8,7 +8,7 @@ import math
 from common.schema import ImageQuality
 from services.fusion.evidence import PointingObs, image_quality, modality_weights, select_pointing, speech_reliability
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, DARK, GOOD, say
+from testkit.scenarios import BASE_STAMP, DARK, GOOD, say
 
 
 def _obs(t, direction, conf=0.9, cam="cam0"):

@@ -7,8 +7,8 @@ from common.schema import Weights
 from services.fusion.evidence import select_pointing
 from services.fusion.ground import choose, pointing_score, ray_point, score
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, Obj, scene_of
-from tests.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
+from testkit.scenarios import BASE_STAMP, Obj, scene_of
+from testkit.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
 from tests.test_fusion_evidence import _obs
 
 

@@ -12,7 +12,7 @@ import pytest
 from services.gesture.landmarks import HandLandmarker
 from services.gesture.rules import classify, pointing_ray
 from services.gesture.temporal import GestureTracker, Observation, angle_between
-from tests.harness import DATA
+from testkit.harness import DATA
 
 HANDS = DATA / "images" / "hands"
 REAL = json.loads((Path(__file__).parent / "data" / "landmarks" / "real_hands.json").read_text())

@@ -10,7 +10,7 @@ import pytest
 from services.gesture.body import arm, arm_ray, raised_palm
 from services.gesture.rules import classify, palm_size
 from services.gesture.temporal import GestureTracker, Observation, angle_between, fuse_arms
-from tests.shared import shared_dir, shared_path
+from testkit.shared import shared_dir, shared_path
 from tests.test_gesture import fold_index, real, rotate
 
 W, H = 640, 480

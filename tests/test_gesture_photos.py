@@ -21,8 +21,8 @@ import pytest
 
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.temporal import GestureTracker
-from tests.harness import DATA
-from tests.shared import shared_dir, shared_path
+from testkit.harness import DATA
+from testkit.shared import shared_dir, shared_path
 
 OPENCV_DOC = Path("/usr/share/doc/opencv-doc/opencv4/html")
 FRAMES = 6

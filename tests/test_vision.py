@@ -14,7 +14,7 @@ from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter
 from services.vision.track import Tracker
 from services.vision.yolo import Letterbox, ModelError, YoloDetector, decode, letterbox
-from tests.harness import DATA
+from testkit.harness import DATA
 
 TABLETOP = DATA / "images" / "tabletop"
 

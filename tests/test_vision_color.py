@@ -13,7 +13,7 @@ from services.fusion.colour import PLAUSIBLE
 from services.vision.color import SRGB_TO_LINEAR, illuminant_gains, linear_to_srgb8, measure_lab
 from services.vision.core import VisionPipeline, object_colour
 from services.vision.segment import ColorSegmenter
-from tests.harness import DATA
+from testkit.harness import DATA
 
 SMARTIES = DATA / "images" / "tabletop" / "smarties.png"
 FRUITS = DATA / "images" / "tabletop" / "fruits.jpg"
@@ -129,7 +129,7 @@ def test_the_colour_backend_publishes_no_measurement():
 @pytest.fixture(scope="module")
 def yolox():
     from services.vision.yolo import YoloDetector
-    from tests.shared import yolox_model
+    from testkit.shared import yolox_model
 
     return YoloDetector(str(yolox_model()))
 
@@ -154,7 +154,7 @@ PEOPLE = {
 
 def test_a_person_is_the_colour_they_wear_not_their_skin(yolox):
     """The issue: "a black T-shirt makes an orange person". Skin is left out of a person's pixels."""
-    from tests.shared import shared_path
+    from testkit.shared import shared_path
 
     folder = shared_path("data/people")
     for name, colours in PEOPLE.items():

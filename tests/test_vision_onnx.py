@@ -22,8 +22,8 @@ from services.vision.yolo import (
     letterbox,
     read_names,
 )
-from tests.harness import DATA, ROOT
-from tests.shared import yolox_model
+from testkit.harness import DATA, ROOT
+from testkit.shared import yolox_model
 from tests.test_vision import tiny_yolo
 
 COFFEE = DATA / "images" / "coffee.png"  # scikit-image's coffee cup on a saucer on a wooden table (CC0)

@@ -7,7 +7,7 @@ import cv2
 import msgspec
 
 from common.schema import Sample
-from tests.harness import DATA
+from testkit.harness import DATA
 from tests.test_codec import examples
 
 
