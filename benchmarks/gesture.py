@@ -182,7 +182,7 @@ def print_rays() -> None:
 
 
 def print_photos() -> None:
-    from tests.test_gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
+    from testkit.gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
 
     people = sorted((SHARED / "data" / "people").glob("*.jpg"))
     sets = {"27 hand photos": HAND_PHOTOS_27}
