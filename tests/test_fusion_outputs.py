@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from common.schema import FusedCommand
 from services.fusion.outputs import stable_id
+from testkit.fusion import utterance, window
 from testkit.scenarios import Obj, by_time, pointing, run_in_process, say, scene
 
 
@@ -40,7 +41,6 @@ def test_one_builder_for_commands_and_questions():
     from services.fusion.outputs import Outputs
     from testkit.scenarios import scene_of
     from testkit.scenarios.suite import CANDIES
-    from tests.test_fusion_dialogue import utterance, window
 
     build = Outputs("fusion/test")
     t, _ = utterance(0.0, "put it there")
