@@ -11,7 +11,7 @@ import pytest
 
 from common.schema import AudioChunk
 from testkit.harness import DATA, ROOT, Client
-from testkit.synth import concatenate, read_wav_int16, synthesize
+from testkit.synth import concatenate, music_like, read_wav_int16, synthesize
 
 pytestmark = pytest.mark.integration
 
@@ -147,7 +147,6 @@ def test_text_backend_publishes_typed_lines_and_exits_when_done(group):
 
 def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_speech(group, tmp_path):
     from testkit.synth import PIPER_VOICE
-    from tests.test_speech_whisper import music_like
 
     group.router()
     speech = group.service("speech", "--input", "zenoh", "--instance", "w1")  # the default backend
