@@ -19,9 +19,8 @@ import zenoh
 from common.codec import decode
 from common.keys import Keys
 from common.runner import SamplePublisher
-from common.schema import Sample
+from common.schema import Sample, make_transcript
 from common.transport import live_tokens, open_client
-from hri.cli import make_transcript
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "data"
