@@ -2,13 +2,13 @@
 
 1. latency: last word -> command. A final Transcript is published (its `end`, the last word, is the publish
    time) and the FusedCommand it causes is timed at the subscriber: router, fusion and this process all on
-   loopback, vs router, fusion and this process each in its own network namespace (tests/netns.py: veth
+   loopback, vs router, fusion and this process each in its own network namespace (testkit/netns.py: veth
    links through the router's namespace). Only fusion runs (a "turn left" needs no vision): the figure is the
    price of the extra hops, not of perception.
 2. reconnection: the perception host (a camera service) loses its link for --outage seconds (5 by default);
    time from the link's return until its liveliness token is back on the router, p50/max over the outages.
 3. commands lost / duplicated: during each outage --per-outage commands are published by fusion while a
-   recovering consumer (tests/recovering_echo.py) sits behind the cut link; after every outage the consumer
+   recovering consumer (testkit/recovering_echo.py) sits behind the cut link; after every outage the consumer
    must have every command once, in order. Goal 0 and 0.
 
 Needs root (network namespaces). Usage:
@@ -20,15 +20,11 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from hri.cli import make_transcript  # noqa: E402
-from tests.harness import DATA, Client, ProcessGroup  # noqa: E402
-from tests.netns import NetnsGroup, Network, cleanup_leftovers, unavailable  # noqa: E402
+from hri.cli import make_transcript
+from testkit.harness import DATA, Client, ProcessGroup
+from testkit.netns import NetnsGroup, Network, cleanup_leftovers, unavailable
 
 WORDS = ["turn left", "turn right"]
 
@@ -87,7 +83,7 @@ def distributed(args) -> dict:
         g.service("camera", "--source", str(DATA / "demo" / "table.png"), "--fps", "5", "--loop", host="perception")
         consumer = g.start(
             "consumer",
-            "tests.recovering_echo",
+            "testkit.recovering_echo",
             net.endpoint("perception"),
             "hri/fusion/command",
             connect=False,

@@ -18,20 +18,16 @@ Run: .venv/bin/python benchmarks/fusion.py [--quick]
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 import tracemalloc
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from common.codec import encode  # noqa: E402
-from common.schema import FusedCommand  # noqa: E402
-from services.fusion.core import Config, FusionCore  # noqa: E402
-from services.fusion.ground import choose, score  # noqa: E402
-from services.fusion.join import Ready  # noqa: E402
-from services.fusion.parse import parse  # noqa: E402
-from tests.scenarios import BASE_STAMP, Obj, gesture, hands, say, see  # noqa: E402
+from common.codec import encode
+from common.schema import FusedCommand
+from services.fusion.core import Config, FusionCore
+from services.fusion.ground import choose, score
+from services.fusion.join import Ready
+from services.fusion.parse import parse
+from testkit.scenarios import BASE_STAMP, Obj, gesture, hands, say, see
 
 COLORS = ("red", "blue", "green", "yellow", "orange", "purple")
 
@@ -148,8 +144,8 @@ def warm_up(client, timeout: float = 30.0) -> None:
 
 
 def over_zenoh(reps: int) -> tuple[list[float], list[float]] | None:
-    from tests.harness import Client, ProcessGroup
-    from tests.scenarios import scene
+    from testkit.harness import Client, ProcessGroup
+    from testkit.scenarios import scene
 
     group = ProcessGroup()
     client = None

@@ -1,6 +1,6 @@
 """Fixed vs adaptive modality weights: accuracy side by side.
 
-Runs (in process, deterministic) the scenario suite of tests/scenarios plus a seeded sweep of
+Runs (in process, deterministic) the scenario suite of testkit/scenarios plus a seeded sweep of
 degraded trials, once with `--weights adaptive` and once with `--weights fixed`:
 - noisy speech: ASR heard the wrong colour, with low confidence; the person points clearly at the
   right object -> expected: the pointed object;
@@ -11,8 +11,8 @@ degraded trials, once with `--weights adaptive` and once with `--weights fixed`:
 - clear gesture: "that cup" + a steady point -> the pointed object;
 - clear both, disagreeing: says one, points at the other -> expected: a conflict question.
 With ../shared/ present it also scores the scenes made from the real YOLOX-Nano detections on real photos
-(tests/scenarios/real.py: "the cup", "the person", "the fruit" -> question, "the banana" -> not found …) and the
-real indoor scenes of ../shared/data/scenes/ line by line (tests/scenarios/indoor.py).
+(testkit/scenarios/real.py: "the cup", "the person", "the fruit" -> question, "the banana" -> not found …) and the
+real indoor scenes of ../shared/data/scenes/ line by line (testkit/scenarios/indoor.py).
 An outcome counts as correct only if it is exactly the expected command or question.
 
 Run: .venv/bin/python benchmarks/fusion_eval.py [--trials N]
@@ -26,12 +26,11 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from services.fusion.core import Config
+from testkit.scenarios import DARK, Expect, Obj, Scenario, by_time, check, pointing, run_in_process, say, scene
+from testkit.scenarios.suite import SCENARIOS
 
-from services.fusion.core import Config  # noqa: E402
-from tests.scenarios import DARK, Expect, Obj, Scenario, by_time, check, pointing, run_in_process, say, scene  # noqa
-from tests.scenarios.suite import SCENARIOS  # noqa: E402
+ROOT = Path(__file__).resolve().parent.parent
 
 COLORS = ("red", "blue", "green", "yellow")
 
@@ -94,7 +93,7 @@ def evaluate(scenarios: list[Scenario], mode: str) -> dict[str, list[bool]]:
 
 
 def real_photo_scenarios() -> list[Scenario]:
-    """The scenes of tests/scenarios/real.py, when ../shared/ (the YOLOX-Nano model, photos) and onnxruntime are
+    """The scenes of testkit/scenarios/real.py, when ../shared/ (the YOLOX-Nano model, photos) and onnxruntime are
     there; else none, said on stderr."""
     import os
 
@@ -104,7 +103,7 @@ def real_photo_scenarios() -> list[Scenario]:
         print(f"real photos: skipped, no model at {model} (set HRI_SHARED or HRI_YOLOX_MODEL)", file=sys.stderr)
         return []
     try:
-        from tests.scenarios.real import real_scenarios, yolox_detector
+        from testkit.scenarios.real import real_scenarios, yolox_detector
 
         return real_scenarios(
             yolox_detector(model), lambda name: ROOT / name[5:] if name.startswith("repo:") else shared / name
@@ -116,7 +115,7 @@ def real_photo_scenarios() -> list[Scenario]:
 
 def indoor_scenes() -> None:
     """The real indoor scenes (../shared/data/scenes/: 12 photos, 30 sentences with the right answers) through
-    vision's own pipeline and the fusion core, line by line (tests/scenarios/indoor.py)."""
+    vision's own pipeline and the fusion core, line by line (testkit/scenarios/indoor.py)."""
     import os
 
     shared = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
@@ -126,7 +125,7 @@ def indoor_scenes() -> None:
         print(f"indoor scenes: skipped, no {folder / 'scenes.json'} or no model at {model}", file=sys.stderr)
         return
     try:
-        from tests.scenarios.indoor import evaluate as evaluate_lines, load_lines, report, vision_pipeline
+        from testkit.scenarios.indoor import evaluate as evaluate_lines, load_lines, report, vision_pipeline
 
         print("indoor scenes (real photos, YOLOX-Nano + vision's colours, adaptive weights)")
         print(report(evaluate_lines(load_lines(folder), vision_pipeline(model), folder)))

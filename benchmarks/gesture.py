@@ -23,21 +23,18 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+import cv2
+import numpy as np
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-from benchmarks.lag import frame_lag, print_throughput  # noqa: E402
-from common.schema import Hands  # noqa: E402
-from services.gesture.body import arm, arm_ray  # noqa: E402
-from services.gesture.landmarks import HandLandmarker, PoseLandmarker  # noqa: E402
-from services.gesture.temporal import GestureTracker, angle_between  # noqa: E402
-from tests.harness import DATA, ROOT  # noqa: E402
+from common.schema import Hands
+from services.gesture.body import arm, arm_ray
+from services.gesture.landmarks import HandLandmarker, PoseLandmarker
+from services.gesture.temporal import GestureTracker, angle_between
+from testkit.harness import DATA, ROOT
+from testkit.lag import frame_lag, print_throughput
 
 SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
 
@@ -185,7 +182,7 @@ def print_rays() -> None:
 
 
 def print_photos() -> None:
-    from tests.test_gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
+    from testkit.gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
 
     people = sorted((SHARED / "data" / "people").glob("*.jpg"))
     sets = {"27 hand photos": HAND_PHOTOS_27}

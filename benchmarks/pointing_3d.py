@@ -17,17 +17,14 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+import cv2
+import numpy as np
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-from common.depth import depth_frame, depth_metres  # noqa: E402
-from common.schema import (  # noqa: E402
+from common.depth import depth_frame, depth_metres
+from common.schema import (
     CameraInfo,
     DetectedObject,
     Detections,
@@ -37,9 +34,9 @@ from common.schema import (  # noqa: E402
     Ray,
     Ray3D,
 )
-from services.fusion.evidence import pointing_from_hands, select_pointing  # noqa: E402
-from services.fusion.ground import best_pointed, scene_objects  # noqa: E402
-from services.gesture.space import DepthView, FrameRays, Lifted, depth_view, surface_hit  # noqa: E402
+from services.fusion.evidence import pointing_from_hands, select_pointing
+from services.fusion.ground import best_pointed, scene_objects
+from services.gesture.space import DepthView, FrameRays, Lifted, depth_view, surface_hit
 
 SHARED = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "rgbd"
 

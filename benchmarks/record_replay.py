@@ -23,23 +23,16 @@ import threading
 import time
 from pathlib import Path
 
-ROOT = (
-    Path(__file__).resolve().parent.parent
-    if (Path(__file__).resolve().parent.parent / "common").exists()
-    else Path("/work/main")
-)
-sys.path.insert(0, str(ROOT))
+import zenoh
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
 
-import zenoh  # noqa: E402
-from mcap.reader import make_reader  # noqa: E402
-from mcap.writer import CompressionType, Writer  # noqa: E402
-
-from benchmarks.payloads import realistic_samples  # noqa: E402
-from common.codec import ENCODING, encode  # noqa: E402
-from common.keys import Keys  # noqa: E402
-from common.transport import open_client  # noqa: E402
-from hri.recording import SessionWriter  # noqa: E402
-from tests.harness import Proc, ProcessGroup  # noqa: E402
+from common.codec import ENCODING, encode
+from common.keys import Keys
+from common.transport import open_client
+from hri.recording import SessionWriter
+from testkit.harness import Proc, ProcessGroup
+from testkit.payloads import realistic_samples
 
 
 def payloads() -> dict[str, tuple[str, bytes]]:

@@ -28,26 +28,21 @@ Audio: the 32 test commands (tests/data/speech/commands*.txt), spoken by the pip
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from common.codec import decode  # noqa: E402
-from common.schema import AudioChunk, Clarification, FusedCommand, Transcript  # noqa: E402
-from services.fusion.parse import parse  # noqa: E402
-from services.speech.audio import RATE, read_wav  # noqa: E402
-from services.speech.pipeline import MicStream  # noqa: E402
-from services.speech.recognizers import PocketsphinxRecognizer  # noqa: E402
-from services.speech.synth import PIPER_VOICE, read_wav_int16  # noqa: E402
-from services.speech.vad import make_segmenter  # noqa: E402
-from services.speech.whisper import (  # noqa: E402
+from common.codec import decode
+from common.schema import AudioChunk, Clarification, FusedCommand, Transcript
+from services.fusion.parse import parse
+from services.speech.audio import RATE, read_wav
+from services.speech.pipeline import MicStream
+from services.speech.recognizers import PocketsphinxRecognizer
+from services.speech.vad import make_segmenter
+from services.speech.whisper import (
     MIN_TOKENS,
     PROMPTS,
     TOKENS_PER_SECOND,
@@ -55,9 +50,12 @@ from services.speech.whisper import (  # noqa: E402
     WhisperSettings,
     normalise_words,
 )
-from tests.harness import Client, ProcessGroup  # noqa: E402
-from tests.shared import shared_dir  # noqa: E402
-from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors  # noqa: E402
+from testkit.harness import Client, ProcessGroup
+from testkit.shared import shared_dir
+from testkit.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors
+from testkit.synth import PIPER_VOICE, read_wav_int16
+
+ROOT = Path(__file__).resolve().parent.parent
 
 GAP = 1.0
 

@@ -28,21 +28,18 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+import msgpack
+import zenoh
 
-import msgpack  # noqa: E402
-import zenoh  # noqa: E402
-
-from benchmarks.payloads import realistic_samples  # noqa: E402
-from common.codec import ENCODING, decode, encode  # noqa: E402
-from common.runner import SamplePublisher  # noqa: E402
-from common.transport import open_client  # noqa: E402
-from tests.harness import ProcessGroup  # noqa: E402
+from common.codec import ENCODING, decode, encode
+from common.runner import SamplePublisher
+from common.transport import open_client
+from testkit.harness import ProcessGroup
+from testkit.payloads import realistic_samples
 
 
 def run_once(pub_session, sub_session, key: str, n: int, send, on_payload) -> tuple[float, float]:

@@ -17,14 +17,12 @@ from pathlib import Path
 
 import cv2
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from common.codec import encode  # noqa: E402
-from common.schema import Detections, Frame  # noqa: E402
-from services.vision.core import VisionPipeline  # noqa: E402
-from services.vision.segment import ColorSegmenter  # noqa: E402
-from tests.browser import CHROMIUM, Browser  # noqa: E402
-from tests.harness import DATA, ROOT, Client, Proc, ProcessGroup  # noqa: E402
+from common.codec import encode
+from common.schema import Detections, Frame
+from services.vision.core import VisionPipeline
+from services.vision.segment import ColorSegmenter
+from testkit.browser import CHROMIUM, Browser
+from testkit.harness import DATA, ROOT, Client, Proc, ProcessGroup
 
 BARE_SUBSCRIBER = """
 import sys, threading, zenoh

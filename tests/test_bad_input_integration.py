@@ -9,7 +9,7 @@ import pytest
 from common.codec import encode
 from common.schema import Frame
 from hri.cli import make_transcript
-from tests.harness import DATA, Client, requires_services
+from testkit.harness import DATA, Client, requires_services
 
 pytestmark = pytest.mark.integration
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from common.image import frame_image
-from tests.harness import DATA, ROOT, Client
+from testkit.harness import DATA, ROOT, Client
 
 pytestmark = pytest.mark.integration
 TABLETOP = DATA / "images" / "tabletop"

@@ -24,7 +24,7 @@ from services.camera.rgbd import (
 )
 from services.camera.source import SourceError
 from services.vision.depth import object_depth
-from tests.shared import shared_path
+from testkit.shared import shared_path
 
 YCB = {
     "width": 640,

@@ -11,7 +11,7 @@ import pytest
 from common.schema import Frame
 from common.stamps import DEFAULT_RESET_RUN
 from hri.cli import make_transcript
-from tests.harness import DATA, Client
+from testkit.harness import DATA, Client
 
 pytestmark = pytest.mark.integration
 

@@ -9,8 +9,8 @@ import pytest
 
 from common.schema import Hands
 from services.fusion.join import ClockOffsets, clock_verdict
-from tests.harness import Client
-from tests.netns import netns_fixture
+from testkit.harness import Client
+from testkit.netns import netns_fixture
 
 
 def feed(

@@ -1,6 +1,6 @@
 """The stack split over three (namespace) hosts: a router's, perception's and speech's, links that drop.
 
-Needs root (network namespaces); skips with the reason elsewhere. tests/netns.py builds the hosts.
+Needs root (network namespaces); skips with the reason elsewhere. testkit/netns.py builds the hosts.
 """
 
 from __future__ import annotations
@@ -11,9 +11,8 @@ import time
 import pytest
 
 from common.schema import Clarification, FusedCommand
-from hri.cli import make_transcript
-from tests.harness import DATA, Client, Proc
-from tests.netns import netns_fixture
+from testkit.harness import DATA, Client, Proc, type_command
+from testkit.netns import netns_fixture
 
 pytestmark = pytest.mark.integration
 
@@ -32,20 +31,6 @@ def rss_mb(pid: int) -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024
     return 0.0
-
-
-def say(client: Client, text: str, seconds_per_word: float = 0.2) -> None:
-    client.publish(
-        "hri/speech/kbd/transcript",
-        make_transcript(
-            text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd", seconds_per_word=seconds_per_word
-        ),
-    )
-
-
-def next_result(results, timeout: float = 30.0):
-    n = len(results.seen) + 1
-    return results.wait(n, timeout=timeout)[-1][1]
 
 
 def wait_until(condition, timeout: float, what: str, step: float = 0.05) -> float:
@@ -71,8 +56,8 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
             client.wait_alive(name, timeout=90)
         results = client.collect("hri/fusion/**")
         time.sleep(1.0)
-        say(client, "pick up the red one")
-        first = next_result(results)
+        type_command(client, "pick up the red one")
+        first = results.next()
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.color == "red", first
         assert first.inputs["vision"] is not None
         rss_before = {p.name: rss_mb(p.pid) for p in (camera, vision, gesture, fusion)}
@@ -86,8 +71,8 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
             "the perception host's liveliness tokens gone",
         )
         time.sleep(max(0.0, t_cut + 4.2 - time.monotonic()))  # vision's last samples are past fusion's look-back
-        say(client, "pick up the red one")
-        blind = next_result(results)
+        type_command(client, "pick up the red one")
+        blind = results.next()
         # fusion answers with what it has and says what is missing, as with a dead vision service
         assert isinstance(blind, Clarification) and blind.reason == "not_found", blind
         assert "can't see" in blind.question and not blind.candidates
@@ -103,8 +88,8 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         print(f"reconnected {t_back - t_up:.2f} s after the link came back")
 
         time.sleep(1.5)  # fresh frames through vision
-        say(client, "pick up the red one")
-        again = next_result(results)
+        type_command(client, "pick up the red one")
+        again = results.next()
         assert isinstance(again, FusedCommand) and again.target is not None and again.target.color == "red", again
         # grounded on detections of frames taken after the link returned, not on what was in flight at the cut
         assert again.inputs["vision"] is not None and again.inputs["vision"] >= wall_up, (again.inputs, wall_up)
@@ -137,7 +122,7 @@ def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once
     g.service("fusion", *secure, host="speech")
     consumer = g.start(
         "consumer",
-        "tests.recovering_echo",
+        "testkit.recovering_echo",
         g.net.endpoint("perception"),
         "hri/fusion/command",
         *secure[1:],
@@ -152,7 +137,7 @@ def test_commands_sent_during_an_outage_reach_a_consumer_across_it_in_order_once
         words = iter(["turn left", "turn right"] * 20)
 
         def command() -> None:
-            say(client, next(words))
+            type_command(client, next(words))
 
         time.sleep(1.0)
         for _ in range(3):

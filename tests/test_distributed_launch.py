@@ -10,9 +10,8 @@ import pytest
 
 from common.schema import FusedCommand
 from hri.launcher import add_up_arguments, select, services_from_args, starts_router
-from tests.harness import DATA, Client
-from tests.netns import netns_fixture
-from tests.test_distributed_integration import next_result, say
+from testkit.harness import DATA, Client, type_command
+from testkit.netns import netns_fixture
 
 TABLE = DATA / "demo" / "table.png"
 
@@ -86,8 +85,8 @@ def test_two_hosts_each_run_part_of_the_stack_with_hri_up(netns_group):
             client.wait_alive(name, timeout=90)
         results = client.collect("hri/fusion/**")
         time.sleep(1.0)
-        say(client, "pick up the red one")
-        cmd = next_result(results)
+        type_command(client, "pick up the red one")
+        cmd = results.next()
         assert isinstance(cmd, FusedCommand) and cmd.target is not None and cmd.target.color == "red", cmd
         assert "[camera ]" in host_a.output() and "[vision ]" in host_a.output()
         assert "[fusion ]" in host_b.output() and "[vision" not in host_b.output()

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from tests.netns import NAME_PREFIX, Network, cleanup_leftovers, netns_fixture, unavailable
+from testkit.netns import NAME_PREFIX, Network, cleanup_leftovers, netns_fixture, unavailable
 
 needs_root = pytest.mark.skipif(unavailable() is not None, reason=str(unavailable()))
 

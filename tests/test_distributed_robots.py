@@ -10,7 +10,7 @@ from common.codec import encode
 from common.schema import FusedCommand, Weights
 from common.security import access_control, init_secrets, login_user, may_publish, read_passwords
 from hri.cli import make_transcript
-from tests.harness import Client, wait_for_port
+from testkit.harness import Client, wait_for_port
 
 
 def site(tmp_path):

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.harness import ROOT, Client, free_port, wait_for_port
+from testkit.harness import ROOT, Client, free_port, wait_for_port
 
 SKIP_CODE = 77
 # A cold run (apt, debootstrap, wheels, build) takes a few minutes on 2 shared cores; a warm one ~30 s.

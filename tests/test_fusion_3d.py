@@ -25,7 +25,7 @@ from services.fusion import space
 from services.fusion.evidence import pointing_from_hands, select_pointing
 from services.fusion.ground import best_pointed, pointed_location, scene_objects, score
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, KEYS, Scenario, Step, landmarks_at, run_in_process, say
+from testkit.scenarios import BASE_STAMP, KEYS, Scenario, Step, landmarks_at, run_in_process, say
 
 F, CX, CY, W, H = 600.0, 320.0, 240.0, 640, 480
 FRAME = "cam0_optical"

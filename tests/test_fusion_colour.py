@@ -17,7 +17,7 @@ from services.fusion.ground import SceneObject, choose, score
 from services.fusion.parse import parse
 from services.vision.color import measure_lab
 from services.vision.core import object_colour
-from tests.test_vision_color import CANDIES, SMARTIES, hsv_patch
+from testkit.vision import CANDIES, SMARTIES, hsv_patch
 
 SPEECH = Weights(speech=0.6, vision=0.4, gesture=0.0)
 

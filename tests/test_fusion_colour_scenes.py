@@ -15,7 +15,7 @@ from services.fusion.ground import choose, scene_objects, score
 from services.fusion.parse import parse
 from services.vision.core import VisionPipeline
 from services.vision.track import iou
-from tests.shared import shared_path, yolox_model
+from testkit.shared import shared_path, yolox_model
 
 RELATION_WORDS = (" in front", " in the ", " next to ", " behind ", " between ")
 

@@ -9,8 +9,8 @@ import pytest
 
 from common.schema import Clarification
 from services.fusion.core import Config, FusionCore
-from tests.scenarios import BASE_STAMP, check, pointing, run_in_process, say, scene
-from tests.scenarios.suite import BLUE_CUP, SCENARIOS, TWO_CUPS, normal
+from testkit.scenarios import BASE_STAMP, check, pointing, run_in_process, say, scene
+from testkit.scenarios.suite import BLUE_CUP, SCENARIOS, TWO_CUPS, normal
 
 
 def interleaved(scenario, seed: int) -> list[int]:
@@ -59,7 +59,7 @@ def test_every_scenario_in_process():
 
 def test_wrong_object_is_never_chosen_by_default_when_nothing_fits():
     scenario_steps = normal(TWO_CUPS, "pick up the green ball")
-    from tests.scenarios import Scenario
+    from testkit.scenarios import Scenario
 
     out = run_in_process(Scenario("x", scenario_steps, []))
     assert len(out) == 1 and isinstance(out[0], Clarification) and out[0].reason == "not_found"

@@ -8,34 +8,11 @@ import logging
 
 from common.schema import Clarification, FusedCommand
 from services.fusion.dialogue import Dialogue, Draft
-from services.fusion.join import Ready
 from services.fusion.outputs import Outputs
-from services.fusion.parse import parse
 from services.fusion.window import Context
-from tests.scenarios import BASE_STAMP, say, scene_of
-from tests.scenarios.suite import TWO_CUPS
-from tests.test_fusion_ground import EVEN
-
-
-def window(objects) -> Context:
-    return Context(
-        objects,
-        [],
-        None,
-        EVEN,
-        {"speech": 0.9, "vision": 0.9, "gesture": None},
-        {"speech": BASE_STAMP, "vision": BASE_STAMP, "gesture": None},
-        ["gesture"],
-        BASE_STAMP,
-        Ready("watermarks"),
-        adaptive=True,
-        margin=0.1,
-    )
-
-
-def utterance(start: float, text: str):
-    _, t = say(start, start + 1.0, text).build(BASE_STAMP)
-    return t, parse(t.text)
+from testkit.fusion import utterance, window
+from testkit.scenarios import BASE_STAMP, scene_of
+from testkit.scenarios.suite import TWO_CUPS
 
 
 def asked_which_cup(counts: list[str]) -> tuple[Dialogue, Context, Clarification]:

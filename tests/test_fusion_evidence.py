@@ -3,28 +3,22 @@ modality weights, speech reliability."""
 
 from __future__ import annotations
 
-import math
-
 from common.schema import ImageQuality
-from services.fusion.evidence import PointingObs, image_quality, modality_weights, select_pointing, speech_reliability
+from services.fusion.evidence import image_quality, modality_weights, select_pointing, speech_reliability
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, DARK, GOOD, say
-
-
-def _obs(t, direction, conf=0.9, cam="cam0"):
-    n = math.hypot(*direction)
-    return PointingObs(t, cam, "right", (320.0, 470.0), (direction[0] / n, direction[1] / n), conf, 640, 480)
+from testkit.fusion import pointing_obs
+from testkit.scenarios import BASE_STAMP, DARK, GOOD, say
 
 
 def test_pointing_steady_ray_is_stable_and_shaky_ray_is_not():
-    steady = select_pointing([_obs(1.0 + i * 0.1, (1, -1)) for i in range(6)], 1.2)
-    shaky = select_pointing([_obs(1.0 + i * 0.1, (1, -1 + (0.6 if i % 2 else -0.6))) for i in range(6)], 1.2)
+    steady = select_pointing([pointing_obs(1.0 + i * 0.1, (1, -1)) for i in range(6)], 1.2)
+    shaky = select_pointing([pointing_obs(1.0 + i * 0.1, (1, -1 + (0.6 if i % 2 else -0.6))) for i in range(6)], 1.2)
     assert steady.stability > 0.95 and shaky.stability < 0.3
     assert steady.reliability > shaky.reliability
 
 
 def test_pointing_nearest_to_the_deictic_word_wins():
-    obs = [_obs(0.0, (-1, -1)), _obs(3.0, (1, -1))]
+    obs = [pointing_obs(0.0, (-1, -1)), pointing_obs(3.0, (1, -1))]
     assert select_pointing(obs, 2.6).direction[0] > 0
     assert select_pointing(obs, 0.4).direction[0] < 0
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from services.fusion.core import Config, FusionCore
 from services.fusion.gestures import OPEN_PALM_FRAMES, Gestures
-from tests.scenarios import BASE_STAMP, gesture, hands
+from testkit.scenarios import BASE_STAMP, gesture, hands
 
 
 def test_gesture_episode_gives_one_stop_and_a_new_episode_another():

@@ -7,17 +7,14 @@ from common.schema import Weights
 from services.fusion.evidence import select_pointing
 from services.fusion.ground import choose, pointing_score, ray_point, score
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, Obj, scene_of
-from tests.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
-from tests.test_fusion_evidence import _obs
+from testkit.fusion import EVEN, pointing_obs
+from testkit.scenarios import BASE_STAMP, Obj, scene_of
+from testkit.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
 
 
 def _pointing_at(target, origin=(320.0, 470.0)):
     d = (target[0] - origin[0], target[1] - origin[1])
-    return select_pointing([_obs(BASE_STAMP + i * 0.1, d) for i in range(5)], BASE_STAMP + 0.2)
-
-
-EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
+    return select_pointing([pointing_obs(BASE_STAMP + i * 0.1, d) for i in range(5)], BASE_STAMP + 0.2)
 
 
 def test_grounding_by_colour_class_and_position():

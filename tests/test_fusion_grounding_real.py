@@ -1,5 +1,5 @@
 """Grounding by name on scenes made from the real YOLOX-Nano model's detections on real photos
-(tests/scenarios/real.py), in process. The same scenarios run over Zenoh in test_fusion_scenarios.py and are
+(testkit/scenarios/real.py), in process. The same scenarios run over Zenoh in test_fusion_scenarios.py and are
 scored in benchmarks/fusion_eval.py. Skipped with the reason when the model (../shared/) is absent."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from pathlib import Path
 import pytest
 
 from common.schema import Clarification
-from tests.scenarios import check, describe, run_in_process
-from tests.scenarios.real import CASES, FRUIT_PHOTO, real_scenarios, yolox_detector
-from tests.shared import ROOT, shared_path, yolox_model
+from testkit.scenarios import check, describe, run_in_process
+from testkit.scenarios.real import CASES, FRUIT_PHOTO, real_scenarios, yolox_detector
+from testkit.shared import ROOT, shared_path, yolox_model
 
 
 def photo(name: str) -> Path:

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from services.fusion.core import Config, FusionCore
 from services.fusion.join import Join, Liveness, Ready, SeenOnce, StreamBuffer, Wait, ready
-from tests.scenarios import BASE_STAMP, say, scene
-from tests.scenarios.suite import TWO_CUPS
+from testkit.scenarios import BASE_STAMP, say, scene
+from testkit.scenarios.suite import TWO_CUPS
 
 
 def test_stream_buffer_orders_dedupes_and_stays_bounded():

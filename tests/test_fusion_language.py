@@ -266,8 +266,8 @@ def test_whisper_words_with_spaces_and_punctuation_count_for_speech_reliability(
 
 
 def test_a_motion_reaches_the_planner_prompt_and_the_command():
-    from tests.scenarios import check, run_in_process
-    from tests.scenarios.suite import SCENARIOS
+    from testkit.scenarios import check, run_in_process
+    from testkit.scenarios.suite import SCENARIOS
 
     scenario = next(s for s in SCENARIOS if s.name == "motion: go left 2 steps")
     (cmd,) = run_in_process(scenario)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from common.schema import FusedCommand
 from services.fusion.outputs import stable_id
-from tests.scenarios import Obj, by_time, pointing, run_in_process, say, scene
+from testkit.fusion import utterance, window
+from testkit.scenarios import Obj, by_time, pointing, run_in_process, say, scene
 
 
 def test_ids_are_deterministic_and_distinct():
@@ -15,7 +16,7 @@ def test_ids_are_deterministic_and_distinct():
 def test_prompt_lists_the_scene_and_is_bounded():
     many = [Obj(f"o{i}", "candy", "red", (5 + i * 0.6, 240), (4, 4), score=0.5 + i / 4000) for i in range(1000)]
     out = run_in_process(
-        __import__("tests.scenarios", fromlist=["Scenario"]).Scenario(
+        __import__("testkit.scenarios", fromlist=["Scenario"]).Scenario(
             "many", by_time(scene(many, -1.0, 2.0, 0.5) + pointing(None) + [say(0.0, 1.5, "hello")]), []
         )
     )
@@ -25,7 +26,7 @@ def test_prompt_lists_the_scene_and_is_bounded():
 
 
 def test_named_places_are_published_in_the_command():
-    from tests.scenarios import Scenario, run_in_process, say
+    from testkit.scenarios import Scenario, run_in_process, say
 
     out = run_in_process(Scenario("place", [say(0.0, 1.2, "go to the kitchen")], []))
     (cmd,) = out
@@ -38,9 +39,8 @@ def test_one_builder_for_commands_and_questions():
     from common.schema import Clarification, Location
     from services.fusion.ground import MAX_CANDIDATES
     from services.fusion.outputs import Outputs
-    from tests.scenarios import scene_of
-    from tests.scenarios.suite import CANDIES
-    from tests.test_fusion_dialogue import utterance, window
+    from testkit.scenarios import scene_of
+    from testkit.scenarios.suite import CANDIES
 
     build = Outputs("fusion/test")
     t, _ = utterance(0.0, "put it there")

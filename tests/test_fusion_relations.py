@@ -13,7 +13,7 @@ from services.fusion import relations as R, touch
 from services.fusion.evidence import Pointing
 from services.fusion.ground import choose, deictic_scores, score
 from services.fusion.parse import parse
-from tests.scenarios import BASE_STAMP, Obj, scene_of
+from testkit.scenarios import BASE_STAMP, Obj, scene_of
 
 EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
 SPEECH = Weights(speech=1.0, vision=0.0, gesture=0.0)
@@ -271,7 +271,7 @@ CLUSTER = [
     [("the one next to the laptop", "cup_a"), ("the one by the sink", "cup_b"), ("the cup beside the sink", "cup_b")],
 )
 def test_the_question_names_what_tells_the_cups_apart_and_those_words_answer_it(answer, target):
-    from tests.scenarios import Expect, Scenario, by_time, check, pointing, run_in_process, say, scene
+    from testkit.scenarios import Expect, Scenario, by_time, check, pointing, run_in_process, say, scene
 
     steps = (
         scene(CLUSTER, t1=6.0) + pointing(None, t1=6.0) + [say(0.0, 1.5, "pick up the red cup"), say(3.0, 4.5, answer)]

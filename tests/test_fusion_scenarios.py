@@ -12,8 +12,8 @@ import time
 import pytest
 
 from common.schema import Clarification, FusedCommand
-from tests.harness import Client, ProcessGroup
-from tests.scenarios import (
+from testkit.harness import Client, ProcessGroup
+from testkit.scenarios import (
     BASE_STAMP,
     SCENARIO_SPACING,
     Scenario,
@@ -25,7 +25,7 @@ from tests.scenarios import (
     say,
     see,
 )
-from tests.scenarios.suite import SCENARIOS
+from testkit.scenarios.suite import SCENARIOS
 
 pytestmark = pytest.mark.integration
 
@@ -234,11 +234,11 @@ def test_fusion_stops_cleanly_on_sigterm():
 
 
 def test_real_photo_scenes_over_zenoh(rig):
-    """Scenes from the real YOLOX-Nano detections on real photos (tests/scenarios/real.py), published to the
+    """Scenes from the real YOLOX-Nano detections on real photos (testkit/scenarios/real.py), published to the
     real process: the same outcomes as in process. Skipped without ../shared/."""
     pytest.importorskip("onnxruntime")
-    from tests.scenarios.real import real_scenarios, yolox_detector
-    from tests.shared import ROOT, shared_path, yolox_model
+    from testkit.scenarios.real import real_scenarios, yolox_detector
+    from testkit.shared import ROOT, shared_path, yolox_model
 
     scenarios = real_scenarios(
         yolox_detector(yolox_model()), lambda name: ROOT / name[5:] if name.startswith("repo:") else shared_path(name)

@@ -1,5 +1,5 @@
 """End-to-end grounding on the real indoor scenes of ../shared/data/scenes/ (12 photos, 30 sentences, the right
-answers), judged by tests/scenarios/indoor.py: a command's target must overlap the expected box (IoU >= 0.5), an
+answers), judged by testkit/scenarios/indoor.py: a command's target must overlap the expected box (IoU >= 0.5), an
 `ask` line must be a question among the expected boxes.
 
 - in process: the photo through the vision service's own pipeline (real YOLOX-Nano, vision's colours), the sentence
@@ -21,9 +21,9 @@ import pytest
 
 from common.schema import Clarification, Detections, FusedCommand
 from hri.cli import make_transcript
-from tests.harness import Client, ProcessGroup, requires_services
-from tests.scenarios.indoor import SCENES, evaluate, judge, load_lines, report, vision_pipeline
-from tests.shared import shared_path, yolox_model
+from testkit.harness import Client, ProcessGroup, requires_services
+from testkit.scenarios.indoor import SCENES, evaluate, judge, load_lines, report, vision_pipeline
+from testkit.shared import shared_path, yolox_model
 
 DIALOGUE_TIMEOUT = 0.5  # s: each line is judged on its own, as in process
 MIN_RIGHT = 27  # of 30; measured 29 (in process and over Zenoh, relations + colour model merged), margin 2 lines
@@ -77,8 +77,8 @@ RELATION_LINES = [
 @pytest.mark.parametrize("photo,text,expect", RELATION_LINES, ids=[f"{p}: {t}" for p, t, _ in RELATION_LINES])
 def test_relation_words_on_real_photos(folder, photo, text, expect):
     pytest.importorskip("onnxruntime")
-    from tests.scenarios import run_in_process
-    from tests.scenarios.indoor import Line, scenario
+    from testkit.scenarios import run_in_process
+    from testkit.scenarios.indoor import Line, scenario
 
     line = Line(photo, text, expect, "")
     outputs = run_in_process(scenario(line, _seen(folder, photo)))

@@ -26,8 +26,8 @@ from common.schema import (
     Ray,
 )
 from hri.cli import make_transcript
-from tests.fuzz import Fuzzer, image_bomb
-from tests.harness import DATA, Client
+from testkit.fuzz import Fuzzer, image_bomb
+from testkit.harness import DATA, Client
 
 pytestmark = pytest.mark.integration
 
@@ -144,7 +144,7 @@ def say_and_time(client: Client, transcripts, samples) -> float:
 
 
 def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
-    from services.speech.synth import read_wav_int16, synthesize
+    from testkit.synth import read_wav_int16, synthesize
 
     group.router()
     procs = {name: group.service(name, *(["--input", "zenoh"] if name == "speech" else [])) for name in SERVICES}

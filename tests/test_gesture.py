@@ -1,9 +1,7 @@
 """Gestures: the landmark path on real photos, the rules on real landmark arrays turned every way, the
 temporal logic on sequences."""
 
-import json
 import math
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -12,31 +10,10 @@ import pytest
 from services.gesture.landmarks import HandLandmarker
 from services.gesture.rules import classify, pointing_ray
 from services.gesture.temporal import GestureTracker, Observation, angle_between
-from tests.harness import DATA
+from testkit.hands import fold_index, real, rotate
+from testkit.harness import DATA
 
 HANDS = DATA / "images" / "hands"
-REAL = json.loads((Path(__file__).parent / "data" / "landmarks" / "real_hands.json").read_text())
-
-
-def real(name: str) -> np.ndarray:
-    return np.array(REAL[name]["landmarks"], dtype=float)
-
-
-def rotate(p: np.ndarray, degrees: float, scale: float = 1.0, flip: bool = False) -> np.ndarray:
-    q = p - p[0]
-    if flip:
-        q = q * [-1, 1]
-    a = math.radians(degrees)
-    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    return q @ rot.T * scale + [500, 500]
-
-
-def fold_index(p: np.ndarray) -> np.ndarray:
-    """A fist from a real pointing hand: the index joints take the curled middle finger's shape."""
-    q = p.copy()
-    for j in (1, 2, 3):
-        q[5 + j] = p[5] + (p[9 + j] - p[9])
-    return q
 
 
 def thumb_up(p: np.ndarray) -> np.ndarray:

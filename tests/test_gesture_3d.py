@@ -21,7 +21,7 @@ from services.gesture.space import (
     surface_hit,
     torso_point,
 )
-from tests.shared import shared_path
+from testkit.shared import shared_path
 
 W, H, F, CX, CY = 640, 480, 600.0, 320.0, 240.0
 CAMERA_HEIGHT = 0.7  # m above the floor, the camera level: the floor is the plane y = 0.7 (seen from 1.75 m)

@@ -14,8 +14,8 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.harness import Client, requires_services
-from tests.shared import shared_path
+from testkit.harness import Client, requires_services
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 

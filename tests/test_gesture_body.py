@@ -8,36 +8,11 @@ import numpy as np
 import pytest
 
 from services.gesture.body import arm, arm_ray, raised_palm
-from services.gesture.rules import classify, palm_size
+from services.gesture.rules import classify
 from services.gesture.temporal import GestureTracker, Observation, angle_between, fuse_arms
-from tests.shared import shared_dir, shared_path
-from tests.test_gesture import fold_index, real, rotate
+from testkit.hands import LEFT_OUT, RIGHT_BENT, RIGHT_OUT, H, W, fold_index, hand_at, person, real, rotate, run, starts
+from testkit.shared import shared_dir, shared_path
 
-W, H = 640, 480
-
-
-def person(right_arm=None, left_arm=None, vis=1.0, eyes=True) -> np.ndarray:
-    """A standing person facing the camera, 33x3 [x, y, visibility]; the person's right is on the image left.
-    `right_arm` / `left_arm`: (elbow, wrist, index) pixels; default: hanging beside the body."""
-    p = np.zeros((33, 3))
-    p[:, 2] = vis
-    p[0] = (320, 120, vis)
-    p[2], p[5] = (310, 110, vis), (330, 110, vis)  # right eye on the image left
-    p[11], p[12] = (360, 180, vis), (280, 180, vis)  # left shoulder on the image right
-    p[23], p[24] = (350, 340, vis), (290, 340, vis)
-    right_arm = right_arm or ((272, 250), (270, 320), (270, 340))
-    left_arm = left_arm or ((368, 250), (370, 320), (370, 340))
-    for (e, w, i), arm_ids in ((right_arm, (14, 16, 20)), (left_arm, (13, 15, 19))):
-        for pt, k in zip((e, w, i), arm_ids):
-            p[k] = (*pt, vis)
-    if not eyes:
-        p[[2, 5], 1] = -30  # the head is out of frame
-    return p
-
-
-RIGHT_OUT = ((210, 185), (140, 190), (115, 191))  # the person's right arm straight out to the image left
-LEFT_OUT = ((430, 185), (500, 190), (525, 191))  # left arm straight out to the image right
-RIGHT_BENT = ((250, 260), (300, 230), (310, 215))  # elbow bent, hand in front of the chest
 RIGHT_ACROSS = ((330, 215), (400, 245), (425, 255))  # right arm straight across the body, to the image right
 
 
@@ -102,22 +77,6 @@ def test_a_raised_palm_is_a_stop_one_resting_on_the_hip_or_a_table_is_not():
 
 
 # -- hand + body over time ----------------------------------------------------------------------------------
-def run(tracker, frames, t0=100.0, dt=1 / 30):
-    events = []
-    for i, (hands, body) in enumerate(frames):
-        _, ev = tracker.update(t0 + i * dt, hands, body, (W, H))
-        events += ev
-    return events
-
-
-def hand_at(p: np.ndarray, wrist, palm_px: float, hand="left") -> Observation:
-    """A real hand moved to `wrist` and scaled so that its palm is about `palm_px` pixels."""
-    q = (p - p[0]) * (palm_px / palm_size(p)) + wrist
-    return Observation(hand, 0.9, q)
-
-
-def starts(events):
-    return [(e.gesture, e.hand, e.ray.source if e.ray else None) for e in events if e.phase == "start"]
 
 
 def test_a_pointing_arm_without_a_hand_points_with_the_body_ray():

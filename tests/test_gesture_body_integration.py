@@ -7,8 +7,8 @@ import pytest
 
 from common.schema import Bodies, FusedCommand
 from hri.cli import make_transcript
-from tests.harness import Client, requires_services
-from tests.shared import shared_path
+from testkit.harness import Client, requires_services
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 

@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from tests.harness import DATA, Client
+from testkit.harness import DATA, Client
 
 pytestmark = pytest.mark.integration
 RED_CANDY = (548.0, 132.0)  # centre of the red candy in data/demo/pointing.png (px)

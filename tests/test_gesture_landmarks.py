@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from services.gesture.landmarks import HandLandmarker, LandmarkError
-from services.gesture.record_landmarks import SOURCES, record
 from services.gesture.rules import classify, pointing_ray
 from services.gesture.temporal import GestureTracker
-from tests.harness import DATA
+from testkit.harness import DATA
+from testkit.record_landmarks import SOURCES, record
 
 RECORDED = json.loads((Path(__file__).parent / "data" / "landmarks" / "real_hands.json").read_text())
 

@@ -2,7 +2,8 @@
 hand + body fusion), each photo shown for 6 frames like a camera holding still: what gesture *starts*.
 
 Issue #23's targets: no open palm missed, no phantom point, at least 26 of the 27 real hand photos right. The
-27-photo set was not written down by the round that counted it, so it is defined here (and in docs/gesture.md):
+27-photo set was not written down by the round that counted it, so it is defined in testkit/gesture_photos.py
+(and in docs/gesture.md):
 - the repo's 5: data/demo/stop.png, data/demo/pointing.png, data/images/hands/*.jpg (3);
 - 9 more real hand photos from Debian's opencv-doc (the ones MediaPipe finds a hand in that are not drawings and
   not already in the repo, fileListImageUnDist.jpg left out as the same photo undistorted);
@@ -14,112 +15,10 @@ The 30 HaGRID people photos of ../shared/data/people are counted per class besid
 
 from __future__ import annotations
 
-from pathlib import Path
-
-import cv2
 import pytest
 
-from services.gesture.landmarks import HandLandmarker, PoseLandmarker
-from services.gesture.temporal import GestureTracker
-from tests.harness import DATA
-from tests.shared import shared_dir, shared_path
-
-OPENCV_DOC = Path("/usr/share/doc/opencv-doc/opencv4/html")
-FRAMES = 6
-
-# (where, file, expected start: "open_palm" / "point" / None, the pointing arm)
-REPO_PHOTOS = [
-    ("repo", "demo/stop.png", "open_palm", None),
-    ("repo", "demo/pointing.png", "point", "right"),
-    ("repo", "images/hands/handSrc.jpg", "open_palm", None),  # lying sideways on a table (see docs: no body in view)
-    ("repo", "images/hands/Back_Projection_Theory0.jpg", "open_palm", None),
-    ("repo", "images/hands/Histogram_Comparison_Source_1.jpg", "open_palm", None),
-]
-OPENCV_PHOTOS = [
-    ("opencv-doc", "Back_Projection1_Source_Image.jpg", "open_palm", None),
-    ("opencv-doc", "Back_Projection_Theory2.jpg", "open_palm", None),
-    ("opencv-doc", "Histogram_Comparison_Source_0.jpg", "open_palm", None),
-    ("opencv-doc", "Histogram_Comparison_Source_2.jpg", "open_palm", None),
-    ("opencv-doc", "Hull_Original_Image.jpg", "open_palm", None),
-    ("opencv-doc", "handDst.jpg", "open_palm", None),
-    ("opencv-doc", "fileListImage.jpg", "open_palm", None),  # flat hand on a mouse, no body: like handSrc
-    ("opencv-doc", "frame.jpg", None, None),  # fingers holding a bottle cap up to the camera
-    ("opencv-doc", "screen_charuco.jpg", None, None),  # hands holding a calibration board
-]
-POINTING_PHOTOS = [
-    ("pointing", name, "point", side)
-    for name, side in [
-        ("lowcam_man_image3_left_arm_to_image_left.jpeg", "left"),
-        ("lowcam_man_image4_left_arm_to_image_right.jpeg", "left"),
-        ("lowcam_man_image5_left_arm_raised_forward.jpeg", "left"),
-        ("lowcam_man_image7_right_arm_to_floor.jpeg", "right"),
-        ("lowcam_man_image8_right_arm_at_camera.jpeg", "right"),
-        ("nico_table_f01_red_cube.jpg", "right"),
-        ("nico_table_f05_yellow_cube.jpg", "right"),
-        ("nico_table_f06_row_middle_yellow.jpg", "right"),
-        ("nico_table_f07_green_cube.jpg", "right"),
-        ("nico_table_f10_row_right_green.jpg", "right"),
-        ("room_woman_0126_t2_right_arm_to_image_right.png", "right"),
-        ("room_woman_0126_t3_right_arm_to_image_left.png", "right"),
-        ("room_woman_0219_t6_left_arm_to_image_right.png", "left"),
-    ]
-]
-HAND_PHOTOS_27 = REPO_PHOTOS + OPENCV_PHOTOS + POINTING_PHOTOS
-# HaGRID label (file prefix, README in ../shared/data/people) -> the start the robot should see
-PEOPLE_EXPECTED = {"four": "open_palm", "call": None, "rock": None, "none": None}
-
-
-def photo_path(where: str, name: str) -> Path:
-    if where == "repo":
-        return DATA / name
-    if where == "opencv-doc":
-        return OPENCV_DOC / name
-    return shared_dir() / "data" / where / name
-
-
-def starts_on_photo(path: Path, frames: int = FRAMES) -> list[tuple[str, str]]:
-    """(gesture, hand) of every gesture that starts while the photo is shown `frames` times, as the service does."""
-    img = cv2.imread(str(path))
-    if img is None:
-        raise FileNotFoundError(f"cannot read {path}")
-    hands, pose, tracker = HandLandmarker("lite", video=True), PoseLandmarker(video=True), GestureTracker()
-    out = []
-    try:
-        for i in range(frames):
-            _, events = tracker.update(i / 10, hands.detect(img), pose.detect(img), (img.shape[1], img.shape[0]))
-            out += [(e.gesture, e.hand) for e in events if e.phase == "start"]
-    finally:
-        hands.close()
-        pose.close()
-    return out
-
-
-def judge(starts: list[tuple[str, str]], expected: str | None, side: str | None) -> dict[str, bool]:
-    """right / missed_stop / phantom_point / false_stop for one photo."""
-    stops = [s for s in starts if s[0] == "open_palm"]
-    points = [s for s in starts if s[0] == "point"]
-    want_points = [("point", side)] if expected == "point" else []
-    return {
-        "right": bool(stops) == (expected == "open_palm") and len(stops) <= 1 and points == want_points,
-        "missed_stop": expected == "open_palm" and not stops,
-        "phantom_point": any(p not in want_points for p in points) or len(points) > len(want_points),
-        "false_stop": expected != "open_palm" and bool(stops),
-    }
-
-
-def evaluate(photos) -> dict[str, list]:
-    """name -> (starts, judgement) over photos whose file exists."""
-    results = {}
-    for where, name, expected, side in photos:
-        path = photo_path(where, name)
-        if path.exists():
-            starts = starts_on_photo(path)
-            results[name] = (starts, judge(starts, expected, side))
-    return results
-
-
-def count(results, key) -> int:
-    return sum(j[key] for _, j in results.values())
+from testkit.gesture_photos import HAND_PHOTOS_27, OPENCV_DOC, PEOPLE_EXPECTED, REPO_PHOTOS, count, evaluate, judge
+from testkit.shared import shared_path
 
 
 # -- the judging rule itself --------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ import cv2
 import pytest
 
 from common.schema import Frame
-from tests.harness import DATA, Client
+from testkit.harness import DATA, Client
 
 pytestmark = pytest.mark.integration
 STOP = DATA / "demo" / "stop.png"

@@ -14,8 +14,7 @@ import pytest
 from services.gesture.body import arm, raised_hand
 from services.gesture.rules import classify, finger_states, palm_size
 from services.gesture.temporal import GestureTracker, body_scale, close_up, fuse_arms
-from tests.test_gesture import fold_index, real, rotate
-from tests.test_gesture_body import RIGHT_OUT, H, W, hand_at, person, run, starts
+from testkit.hands import RIGHT_OUT, H, W, fold_index, hand_at, person, real, rotate, run, starts
 
 INDEX, MIDDLE, RING, LITTLE = 5, 9, 13, 17
 

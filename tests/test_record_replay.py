@@ -17,7 +17,7 @@ from common.keys import Keys
 from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray
 from hri.cli import make_transcript
 from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
-from tests.harness import Client
+from testkit.harness import Client
 
 KEYS = Keys("hri")
 T0 = 1_790_000_000.0
@@ -397,7 +397,7 @@ def outcome(sample) -> tuple:
 
 def warm_up_fusion(client: Client, timeout: float = 30.0) -> None:
     """Inputs that decide nothing (no objects, no hands), until fusion counts them: its routes exist."""
-    from tests.scenarios import BASE_STAMP, hands, see
+    from testkit.scenarios import BASE_STAMP, hands, see
 
     deadline, round_ = time.monotonic() + timeout, 0
     while time.monotonic() < deadline:
@@ -414,12 +414,12 @@ def warm_up_fusion(client: Client, timeout: float = 30.0) -> None:
 @pytest.mark.integration
 def test_replaying_a_recorded_session_into_a_fresh_fusion_reproduces_its_commands(group, tmp_path):
     from common.schema import Clarification, FusedCommand
-    from tests.scenarios import BASE_STAMP, SCENARIO_SPACING, check, say, see
-    from tests.scenarios.suite import SCENARIOS
+    from testkit.scenarios import BASE_STAMP, SCENARIO_SPACING, check, say, see
+    from testkit.scenarios.suite import SCENARIOS
 
     by_name = {s.name: s for s in SCENARIOS}
     missing = [n for n in REPLAYED_SCENARIOS if n not in by_name]
-    assert not missing, f"scenarios {missing} are gone from tests/scenarios/suite.py; pick others"
+    assert not missing, f"scenarios {missing} are gone from testkit/scenarios/suite.py; pick others"
     chosen = [by_name[n] for n in REPLAYED_SCENARIOS]
     base0 = BASE_STAMP + 500 * SCENARIO_SPACING  # far from the warm-up stamps
     sentinel_at = 25.0  # as in tests/test_fusion_scenarios.py: after every step, inside fusion's horizon

@@ -24,8 +24,8 @@ import pytest
 from common.schema import FusedCommand, Hand, Hands, Ray, Ray3D
 from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
-from tests.harness import Client
-from tests.shared import shared_path, yolox_model
+from testkit.harness import Client
+from testkit.shared import shared_path, yolox_model
 
 pytestmark = pytest.mark.integration
 

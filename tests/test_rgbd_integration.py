@@ -14,8 +14,8 @@ from common.codec import decode
 from common.depth import depth_units
 from common.schema import CameraInfo, DepthFrame, Detections, Frame
 from services.vision.depth import object_depth
-from tests.harness import Client
-from tests.shared import shared_path
+from testkit.harness import Client
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 
@@ -161,7 +161,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
 
 
 def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused(group, tmp_path):
-    from tests.harness import DATA
+    from testkit.harness import DATA
 
     photo = DATA / "demo" / "pointing.png"  # 640x480
     folder = tmp_path / "colour"
@@ -189,7 +189,7 @@ def test_a_colour_camera_given_intrinsics_sends_them_and_a_wrong_size_is_refused
 def test_on_a_secured_robot_vision_may_read_depth(group, tmp_path):
     """The access rules let vision (and gesture) receive camera/*/depth: positions work with --secure too."""
     from common.security import init_secrets
-    from tests.harness import wait_for_port
+    from testkit.harness import wait_for_port
 
     folder = ycb_folder(tmp_path)
     secrets = str(init_secrets(tmp_path / "secrets", {}).folder)

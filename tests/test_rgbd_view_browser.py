@@ -9,10 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.browser import Browser, require_chromium
-from tests.harness import ProcessGroup
-from tests.shared import shared_path
-from tests.test_view_browser import start_view
+from testkit.browser import Browser, require_chromium, start_view
+from testkit.harness import ProcessGroup
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 

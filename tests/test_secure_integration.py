@@ -11,7 +11,7 @@ import zenoh
 from common.schema import FusedCommand, Weights
 from common.security import init_secrets, make_tls, read_passwords
 from hri.cli import make_transcript
-from tests.harness import DATA, Client, ProcessGroup, wait_for_port
+from testkit.harness import DATA, Client, ProcessGroup, wait_for_port
 
 pytestmark = pytest.mark.integration
 

@@ -16,7 +16,7 @@ from services.speech.audio import read_wav
 from services.speech.pipeline import MicStream
 from services.speech.vad import make_segmenter
 from services.speech.whisper import WhisperRecognizer, choose_command, remove_loops
-from tests.shared import shared_path
+from testkit.shared import shared_path
 
 T0 = 1_700_000_000.0
 WORDS = ("down", "go", "left", "no", "off", "on", "right", "stop", "up", "yes")
@@ -100,7 +100,7 @@ def test_a_doubted_near_miss_of_a_stop_word_stops_and_a_sure_one_does_not():
 @pytest.mark.parametrize("conf, stops", [(0.3, True), (0.9, False)])
 def test_fusion_stops_at_once_on_a_doubted_near_miss_and_says_why(conf, stops):
     from services.fusion.core import Config, FusionCore
-    from tests.scenarios import BASE_STAMP, say
+    from testkit.scenarios import BASE_STAMP, say
 
     core = FusionCore(Config(), "fusion/test")
     key, t = say(0.2, 0.6, "stap", conf=conf).build(BASE_STAMP)

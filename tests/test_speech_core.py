@@ -10,8 +10,8 @@ from services.speech.audio import AudioError, Resampler, pcm_to_mono, read_wav, 
 from services.speech.grammar import build_grammar, normalise
 from services.speech.pipeline import MicStream
 from services.speech.recognizers import RecognisedWord, Recognition, derive_pronunciation
-from services.speech.synth import synthesize
 from services.speech.vad import Segmenter, VadConfig, make_segmenter
+from testkit.synth import synthesize
 
 
 # -- grammar -------------------------------------------------------------------

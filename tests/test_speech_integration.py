@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from common.schema import AudioChunk
-from services.speech.synth import concatenate, read_wav_int16, synthesize
-from tests.harness import DATA, ROOT, Client
+from testkit.harness import DATA, ROOT, Client
+from testkit.synth import concatenate, music_like, read_wav_int16, synthesize
 
 pytestmark = pytest.mark.integration
 
@@ -146,8 +146,7 @@ def test_text_backend_publishes_typed_lines_and_exits_when_done(group):
 
 
 def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_speech(group, tmp_path):
-    from services.speech.synth import PIPER_VOICE
-    from tests.test_speech_whisper import music_like
+    from testkit.synth import PIPER_VOICE
 
     group.router()
     speech = group.service("speech", "--input", "zenoh", "--instance", "w1")  # the default backend
@@ -188,7 +187,7 @@ def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_sp
 def test_a_real_spoken_stop_goes_through_speech_and_fusion_to_a_stop_command(group):
     """A real person's "stop" (Speech Commands clip) as AudioChunks over Zenoh -> the default whisper service ->
     fusion -> a `stop` FusedCommand, at once (stopping never waits for the join window)."""
-    from tests.shared import shared_path
+    from testkit.shared import shared_path
 
     clip = shared_path("data/speech_commands/stop_0ea0e2f4_nohash_0.wav")
     group.router()

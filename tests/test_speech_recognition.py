@@ -10,9 +10,9 @@ from services.fusion.parse import parse
 from services.speech.audio import read_wav
 from services.speech.pipeline import MicStream
 from services.speech.recognizers import PocketsphinxRecognizer
-from services.speech.synth import concatenate, synthesize
 from services.speech.vad import make_segmenter
-from tests.speech_scoring import word_errors
+from testkit.speech_scoring import word_errors
+from testkit.synth import concatenate, synthesize
 
 EXPECTED = Path(__file__).parent / "data" / "speech"
 COMMANDS = [line.strip() for line in (EXPECTED / "commands.txt").read_text().splitlines() if line.strip()]

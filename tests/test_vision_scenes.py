@@ -11,8 +11,8 @@ import pytest
 from services.vision.color import HUE_RANGES
 from services.vision.segment import ColorSegmenter
 from services.vision.track import iou
-from tests.harness import DATA
-from tests.shared import shared_path
+from testkit.harness import DATA
+from testkit.shared import shared_path
 
 IMAGES = DATA / "images"
 # apple.jpg (opencv-doc, 512×512): the apple's body, left edge to right edge and shoulders to bottom (stem left out)

@@ -17,7 +17,10 @@ import signal
 import subprocess
 import tempfile
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from testkit.harness import ProcessGroup
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 FLAGS = [
@@ -171,3 +174,16 @@ class Tab:
             await self.client.close()
 
         self.browser.run(go())
+
+
+def start_view(group: ProcessGroup, *args: str, name: str = "view"):
+    """Start `hri view --port 0 ARGS` in `group`; (its Proc, the URL it printed)."""
+    proc = group.start(name, "hri.cli", "view", "--port", "0", *args)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        m = re.search(r"hri view: (http://\S+/)", proc.output())
+        if m:
+            return proc, m.group(1)
+        assert proc.alive(), proc.output()
+        time.sleep(0.1)
+    raise TimeoutError(f"hri view printed no URL:\n{proc.output()}")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import random
 
-from tests.scenarios import (
+from testkit.scenarios import (
     DARK,
     Expect,
     Obj,

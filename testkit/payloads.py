@@ -1,4 +1,4 @@
-"""Realistic samples for the benchmarks: the contract examples of tests/test_codec.py, with a real
+"""Realistic samples for the benchmarks: the contract examples of testkit/examples.py, with a real
 640x480 JPEG frame and a dozen detections."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import cv2
 import msgspec
 
 from common.schema import Sample
-from tests.harness import DATA
-from tests.test_codec import examples
+from testkit.examples import examples
+from testkit.harness import DATA
 
 
 def realistic_samples() -> dict[str, Sample]:

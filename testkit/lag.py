@@ -14,7 +14,7 @@ import numpy as np
 from common.codec import decode
 from common.runner import SamplePublisher
 from common.schema import Frame
-from tests.harness import Client, ProcessGroup
+from testkit.harness import Client, ProcessGroup
 
 
 def frame_lag(

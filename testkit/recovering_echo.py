@@ -1,6 +1,6 @@
 """A consumer across a link that drops: prints every sample on KEY as a JSON line, including those it fetched
 from a recovering publisher's cache after its link came back (common/transport.py). For the distributed tests:
-`python -m tests.recovering_echo ENDPOINT KEY [SECRETS_FOLDER]` (prints `ready` once subscribed; with a secrets
+`python -m testkit.recovering_echo ENDPOINT KEY [SECRETS_FOLDER]` (prints `ready` once subscribed; with a secrets
 folder it logs in as the read-only user cli)."""
 
 from __future__ import annotations

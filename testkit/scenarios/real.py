@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Callable
 
 from common.schema import DetectedObject, Detections, ImageQuality
-from tests.scenarios import KEYS, Expect, Scenario, Step, by_time, pointing, say
+from testkit.scenarios import KEYS, Expect, Scenario, Step, by_time, pointing, say
 
 # The nano model's scores are moderate (a real cup at 0.30-0.32 in these photos); 0.25 keeps them with margin.
 MIN_SCORE = 0.25

@@ -2,7 +2,7 @@
 
 Runs the service's own HandLandmarker on real photos, one still image at a time, with the full model (the more
 accurate one: these arrays stand for "a real hand") and writes each hand's 21 [x, y] pixel landmarks.
-Usage: python -m services.gesture.record_landmarks [--out FILE]
+Usage: python -m testkit.record_landmarks [--out FILE]
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import cv2
 
 from services.gesture.landmarks import HandLandmarker, LandmarkError
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "tests" / "data" / "landmarks" / "real_hands.json"
 
 MODEL = "full"

@@ -21,7 +21,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 
-from tests.harness import Proc, ProcessGroup
+from testkit.harness import Proc, ProcessGroup
 
 NAME_PREFIX = "hrit"  # hrit-{pid}-{run}-{host}
 HOSTS = ("observer", "perception", "speech")  # link index 0, 1, 2 (observer: the root namespace)

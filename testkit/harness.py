@@ -19,7 +19,7 @@ import zenoh
 from common.codec import decode
 from common.keys import Keys
 from common.runner import SamplePublisher
-from common.schema import Sample
+from common.schema import Sample, make_transcript
 from common.transport import live_tokens, open_client
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -215,6 +215,16 @@ class Client:
         self.session.close()
 
 
+def type_command(client: Client, text: str, seconds_per_word: float = 0.2) -> None:
+    """Publish `text` as a typed command ending now, as `hri say` does (keyboard mic "kbd", confidence 0.95)."""
+    client.publish(
+        "hri/speech/kbd/transcript",
+        make_transcript(
+            text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd", seconds_per_word=seconds_per_word
+        ),
+    )
+
+
 class Collector:
     """Decoded samples received on a subscription, in arrival order."""
 
@@ -247,6 +257,10 @@ class Collector:
                 self.seen.append(self.items.get(timeout=min(left, 0.2)))
             except queue.Empty:
                 pass
+
+    def next(self, timeout: float = 30.0) -> Any:
+        """The next sample after those already seen (blocks up to `timeout`)."""
+        return self.wait(len(self.seen) + 1, timeout=timeout)[-1][1]
 
     def drain(self, seconds: float = 0.0) -> list[tuple[str, Any]]:
         deadline = time.monotonic() + seconds

@@ -10,9 +10,9 @@ import numpy as np
 from common.language import NUMBER_WORDS
 from services.fusion.parse import parse
 from services.speech.audio import read_wav
-from services.speech.synth import concatenate, synthesize
+from testkit.synth import concatenate, synthesize
 
-DATA = Path(__file__).resolve().parent / "data" / "speech"
+DATA = Path(__file__).resolve().parent.parent / "tests" / "data" / "speech"
 
 
 def lines(name: str) -> list[str]:

@@ -18,7 +18,7 @@ from typing import Any, Callable
 
 from common.schema import Clarification, DetectedObject, Detections, FusedCommand, ImageQuality
 from services.vision.track import iou
-from tests.scenarios import KEYS, Scenario, Step, by_time, pointing, run_in_process, say
+from testkit.scenarios import KEYS, Scenario, Step, by_time, pointing, run_in_process, say
 
 IOU_MATCH = 0.5
 SCENES = "data/scenes"

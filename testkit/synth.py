@@ -192,3 +192,17 @@ def concatenate(wav_paths: list[Path], out_path: str | Path, gap: float = 1.0) -
         parts.append(read_wav_int16(p))
     write_wav_int16(out_path, np.concatenate(parts) if parts else silence)
     return Path(out_path)
+
+
+def music_like(seconds: float, seed: int = 0) -> np.ndarray:
+    """Chords of pure tones with note envelopes: tonal, rhythmic, no speech."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * RATE)) / RATE
+    out = np.zeros_like(t)
+    note = 0.4
+    for k in range(int(seconds / note)):
+        span = (t >= k * note) & (t < (k + 1) * note)
+        env = np.exp(-(t[span] - k * note) * 6.0)
+        for f in 220.0 * 2 ** (rng.choice([0, 3, 4, 7, 9, 12], 3) / 12):
+            out[span] += 0.1 * env * np.sin(2 * np.pi * f * t[span])
+    return out.astype(np.float32)
