@@ -251,7 +251,13 @@ class FusionCore:
         )
         if speech_rel < self.cfg.low_speech_confidence and not gesture_carried:
             draft = Draft(
-                intent, t.text, target=target.obj if target else None, location=location, place=u.place, motion=u.motion
+                intent,
+                t.text,
+                target=target.obj if target else None,
+                location=location,
+                place=u.place,
+                motion=u.motion,
+                motion_said=u.motion_said,
             )
             choice = Choice("low_confidence", target, (target,) if target else ())
             return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
@@ -280,6 +286,7 @@ class FusionCore:
                 gesture="point" if location and ctx.pointing else None,
                 place=u.place,
                 motion=u.motion,
+                motion_said=u.motion_said,
             )
         ]
 

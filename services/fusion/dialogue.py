@@ -16,11 +16,11 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.language import ANY_OBJECT, label_matches
-from common.schema import Location, Transcript
+from common.schema import Location, Motion, Transcript
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
-from services.fusion.parse import Motion, ObjectPhrase, Utterance
+from services.fusion.parse import ObjectPhrase, Utterance
 from services.fusion.window import Context
 
 
@@ -34,6 +34,7 @@ class Draft:
     location: Location | None = None
     place: str | None = None
     motion: Motion | None = None
+    motion_said: str = ""
 
 
 @dataclass
@@ -268,4 +269,5 @@ class Dialogue:
             gesture="point" if ctx.pointing else None,
             place=draft.place,
             motion=draft.motion,
+            motion_said=draft.motion_said,
         )
