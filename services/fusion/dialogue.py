@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.language import ANY_OBJECT, label_matches
-from common.schema import Location, Motion, Transcript
+from common.schema import ClarificationReason, Location, Motion, Transcript
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
@@ -54,7 +54,7 @@ class Question:
     """The open clarification."""
 
     clarification_id: str
-    reason: str
+    reason: ClarificationReason
     draft: Draft
     phrase: ObjectPhrase
     candidates: list[SceneObject]
@@ -101,6 +101,8 @@ class Dialogue:
     ) -> Output:
         """Ask about the object of `draft`: which one (ambiguous, conflict), did you say (low confidence), or what
         (not found: the answer may pick any visible object)."""
+        if choice.kind == "target":
+            raise ValueError("clarify: the choice found its target, there is nothing to ask")
         if choice.kind == "conflict":
             question = describe.conflict_question(u.obj, choice.speech_best, choice.gesture_best)
             candidates = [c.obj for c in choice.candidates]
@@ -129,7 +131,7 @@ class Dialogue:
     def _ask(
         self,
         t: Transcript,
-        reason: str,
+        reason: ClarificationReason,
         draft: Draft,
         phrase: ObjectPhrase,
         shown: list[SceneObject],

@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from common.language import canonical_label, label_matches
-from common.schema import Detections, Location, Target, Weights
+from common.schema import ClarificationReason, Detections, Location, Target, Weights
 from services.fusion import space
 from services.fusion.colour import colour_factors
 from services.fusion.evidence import Pointing, image_quality
@@ -456,14 +457,18 @@ def _whole_objects(candidates: list[Scored]) -> list[Scored]:
     return out
 
 
+# What grounding decided: a target, or the reason of the question to ask (the Clarification's `reason`)
+ChoiceKind = Literal["target"] | ClarificationReason
+
+
 @dataclass(frozen=True)
 class Choice:
-    kind: str  # "target", "ambiguous", "conflict", "not_found", "low_confidence"
+    kind: ChoiceKind
     winner: Scored | None
     candidates: tuple[Scored, ...]
     speech_best: Scored | None = None
     gesture_best: Scored | None = None
-    overruled: str | None = None  # "speech" or "gesture" when the other side won a disagreement
+    overruled: Literal["speech", "gesture"] | None = None  # the side that lost a disagreement (the other won)
     runner_up: Scored | None = None
 
 
@@ -512,7 +517,7 @@ def choose(
         return Choice("ambiguous", None, tuple(whole), speech_best, gesture_best, runner_up=runner_up)
     if check_evidence and winner.evidence < MIN_EVIDENCE:
         return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
-    overruled = None
+    overruled: Literal["speech", "gesture"] | None = None
     if disagree:
         overruled = "speech" if winner is gesture_best else "gesture"
     return Choice("target", winner, (winner,), speech_best, gesture_best, overruled, runner_up)

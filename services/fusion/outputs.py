@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from common.schema import (
     Clarification,
+    ClarificationReason,
     FusedCommand,
     GestureEvent,
     Location,
@@ -150,7 +151,9 @@ class Outputs:
         )
         return Output(cmd, realtime=realtime)
 
-    def clarification(self, t: Transcript, reason: str, question: str, candidates: list[SceneObject]) -> Output:
+    def clarification(
+        self, t: Transcript, reason: ClarificationReason, question: str, candidates: list[SceneObject]
+    ) -> Output:
         return Output(
             Clarification(
                 stamp=t.stamp,
