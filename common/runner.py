@@ -325,7 +325,7 @@ class Service:
             self.counters.add("received")
             try:
                 sample = decode(zsample.payload.to_bytes(), schema)
-                if schema is Frame:
+                if isinstance(sample, Frame):
                     check_frame_header(sample, max_pixels)
             except InvalidSample as exc:
                 self.counters.reject(exc.reason, exc.detail, key)
@@ -508,7 +508,7 @@ class SamplePublisher:
         recovering: bool = False,
     ):
         self.key = key
-        qos = dict(
+        qos: dict[str, Any] = dict(  # one set of options for both kinds of publisher
             encoding=zenoh.Encoding(ENCODING),
             congestion_control=zenoh.CongestionControl.BLOCK if lossless else zenoh.CongestionControl.DROP,
             priority=zenoh.Priority.REAL_TIME

@@ -507,9 +507,11 @@ class Sample(Struct, kw_only=True):
     def _check_sample(self) -> None:
         """Schema-specific cross-field rules (raise InvalidSample)."""
 
-    def _check_span(self) -> None:
-        if not self.start <= self.end:
-            raise InvalidSample("bad_value", f"start: start {self.start} is after end {self.end}")
+
+def _check_span(start: float, end: float) -> None:
+    """The rule of the samples that span a time (GestureEvent, Transcript)."""
+    if not start <= end:
+        raise InvalidSample("bad_value", f"start: start {start} is after end {end}")
 
 
 class Frame(Sample, kw_only=True):
@@ -640,7 +642,7 @@ class GestureEvent(Sample, kw_only=True):
     ray: Annotated[Optional[Ray], described("for `point`")] = None
 
     def _check_sample(self) -> None:
-        self._check_span()
+        _check_span(self.start, self.end)
 
 
 # Word times may stray this far outside their utterance (rounding of the recognisers' frame times).
@@ -658,7 +660,7 @@ class Transcript(Sample, kw_only=True):
     backend: Annotated[NonEmpty, described("the recogniser that produced it")]
 
     def _check_sample(self) -> None:
-        self._check_span()
+        _check_span(self.start, self.end)
         lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
         for i, w in enumerate(self.words):
             if not lo <= w.start <= w.end <= hi:
