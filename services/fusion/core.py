@@ -236,7 +236,9 @@ class FusionCore:
             overruled = choice.overruled
             if choice.kind == "low_confidence":
                 return [
-                    self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target.obj, place=u.place))
+                    self.dialogue.clarify(
+                        t, u, ctx, choice, Draft(intent, t.text, target=target.obj if target else None, place=u.place)
+                    )
                 ]
         elif intent == "put_down" and u.obj.specific:
             choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional

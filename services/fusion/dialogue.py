@@ -104,6 +104,7 @@ class Dialogue:
         if choice.kind == "target":
             raise ValueError("clarify: the choice found its target, there is nothing to ask")
         if choice.kind == "conflict":
+            assert choice.speech_best is not None and choice.gesture_best is not None  # the two sides (choose)
             question = describe.conflict_question(u.obj, choice.speech_best, choice.gesture_best)
             candidates = [c.obj for c in choice.candidates]
         elif choice.kind == "ambiguous":

@@ -109,7 +109,7 @@ class Streams:
 
     def between(self, modality: str, lo: float, hi: float) -> list[tuple[str, Any]]:
         """(key, item) in the window from every key of the modality, keys in name order."""
-        out = []
+        out: list[tuple[str, Any]] = []
         for key in sorted(self.buffers.get(modality, {})):
             out.extend((key, item) for item in self.buffers[modality][key].between(lo, hi))
         return out

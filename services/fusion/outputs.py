@@ -13,7 +13,6 @@ from common.schema import (
     GestureEvent,
     Location,
     Motion,
-    Sample,
     Transcript,
     Weights,
 )
@@ -24,7 +23,7 @@ from services.fusion.window import Context
 
 @dataclass
 class Output:
-    sample: Sample
+    sample: FusedCommand | Clarification
     realtime: bool = False  # a stop: published at REAL_TIME priority, express
 
 
