@@ -1,8 +1,9 @@
 # The single entry point. `make demo` and `make test` set up everything they need on a fresh machine.
-.PHONY: setup demo test test-fast lint fix bench clean compose
+.PHONY: setup demo test test-fast lint typecheck fix bench clean compose
 
 PY := .venv/bin/python
 RUFF := .venv/bin/ruff
+MYPY := .venv/bin/mypy
 LINT_HINT := run 'make fix' (or: $(RUFF) check --fix . && $(RUFF) format .), then fix by hand what ruff still reports
 
 setup:
@@ -11,7 +12,7 @@ setup:
 demo: setup
 	@$(PY) -m demo $(DEMO_ARGS)
 
-# lint and format are checked first: a finding fails the run before the (slow) tests start
+# lint, format and types are checked first: a finding fails the run before the (slow) tests start
 test:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _lint
@@ -26,9 +27,18 @@ lint:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _lint
 
+# mypy over common/ and the services' cores (the scope is [tool.mypy] in pyproject.toml)
+typecheck:
+	@bash scripts/setup.sh --test
+	@$(MAKE) --no-print-directory _typecheck
+
 _lint:
 	@$(RUFF) check . || { echo "make: ruff check found the problems above: $(LINT_HINT)" >&2; exit 1; }
 	@$(RUFF) format --check . || { echo "make: the files above are not formatted: $(LINT_HINT)" >&2; exit 1; }
+	@$(MAKE) --no-print-directory _typecheck
+
+_typecheck:
+	@$(MYPY) || { echo "make: mypy found the type errors above: fix the annotations or the code (docs/foundation.md, 'Type check')" >&2; exit 1; }
 
 fix:
 	@bash scripts/setup.sh --test
@@ -45,4 +55,4 @@ bench: setup
 	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done
 
 clean:
-	rm -rf .venv .pytest_cache
+	rm -rf .venv .pytest_cache .mypy_cache

@@ -11,11 +11,11 @@ from typing import Any, TypeVar
 
 import msgpack
 
-from common.schema import InvalidSample, Sample, Struct, pack_sample, unpack_sample, validate
+from common.schema import InvalidSample, Sample, pack_sample, unpack_sample, validate
 
 ENCODING = "application/msgpack"
 
-S = TypeVar("S", bound=Struct)
+S = TypeVar("S", bound=Sample)  # a top-level sample: it has a size cap (MAX_BYTES)
 
 __all__ = ["ENCODING", "decode", "encode", "unpack", "validate"]
 

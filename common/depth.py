@@ -10,15 +10,16 @@ from __future__ import annotations
 import numpy as np
 
 from common.image import PNG_SIGNATURE, png_size
-from common.schema import CameraInfo, DepthFrame
+from common.schema import CameraInfo, DepthCompression, DepthEncoding, DepthFrame
 
 
 class UndecodableDepth(ValueError):
     pass
 
 
-def encode_depth(depth: np.ndarray, compression: str = "none") -> tuple[str, bytes]:
+def encode_depth(depth: np.ndarray, compression: DepthCompression = "none") -> tuple[DepthEncoding, bytes]:
     """(encoding, data) of a uint16 or float32 depth image. `png` is a lossless 16-bit PNG (uint16 only)."""
+    encoding: DepthEncoding
     if depth.dtype == np.uint16:
         encoding = "16UC1"
     elif depth.dtype == np.float32:
@@ -51,7 +52,7 @@ def depth_frame(
     cam: str,
     depth_scale: float,
     camera_info: CameraInfo,
-    compression: str = "none",
+    compression: DepthCompression = "none",
 ) -> DepthFrame:
     encoding, data = encode_depth(depth, compression)
     h, w = depth.shape[:2]

@@ -565,7 +565,7 @@ class SamplePublisher:
         recovering: bool = False,
     ):
         self.key = key
-        qos = dict(
+        qos: dict[str, Any] = dict(  # one set of options for both kinds of publisher
             encoding=zenoh.Encoding(ENCODING),
             congestion_control=zenoh.CongestionControl.BLOCK if lossless else zenoh.CongestionControl.DROP,
             priority=zenoh.Priority.REAL_TIME

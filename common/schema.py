@@ -66,9 +66,10 @@ Point3 = Annotated[list[Finite], Meta(min_length=3, max_length=3)]
 Metres = Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)]
 
 
-def described(tp: Any, description: str, **constraints: Any) -> Any:
-    """`tp` with a description for docs/wire.md and the JSON Schemas (and optional extra constraints)."""
-    return Annotated[tp, Meta(description=description, **constraints)]
+def described(description: str, **constraints: Any) -> Meta:
+    """A field's description for docs/wire.md and the JSON Schemas (and optional extra constraints), written
+    `Annotated[type, described("…")]`: an annotation type checkers read, unlike a call."""
+    return Meta(description=description, **constraints)
 
 
 class InvalidSample(ValueError):
@@ -226,42 +227,50 @@ class Struct(msgspec.Struct, kw_only=True):
 class ColorShare(Struct, kw_only=True):
     """v1 extension: one colour name and how likely a person would call the object that."""
 
-    name: described(NonEmpty, "a basic colour name (`red`, `brown`, `grey`, …; docs/vision.md lists them)")
-    p: described(UnitFloat, "probability; the shares of one object sum to at most 1")
+    name: Annotated[NonEmpty, described("a basic colour name (`red`, `brown`, `grey`, …; docs/vision.md lists them)")]
+    p: Annotated[UnitFloat, described("probability; the shares of one object sum to at most 1")]
 
 
 class DetectedObject(Struct, kw_only=True):
-    id: described(NonEmpty, "stable while the object stays in view")
-    label: described(NonEmpty, "class name, through the command language (`cup`, `person`, …)")
-    color: described(
+    id: Annotated[NonEmpty, described("stable while the object stays in view")]
+    label: Annotated[NonEmpty, described("class name, through the command language (`cup`, `person`, …)")]
+    color: Annotated[
         Optional[str],
-        "the most likely colour name (`red orange yellow green blue purple white black "
-        "grey`, and with the colour model also `brown pink`), or nil",
-    ) = None
-    score: described(UnitFloat, "detection confidence")
-    bbox: described(Box, "[x, y, w, h] px")
-    center: described(Point, "[x, y] px")
-    lab: described(
+        described(
+            "the most likely colour name (`red orange yellow green blue purple white black "
+            "grey`, and with the colour model also `brown pink`), or nil"
+        ),
+    ] = None
+    score: Annotated[UnitFloat, described("detection confidence")]
+    bbox: Annotated[Box, described("[x, y, w, h] px")]
+    center: Annotated[Point, described("[x, y] px")]
+    lab: Annotated[
         Optional[Point3],
-        "**v1 extension**: CIELAB (D65) [L 0–100, a, b] of the object's own pixels, "
-        "corrected for the scene's illuminant; nil = not measured",
-    ) = None
-    colors: described(
-        list[ColorShare], "**v1 extension**: the likeliest colour names, best first (at most 5); `color` is the first"
-    ) = msgspec.field(default_factory=list)
-    position: described(
+        described(
+            "**v1 extension**: CIELAB (D65) [L 0–100, a, b] of the object's own pixels, "
+            "corrected for the scene's illuminant; nil = not measured"
+        ),
+    ] = None
+    colors: Annotated[
+        list[ColorShare],
+        described("**v1 extension**: the likeliest colour names, best first (at most 5); `color` is the first"),
+    ] = msgspec.field(default_factory=list)
+    position: Annotated[
         Optional[Point3],
-        "**v1 extension**: [x, y, z] metres in the camera's optical frame "
-        "(x right, y down, z forward), from the depth of the object's own "
-        "pixels; absent without depth, never zero",
-    ) = None
-    extent: described(
+        described(
+            "**v1 extension**: [x, y, z] metres in the camera's optical frame "
+            "(x right, y down, z forward), from the depth of the object's own "
+            "pixels; absent without depth, never zero"
+        ),
+    ] = None
+    extent: Annotated[
         Optional[Point3],
-        "**v1 extension**: [width, height, depth] metres spanned by those pixels; absent without depth",
-    ) = None
-    depth_support: described(
-        Optional[UnitFloat], "**v1 extension**: share of the object's pixels with a valid depth behind `position`"
-    ) = None
+        described("**v1 extension**: [width, height, depth] metres spanned by those pixels; absent without depth"),
+    ] = None
+    depth_support: Annotated[
+        Optional[UnitFloat],
+        described("**v1 extension**: share of the object's pixels with a valid depth behind `position`"),
+    ] = None
 
     def check_measurements(self, where: str) -> None:
         """The v1-extension fields' cross-field rules (called by Detections, once per object that has them)."""
@@ -281,17 +290,18 @@ class DetectedObject(Struct, kw_only=True):
 class CameraInfo(Struct, kw_only=True):
     """v1 extension: the intrinsics of the image they travel with (Zenoh has no latching, so they come along)."""
 
-    width: described(Annotated[int, Meta(gt=0)], "px, the resolution `k` belongs to")
-    height: described(Annotated[int, Meta(gt=0)], "px")
-    k: described(
-        Annotated[list[Finite], Meta(min_length=9, max_length=9)],
-        "K, 3×3 row-major: [fx, 0, cx, 0, fy, cy, 0, 0, 1] (px)",
-    )
-    distortion_model: described(NonEmpty, "`none`, `plumb_bob` (OpenCV k1 k2 p1 p2 k3), `rational_polynomial`, …") = (
-        "none"
-    )
-    distortion: described(list[Finite], "the model's coefficients") = msgspec.field(default_factory=list)
-    frame_id: described(NonEmpty, "name of the camera's optical frame (x right, y down, z forward, metres)")
+    width: Annotated[int, Meta(gt=0), described("px, the resolution `k` belongs to")]
+    height: Annotated[int, Meta(gt=0), described("px")]
+    k: Annotated[
+        list[Finite],
+        Meta(min_length=9, max_length=9),
+        described("K, 3×3 row-major: [fx, 0, cx, 0, fy, cy, 0, 0, 1] (px)"),
+    ]
+    distortion_model: Annotated[
+        NonEmpty, described("`none`, `plumb_bob` (OpenCV k1 k2 p1 p2 k3), `rational_polynomial`, …")
+    ] = "none"
+    distortion: Annotated[list[Finite], described("the model's coefficients")] = msgspec.field(default_factory=list)
+    frame_id: Annotated[NonEmpty, described("name of the camera's optical frame (x right, y down, z forward, metres)")]
 
     def __post_init__(self) -> None:
         k = self.k
@@ -327,28 +337,34 @@ class CameraInfo(Struct, kw_only=True):
 
 
 class ImageQuality(Struct, kw_only=True):
-    brightness: described(UnitFloat, "mean luminance")
-    contrast: described(UnitFloat, "spread of luminance")
-    sharpness: described(UnitFloat, "focus / motion blur (1 = sharp)")
+    brightness: Annotated[UnitFloat, described("mean luminance")]
+    contrast: Annotated[UnitFloat, described("spread of luminance")]
+    sharpness: Annotated[UnitFloat, described("focus / motion blur (1 = sharp)")]
 
 
 class Ray3D(Struct, kw_only=True):
     """v1 extension: a pointing ray in metres, in a camera's optical frame."""
 
-    origin: described(Point3, "[x, y, z] metres (the eyes for `eye_fingertip`, else the arm's proximal point)")
-    direction: described(Point3, "unit vector")
-    method: described(
+    origin: Annotated[
+        Point3, described("[x, y, z] metres (the eyes for `eye_fingertip`, else the arm's proximal point)")
+    ]
+    direction: Annotated[Point3, described("unit vector")]
+    method: Annotated[
         Ray3DMethod,
-        "`eye_fingertip` (eyes through the index tip, the best cue), `index_finger`, "
-        "`forearm` (elbow→wrist), `shoulder_wrist`, `world_landmarks` (MediaPipe's "
-        "metric skeleton placed at the torso's depth)",
-    )
-    frame_id: described(NonEmpty, "the optical frame (CameraInfo.frame_id)")
-    hit: described(
+        described(
+            "`eye_fingertip` (eyes through the index tip, the best cue), `index_finger`, "
+            "`forearm` (elbow→wrist), `shoulder_wrist`, `world_landmarks` (MediaPipe's "
+            "metric skeleton placed at the torso's depth)"
+        ),
+    ]
+    frame_id: Annotated[NonEmpty, described("the optical frame (CameraInfo.frame_id)")]
+    hit: Annotated[
         Optional[Point3],
-        "where the ray meets the surface it points at (a plane fitted to the depth: "
-        "floor or table), metres; nil = it meets none in view",
-    ) = None
+        described(
+            "where the ray meets the surface it points at (a plane fitted to the depth: "
+            "floor or table), metres; nil = it meets none in view"
+        ),
+    ] = None
 
     def __post_init__(self) -> None:
         norm = math.sqrt(sum(c * c for c in self.direction))
@@ -357,15 +373,17 @@ class Ray3D(Struct, kw_only=True):
 
 
 class Ray(Struct, kw_only=True):
-    origin: described(Point, "[x, y] px")
-    direction: described(Point, "[dx, dy] unit vector, image axes (x right, y down)")
-    confidence: described(UnitFloat, "how steady the pointing is, independent of the hand's `score`") = 1.0
-    source: described(
+    origin: Annotated[Point, described("[x, y] px")]
+    direction: Annotated[Point, described("[dx, dy] unit vector, image axes (x right, y down)")]
+    confidence: Annotated[UnitFloat, described("how steady the pointing is, independent of the hand's `score`")] = 1.0
+    source: Annotated[
         Optional[RaySource],
-        "**v1 extension**: `hand` = the index finger, `body` = the arm seen by the body stage; "
-        "nil = a sender from before the extension (a hand ray)",
-    ) = None
-    ray3d: described(Optional[Ray3D], "**v1 extension**: the same ray in metres, when depth is known") = None
+        described(
+            "**v1 extension**: `hand` = the index finger, `body` = the arm seen by the body stage; "
+            "nil = a sender from before the extension (a hand ray)"
+        ),
+    ] = None
+    ray3d: Annotated[Optional[Ray3D], described("**v1 extension**: the same ray in metres, when depth is known")] = None
 
     def __post_init__(self) -> None:
         norm = math.hypot(*self.direction)
@@ -374,35 +392,38 @@ class Ray(Struct, kw_only=True):
 
 
 class Hand(Struct, kw_only=True):
-    hand: described(Handedness, "which hand, as the person sees it")
-    score: described(UnitFloat, "landmark confidence")
-    landmarks: described(
-        Annotated[list[Point], Meta(min_length=21, max_length=21)],
-        "21 × [x, y] px, MediaPipe order (0 wrist, 4 thumb tip, 8 index tip, …)",
-    )
-    gesture: described(Optional[GestureName], "this frame's raw class, or nil") = None
-    ray: described(Optional[Ray], "pointing ray, when the hand points") = None
+    hand: Annotated[Handedness, described("which hand, as the person sees it")]
+    score: Annotated[UnitFloat, described("landmark confidence")]
+    landmarks: Annotated[
+        list[Point],
+        Meta(min_length=21, max_length=21),
+        described("21 × [x, y] px, MediaPipe order (0 wrist, 4 thumb tip, 8 index tip, …)"),
+    ]
+    gesture: Annotated[Optional[GestureName], described("this frame's raw class, or nil")] = None
+    ray: Annotated[Optional[Ray], described("pointing ray, when the hand points")] = None
 
 
 class Body(Struct, kw_only=True):
     """One person's MediaPipe Pose skeleton (v1 extension, `Bodies`)."""
 
-    landmarks: described(
-        Annotated[list[Point], Meta(min_length=33, max_length=33)],
-        "33 × [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists, …)",
-    )
-    visibility: described(
-        Annotated[list[UnitFloat], Meta(min_length=33, max_length=33)],
-        "MediaPipe's visibility of each point; below 0.5 the point is a guess",
-    )
-    left_ray: described(Optional[Ray], "set when the person's own left arm points (`source` `body`)") = None
-    right_ray: described(Optional[Ray], "set when the right arm points") = None
+    landmarks: Annotated[
+        list[Point],
+        Meta(min_length=33, max_length=33),
+        described("33 × [x, y] px, MediaPipe Pose order (11/12 shoulders, 15/16 wrists, …)"),
+    ]
+    visibility: Annotated[
+        list[UnitFloat],
+        Meta(min_length=33, max_length=33),
+        described("MediaPipe's visibility of each point; below 0.5 the point is a guess"),
+    ]
+    left_ray: Annotated[Optional[Ray], described("set when the person's own left arm points (`source` `body`)")] = None
+    right_ray: Annotated[Optional[Ray], described("set when the right arm points")] = None
 
 
 class Word(Struct, kw_only=True):
-    word: described(str, "one word as recognised")
-    start: described(Finite, "source time")
-    end: described(Finite, "source time, inside the utterance")
+    word: Annotated[str, described("one word as recognised")]
+    start: Annotated[Finite, described("source time")]
+    end: Annotated[Finite, described("source time, inside the utterance")]
     confidence: UnitFloat
     # start <= end is checked by the Transcript that holds the word: one Python call per sample, not per word
 
@@ -410,44 +431,48 @@ class Word(Struct, kw_only=True):
 class Target(Struct, kw_only=True):
     """The DetectedObject a command or question is about."""
 
-    id: described(NonEmpty, "the object's id in its Detections")
+    id: Annotated[NonEmpty, described("the object's id in its Detections")]
     label: NonEmpty
     color: Optional[str] = None
-    bbox: described(Box, "[x, y, w, h] px")
-    center: described(Point, "[x, y] px")
+    bbox: Annotated[Box, described("[x, y, w, h] px")]
+    center: Annotated[Point, described("[x, y] px")]
     score: UnitFloat
-    cam: described(NonEmpty, "the camera that saw it")
-    position: described(Optional[Point3], "**v1 extension**: [x, y, z] metres in `frame_id` (camera optical frame)") = (
-        None
-    )
-    extent: described(Optional[Point3], "**v1 extension**: [width, height, depth] metres") = None
-    frame_id: described(Optional[str], "**v1 extension**: the frame of `position`") = None
+    cam: Annotated[NonEmpty, described("the camera that saw it")]
+    position: Annotated[
+        Optional[Point3], described("**v1 extension**: [x, y, z] metres in `frame_id` (camera optical frame)")
+    ] = None
+    extent: Annotated[Optional[Point3], described("**v1 extension**: [width, height, depth] metres")] = None
+    frame_id: Annotated[Optional[str], described("**v1 extension**: the frame of `position`")] = None
 
 
 class Location(Struct, kw_only=True):
-    x: described(Finite, "px")
-    y: described(Finite, "px")
+    x: Annotated[Finite, described("px")]
+    y: Annotated[Finite, described("px")]
     cam: NonEmpty
-    position: described(
+    position: Annotated[
         Optional[Point3],
-        '**v1 extension**: the place in metres in `frame_id` ("go there": '
-        "where the pointing ray meets the floor or table)",
-    ) = None
-    frame_id: described(Optional[str], "**v1 extension**: the frame of `position`") = None
+        described(
+            '**v1 extension**: the place in metres in `frame_id` ("go there": '
+            "where the pointing ray meets the floor or table)"
+        ),
+    ] = None
+    frame_id: Annotated[Optional[str], described("**v1 extension**: the frame of `position`")] = None
 
 
 class Motion(Struct, kw_only=True):
     """The robot moving itself ("go forward ten meters", "turn left"): FusedCommand intents `move` and `turn`."""
 
-    direction: described(Optional[MotionDirection], "the robot's own frame: forward = the way it faces") = None
-    distance: described(
+    direction: Annotated[Optional[MotionDirection], described("the robot's own frame: forward = the way it faces")] = (
+        None
+    )
+    distance: Annotated[
         Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
-        "metres; nil = not said (a short move of the planner's choosing)",
-    ) = None
-    angle: described(
+        described("metres; nil = not said (a short move of the planner's choosing)"),
+    ] = None
+    angle: Annotated[
         Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
-        'degrees, for `turn` ("turn left" = 90, "turn around" = 180)',
-    ) = None
+        described('degrees, for `turn` ("turn left" = 90, "turn around" = 180)'),
+    ] = None
 
 
 class Weights(Struct, kw_only=True):
@@ -464,13 +489,15 @@ class Weights(Struct, kw_only=True):
 class Sample(Struct, kw_only=True):
     MAX_BYTES: ClassVar[int] = 1 * MIB
 
-    v: described(int, "schema version, `1`") = SCHEMA_VERSION
-    stamp: described(
+    v: Annotated[int, described("schema version, `1`")] = SCHEMA_VERSION
+    stamp: Annotated[
         UnixTime,
-        "seconds since the UNIX epoch, **when the observed thing happened** (frame "
-        "capture, first audio sample, utterance end)",
-    )
-    source: described(NonEmpty, "the producing instance, `service/instance`")
+        described(
+            "seconds since the UNIX epoch, **when the observed thing happened** (frame "
+            "capture, first audio sample, utterance end)"
+        ),
+    ]
+    source: Annotated[NonEmpty, described("the producing instance, `service/instance`")]
 
     def __post_init__(self) -> None:
         if self.v != SCHEMA_VERSION:
@@ -480,20 +507,24 @@ class Sample(Struct, kw_only=True):
     def _check_sample(self) -> None:
         """Schema-specific cross-field rules (raise InvalidSample)."""
 
-    def _check_span(self) -> None:
-        if not self.start <= self.end:
-            raise InvalidSample("bad_value", f"start: start {self.start} is after end {self.end}")
+
+def _check_span(start: float, end: float) -> None:
+    """The rule of the samples that span a time (GestureEvent, Transcript)."""
+    if not start <= end:
+        raise InvalidSample("bad_value", f"start: start {start} is after end {end}")
 
 
 class Frame(Sample, kw_only=True):
     MAX_BYTES: ClassVar[int] = 64 * MIB
-    seq: described(Annotated[int, Meta(ge=0)], "gap-free per camera process")
-    cam: described(NonEmpty, "camera id")
-    width: described(Annotated[int, Meta(gt=0)], "px")
-    height: described(Annotated[int, Meta(gt=0)], "px")
-    encoding: described(ImageEncoding, "`bgr8`: raw rows of B,G,R bytes, `width*height*3` bytes")
-    data: described(bytes, "the image")
-    camera_info: described(Optional[CameraInfo], "**v1 extension**: the colour camera's intrinsics, when known") = None
+    seq: Annotated[int, Meta(ge=0), described("gap-free per camera process")]
+    cam: Annotated[NonEmpty, described("camera id")]
+    width: Annotated[int, Meta(gt=0), described("px")]
+    height: Annotated[int, Meta(gt=0), described("px")]
+    encoding: Annotated[ImageEncoding, described("`bgr8`: raw rows of B,G,R bytes, `width*height*3` bytes")]
+    data: Annotated[bytes, described("the image")]
+    camera_info: Annotated[
+        Optional[CameraInfo], described("**v1 extension**: the colour camera's intrinsics, when known")
+    ] = None
 
     def _check_sample(self) -> None:
         if self.encoding == "bgr8":
@@ -510,21 +541,26 @@ class DepthFrame(Sample, kw_only=True):
     so the colour intrinsics apply. 0 (16UC1) or 0/NaN (32FC1) = no measurement."""
 
     MAX_BYTES: ClassVar[int] = 64 * MIB
-    seq: described(Annotated[int, Meta(ge=0)], "the `seq` of the colour Frame of the same capture")
-    cam: described(NonEmpty, "camera id (the colour camera it is aligned to)")
-    width: described(Annotated[int, Meta(gt=0)], "px, equal to the colour frame's")
-    height: described(Annotated[int, Meta(gt=0)], "px")
-    encoding: described(
-        DepthEncoding, "`16UC1`: unsigned 16-bit little-endian units; `32FC1`: float32 little-endian units"
-    )
-    compression: described(DepthCompression, "`none`: raw rows; `png`: a lossless 16-bit PNG (16UC1 only)") = "none"
-    depth_scale: described(
-        Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)],
-        "metres per unit, explicit even for 16UC1 (RealSense 0.001, YCB-Video 0.0001, TUM "
-        "0.0002; 32FC1 in metres: 1.0)",
-    )
-    camera_info: described(CameraInfo, "intrinsics of the aligned image (the colour camera's)")
-    data: described(bytes, "the depth image")
+    seq: Annotated[int, Meta(ge=0), described("the `seq` of the colour Frame of the same capture")]
+    cam: Annotated[NonEmpty, described("camera id (the colour camera it is aligned to)")]
+    width: Annotated[int, Meta(gt=0), described("px, equal to the colour frame's")]
+    height: Annotated[int, Meta(gt=0), described("px")]
+    encoding: Annotated[
+        DepthEncoding, described("`16UC1`: unsigned 16-bit little-endian units; `32FC1`: float32 little-endian units")
+    ]
+    compression: Annotated[
+        DepthCompression, described("`none`: raw rows; `png`: a lossless 16-bit PNG (16UC1 only)")
+    ] = "none"
+    depth_scale: Annotated[
+        float,
+        Meta(gt=0.0, le=_MAX_FLOAT),
+        described(
+            "metres per unit, explicit even for 16UC1 (RealSense 0.001, YCB-Video 0.0001, TUM "
+            "0.0002; 32FC1 in metres: 1.0)"
+        ),
+    ]
+    camera_info: Annotated[CameraInfo, described("intrinsics of the aligned image (the colour camera's)")]
+    data: Annotated[bytes, described("the depth image")]
 
     def _check_sample(self) -> None:
         self.camera_info.check_size(self.width, self.height)
@@ -542,11 +578,11 @@ class DepthFrame(Sample, kw_only=True):
 
 class AudioChunk(Sample, kw_only=True):
     MAX_BYTES: ClassVar[int] = 4 * MIB
-    mic: described(NonEmpty, "microphone id")
-    rate: described(Annotated[int, Meta(ge=1000, le=384000)], "Hz")
-    channels: described(Annotated[int, Meta(ge=1, le=32)], "interleaved")
-    format: described(Literal["s16le"], "signed 16-bit little endian")
-    data: described(bytes, "whole frames only")
+    mic: Annotated[NonEmpty, described("microphone id")]
+    rate: Annotated[int, Meta(ge=1000, le=384000), described("Hz")]
+    channels: Annotated[int, Meta(ge=1, le=32), described("interleaved")]
+    format: Annotated[Literal["s16le"], described("signed 16-bit little endian")]
+    data: Annotated[bytes, described("whole frames only")]
 
     def _check_sample(self) -> None:
         if len(self.data) % (2 * self.channels):
@@ -555,17 +591,19 @@ class AudioChunk(Sample, kw_only=True):
 
 class Detections(Sample, kw_only=True):
     MAX_BYTES: ClassVar[int] = 4 * MIB
-    seq: described(int, "of the frame the detections come from")
+    seq: Annotated[int, described("of the frame the detections come from")]
     cam: NonEmpty
-    width: described(int, "px, of the frame")
-    height: described(int, "px, of the frame")
-    objects: described(
-        list[DetectedObject], 'may be empty: published for **every** processed frame, so "nothing seen" is known'
-    )
-    quality: described(ImageQuality, "how far to trust this frame (see docs/vision.md)")
-    frame_id: described(
-        Optional[str], "**v1 extension**: the optical frame of the objects' `position`s (set when depth was used)"
-    ) = None
+    width: Annotated[int, described("px, of the frame")]
+    height: Annotated[int, described("px, of the frame")]
+    objects: Annotated[
+        list[DetectedObject],
+        described('may be empty: published for **every** processed frame, so "nothing seen" is known'),
+    ]
+    quality: Annotated[ImageQuality, described("how far to trust this frame (see docs/vision.md)")]
+    frame_id: Annotated[
+        Optional[str],
+        described("**v1 extension**: the optical frame of the objects' `position`s (set when depth was used)"),
+    ] = None
 
     def _check_sample(self) -> None:
         for i, o in enumerate(self.objects):
@@ -574,37 +612,37 @@ class Detections(Sample, kw_only=True):
 
 
 class Hands(Sample, kw_only=True):
-    seq: described(int, "of the frame")
+    seq: Annotated[int, described("of the frame")]
     cam: NonEmpty
-    width: described(int, "px, of the frame")
-    height: described(int, "px, of the frame")
-    hands: described(list[Hand], "may be empty; published for every processed frame")
+    width: Annotated[int, described("px, of the frame")]
+    height: Annotated[int, described("px, of the frame")]
+    hands: Annotated[list[Hand], described("may be empty; published for every processed frame")]
 
 
 class Bodies(Sample, kw_only=True):
     """v1 extension: the body stage's skeletons for one frame (an empty list when nobody is seen)."""
 
-    seq: described(int, "of the frame")
+    seq: Annotated[int, described("of the frame")]
     cam: NonEmpty
-    width: described(int, "px, of the frame")
-    height: described(int, "px, of the frame")
-    bodies: described(list[Body], "may be empty (nobody seen); MediaPipe Pose finds at most one person")
+    width: Annotated[int, described("px, of the frame")]
+    height: Annotated[int, described("px, of the frame")]
+    bodies: Annotated[list[Body], described("may be empty (nobody seen); MediaPipe Pose finds at most one person")]
 
 
 class GestureEvent(Sample, kw_only=True):
     cam: NonEmpty
-    width: described(int, "px, of the frame")
-    height: described(int, "px, of the frame")
+    width: Annotated[int, described("px, of the frame")]
+    height: Annotated[int, described("px, of the frame")]
     gesture: GestureName
-    phase: described(GesturePhase, "`hold` at most every 100 ms while the gesture lasts")
-    start: described(Finite, "stamp of the gesture's first frame")
-    end: described(Finite, "stamp of its latest frame (`start ≤ end`)")
+    phase: Annotated[GesturePhase, described("`hold` at most every 100 ms while the gesture lasts")]
+    start: Annotated[Finite, described("stamp of the gesture's first frame")]
+    end: Annotated[Finite, described("stamp of its latest frame (`start ≤ end`)")]
     score: UnitFloat
-    hand: described(Handedness, "the hand that makes it")
-    ray: described(Optional[Ray], "for `point`") = None
+    hand: Annotated[Handedness, described("the hand that makes it")]
+    ray: Annotated[Optional[Ray], described("for `point`")] = None
 
     def _check_sample(self) -> None:
-        self._check_span()
+        _check_span(self.start, self.end)
 
 
 # Word times may stray this far outside their utterance (rounding of the recognisers' frame times).
@@ -612,17 +650,17 @@ WORD_TIME_SLACK = 0.05
 
 
 class Transcript(Sample, kw_only=True):
-    mic: described(NonEmpty, "microphone id")
-    start: described(Finite, "utterance start, source time (audio clock)")
-    end: described(Finite, "utterance end; `stamp` = `end`")
-    text: described(str, "the words as recognised")
-    confidence: described(UnitFloat, "how sure the recogniser is of the words")
-    words: described(list[Word], "empty when the backend has no word times")
-    final: described(bool, "false for a partial result while the person is still speaking")
-    backend: described(NonEmpty, "the recogniser that produced it")
+    mic: Annotated[NonEmpty, described("microphone id")]
+    start: Annotated[Finite, described("utterance start, source time (audio clock)")]
+    end: Annotated[Finite, described("utterance end; `stamp` = `end`")]
+    text: Annotated[str, described("the words as recognised")]
+    confidence: Annotated[UnitFloat, described("how sure the recogniser is of the words")]
+    words: Annotated[list[Word], described("empty when the backend has no word times")]
+    final: Annotated[bool, described("false for a partial result while the person is still speaking")]
+    backend: Annotated[NonEmpty, described("the recogniser that produced it")]
 
     def _check_sample(self) -> None:
-        self._check_span()
+        _check_span(self.start, self.end)
         lo, hi = self.start - WORD_TIME_SLACK, self.end + WORD_TIME_SLACK
         for i, w in enumerate(self.words):
             if not lo <= w.start <= w.end <= hi:
@@ -659,33 +697,44 @@ def make_transcript(
 
 
 class FusedCommand(Sample, kw_only=True):
-    id: described(NonEmpty, "deterministic from the inputs: replaying the same samples gives the same id")
-    intent: described(
+    id: Annotated[NonEmpty, described("deterministic from the inputs: replaying the same samples gives the same id")]
+    intent: Annotated[
         NonEmpty,
-        "`pick_up bring put_down go_to come_here stop look_at follow greet move turn` "
-        "(`move`, `turn`: v1 extension, with `motion`)",
-    )
-    text: described(Optional[str], "the utterance (nil for gesture-only commands)") = None
-    target: described(Optional[Target], "the object meant") = None
-    location: described(Optional[Location], 'a place in the image ("put it there" + pointing)') = None
-    place: described(Optional[str], 'a named place ("go to the kitchen": `kitchen`), from `common/language.py`') = None
-    gesture: described(Optional[str], "the gesture that took part") = None
+        described(
+            "`pick_up bring put_down go_to come_here stop look_at follow greet move turn` "
+            "(`move`, `turn`: v1 extension, with `motion`)"
+        ),
+    ]
+    text: Annotated[Optional[str], described("the utterance (nil for gesture-only commands)")] = None
+    target: Annotated[Optional[Target], described("the object meant")] = None
+    location: Annotated[Optional[Location], described('a place in the image ("put it there" + pointing)')] = None
+    place: Annotated[
+        Optional[str], described('a named place ("go to the kitchen": `kitchen`), from `common/language.py`')
+    ] = None
+    gesture: Annotated[Optional[str], described("the gesture that took part")] = None
     confidence: UnitFloat
-    weights: described(Weights, "normalised reliability of each modality for this decision")
-    inputs: described(dict[str, Optional[Finite]], "the stamp of each modality's sample used; nil = missing")
-    explanation: described(str, "why this target won")
-    prompt: described(
-        str, "a self-contained text for an LLM planner (command, objects in view with positions, gesture, motion)"
+    weights: Annotated[Weights, described("normalised reliability of each modality for this decision")]
+    inputs: Annotated[dict[str, Optional[Finite]], described("the stamp of each modality's sample used; nil = missing")]
+    explanation: Annotated[str, described("why this target won")]
+    prompt: Annotated[
+        str,
+        described(
+            "a self-contained text for an LLM planner (command, objects in view with positions, gesture, motion)"
+        ),
+    ]
+    motion: Annotated[Optional[Motion], described("**v1 extension**, for `move` / `turn`; absent or nil otherwise")] = (
+        None
     )
-    motion: described(Optional[Motion], "**v1 extension**, for `move` / `turn`; absent or nil otherwise") = None
 
 
 class Clarification(Sample, kw_only=True):
-    id: described(NonEmpty, "deterministic, like a command's")
-    text: described(Optional[str], "the utterance that needs clarifying") = None
+    id: Annotated[NonEmpty, described("deterministic, like a command's")]
+    text: Annotated[Optional[str], described("the utterance that needs clarifying")] = None
     reason: ClarificationReason
-    question: described(NonEmpty, 'a question a person can answer ("Which candy: the red one on the left or …?")')
-    candidates: described(list[Target], "the objects the question is between")
+    question: Annotated[
+        NonEmpty, described('a question a person can answer ("Which candy: the red one on the left or …?")')
+    ]
+    candidates: Annotated[list[Target], described("the objects the question is between")]
 
 
 class Stats(Sample, kw_only=True):
@@ -693,14 +742,14 @@ class Stats(Sample, kw_only=True):
 
     service: NonEmpty
     instance: NonEmpty
-    uptime: described(Finite, "seconds")
-    received: described(int, "samples received")
-    published: described(int, "samples published")
-    skipped: described(int, "stale frames replaced by newer ones")
-    rejected: described(dict[str, int], "invalid samples by reason")
-    other: described(
-        dict[str, int], "service-specific counters, e.g. `undecodable`, `non_command`, `dropped_overflow`"
-    ) = msgspec.field(default_factory=dict)
+    uptime: Annotated[Finite, described("seconds")]
+    received: Annotated[int, described("samples received")]
+    published: Annotated[int, described("samples published")]
+    skipped: Annotated[int, described("stale frames replaced by newer ones")]
+    rejected: Annotated[dict[str, int], described("invalid samples by reason")]
+    other: Annotated[
+        dict[str, int], described("service-specific counters, e.g. `undecodable`, `non_command`, `dropped_overflow`")
+    ] = msgspec.field(default_factory=dict)
 
 
 ALL_SAMPLES: tuple[type[Sample], ...] = (

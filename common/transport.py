@@ -258,7 +258,8 @@ def declare_recovering_publisher(session: zenoh.Session, key: str, **qos) -> "ze
         session,
         key,
         cache=ext.CacheConfig(max_samples=RECOVERY_CACHE),
-        sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT_S),
+        # the other option off, said explicitly (zenoh's type stubs have no default for it)
+        sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT_S, sporadic_heartbeat=None),
         publisher_detection=True,
         **qos,
     )
@@ -270,5 +271,9 @@ def declare_recovering_subscriber(session: zenoh.Session, key: str, handler) -> 
     from zenoh import ext
 
     return ext.declare_advanced_subscriber(
-        session, key, handler, recovery=ext.RecoveryConfig(heartbeat=True), subscriber_detection=True
+        session,
+        key,
+        handler,
+        recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None),  # None: off (the stubs want it said)
+        subscriber_detection=True,
     )

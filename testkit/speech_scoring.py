@@ -45,7 +45,7 @@ def word_errors(ref: list[str], hyp: list[str]) -> int:
 def meaning(text: str) -> tuple:
     """What fusion's parser makes of the words: intent, answer, object, place, motion."""
     u = parse(text)
-    motion = None if u.motion is None else (u.motion.kind, u.motion.direction, u.motion.distance, u.motion.angle)
+    motion = None if u.motion is None else (u.intent, u.motion.direction, u.motion.distance, u.motion.angle)
     return u.intent, u.answer, u.obj, u.place, u.deictic_place, u.dest_obj, motion
 
 

@@ -4,9 +4,12 @@ and the scenario suite)."""
 
 from __future__ import annotations
 
+from typing import get_args
+
 import pytest
 
 from common import language as L
+from common.schema import MotionDirection
 from services.fusion.parse import parse
 
 # (utterance, meaning). Meaning keys: intent, answer, color, label, noun, spatial, deictic, place, other,
@@ -144,7 +147,7 @@ def test_utterance_means(text, meaning):
         "deictic": u.obj.deictic,
         "place": u.place,
         "other": u.other,
-        "motion": (u.motion.kind, u.motion.direction, u.motion.distance, u.motion.angle) if u.motion else None,
+        "motion": (u.intent, u.motion.direction, u.motion.distance, u.motion.angle) if u.motion else None,
     }
     for key, want in meaning.items():
         if key == "motion" and want is not None:
@@ -170,8 +173,7 @@ def test_utterance_means(text, meaning):
 )
 def test_disfluencies_and_politeness_never_change_the_meaning(plain, noisy):
     def meaning(u):
-        m = u.motion
-        return u.intent, u.obj, (m.kind, m.direction, m.distance, m.angle) if m else None
+        return u.intent, u.obj, u.motion
 
     assert meaning(parse(plain)) == meaning(parse(noisy))
 
@@ -202,6 +204,11 @@ def test_the_speech_vocabulary_and_the_parser_read_the_same_tables():
     for word in ("backward", "centimeters", "giraffe"):  # a word added to a table is understood at once
         assert parse(f"go {word}").tokens  # tokenised
     assert parse("turn left").motion is not None and parse("Look at the giraffe.").obj.label == "giraffe"
+
+
+def test_the_direction_words_are_the_wires_motion_directions():
+    # the parser hands a direction tag's value to the wire's Motion as it is
+    assert set(L.DIRECTION_PHRASES) == set(get_args(MotionDirection))
 
 
 def test_motion_on_the_wire_is_optional_and_checked():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
 
 import cv2
 import numpy as np
@@ -25,7 +25,7 @@ class Source:
     native_fps: float | None
     finite: bool
 
-    def frames(self) -> Iterator[np.ndarray]:
+    def frames(self) -> Iterator[Any]:  # np.ndarray, or rgbd.Capture (rgbd imports this module: no cycle)
         raise NotImplementedError
 
     def rewind(self) -> None:

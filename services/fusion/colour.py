@@ -28,11 +28,15 @@ SHARPNESS = 4.0
 UNKNOWN = 0.5  # no colour reported: neither fits nor excluded
 
 
-class Coloured(Protocol):
-    key: tuple[str, str]
-    color: str | None
-    lab: tuple[float, float, float] | None
-    colors: tuple[tuple[str, float], ...]
+class Coloured(Protocol):  # read-only: a frozen SceneObject is one
+    @property
+    def key(self) -> tuple[str, str]: ...
+    @property
+    def color(self) -> str | None: ...
+    @property
+    def lab(self) -> tuple[float, float, float] | None: ...
+    @property
+    def colors(self) -> tuple[tuple[str, float], ...]: ...
 
 
 def name_fit(term: str, obj: Coloured) -> float | None:

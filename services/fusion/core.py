@@ -295,7 +295,9 @@ class FusionCore:
             overruled = choice.overruled
             if choice.kind == "low_confidence":
                 return [
-                    self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target.obj, place=u.place))
+                    self.dialogue.clarify(
+                        t, u, ctx, choice, Draft(intent, t.text, target=target.obj if target else None, place=u.place)
+                    )
                 ]
         elif intent == "put_down" and u.obj.specific:
             choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
@@ -310,7 +312,13 @@ class FusionCore:
         )
         if speech_rel < self.cfg.low_speech_confidence and not gesture_carried:
             draft = Draft(
-                intent, t.text, target=target.obj if target else None, location=location, place=u.place, motion=u.motion
+                intent,
+                t.text,
+                target=target.obj if target else None,
+                location=location,
+                place=u.place,
+                motion=u.motion,
+                motion_said=u.motion_said,
             )
             choice = Choice("low_confidence", target, (target,) if target else ())
             return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
@@ -339,6 +347,7 @@ class FusionCore:
                 gesture="point" if location and ctx.pointing else None,
                 place=u.place,
                 motion=u.motion,
+                motion_said=u.motion_said,
             )
         ]
 

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
-from common.schema import Location
+from common.schema import Location, Motion
 from services.fusion import space
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, Scored
-from services.fusion.parse import Motion, ObjectPhrase
+from services.fusion.parse import ObjectPhrase
 from services.fusion.relations import fit_matrix
 
 PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
@@ -212,7 +212,7 @@ def explain_target(
 
 def motion_words(m: Motion) -> str:
     """'move forward 10 m', 'turn left 90 degrees', 'move back (distance not said)'."""
-    if m.kind == "turn":
+    if m.angle is not None:  # a turn has an angle, a move a distance (or none said)
         return f"turn {m.direction or '(direction not said)'} {m.angle:g} degrees"
     amount = f"{m.distance:g} m" if m.distance is not None else "(distance not said: a short move)"
     return f"move {m.direction} {amount}"
@@ -231,11 +231,12 @@ def planner_prompt(
     missing: list[str],
     explanation: str,
     motion: Motion | None = None,
+    motion_said: str = "",
 ) -> str:
     """Everything a planner needs, in plain text, from the same data the decision used."""
     lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
     if motion is not None:
-        said = f', said as "{motion.amount}"' if motion.amount else ""
+        said = f', said as "{motion_said}"' if motion_said else ""
         lines.append(
             f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces, "
             f"left/right = its own left/right{said})"

@@ -16,11 +16,11 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.language import ANY_OBJECT, label_matches
-from common.schema import Location, Transcript
+from common.schema import ClarificationReason, Location, Motion, Transcript
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
-from services.fusion.parse import Motion, ObjectPhrase, Utterance
+from services.fusion.parse import ObjectPhrase, Utterance
 from services.fusion.window import Context
 
 
@@ -34,6 +34,7 @@ class Draft:
     location: Location | None = None
     place: str | None = None
     motion: Motion | None = None
+    motion_said: str = ""
 
 
 @dataclass
@@ -53,7 +54,7 @@ class Question:
     """The open clarification."""
 
     clarification_id: str
-    reason: str
+    reason: ClarificationReason
     draft: Draft
     phrase: ObjectPhrase
     candidates: list[SceneObject]
@@ -100,7 +101,10 @@ class Dialogue:
     ) -> Output:
         """Ask about the object of `draft`: which one (ambiguous, conflict), did you say (low confidence), or what
         (not found: the answer may pick any visible object)."""
+        if choice.kind == "target":
+            raise ValueError("clarify: the choice found its target, there is nothing to ask")
         if choice.kind == "conflict":
+            assert choice.speech_best is not None and choice.gesture_best is not None  # the two sides (choose)
             question = describe.conflict_question(u.obj, choice.speech_best, choice.gesture_best)
             candidates = [c.obj for c in choice.candidates]
         elif choice.kind == "ambiguous":
@@ -128,7 +132,7 @@ class Dialogue:
     def _ask(
         self,
         t: Transcript,
-        reason: str,
+        reason: ClarificationReason,
         draft: Draft,
         phrase: ObjectPhrase,
         shown: list[SceneObject],
@@ -268,4 +272,5 @@ class Dialogue:
             gesture="point" if ctx.pointing else None,
             place=draft.place,
             motion=draft.motion,
+            motion_said=draft.motion_said,
         )

@@ -20,11 +20,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
 from common.language import canonical_label, label_matches
-from common.schema import Detections, Location, Target, Weights
+from common.schema import ClarificationReason, Detections, Location, Target, Weights
 from services.fusion import space
 from services.fusion.colour import colour_factors
 from services.fusion.evidence import Pointing, image_quality
@@ -100,18 +101,18 @@ def scene_objects(detections: list[Detections]) -> list[SceneObject]:
                     label=canonical_label(o.label),
                     raw_label=o.label,
                     color=o.color,
-                    bbox=tuple(o.bbox),
-                    center=tuple(o.center),
+                    bbox=space.box4(o.bbox),
+                    center=space.vec2(o.center),
                     score=o.score,
                     cam=det.cam,
                     width=det.width,
                     height=det.height,
                     stamp=det.stamp,
                     quality=q,
-                    position=tuple(o.position) if o.position else None,
-                    extent=tuple(o.extent) if o.extent else None,
+                    position=space.vec3(o.position) if o.position else None,
+                    extent=space.vec3(o.extent) if o.extent else None,
                     frame_id=det.frame_id,
-                    lab=None if o.lab is None else tuple(o.lab),
+                    lab=None if o.lab is None else space.vec3(o.lab),
                     colors=tuple((c.name, c.p) for c in o.colors),
                 )
             )
@@ -191,7 +192,7 @@ def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
         x0, y0, x1, y1 = p.hand_box
         if x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1:
             return 0.0, None
-    if in_3d(p, o):
+    if p.ray3d is not None and in_3d(p, o):  # (in_3d checks the ray too; said here for the type checker)
         return space.pointing_score(p.ray3d, o.position, o.extent, p.spread_deg)
     vx, vy = o.center[0] - p.origin[0], o.center[1] - p.origin[1]
     dist = math.hypot(vx, vy)
@@ -228,7 +229,7 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     fingertip; for a hand ray (origin at the index knuckle) the finger's own length is added (half the hand box)."""
     if o.cam != p.cam:
         return False
-    if in_3d(p, o):
+    if p.ray3d is not None and in_3d(p, o):
         return space.under_fingertip(p.ray3d, o.position, o.extent)
     gap = ray_gap(p, o)
     if gap is None:
@@ -411,7 +412,7 @@ def score(
     ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
     if ws + wg <= 0:
         ws = 1.0
-    deictic = deictic_scores(pointing, objects) if use_gesture else {}
+    deictic = deictic_scores(pointing, objects) if pointing is not None and use_gesture else {}
     scored = []
     for o in objects:
         m = match[o.key]
@@ -456,14 +457,18 @@ def _whole_objects(candidates: list[Scored]) -> list[Scored]:
     return out
 
 
+# What grounding decided: a target, or the reason of the question to ask (the Clarification's `reason`)
+ChoiceKind = Literal["target"] | ClarificationReason
+
+
 @dataclass(frozen=True)
 class Choice:
-    kind: str  # "target", "ambiguous", "conflict", "not_found", "low_confidence"
+    kind: ChoiceKind
     winner: Scored | None
     candidates: tuple[Scored, ...]
     speech_best: Scored | None = None
     gesture_best: Scored | None = None
-    overruled: str | None = None  # "speech" or "gesture" when the other side won a disagreement
+    overruled: Literal["speech", "gesture"] | None = None  # the side that lost a disagreement (the other won)
     runner_up: Scored | None = None
 
 
@@ -495,9 +500,14 @@ def choose(
         runner_up is not None and not pointing and winner.match >= 0.5 and abs(winner.match - runner_up.match) < 1e-6
     )
     if runner_up is not None and (winner.total - runner_up.total < margin or tie_in_words):
-        if disagree and {id(winner), id(runner_up)} == {id(speech_best), id(gesture_best)}:
+        if (
+            disagree
+            and speech_best is not None  # (disagree says so; said for the type checker)
+            and gesture_best is not None
+            and {id(winner), id(runner_up)} == {id(speech_best), id(gesture_best)}
+        ):
             return Choice("conflict", None, (speech_best, gesture_best), speech_best, gesture_best, runner_up=runner_up)
-        close = []
+        close: list[Scored] = []
         for c in scored:  # ranked: stop at the first that is clearly behind
             if (winner.total - c.total >= margin and not (tie_in_words and abs(c.match - winner.match) < 1e-6)) or len(
                 close
@@ -512,7 +522,7 @@ def choose(
         return Choice("ambiguous", None, tuple(whole), speech_best, gesture_best, runner_up=runner_up)
     if check_evidence and winner.evidence < MIN_EVIDENCE:
         return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
-    overruled = None
+    overruled: Literal["speech", "gesture"] | None = None
     if disagree:
         overruled = "speech" if winner is gesture_best else "gesture"
     return Choice("target", winner, (winner,), speech_best, gesture_best, overruled, runner_up)

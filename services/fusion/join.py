@@ -33,6 +33,9 @@ def waited_modalities(fusion: str = "fusion") -> tuple[str, ...]:
 
 WAITED_MODALITIES = waited_modalities()
 
+# What became of a sample offered to a buffer (`StreamBuffer.add`)
+Buffered = Literal["added", "duplicate", "late", "reset"]
+
 
 @dataclass
 class StreamBuffer:
@@ -48,7 +51,7 @@ class StreamBuffer:
     def __post_init__(self) -> None:
         self.guard = StampGuard(reset_run=self.reset_run, tolerance=self.horizon)
 
-    def add(self, stamp: float, item: Any, ident: Any = None, keep_from: float | None = None) -> str:
+    def add(self, stamp: float, item: Any, ident: Any = None, keep_from: float | None = None) -> Buffered:
         """Insert in stamp order. Returns "added", "duplicate", "late" (older than the horizon) or "reset"
         (the last of `reset_run` consistent late samples: the stream restarted on a new timeline; the buffer
         starts again from it).
@@ -56,7 +59,7 @@ class StreamBuffer:
         A duplicate has the same stamp and the same `ident` (default: any item at that stamp).
         `keep_from`: keep samples from this stamp on even beyond the horizon (a transcript still needs them);
         the item cap still applies."""
-        status = "added"
+        status: Buffered = "added"
         verdict = self.guard.check("", stamp, None)
         if verdict == OUT_OF_ORDER:
             return "late"
@@ -105,7 +108,7 @@ class Streams:
 
     def add(
         self, modality: str, key: str, stamp: float, item: Any, ident: Any = None, keep_from: float | None = None
-    ) -> str:
+    ) -> Buffered:
         per_key = self.buffers.setdefault(modality, {})
         buf = per_key.get(key)
         if buf is None:
@@ -114,7 +117,7 @@ class Streams:
 
     def between(self, modality: str, lo: float, hi: float) -> list[tuple[str, Any]]:
         """(key, item) in the window from every key of the modality, keys in name order."""
-        out = []
+        out: list[tuple[str, Any]] = []
         for key in sorted(self.buffers.get(modality, {})):
             out.extend((key, item) for item in self.buffers[modality][key].between(lo, hi))
         return out
@@ -231,7 +234,7 @@ class Join(Generic[W]):
         start = min((w.lo for w in self.windows), default=None)
         return None if start is None else start - self.lookback
 
-    def add(self, modality: str, key: str, stamp: float, item: Any, wall: float, ident: Any = None) -> str:
+    def add(self, modality: str, key: str, stamp: float, item: Any, wall: float, ident: Any = None) -> Buffered:
         """Buffer a sample ("added", "duplicate", "late" or "reset": `StreamBuffer.add`)."""
         self.liveness.arrived(modality, wall)
         return self.streams.add(modality, key, stamp, item, ident, self.obsolete_before())

@@ -8,23 +8,22 @@ from dataclasses import dataclass
 
 from common.schema import (
     Clarification,
+    ClarificationReason,
     FusedCommand,
     GestureEvent,
     Location,
-    Motion as WireMotion,
-    Sample,
+    Motion,
     Transcript,
     Weights,
 )
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, SceneObject, Scored
-from services.fusion.parse import Motion
 from services.fusion.window import Context
 
 
 @dataclass
 class Output:
-    sample: Sample
+    sample: FusedCommand | Clarification
     realtime: bool = False  # a stop: published at REAL_TIME priority, express
 
 
@@ -56,6 +55,7 @@ class Outputs:
         gesture: str | None = None,
         place: str | None = None,
         motion: Motion | None = None,
+        motion_said: str = "",
         realtime: bool = False,
     ) -> Output:
         """A command on an utterance, with the window's weights, inputs and scene (`ctx`); without a window
@@ -73,11 +73,7 @@ class Outputs:
             missing=ctx.missing if ctx else [],
             explanation=explanation,
             motion=motion,
-        )
-        wire_motion = (
-            WireMotion(direction=motion.direction, distance=motion.distance, angle=motion.angle)
-            if motion is not None
-            else None
+            motion_said=motion_said,
         )
         cmd = FusedCommand(
             stamp=t.stamp,
@@ -94,7 +90,7 @@ class Outputs:
             inputs=ctx.inputs if ctx else {"speech": t.stamp, "vision": None, "gesture": None},
             explanation=explanation,
             prompt=prompt,
-            motion=wire_motion,
+            motion=motion,
         )
         return Output(cmd, realtime=realtime)
 
@@ -154,7 +150,9 @@ class Outputs:
         )
         return Output(cmd, realtime=realtime)
 
-    def clarification(self, t: Transcript, reason: str, question: str, candidates: list[SceneObject]) -> Output:
+    def clarification(
+        self, t: Transcript, reason: ClarificationReason, question: str, candidates: list[SceneObject]
+    ) -> Output:
         return Output(
             Clarification(
                 stamp=t.stamp,

@@ -21,8 +21,10 @@ from __future__ import annotations
 import difflib
 import re
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 from common import language as L
+from common.schema import Motion, MotionDirection
 
 # Stop words win wherever they appear: a false stop is cheap, a missed one is not (stop_requested).
 SAFETY_STOP_WORDS = L.STOP_WORDS
@@ -194,22 +196,6 @@ class ObjectPhrase:
 
 
 @dataclass(frozen=True)
-class Motion:
-    """The robot moving itself: kind "move" (direction, distance in metres) or "turn" (direction, angle)."""
-
-    kind: str
-    direction: str | None = None  # forward, back, left, right, around
-    distance: float | None = None  # metres; None: as far as the robot deems a small move
-    angle: float | None = None  # degrees
-    amount: str = ""  # the amount as said ("ten meters", "a bit")
-
-    def describe(self) -> str:
-        amount = f" {self.distance:g} m" if self.distance is not None else ""
-        amount += f" {self.angle:g} degrees" if self.angle is not None else ""
-        return f"{self.kind} {self.direction or ''}{amount}".replace("  ", " ").strip()
-
-
-@dataclass(frozen=True)
 class Utterance:
     text: str
     tokens: tuple[str, ...]
@@ -221,7 +207,8 @@ class Utterance:
     dest_obj: ObjectPhrase | None = None  # "put it on the red box"
     corrections: tuple[tuple[str, str], ...] = ()  # (heard, understood) fuzzy matches
     unknown: tuple[str, ...] = ()  # content words nothing matched
-    motion: Motion | None = None  # intent "move" / "turn"
+    motion: Motion | None = None  # intent "move" (direction, distance) / "turn" (direction, angle): the wire's Motion
+    motion_said: str = ""  # the motion's amount as said ("ten meters", "a bit")
     other: bool = False  # "the other one", "not that one"
     self_corrected: bool = False  # "the red, no, the blue cup"
 
@@ -522,10 +509,11 @@ def _number(tags: list[Tag], k: int, tokens: tuple[str, ...]) -> tuple[float | N
     return value, j
 
 
-def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> Motion | None:
-    """Direction and amount after a motion verb; the last one said wins ("forward, no, back")."""
+def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> tuple[str, Motion, str] | None:
+    """Direction and amount after a motion verb; the last one said wins ("forward, no, back"). Returns the
+    intent ("move" or "turn"), the motion and its amount as said."""
     kind = "turn" if verb.kind == "motion" and verb.value == "turn" else "move"
-    direction = None
+    direction: str | None = None
     if verb.kind == "motion" and verb.words == ("back", "up"):
         direction = "back"
     distance = angle = None
@@ -573,12 +561,24 @@ def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> Motion | Non
             angle = L.TURN_AROUND_DEG if direction == "around" else L.TURN_DEFAULT_DEG
         if direction is None and abs(angle - 180.0) < 1e-6:
             direction = "around"
-        return Motion("turn", direction, None, round(angle, 3), amount)
+        return "turn", Motion(direction=_wire_direction(direction), angle=round(angle, 3)), amount
     if direction is None and distance is None:
         return None
     if direction == "around":  # "go around" is a turn, not a distance
-        return Motion("turn", "around", None, L.TURN_AROUND_DEG, amount)
-    return Motion("move", direction or "forward", None if distance is None else round(distance, 4), None, amount)
+        return "turn", Motion(direction="around", angle=L.TURN_AROUND_DEG), amount
+    return (
+        "move",
+        Motion(
+            direction=_wire_direction(direction or "forward"), distance=None if distance is None else round(distance, 4)
+        ),
+        amount,
+    )
+
+
+def _wire_direction(direction: str | None) -> MotionDirection | None:
+    # a direction tag's value is a key of language.DIRECTION_PHRASES, which are the wire's MotionDirection names
+    # (test_fusion_language checks the two lists are equal)
+    return cast(MotionDirection | None, direction)
 
 
 def _split_correction(tags: list[Tag]) -> int | None:
@@ -701,6 +701,7 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
         if candidate.specific:
             dest_obj = candidate
     motion = None
+    motion_said = ""
     verb = next((t for t in tags if t.kind == "motion"), None)
     if verb is None and chosen is not None and chosen.value == "go_to":
         verb = chosen
@@ -711,9 +712,9 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
             obj.label not in (None, L.ANY_OBJECT) or obj.color or obj.deictic or obj.noun or place or deictic_place
         )
     ):
-        motion = _motion(before + tags if before else tags, tokens, verb)
-        if motion is not None:
-            intent = motion.kind
+        moved = _motion(before + tags if before else tags, tokens, verb)
+        if moved is not None:
+            intent, motion, motion_said = moved
             obj = ObjectPhrase()
     return Utterance(
         text=text,
@@ -727,6 +728,7 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
         corrections=tuple(corrections),
         unknown=tuple(unknown),
         motion=motion,
+        motion_said=motion_said,
         other=other,
         self_corrected=split is not None,
     )

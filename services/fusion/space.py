@@ -13,6 +13,7 @@ import collections
 import math
 import re
 from dataclasses import dataclass
+from typing import Sequence
 
 from common.schema import Location, Ray3D
 
@@ -42,15 +43,30 @@ class Ray3:
     hit: tuple[float, float, float] | None = None
 
 
+def vec2(v: Sequence[float]) -> tuple[float, float]:
+    """A wire Point (its length fixed by the schema) as a tuple."""
+    return (v[0], v[1])
+
+
+def vec3(v: Sequence[float]) -> tuple[float, float, float]:
+    """A wire Point3 (or any 3 numbers) as a tuple."""
+    return (v[0], v[1], v[2])
+
+
+def box4(v: Sequence[float]) -> tuple[float, float, float, float]:
+    """A wire Box as a tuple."""
+    return (v[0], v[1], v[2], v[3])
+
+
 def from_wire(ray: Ray3D | None) -> Ray3 | None:
     if ray is None:
         return None
     return Ray3(
-        tuple(ray.origin),
-        tuple(ray.direction),
+        vec3(ray.origin),
+        vec3(ray.direction),
         ray.method,
         ray.frame_id,
-        tuple(ray.hit) if ray.hit is not None else None,
+        vec3(ray.hit) if ray.hit is not None else None,
     )
 
 
@@ -66,16 +82,16 @@ def _norm(a) -> float:
     return math.sqrt(_dot(a, a))
 
 
-def mean_ray(rays: list[tuple[Ray3, float]]) -> Ray3 | None:
+def mean_ray(observed: list[tuple[Ray3 | None, float]]) -> Ray3 | None:
     """The weighted average of one gesture's 3-D rays (origins, directions and hits; the most frequent method)."""
-    rays = [(r, max(w, 1e-6)) for r, w in rays if r is not None]
+    rays = [(r, max(w, 1e-6)) for r, w in observed if r is not None]
     if not rays:
         return None
     frame = rays[-1][0].frame_id
     rays = [(r, w) for r, w in rays if r.frame_id == frame]
     total = sum(w for _, w in rays)
-    origin = tuple(sum(r.origin[i] * w for r, w in rays) / total for i in range(3))
-    d = tuple(sum(r.direction[i] * w for r, w in rays) for i in range(3))
+    origin = vec3([sum(r.origin[i] * w for r, w in rays) / total for i in range(3)])
+    d = vec3([sum(r.direction[i] * w for r, w in rays) for i in range(3)])
     n = _norm(d)
     if n < 1e-9:
         return None
@@ -83,9 +99,9 @@ def mean_ray(rays: list[tuple[Ray3, float]]) -> Ray3 | None:
     hit = None
     if hits and len(hits) * 2 >= len(rays):  # most observations saw a surface there
         hw = sum(w for _, w in hits)
-        hit = tuple(sum(h[i] * w for h, w in hits) / hw for i in range(3))
+        hit = vec3([sum(h[i] * w for h, w in hits) / hw for i in range(3)])
     methods = sorted({r.method for r, _ in rays}, key=lambda m: (-sum(w for r, w in rays if r.method == m), m))
-    return Ray3(origin, tuple(c / n for c in d), methods[0], frame, hit)
+    return Ray3(origin, vec3([c / n for c in d]), methods[0], frame, hit)
 
 
 def same_frame(ray: Ray3, frame_id: str | None) -> bool:
@@ -185,6 +201,8 @@ def project(point, projection: tuple[float, float, float]) -> tuple[float, float
 def hit_location(ray: Ray3, objects, cam: str, fallback_px: tuple[float, float]) -> Location:
     """ "There" in metres: where the ray meets the floor or table (`ray.hit`). Its pixel is the hit projected with the
     pinhole fitted to the objects in view (`fit_projection`), else `fallback_px` (the 2-D ray's point)."""
+    if ray.hit is None:
+        raise ValueError("hit_location needs a ray that met a surface (ray.hit)")
     projection = fit_projection([o for o in objects if o.position is not None and same_frame(ray, o.frame_id)])
     px = project(ray.hit, projection) if projection is not None else None
     x, y = px if px is not None else fallback_px

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from common.depth import depth_metres
-from common.schema import DepthFrame, Ray3D
+from common.schema import DepthFrame, Ray3D, Ray3DMethod
 
 WINDOW = 7  # px, side of the window whose median depth lifts a landmark
 MIN_VALID = 3  # valid depth pixels needed in that window
@@ -124,11 +124,11 @@ class Lifted:
 
     origin: np.ndarray
     direction: np.ndarray  # unit
-    method: str
+    method: Ray3DMethod
     reach: float  # m from the origin to the pointing hand (fingertip or wrist): the surface is searched beyond it
 
 
-def _segment(a: np.ndarray | None, b: np.ndarray | None, method: str) -> Lifted | None:
+def _segment(a: np.ndarray | None, b: np.ndarray | None, method: Ray3DMethod) -> Lifted | None:
     if a is None or b is None:
         return None
     v = b - a
@@ -164,14 +164,15 @@ def arm_ray3d(
     p = np.asarray(pose, dtype=float).reshape(33, 3)
     s, e, w, _, _ = POSE[side]
     tip = _tip_pixels(p, side, hand)
-    tip3 = view.lift(*tip[0], depth_from=tip[1]) if tip is not None else None
+    tip3 = view.lift(tip[0][0], tip[0][1], depth_from=tip[1]) if tip is not None else None
     if _visible(p, *EYES) and tip3 is not None:
         eyes = p[list(EYES), :2].mean(axis=0)
         ray = _segment(view.lift(*eyes), tip3, "eye_fingertip")
         if ray is not None:
             return ray
     wrist3 = view.lift(*p[w, :2]) if _visible(p, w) else None
-    for a, method in ((e, "forearm"), (s, "shoulder_wrist")):
+    arm_methods: tuple[tuple[int, Ray3DMethod], ...] = ((e, "forearm"), (s, "shoulder_wrist"))
+    for a, method in arm_methods:
         if _visible(p, a) and wrist3 is not None:
             ray = _segment(view.lift(*p[a, :2]), wrist3, method)
             if ray is not None:
@@ -226,7 +227,9 @@ def hand_ray3d(view: DepthView, hand: np.ndarray) -> Lifted | None:
     q = np.asarray(hand, dtype=float).reshape(21, 2)
     tip_depth_at = tuple((q[HAND_INDEX_TIP] + q[HAND_INDEX_DIP]) / 2)
     return _segment(
-        view.lift(*q[HAND_INDEX_MCP]), view.lift(*q[HAND_INDEX_TIP], depth_from=tip_depth_at), "index_finger"
+        view.lift(*q[HAND_INDEX_MCP]),
+        view.lift(q[HAND_INDEX_TIP][0], q[HAND_INDEX_TIP][1], depth_from=tip_depth_at),
+        "index_finger",
     )
 
 
@@ -347,7 +350,7 @@ class FrameRays:
 
     @property
     def view(self) -> DepthView | None:
-        if self._view is None and self.error is None:
+        if self._view is None and self.error is None and isinstance(self._depth, DepthFrame):  # (else it is the view)
             try:
                 self._view = depth_view(self._depth)
             except ValueError as exc:  # UndecodableDepth: a broken PNG, a size that does not match
@@ -358,7 +361,7 @@ class FrameRays:
         if key not in self._done:
             view = self.view
             ray = make(view) if view is not None else None
-            if ray is None:
+            if ray is None or view is None:
                 self._done[key] = None
             else:
                 if self._cloud is None:

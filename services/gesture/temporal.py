@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -137,7 +138,8 @@ def fuse_arms(
             continue
         free.remove(match)
         if raw == "open_palm":
-            if arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
+            # (an arm is judged only on a body: `body is not None` is said for the type checker)
+            if body is not None and arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
                 raw = None  # resting on a hip, a leg or a table; never a point
         elif raw is None and match.pointing and body_may_point(obs.landmarks, palm, hand_ray_min_palm):
             raw = "point"
@@ -166,7 +168,9 @@ def fuse_arms(
                     a,
                 )
             )
-        elif raised_hand(body, a.side, body_scale(body)):  # a hand raised at room distance, too small to be seen
+        elif body is not None and raised_hand(
+            body, a.side, body_scale(body)
+        ):  # a hand raised at room distance, too small to be seen
             cues.append(
                 Cue(
                     a.side,
@@ -286,7 +290,7 @@ class GestureTracker:
             if track.id not in seen_ids:
                 events += self._step(track, stamp, None, None)
         self.tracks = [t for t in self.tracks if stamp - t.last_seen <= self.forget_after or t.active]
-        return tracked, events
+        return cast("list[TrackedHand]", tracked), events  # every observation made a cue (fuse_arms): no None
 
     def _judge_arms(self, body: np.ndarray | None, size: tuple[int, int]) -> list[Arm]:
         if body is None:

@@ -190,16 +190,17 @@ class MicStream:
             if result is not None and result.text:
                 out.append(self._heard(utt, result, final=False))
                 self.count("partials", "")
-        utt = self.segmenter.in_progress()
+        so_far = self.segmenter.in_progress()
+        every = self.partial_every or 0.0  # (set: feed() calls this only then)
         if (
-            utt is not None
+            so_far is not None
             and self._partial is None
             and self._speculation is None
-            and utt.speech_seconds >= self.partial_every
-            and self.segmenter.position - self._partial_at >= self.partial_every * RATE
+            and so_far.speech_seconds >= every
+            and self.segmenter.position - self._partial_at >= every * RATE
         ):
             self._partial_at = self.segmenter.position
-            self._partial = (utt, self.worker.submit(utt.audio))
+            self._partial = (so_far, self.worker.submit(so_far.audio))
         return out
 
     def _speculate(self, tentative: Utterance) -> None:

@@ -110,6 +110,7 @@ class PocketsphinxRecognizer:
         self.logmath = self.decoder.get_logmath()
         self.min_confidence = min_confidence
         self.matches = self.grammar.matcher()
+        self.commands: list[str] | None
         if commands is not None:
             self.commands = closed_list(commands, self.matches, self.decoder.lookup_word, log)
             self.decoder.add_jsgf_string("commands", closed_list_jsgf(self.commands))

@@ -27,6 +27,7 @@ import hashlib
 import importlib.util
 import logging
 import math
+import operator
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -155,7 +156,7 @@ def drop_improbable_tail(
     words: Sequence[T],
     min_probability: float | None,
     max_words: int = TAIL_WORDS,
-    probability: Callable[[T], float] = lambda w: w.confidence,
+    probability: Callable[[T], float] = operator.attrgetter("confidence"),  # a RecognisedWord's
 ) -> list[T]:
     """Without the last word or two when the first of them is one Whisper gives a probability below
     `min_probability` (never the first word). A continuation Whisper writes with no sound behind it ("... thank

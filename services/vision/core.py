@@ -114,8 +114,8 @@ def object_colour(
     if not own.any():
         return None, []
     pixels = small[own]
-    groups = [(measure_lab(pixels[mask], gains), share) for mask, share in colour_groups(bins[own], centre[own])]
-    groups = [(lab, share) for lab, share in groups if lab is not None]
+    measured = [(measure_lab(pixels[mask], gains), share) for mask, share in colour_groups(bins[own], centre[own])]
+    groups = [(lab, share) for lab, share in measured if lab is not None]
     if not groups:
         return None, []
     return groups[0][0], mixed_names(groups)

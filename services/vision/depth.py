@@ -177,7 +177,8 @@ def _quantiles(sorted_rows: np.ndarray, n: int) -> np.ndarray:
 
 def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:
     """The object with its position, extent and depth support from the depth image (unchanged without depth)."""
-    measured = object_depth(depth.units, depth.camera_info, tuple(obj.bbox), depth_scale=depth.depth_scale)
+    x, y, w, h = obj.bbox  # a wire Box: four numbers
+    measured = object_depth(depth.units, depth.camera_info, (x, y, w, h), depth_scale=depth.depth_scale)
     if measured is None or measured.position[2] <= 0:
         return obj
     return msgspec.structs.replace(

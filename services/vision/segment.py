@@ -106,6 +106,7 @@ class ColorSegmenter:
 
     def _name(self, blob: Blob) -> None:
         """Colour and score of a chromatic blob from its (possibly merged) hue histogram."""
+        assert blob.hist is not None, "a chromatic blob has its hue histogram"
         color, agreement = hue_name(blob.hist)
         x, y, bw, bh = blob.detection.bbox
         fill = blob.area / float(bw * bh)  # a disc fills pi/4 of its box
@@ -231,6 +232,7 @@ def merge_slivers(found: list[Blob], share: float, sliver_area: float) -> list[B
     kept: list[Blob] = []
     names: list[str] = []  # hue name of each kept blob
     for blob in sorted(found, key=lambda b: -b.area):
+        assert blob.hist is not None, "slivers are merged among chromatic blobs, which have their hue histogram"
         name = hue_name(blob.hist)[0]
         b = blob.detection.bbox
         for j, k in enumerate(kept):
@@ -244,6 +246,7 @@ def merge_slivers(found: list[Blob], share: float, sliver_area: float) -> list[B
                 x1, y1 = max(kb[0] + kb[2], b[0] + b[2]), max(kb[1] + kb[3], b[1] + b[3])
                 k.detection = Detection("", None, 0.0, (x0, y0, x1 - x0, y1 - y0))
                 k.area += blob.area
+                assert k.hist is not None  # a kept blob went through the same check
                 k.hist = k.hist + blob.hist
                 names[j] = hue_name(k.hist)[0]
                 break

@@ -73,7 +73,7 @@ def letterbox(
     else:
         nw, nh = round(w * scale), round(h * scale)
         left, top = int(round((in_w - nw) / 2 - 0.1)), int(round((in_h - nh) / 2 - 0.1))
-    canvas = np.full((in_h, in_w, 3), 114, np.uint8)
+    canvas: np.ndarray = np.full((in_h, in_w, 3), 114, np.uint8)
     canvas[top : top + nh, left : left + nw] = cv2.resize(bgr, (nw, nh), interpolation=cv2.INTER_LINEAR)
     if pre.channels == "rgb":
         canvas = cv2.cvtColor(canvas, cv2.COLOR_BGR2RGB)
@@ -282,7 +282,7 @@ class YoloDetector:
         """(family, index of the output to read, class count) from the declared output shapes, or else from one run
         on a grey frame (exports with dynamic output dimensions)."""
         declared = [tuple(d if isinstance(d, int) else None for d in o.shape) for o in self.session.get_outputs()]
-        shapes = declared
+        shapes: list[tuple[int, ...]] = [tuple(d for d in s if d is not None) for s in declared]  # when all known
         if any(None in s for s in declared):
             blank = np.full((1, 3, *self.input_hw), 114, np.float32)
             shapes = [tuple(np.asarray(o).shape) for o in self.session.run(None, {self.input_name: blank})]
