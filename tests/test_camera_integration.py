@@ -31,7 +31,13 @@ def test_camera_frames_reach_echo_and_everything_stops_cleanly(group):
 
 
 @pytest.mark.parametrize("encoding", ["jpeg", "bgr8"])
-def test_frames_decode_to_the_shipped_photos_with_gap_free_seq(group, encoding):
+def test_frames_decode_to_the_shipped_photos_in_seq_order(group, encoding):
+    """Each frame is the photo its `seq` names, in order, never twice. Gaps in `seq` are allowed: frames go
+    out with DROP congestion control on purpose (docs/foundation.md, QoS: a stale frame is worth nothing), so
+    zenoh may drop one whose link queue is full, and under CPU load a 0.9 MB bgr8 frame (~15 batches) can be.
+    The camera numbers frames gap-free (schema: `seq`), so a gap a receiver sees counts frames dropped on the
+    way; the subscriber here queues every sample, so the drop is zenoh's. Asserting gap-free `seq` asserted a
+    promise the stream does not make (it failed once so under load)."""
     group.router()
     client = Client(group.endpoint)
     try:
@@ -42,8 +48,8 @@ def test_frames_decode_to_the_shipped_photos_with_gap_free_seq(group, encoding):
         got = [s for _, s in frames.wait(6, timeout=30)]
     finally:
         client.close()
-    first = got[0].seq
-    assert [f.seq for f in got] == list(range(first, first + 6))
+    seqs = [f.seq for f in got]
+    assert all(a < b for a, b in zip(seqs, seqs[1:])), f"seq out of order or repeated: {seqs}"
     import cv2
 
     photos = [cv2.imread(str(p)) for p in sorted(TABLETOP.iterdir())]

@@ -55,7 +55,10 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         for name in ("camera", "vision", "gesture", "fusion"):
             client.wait_alive(name, timeout=90)
         results = client.collect("hri/fusion/**")
-        time.sleep(1.0)
+        detections = client.collect("hri/vision/*/objects")
+        # waits on detections rather than fixed sleeps (1 s and 1.5 s were races under load): the second one
+        # is a frame period after the first, by which time fusion, on the same router, has the first too
+        detections.wait(2, timeout=60)
         type_command(client, "pick up the red one")
         first = results.next()
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.color == "red", first
@@ -87,7 +90,7 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         )
         print(f"reconnected {t_back - t_up:.2f} s after the link came back")
 
-        time.sleep(1.5)  # fresh frames through vision
+        detections.wait(2, timeout=60, where=lambda k, d: d.stamp >= wall_up)  # fresh frames through vision
         type_command(client, "pick up the red one")
         again = results.next()
         assert isinstance(again, FusedCommand) and again.target is not None and again.target.color == "red", again

@@ -43,20 +43,21 @@ def test_an_undecodable_frame_is_counted_and_the_next_one_is_processed(group):
         img = cv2.imread(str(STOP))
         h, w = img.shape[:2]
         jpeg = cv2.imencode(".jpg", img)[1].tobytes()
+        # the bad frame on a camera of its own: each camera has its own latest-frame slot, so the good frame
+        # cannot replace it unread (with one camera, a fixed 0.3 s wait between the two was a race under load)
         client.publish(
-            "hri/camera/cam0/frame",
+            "hri/camera/bad/frame",
             Frame(
                 stamp=time.time(),
                 source="test/cam",
                 seq=0,
-                cam="cam0",
+                cam="bad",
                 width=w,
                 height=h,
                 encoding="jpeg",
                 data=jpeg[:200],
             ),
         )
-        time.sleep(0.3)
         client.publish(
             "hri/camera/cam0/frame",
             Frame(

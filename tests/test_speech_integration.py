@@ -97,7 +97,9 @@ def test_wav_playback_goes_to_hri_echo_and_a_truncated_file_is_skipped(group, tm
             target=lambda: echoed.extend(group.echo("hri/speech/desk/transcript", count=2, timeout=90))
         )
         echo.start()
-        time.sleep(2.0)  # hri echo is subscribed before the camera appears and playback starts
+        # hri echo (a process: seconds to start under load) is subscribed before the camera appears and
+        # playback starts; a fixed 2 s sleep here was a race. Nothing else subscribes to the transcripts.
+        client.wait_matched(["hri/speech/desk/transcript"], timeout=60)
         camera = group.service("camera", "--source", str(DATA / "images" / "tabletop"), "--fps", "1", "--loop")
         echo.join()
         heard = echoed
