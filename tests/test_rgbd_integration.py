@@ -131,10 +131,17 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     assert schemas == {"hri/camera/cam0/depth": "DepthFrame", "hri/camera/cam0/frame": "Frame"}
     depths = [decode(d, DepthFrame) for t, d in recorded if t.endswith("/depth")]
     frames = [decode(d, Frame) for t, d in recorded if t.endswith("/frame")]
-    assert [d.seq for d in depths] == [f.seq for f in frames] == [0, 1]
-    assert [d.stamp for d in depths] == [f.stamp for f in frames]
-    for d, name in zip(depths, sorted(folder.glob("*-depth.png"))):
-        assert np.array_equal(depth_units(d), cv2.imread(str(name), cv2.IMREAD_UNCHANGED))  # lossless
+    # Frames and depth go out droppable (DROP congestion control, docs/foundation.md QoS): under load one of the
+    # two may be lost on the wire, so each recorded sample is checked against what its seq names, and every colour
+    # frame that arrived must have its depth frame, with the same stamp, recorded beside it.
+    assert frames and depths, (len(frames), len(depths))
+    seqs = [d.seq for d in depths]
+    assert seqs == sorted(set(seqs)) and set(seqs) <= {0, 1}, seqs
+    stamp_of = {d.seq: d.stamp for d in depths}
+    assert all(f.seq in stamp_of and f.stamp == stamp_of[f.seq] for f in frames), ([f.seq for f in frames], seqs)
+    photos = sorted(folder.glob("*-depth.png"))
+    for d in depths:
+        assert np.array_equal(depth_units(d), cv2.imread(str(photos[d.seq]), cv2.IMREAD_UNCHANGED))  # lossless
         assert d.camera_info.fx == 1066.778 and d.depth_scale == 0.0001
 
     # replayed into a fresh vision: the positions come back
@@ -146,13 +153,15 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
         # looped: the liveliness token comes before the subscriptions, so the very first replayed frame may be lost
         group.start("replay", "hri.cli", "replay", str(path), "--loop")
         got = {}
-        for seq in (0, 1):
+        for seq in sorted(f.seq for f in frames):  # a replayed colour frame (with its depth) gives detections
             _, det = out.wait(1, timeout=30, where=lambda k, s, seq=seq: s.seq == seq and s.frame_id is not None)[0]
             got[seq] = det
     finally:
         client.close()
-    for seq, d in enumerate(depths):
-        det = got[seq]
+    for d in depths:
+        if d.seq not in got:
+            continue  # its colour frame was dropped on the way to the recorder
+        det = got[d.seq]
         assert det.frame_id == "ycb_camera_optical_frame"
         assert any(o.position is not None for o in det.objects)
         for o in det.objects:
