@@ -27,33 +27,12 @@ from common.settings import (
 from hri import settingsdoc
 from services.fusion import __main__ as fusion_main
 from services.fusion.core import Config
-
-
-class Parsed(Exception):
-    def __init__(self, namespace: argparse.Namespace):
-        self.namespace = namespace
-
-
-def run_main_until_parsed(service: str, flags: list[str]) -> argparse.Namespace:
-    """`flags` as `services.<service>.__main__.main` parses them; argparse's SystemExit passes through."""
-    main = importlib.import_module(f"services.{service}.__main__").main
-    real = argparse.ArgumentParser.parse_args
-
-    def stop_after_parsing(self, args=None, namespace=None):
-        raise Parsed(real(self, args, namespace))
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(argparse.ArgumentParser, "parse_args", stop_after_parsing)
-        try:
-            main(flags)
-        except Parsed as done:
-            return done.namespace
-    pytest.fail(f"{service}'s main returned without parsing its arguments")
+from testkit.parsing import main_until_parsed
 
 
 def refusal(service: str, flags: list[str], capsys) -> str:
     with pytest.raises(SystemExit) as exited:
-        run_main_until_parsed(service, flags)
+        main_until_parsed(service, flags)
     assert exited.value.code == 2, flags
     return capsys.readouterr().err
 
@@ -72,11 +51,11 @@ def test_every_fusion_setting_has_a_description_a_range_and_a_flag():
 
 def test_the_defaults_are_within_their_ranges_and_parse_to_config():
     check_all(Config())
-    assert from_args(Config, run_main_until_parsed("fusion", [])) == Config()
+    assert from_args(Config, main_until_parsed("fusion", [])) == Config()
 
 
 def test_the_old_flag_spellings_still_set_their_fields():
-    args = run_main_until_parsed(
+    args = main_until_parsed(
         "fusion",
         [
             "--window-before=1.5",
@@ -108,7 +87,7 @@ def test_every_field_is_set_by_its_flag():
         "episode_gap": ("--episode-gap", "2"),
     }
     flags = [part for flag, value in changed.values() for part in (flag, value)]
-    config = from_args(Config, run_main_until_parsed("fusion", flags))
+    config = from_args(Config, main_until_parsed("fusion", flags))
     for name, (_, value) in changed.items():
         assert getattr(config, name) == float(value), name
     untouched = {f.name for f in dataclasses.fields(Config)} - set(changed)
@@ -162,7 +141,7 @@ ACCEPTED_AT_THE_BOUNDARY = [
 
 @pytest.mark.parametrize("service,flags,expected", ACCEPTED_AT_THE_BOUNDARY)
 def test_a_value_at_an_inclusive_boundary_is_accepted(service, flags, expected):
-    args = run_main_until_parsed(service, flags)
+    args = main_until_parsed(service, flags)
     assert {name: getattr(args, name) for name in expected} == expected
     for name, value in expected.items():
         assert type(getattr(args, name)) is type(value), name  # an int flag stays an int

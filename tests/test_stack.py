@@ -29,34 +29,18 @@ from hri.launcher import (
     services_from_args,
     stack_names,
 )
+from testkit.parsing import main_until_parsed
 
 ROOT = Path(__file__).resolve().parent.parent
 ROUTER_PORT = urlsplit(DEFAULT_ENDPOINT.replace("tcp/", "tcp://")).port
 
 
-class Parsed(Exception):
-    def __init__(self, namespace: argparse.Namespace):
-        super().__init__("parsed")
-        self.namespace = namespace
-
-
 def parsed_by_the_service(name: str, flags: list[str]) -> argparse.Namespace:
     """`flags` as the service's own `main` parses them (and nothing else of `main` runs)."""
-    main = importlib.import_module(f"{service_module(name)}.__main__").main
-    real = argparse.ArgumentParser.parse_args
-
-    def stop_after_parsing(self, args=None, namespace=None):
-        raise Parsed(real(self, args, namespace))
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(argparse.ArgumentParser, "parse_args", stop_after_parsing)
-        try:
-            main(flags)
-        except Parsed as done:
-            return done.namespace
-        except SystemExit as exc:
-            pytest.fail(f"{name} rejects {flags} (exit {exc.code}; its usage error is in the captured stderr)")
-    pytest.fail(f"{name}'s main returned without parsing its arguments")
+    try:
+        return main_until_parsed(name, flags)
+    except SystemExit as exc:
+        pytest.fail(f"{name} rejects {flags} (exit {exc.code}; its usage error is in the captured stderr)")
 
 
 def check_specs(specs: list[ServiceSpec], where: str) -> None:
