@@ -67,7 +67,6 @@ TOPICS: tuple[Topic, ...] = (
     Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
     Topic("stats", "stats/{service}/{instance}", Stats, "every node's counters (answered on query)"),
 )
-TOPIC = {t.name: t for t in TOPICS}
 
 
 @dataclass(frozen=True)
@@ -106,7 +105,7 @@ class Node:
 
     @property
     def module(self) -> str:
-        return f"services.{self.name}"
+        return module_of(self.name)
 
     @property
     def args_variable(self) -> str:
@@ -200,8 +199,6 @@ NODES: tuple[Node, ...] = (
         outputs=("command", "clarification"),
     ),
 )
-NODE = {n.name: n for n in NODES}
-
 CLIENTS: tuple[Client, ...] = (
     Client("mic", "a microphone elsewhere sending AudioChunks", outputs=("audio",), user="mic"),
     Client("keyboard", "hri say (typed commands)", fixed_keys=("speech/kbd/transcript",)),
@@ -218,6 +215,11 @@ CLIENTS: tuple[Client, ...] = (
 
 # The functions below read NODES and TOPICS when called (not the NODE/TOPIC dicts built at import), so what is
 # derived from them follows the declaration, also where a test adds an entry.
+
+
+def module_of(name: str) -> str:
+    """The module a node runs as: `python -m services.<name>`."""
+    return f"services.{name}"
 
 
 def node(name: str) -> Node:

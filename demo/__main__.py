@@ -28,7 +28,8 @@ import zenoh
 from common.codec import decode
 from common.runner import SamplePublisher
 from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
-from hri.launcher import Launcher, ServiceSpec, service_module, stack_names
+from common.stack import module_of
+from hri.launcher import Launcher, ServiceSpec, stack_names
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "data" / "demo"
@@ -122,15 +123,13 @@ DEMO_FLAGS = {
 def camera_spec(scene: str) -> ServiceSpec:
     """The camera showing one of the script's photos (a new camera service per scene)."""
     return ServiceSpec(
-        CAMERA, [service_module(CAMERA), "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10", "--loop"]
+        CAMERA, [module_of(CAMERA), "--source", str(SCENES / scene), "--cam", CAM, "--fps", "10", "--loop"]
     )
 
 
 def demo_services() -> list[ServiceSpec]:
     """Every node of the stack but the camera, in the stack's order."""
-    return [
-        ServiceSpec(name, [service_module(name), *DEMO_FLAGS.get(name, [])]) for name in stack_names() if name != CAMERA
-    ]
+    return [ServiceSpec(name, [module_of(name), *DEMO_FLAGS.get(name, [])]) for name in stack_names() if name != CAMERA]
 
 
 def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:

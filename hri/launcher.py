@@ -21,6 +21,7 @@ import zenoh
 
 from common import stack
 from common.keys import Keys
+from common.stack import module_of
 from common.transport import DEFAULT_ENDPOINT, live_tokens, open_client
 
 STOP_GRACE_S = 3.0
@@ -53,22 +54,18 @@ def stack_names() -> list[str]:
     return [n.name for n in stack.NODES]
 
 
-def service_module(name: str) -> str:
-    return f"services.{name}"
-
-
 @dataclass
 class ServiceSpec:
     name: str
-    argv: list[str]  # the module (service_module(name)), then its flags
+    argv: list[str]  # the module (module_of(name)), then its flags
     stdin: int | IO | None = subprocess.DEVNULL
     env: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.name not in stack_names() or self.argv[:1] != [service_module(self.name)]:
+        if self.name not in stack_names() or self.argv[:1] != [module_of(self.name)]:
             raise ValueError(
                 f"{self.name!r} with argv {self.argv}: a service of the stack ({', '.join(stack_names())}: "
-                f"common/stack.py NODES) runs as `python -m {service_module(self.name)}`"
+                f"common/stack.py NODES) runs as `python -m {module_of(self.name)}`"
             )
 
 

@@ -18,6 +18,7 @@ import pytest
 import yaml
 
 from common import stack
+from common.stack import module_of
 from common.transport import DEFAULT_ENDPOINT
 from hri.compose import REGENERATE, compose_text
 from hri.launcher import (
@@ -25,7 +26,6 @@ from hri.launcher import (
     ServiceSpec,
     add_up_arguments,
     select,
-    service_module,
     services_from_args,
     stack_names,
 )
@@ -48,7 +48,7 @@ def check_specs(specs: list[ServiceSpec], where: str) -> None:
     order = stack_names()
     assert names == [n for n in order if n in names], f"{where}: {names} not in the stack's order {order}"
     for spec in specs:
-        assert spec.argv[0] == service_module(spec.name), (where, spec)
+        assert spec.argv[0] == module_of(spec.name), (where, spec)
         parsed_by_the_service(spec.name, [*spec.argv[1:], "--connect", DEFAULT_ENDPOINT])  # as Launcher adds it
 
 
@@ -93,7 +93,7 @@ def test_compose_router_listens_where_the_services_connect(compose):
 @pytest.mark.parametrize("name", stack_names())
 def test_compose_runs_each_service_with_flags_it_accepts(compose, name):
     argv = compose_argv(compose[name]["command"])
-    assert argv[:3] == ["python", "-m", service_module(name)], argv
+    assert argv[:3] == ["python", "-m", module_of(name)], argv
     args = parsed_by_the_service(name, argv[3:])
     assert compose[name]["healthcheck"]["test"][-1] == name  # the check asks for this service's token
     host, inside = compose_defaults(compose[name]["volumes"][0]).split(":")[:2]
@@ -183,7 +183,6 @@ ECHO = stack.Node(
 def stack_with_echo(monkeypatch):
     """The declaration with one more entry, and nothing else changed."""
     monkeypatch.setattr(stack, "NODES", (*stack.NODES, ECHO))
-    monkeypatch.setattr(stack, "NODE", {**stack.NODE, ECHO.name: ECHO})
     stack.check_stack()
 
 
