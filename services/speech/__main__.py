@@ -19,7 +19,7 @@ from services.speech.grammar import normalise
 from services.speech.pipeline import Heard, MicStream
 from services.speech.recognizers import BackendError, PocketsphinxRecognizer
 from services.speech.vad import VadConfig, make_segmenter
-from services.speech.whisper import MODEL_ENV, PROMPTS, WhisperRecognizer, WhisperSettings
+from services.speech.whisper import MAX_COMMAND_COPIES, MODEL_ENV, PROMPTS, WhisperRecognizer, WhisperSettings
 
 # Whisper's confidence is the mean token probability of what it wrote; it is published for fusion to
 # weigh rather than gated here (docs/speech.md)
@@ -128,6 +128,17 @@ def build_parser():
         kind=float,
         at_least=0,
         metavar="F",
+    )
+    add_option(
+        parser,
+        "--command-copies",
+        WhisperSettings.command_copies,
+        "whisper: the short-utterance decode averages the command words' probabilities over N copies of the "
+        "utterance: as heard, shifted 0.25 s, 10 % slower, 10 % faster, shifted 0.5 s (1: as heard only; "
+        "docs/speech.md)",
+        at_least=1,
+        at_most=MAX_COMMAND_COPIES,
+        metavar="N",
     )
     add_option(parser, "--threads", WhisperSettings.threads, "whisper: CPU threads", at_least=1, metavar="N")
     add_option(
@@ -255,6 +266,7 @@ def make_recogniser(args, service: Service):
                 prompt=args.prompt,
                 tail_min_probability=args.tail_probability,
                 command_prior=args.command_prior or None,
+                command_copies=args.command_copies,
             ),
         )
         rec.recognise(np.zeros(RATE // 2, np.float32))  # the first decode allocates; not on a person's time

@@ -18,7 +18,10 @@ its own rule) and phrases repeated in a loop ("turn right turn right").
 Short words (`choose_command`, `--command-prior`): an utterance of about a second heard as one word that is not
 a command word is scored again against the command words (common.language.one_word_commands) with the model's
 own first-token probabilities, and the likeliest command is taken when it is not far less likely than the word
-heard ("of" -> "off", "now" -> "no"). Utterances of two words or more are decoded exactly as without it.
+heard ("of" -> "off", "now" -> "no"). The probabilities are averaged over a few copies of the utterance (shifted,
+played a little slower and faster: `scoring_copies`, `--command-copies`), because on a one-second clip they swing
+with exactly where the clip sits and how fast it was said. A word heard that is itself a command word is kept
+without this decode. Utterances of two words or more are decoded exactly as without it.
 """
 
 from __future__ import annotations
@@ -65,6 +68,13 @@ PROMPTS = ("none", "short", "vocabulary")
 # command is taken when its probability times COMMAND_PRIOR is at least that of the word heard.
 SHORT_SECONDS = 2.0
 COMMAND_PRIOR = 20.0
+# ... and the probabilities are the mean over this many copies of the utterance (scoring_copies; 1: as heard)
+COMMAND_COPIES = 5
+# The copies after the first (test-time augmentation, docs/speech.md): the utterance shifted later in Whisper's
+# 30 s window by leading silence, and speed-perturbed by resampling (x0.9: 10 % slower, x1.1: faster)
+SHIFT_SECONDS = (0.25, 0.5)
+SPEED_FACTORS = (0.9, 1.1)
+MAX_COMMAND_COPIES = 5  # as heard, the two shifts, the two speeds
 
 
 def _repeatable() -> frozenset[str]:
@@ -87,6 +97,7 @@ class WhisperSettings:
     no_speech_logprob: float = NO_SPEECH_LOGPROB
     # the short-utterance decode: a one-word utterance favours the command words (None: off)
     command_prior: float | None = COMMAND_PRIOR
+    command_copies: int = COMMAND_COPIES
 
 
 def packaged_model_dir() -> Path:
@@ -267,6 +278,36 @@ def choose_command(
     return CommandChoice(word, p, heard, heard_probability, best, p_best)
 
 
+def resample_speed(audio: np.ndarray, factor: float) -> np.ndarray:
+    """`audio` played `factor` times as fast (linear resampling: tempo and pitch change together, as in
+    speed perturbation for speech recognition)."""
+    n = max(1, int(round(len(audio) / factor)))
+    return np.interp(np.linspace(0.0, len(audio) - 1, n), np.arange(len(audio)), audio).astype(np.float32)
+
+
+def scoring_copies(audio: np.ndarray, n: int = COMMAND_COPIES) -> list[np.ndarray]:
+    """The first `n` of: the utterance as heard, shifted by SHIFT_SECONDS[0] of leading silence, played
+    SPEED_FACTORS[0] and [1] times as fast, shifted by SHIFT_SECONDS[1]. Whisper's first-word probabilities on a
+    clip of about a second swing with these (an "off" scored 0.005 as heard and 0.74 played 10 % faster);
+    their mean is a steadier judgement than any one of them."""
+    audio = audio.astype(np.float32, copy=False)
+
+    def shifted(seconds: float) -> np.ndarray:
+        return np.concatenate([np.zeros(int(seconds * RATE), np.float32), audio])
+
+    makers = (
+        lambda: audio,
+        lambda: shifted(SHIFT_SECONDS[0]),
+        lambda: resample_speed(audio, SPEED_FACTORS[0]),
+        lambda: resample_speed(audio, SPEED_FACTORS[1]),
+        lambda: shifted(SHIFT_SECONDS[1]),
+    )
+    assert len(makers) == MAX_COMMAND_COPIES
+    if not 1 <= n <= MAX_COMMAND_COPIES:
+        raise ValueError(f"the number of scoring copies must be 1-{MAX_COMMAND_COPIES}, not {n}")
+    return [make() for make in makers[:n]]
+
+
 def spellings(word: str) -> tuple[str, ...]:
     """How Whisper may write a word said alone at the start of a transcript: ' stop', ' Stop', ' STOP'."""
     return tuple(dict.fromkeys((f" {word}", f" {word.capitalize()}", f" {word.upper()}")))
@@ -362,36 +403,40 @@ class WhisperRecognizer:
         ids = [encode(s, add_special_tokens=False).ids for s in spellings(word)]
         return sorted({i[0] for i in ids if len(i) == 1})
 
-    def first_word_probabilities(self, audio: np.ndarray, words: Iterable[str]) -> dict[str, float]:
+    def first_word_probabilities(self, audio: np.ndarray, words: Iterable[str], copies: int = 1) -> dict[str, float]:
         """For each word, the model's probability that the transcript of `audio` starts with it (its one-token
-        spellings summed): one encode and one decoder step, no timestamps, nothing suppressed."""
+        spellings summed), the mean over `copies` scoring copies (scoring_copies): one batched encode and one
+        decoder step, no timestamps, nothing suppressed."""
         from faster_whisper.audio import pad_or_trim
 
-        encoded = self.model.encode(pad_or_trim(self.model.feature_extractor(audio.astype(np.float32, copy=False))))
-        start = self._score_start
+        features = np.stack(
+            [pad_or_trim(self.model.feature_extractor(copy)) for copy in scoring_copies(audio, copies)]
+        ).astype(np.float32)
+        encoded = self.model.encode(features)
         result = self.model.model.generate(
             encoded,
-            [start],
+            [self._score_start] * len(features),
             max_length=3,
             beam_size=1,
             return_logits_vocab=True,
             suppress_tokens=[],
             suppress_blank=False,
         )
-        logits = np.asarray(result[0].logits[0], dtype=np.float64).reshape(-1)
-        logp = logits - np.logaddexp.reduce(logits)
+        logits = np.stack([np.asarray(r.logits[0], dtype=np.float64).reshape(-1) for r in result])
+        probabilities = np.exp(logits - np.logaddexp.reduce(logits, axis=1, keepdims=True)).mean(axis=0)
         out = {}
         for w in words:
             ids = self._command_tokens.get(w) or self._single_tokens(w)
-            out[w] = float(np.exp(logp[ids]).sum()) if ids else 0.0
+            out[w] = float(probabilities[ids].sum()) if ids else 0.0
         return out
 
     def describe(self) -> str:
         which = f"tiny.en from {MODEL_PIP} (sha256 checked)" if self.packaged else str(self.folder)
+        s = self.settings
+        short = f"on (prior {s.command_prior:g}, {s.command_copies} copies)" if self._command_tokens else "off"
         return (
-            f"whisper {which}, beam {self.settings.beam_size}, {self.settings.threads} threads, "
-            f"prompt {self.settings.prompt}, short-utterance decode "
-            f"{'off' if not self._command_tokens else f'on (prior {self.settings.command_prior:g})'}"
+            f"whisper {which}, beam {s.beam_size}, {s.threads} threads, "
+            f"prompt {s.prompt}, short-utterance decode {short}"
         )
 
     def recognise(self, audio: np.ndarray) -> Recognition | None:
@@ -456,7 +501,9 @@ class WhisperRecognizer:
         confidence = math.exp(logprob_sum / tokens) if tokens else 0.0
         detail = f"avg_logprob {logprob_sum / max(tokens, 1):.2f}"
         short_command = ""
-        if len(kept) == 1 and self._is_short(audio):
+        if len(kept) == 1 and self._is_short(audio) and kept[0].word in self._command_tokens:
+            detail += f"; one word: {kept[0].word!r}, a command word, kept"
+        elif len(kept) == 1 and self._is_short(audio):
             choice = self.choose_command(audio, kept[0])
             detail += f"; one word: {choice.describe()}"
             if choice.changed:
@@ -480,7 +527,9 @@ class WhisperRecognizer:
     def choose_command(self, audio: np.ndarray, heard: RecognisedWord) -> CommandChoice:
         """The short-utterance decode of a one-word utterance (choose_command; docs/speech.md)."""
         assert self.settings.command_prior is not None
-        probabilities = self.first_word_probabilities(audio, [*self._command_tokens, heard.word])
+        probabilities = self.first_word_probabilities(
+            audio, [*self._command_tokens, heard.word], self.settings.command_copies
+        )
         heard_p = probabilities.pop(heard.word) if heard.word not in self._command_tokens else probabilities[heard.word]
         if not self._single_tokens(heard.word):  # no one-token spelling: Whisper's own word probability
             heard_p = heard.confidence
