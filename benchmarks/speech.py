@@ -10,14 +10,16 @@ For each: real-time factor, WER and meaning accuracy (fusion's parse of the tran
 the sentence), clean and with pink noise at 10 dB; the whisper pipeline also without the short-utterance decode
 (`--command-prior 0`), with stops missed / made when none was meant over the sentence lists
 (tests/data/speech/*.txt). Short words: the 100 real one-second command-word clips of ../shared/data/speech_commands/
-(when present), each cut by the VAD and decoded with and without the short-utterance decode: words heard right,
-stops missed and false stops, and the decode time per utterance beside that of the longer commands. Then the
-whole pipeline on loopback (router, speech and fusion processes; AudioChunks published at real-time pace): end of
-the last spoken word -> Transcript received, and -> fusion's answer (FusedCommand or Clarification) received,
-p50/p99, per backend.
+(when present), each cut by the VAD and decoded with the short-utterance decode (its probabilities averaged over
+--command-copies copies, and over the utterance as heard only) and without it: words heard right, stops missed and
+false stops, and the decode time per utterance beside that of the longer commands; and one-word utterances that are
+not commands (tests/data/speech/non_command_words.txt, piper and espeak-ng): how many each decode makes a command.
+Then the whole pipeline on loopback (router, speech and fusion processes; AudioChunks published at real-time
+pace): end of the last spoken word -> Transcript received, and -> fusion's answer (FusedCommand or Clarification)
+received, p50/p99, per backend.
 
     .venv/bin/python benchmarks/speech.py [--voice piper:joe] [--utterances N] [--prompt none|short|vocabulary]
-                                          [--tail-probability P] [--command-prior F]
+                                          [--tail-probability P] [--command-prior F] [--command-copies N]
                                           [--skip-short-words]
                                           [--skip-latency] [--latency-only]
 
@@ -36,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from common.codec import decode
+from common.language import one_word_commands
 from common.schema import AudioChunk, Clarification, FusedCommand, Transcript
 from services.fusion.parse import parse
 from services.speech.audio import RATE, read_wav
@@ -52,7 +55,16 @@ from services.speech.whisper import (
 )
 from testkit.harness import Client, ProcessGroup
 from testkit.shared import shared_dir
-from testkit.speech_scoring import COMMANDS, NON_COMMANDS, AudioCache, meaning, score, spelled, word_errors
+from testkit.speech_scoring import (
+    COMMANDS,
+    NON_COMMAND_WORDS,
+    NON_COMMANDS,
+    AudioCache,
+    meaning,
+    score,
+    spelled,
+    word_errors,
+)
 from testkit.synth import PIPER_VOICE, read_wav_int16
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -184,6 +196,30 @@ def short_words(recognisers: dict) -> None:
     print()
 
 
+def one_word_non_commands(recognisers: dict, cache: AudioCache) -> None:
+    """Single words a person may say that are not commands: each decode should leave them alone."""
+    voices = (PIPER_VOICE, "en-us")
+    utterances = [
+        (word, voice, vad_cut(read_wav(cache.speech(word, voice)).samples))
+        for voice in voices
+        for word in NON_COMMAND_WORDS
+    ]
+    commands = set(one_word_commands())
+    print(f"one-word non-commands: {len(NON_COMMAND_WORDS)} words x {len(voices)} voices; each VAD cut decoded alone")
+    print(f"{'decode':26s} {'made a command':>15s} {'stops':>6s}")
+    for name, rec in recognisers.items():
+        made = []
+        stops = 0
+        for word, voice, utts in utterances:
+            texts = [t for t in decode_times(rec, utts)[0] if t]
+            if any(w in commands for t in texts for w in t.split()):
+                made.append((word, voice, " ".join(texts)))
+            stops += any(parse(t).intent == "stop" for t in texts)
+        print(f"{name:26s} {len(made):6d}/{len(utterances):<8d} {stops:6d}")
+        print(f"{'':26s} made a command: {made}")
+    print()
+
+
 def long_decode_times(recognisers: dict, stream_path: Path) -> None:
     """The decode time of each utterance of the command stream (the same VAD cuts), per recogniser."""
     utts = vad_cut(read_wav(stream_path).samples)
@@ -299,6 +335,13 @@ def main() -> None:
         metavar="F",
         help="whisper's short-utterance decode (0: off); the in-process rows show both",
     )
+    parser.add_argument(
+        "--command-copies",
+        type=int,
+        default=WhisperSettings.command_copies,
+        metavar="N",
+        help="copies of a one-word utterance its command probabilities are averaged over; short words also show 1",
+    )
     parser.add_argument("--skip-short-words", action="store_true", help="no real command-word clips part")
     parser.add_argument("--skip-latency", action="store_true", help="no process/zenoh latency part")
     parser.add_argument("--latency-only", action="store_true", help="only the process/zenoh latency part")
@@ -309,19 +352,36 @@ def main() -> None:
         print(f"synthesising {len(texts)} commands ({args.voice}) ...", flush=True)
         whisper = WhisperRecognizer(
             settings=WhisperSettings(
-                prompt=args.prompt, tail_min_probability=args.tail_probability, command_prior=args.command_prior or None
+                prompt=args.prompt,
+                tail_min_probability=args.tail_probability,
+                command_prior=args.command_prior or None,
+                command_copies=args.command_copies,
+            )
+        )
+        one_copy = WhisperRecognizer(
+            settings=WhisperSettings(
+                prompt=args.prompt,
+                tail_min_probability=args.tail_probability,
+                command_prior=args.command_prior or None,
+                command_copies=1,
             )
         )
         plain = WhisperRecognizer(
             settings=WhisperSettings(prompt=args.prompt, tail_min_probability=args.tail_probability, command_prior=None)
         )
-        for rec in (whisper, plain):
+        for rec in (whisper, one_copy, plain):
             rec.recognise(np.zeros(RATE // 2, np.float32))
         sphinx = PocketsphinxRecognizer()
         print(f"whisper: {whisper.describe()}\n")
         both = {"short-utterance decode on": whisper, "short-utterance decode off": plain}
         if not (args.latency_only or args.skip_short_words):
-            short_words(both)
+            three = {
+                f"on, {args.command_copies} copies": whisper,
+                "on, as heard only": one_copy,
+                "off": plain,
+            }
+            short_words(three)
+            one_word_non_commands(three, cache)
         print(f"{'condition':10s} {'path':14s} {'RTF':>6s} {'WER':>6s} {'meaning':>8s}")
         for snr in () if args.latency_only else (None, 10):
             files = [cache.speech(t, args.voice, snr, seed=i) for i, t in enumerate(texts)]

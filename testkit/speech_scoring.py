@@ -21,6 +21,7 @@ def lines(name: str) -> list[str]:
 
 COMMANDS = lines("commands.txt") + lines("commands_extra.txt")  # 32: the grammar's and motions outside it
 NON_COMMANDS = lines("non_commands.txt")
+NON_COMMAND_WORDS = lines("non_command_words.txt")  # said alone: ordinary words, none of them a command
 _SPELLED = {
     str(int(v)): w
     for w, v in NUMBER_WORDS.items()
