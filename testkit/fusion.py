@@ -22,14 +22,15 @@ def pointing_obs(t, direction, conf=0.9, cam="cam0") -> PointingObs:
 EVEN = Weights(speech=0.4, vision=0.2, gesture=0.4)
 
 
-def window(objects) -> Context:
-    """A ready join window over `objects` at BASE_STAMP: even weights, speech and vision fresh, no gesture."""
+def window(objects, speech: float = 0.9) -> Context:
+    """A ready join window over `objects` at BASE_STAMP: even weights, speech (reliability `speech`) and vision
+    fresh, no gesture."""
     return Context(
         objects,
         [],
         None,
         EVEN,
-        {"speech": 0.9, "vision": 0.9, "gesture": None},
+        {"speech": speech, "vision": 0.9, "gesture": None},
         {"speech": BASE_STAMP, "vision": BASE_STAMP, "gesture": None},
         ["gesture"],
         BASE_STAMP,

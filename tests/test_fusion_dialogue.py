@@ -8,6 +8,7 @@ import logging
 
 from common.schema import Clarification, FusedCommand
 from services.fusion.dialogue import Dialogue, Draft
+from services.fusion.ground import Choice
 from services.fusion.outputs import Outputs
 from services.fusion.window import Context
 from testkit.fusion import utterance, window
@@ -68,3 +69,22 @@ def test_a_place_question_has_no_candidates():
     out = dialogue.clarify_place(t, u, Draft("go_to", t.text))
     assert out.sample.reason == "not_found" and out.sample.candidates == [] and "point" in out.sample.question
     assert dialogue.question.reason == "not_found" and dialogue.question.candidates == []
+
+
+def test_a_doubted_yes_does_not_confirm_a_command_it_asks_again():
+    """A one-word utterance the speech service only guessed to be "sure" (docs/speech.md: 'chair' was) must not
+    set the robot moving: below the doubt level the confirmation question is asked again, saying why."""
+    counts: list[str] = []
+    dialogue = Dialogue(Outputs("fusion/test"), 10.0, counts.append, logging.getLogger("test"), doubt=0.3)
+    ctx = window(scene_of(TWO_CUPS))
+    t, u = utterance(0.0, "pick up the red cup")
+    found = ctx.choose(u.obj, ctx.objects, None, ctx.ref)
+    assert found.kind == "target" and found.winner is not None
+    unsure = Choice("low_confidence", found.winner, (found.winner,))
+    asked = dialogue.clarify(t, u, ctx, unsure, Draft("pick_up", t.text, target=found.winner.obj), heard=True)
+    (again,) = dialogue.reply(*utterance(2.0, "sure"), window(scene_of(TWO_CUPS), speech=0.05))
+    assert isinstance(again.sample, Clarification) and "not sure I heard 'sure'" in again.sample.question
+    assert asked.sample.question in again.sample.question and dialogue.question is not None
+    (done,) = dialogue.reply(*utterance(3.0, "yes"), window(scene_of(TWO_CUPS), speech=0.6))
+    assert isinstance(done.sample, FusedCommand) and done.sample.target.id == "cup_red"
+    assert counts == ["clarification_low_confidence", "dialogue_doubted_confirm", "dialogue_unresolved"]

@@ -81,7 +81,8 @@ class Config:
     )
     low_speech_confidence: float = setting(
         0.3,
-        "speech confidence below which fusion confirms before acting (unless pointing carries the choice)",
+        "speech confidence below which fusion confirms before acting (unless pointing carries the choice), "
+        "and below which a 'yes' is too doubtful to confirm",
         at_least=0,
         at_most=1,
         metavar="P",
@@ -125,7 +126,9 @@ class FusionCore:
         )
         self.gestures = Gestures(config.gesture_min_score, config.episode_gap, config.horizon)
         self.outputs = Outputs(source)
-        self.dialogue = Dialogue(self.outputs, config.dialogue_timeout, self.count, self.log)
+        self.dialogue = Dialogue(
+            self.outputs, config.dialogue_timeout, self.count, self.log, doubt=config.low_speech_confidence
+        )
         self.seen_transcripts = SeenOnce(config.horizon)
         self.facing = space.Facing()  # which way the speaker faces: "on my left"
 

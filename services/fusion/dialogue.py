@@ -63,9 +63,19 @@ class Question:
 
 
 class Dialogue:
-    def __init__(self, outputs: Outputs, timeout: float, count: Callable[[str], None], log: logging.Logger):
+    def __init__(
+        self,
+        outputs: Outputs,
+        timeout: float,
+        count: Callable[[str], None],
+        log: logging.Logger,
+        doubt: float = 0.0,
+    ):
         self.outputs = outputs
         self.timeout = timeout  # s of source time a question (or a command to correct) stays open
+        # a "yes" heard with a speech reliability below this does not confirm: the question is asked again
+        # (a one-word utterance may be a word the speech service only guessed to be "sure"; docs/fusion.md)
+        self.doubt = doubt
         self.count = count
         self.log = log
         self.question: Question | None = None
@@ -145,11 +155,19 @@ class Dialogue:
         return out
 
     def _reask(
-        self, t: Transcript, q: Question, candidates: list[SceneObject], scene: list[SceneObject] | None = None
+        self,
+        t: Transcript,
+        q: Question,
+        candidates: list[SceneObject],
+        scene: list[SceneObject] | None = None,
+        doubted: str | None = None,
     ) -> Output:
+        """Ask `q` again (about `candidates`); `doubted`: the answer was heard too unsurely to count, said so."""
         self.count("dialogue_unresolved")
         scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
         question = describe.ambiguous_question(q.phrase, scored, scene) if len(candidates) > 1 else q.question
+        if doubted is not None:
+            question = f"I am not sure I heard '{doubted}'. {q.question}"
         out = self.outputs.clarification(t, q.reason, question, candidates)
         self.question = Question(out.sample.id, q.reason, q.draft, q.phrase, candidates, t.end + self.timeout, question)
         return out
@@ -175,6 +193,11 @@ class Dialogue:
             return []
         if not u.obj.specific and not pointing_answer:
             if u.answer == "confirm" and (q.reason == "low_confidence" or len(q.candidates) <= 1):
+                heard = ctx.reliabilities["speech"]
+                if heard is not None and heard < self.doubt:
+                    self.count("dialogue_doubted_confirm")
+                    self.log.info("'%s' (speech %.2f) is too doubtful to confirm %s", t.text, heard, q.clarification_id)
+                    return [self._reask(t, q, q.candidates, ctx.objects, doubted=t.text)]
                 draft = q.draft
                 if draft.target is None and q.candidates:
                     draft.target = q.candidates[0]
