@@ -40,6 +40,7 @@ import numpy as np
 from common.codec import decode
 from common.language import one_word_commands
 from common.schema import AudioChunk, Clarification, FusedCommand, Transcript
+from services.fusion.core import Config as FusionConfig
 from services.fusion.parse import parse
 from services.speech.audio import RATE, read_wav
 from services.speech.pipeline import MicStream
@@ -197,7 +198,9 @@ def short_words(recognisers: dict) -> None:
 
 
 def one_word_non_commands(recognisers: dict, cache: AudioCache) -> None:
-    """Single words a person may say that are not commands: each decode should leave them alone."""
+    """Single words a person may say that are not commands: each decode should leave them alone. A word made a
+    command with a confidence below fusion's --low-speech-confidence is confirmed before it is acted on (a stop
+    never waits)."""
     voices = (PIPER_VOICE, "en-us")
     utterances = [
         (word, voice, vad_cut(read_wav(cache.speech(word, voice)).samples))
@@ -205,18 +208,20 @@ def one_word_non_commands(recognisers: dict, cache: AudioCache) -> None:
         for word in NON_COMMAND_WORDS
     ]
     commands = set(one_word_commands())
+    doubt = FusionConfig().low_speech_confidence
     print(f"one-word non-commands: {len(NON_COMMAND_WORDS)} words x {len(voices)} voices; each VAD cut decoded alone")
-    print(f"{'decode':26s} {'made a command':>15s} {'stops':>6s}")
+    print(f"{'decode':26s} {'made a command':>15s} {'of them confirmed first':>24s} {'stops':>6s}")
     for name, rec in recognisers.items():
         made = []
-        stops = 0
+        stops = confirmed = 0
         for word, voice, utts in utterances:
-            texts = [t for t in decode_times(rec, utts)[0] if t]
-            if any(w in commands for t in texts for w in t.split()):
-                made.append((word, voice, " ".join(texts)))
-            stops += any(parse(t).intent == "stop" for t in texts)
-        print(f"{name:26s} {len(made):6d}/{len(utterances):<8d} {stops:6d}")
-        print(f"{'':26s} made a command: {made}")
+            results = [r for r in (rec.recognise(u.audio) for u in utts) if r is not None and r.text]
+            if any(w in commands for r in results for w in r.text.split()):
+                made.append((word, voice, " ".join(f"{r.text} ({r.confidence:.2f})" for r in results)))
+                confirmed += all(r.confidence < doubt for r in results)
+            stops += any(parse(r.text).intent == "stop" for r in results)
+        print(f"{name:26s} {len(made):6d}/{len(utterances):<8d} {confirmed:14d} {stops:15d}")
+        print(f"{'':26s} made a command (confidence): {made}")
     print()
 
 
