@@ -164,10 +164,13 @@ class Dialogue:
     ) -> Output:
         """Ask `q` again (about `candidates`); `doubted`: the answer was heard too unsurely to count, said so."""
         self.count("dialogue_unresolved")
-        scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
-        question = describe.ambiguous_question(q.phrase, scored, scene) if len(candidates) > 1 else q.question
         if doubted is not None:
             question = f"I am not sure I heard '{doubted}'. {q.question}"
+        elif len(candidates) > 1:
+            scored = [Scored(o, 1.0, 1.0, 1.0, None, None, 1.0) for o in candidates]
+            question = describe.ambiguous_question(q.phrase, scored, scene)
+        else:
+            question = q.question
         out = self.outputs.clarification(t, q.reason, question, candidates)
         self.question = Question(out.sample.id, q.reason, q.draft, q.phrase, candidates, t.end + self.timeout, question)
         return out

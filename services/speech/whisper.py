@@ -68,13 +68,13 @@ PROMPTS = ("none", "short", "vocabulary")
 # command is taken when its probability times COMMAND_PRIOR is at least that of the word heard.
 SHORT_SECONDS = 2.0
 COMMAND_PRIOR = 20.0
-# ... and the probabilities are the mean over this many copies of the utterance (scoring_copies; 1: as heard)
-COMMAND_COPIES = 5
-# The copies after the first (test-time augmentation, docs/speech.md): the utterance shifted later in Whisper's
-# 30 s window by leading silence, and speed-perturbed by resampling (x0.9: 10 % slower, x1.1: faster)
+# ... and the probabilities are the mean over copies of the utterance (scoring_copies; 1: as heard). The copies
+# after the first (test-time augmentation, docs/speech.md): the utterance shifted later in Whisper's 30 s window
+# by leading silence, and speed-perturbed by resampling (x0.9: 10 % slower, x1.1: faster)
 SHIFT_SECONDS = (0.25, 0.5)
 SPEED_FACTORS = (0.9, 1.1)
-MAX_COMMAND_COPIES = 5  # as heard, the two shifts, the two speeds
+MAX_COMMAND_COPIES = 1 + len(SHIFT_SECONDS) + len(SPEED_FACTORS)
+COMMAND_COPIES = MAX_COMMAND_COPIES  # the default: all of them, as a set
 
 
 def _repeatable() -> frozenset[str]:
