@@ -117,7 +117,12 @@ def test_a_killed_modality_is_reported_missing_and_rejoins_when_restarted(group)
         for name in ("camera", "vision", "fusion"):
             client.wait_alive(name, timeout=90)
         results = client.collect("hri/fusion/**")
-        time.sleep(1.0)
+        detections = client.collect("hri/vision/*/objects")
+
+        def sees_red(_key, sample) -> bool:
+            return any(o.color == "red" for o in sample.objects)
+
+        detections.wait(1, timeout=90, where=sees_red)  # a condition, not a sleep: vision may start slowly
         say(client, "pick up the red one")
         first = next_result(results)
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.color == "red"
@@ -132,9 +137,10 @@ def test_a_killed_modality_is_reported_missing_and_rejoins_when_restarted(group)
         assert isinstance(blind, Clarification) and blind.reason == "not_found", blind
         assert "can't see" in blind.question and not blind.candidates
 
+        seen_before = len([d for d in detections.drain() if sees_red(*d)])
         group.service("vision")
         client.wait_alive("vision", timeout=90)
-        time.sleep(1.5)
+        detections.wait(seen_before + 1, timeout=90, where=sees_red)  # the restarted vision sees the red cup
         say(client, "pick up the red one")
         again = next_result(results)
         assert isinstance(again, FusedCommand) and again.target is not None and again.target.color == "red"
