@@ -200,21 +200,36 @@ def say(
     return Step(end + lag, build, f"say {text!r}")
 
 
-def see(t: float, objects: list[Obj], quality: tuple[float, float, float] = GOOD, cam: str = "cam0") -> Step:
+def detections_at(
+    t: float,
+    objects: list[DetectedObject],
+    quality: ImageQuality,
+    width: int = W,
+    height: int = H,
+    cam: str = "cam0",
+    what: str = "objects",
+) -> Step:
+    """A Detections sample of `objects` stamped `t` s after the scenario's base (its seq follows the time)."""
+
     def build(base: float) -> tuple[str, Sample]:
-        b, c, s = quality
         return KEYS.objects(cam), Detections(
             stamp=base + t,
             source=f"vision/{cam}",
             seq=int(t * 10) + 1000,
             cam=cam,
-            width=W,
-            height=H,
-            objects=[o.detected() for o in objects],
-            quality=ImageQuality(brightness=b, contrast=c, sharpness=s),
+            width=width,
+            height=height,
+            objects=objects,
+            quality=quality,
         )
 
-    return Step(t, build, f"see {len(objects)} objects")
+    return Step(t, build, f"see {len(objects)} {what}")
+
+
+def see(t: float, objects: list[Obj], quality: tuple[float, float, float] = GOOD, cam: str = "cam0") -> Step:
+    b, c, s = quality
+    quality_sample = ImageQuality(brightness=b, contrast=c, sharpness=s)
+    return detections_at(t, [o.detected() for o in objects], quality_sample, cam=cam)
 
 
 def landmarks_at(x: float, y: float) -> list[list[float]]:

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from common.schema import Clarification, DetectedObject, Detections, FusedCommand, ImageQuality
+from common.schema import Clarification, DetectedObject, FusedCommand, ImageQuality
 from services.vision.track import iou
-from testkit.scenarios import KEYS, Scenario, Step, by_time, pointing, run_in_process, say
+from testkit.scenarios import Scenario, Step, by_time, detections_at, pointing, run_in_process, say
 
 IOU_MATCH = 0.5
 SCENES = "data/scenes"
@@ -77,19 +77,7 @@ def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
 
 def scenario(line: Line, seen: Seen) -> Scenario:
     def frame(t: float) -> Step:
-        def build(base: float):
-            return KEYS.objects("cam0"), Detections(
-                stamp=base + t,
-                source="vision/cam0",
-                seq=int(t * 10) + 1000,
-                cam="cam0",
-                width=seen.width,
-                height=seen.height,
-                objects=seen.objects,
-                quality=seen.quality,
-            )
-
-        return Step(t, build, f"see {len(seen.objects)} objects")
+        return detections_at(t, seen.objects, seen.quality, seen.width, seen.height)
 
     steps = [frame(round(-1.5 + 0.2 * i, 6)) for i in range(21)] + pointing(None) + [say(0.0, 1.5, line.say)]
     return Scenario(line.name, by_time(steps), [])

@@ -11,8 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-from common.schema import DetectedObject, Detections, ImageQuality
-from testkit.scenarios import KEYS, Expect, Scenario, Step, by_time, pointing, say
+from common.schema import DetectedObject, ImageQuality
+from testkit.scenarios import Expect, Scenario, Step, by_time, detections_at, pointing, say
 
 # The nano model's scores are moderate (a real cup at 0.30-0.32 in these photos); 0.25 keeps them with margin.
 MIN_SCORE = 0.25
@@ -67,23 +67,11 @@ def scene_steps(found: Found, w: int, h: int, t0: float = -1.5, t1: float = 2.5,
         for i, (label, score, box) in enumerate(found)
     ]
 
-    def see(t: float) -> Step:
-        def build(base: float):
-            return KEYS.objects("cam0"), Detections(
-                stamp=base + t,
-                source="vision/cam0",
-                seq=int(t * 10) + 1000,
-                cam="cam0",
-                width=w,
-                height=h,
-                objects=objects,
-                quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5),
-            )
-
-        return Step(t, build, f"see {len(objects)} real detections")
-
+    quality = ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5)
     n = int(round((t1 - t0) / every))
-    return [see(round(t0 + i * every, 6)) for i in range(n + 1)]
+    return [
+        detections_at(round(t0 + i * every, 6), objects, quality, w, h, what="real detections") for i in range(n + 1)
+    ]
 
 
 def real_scene(found: Found, w: int, h: int, text: str) -> list[Step]:
