@@ -70,6 +70,12 @@ class Keys:
     def bodies(self, cam: str = "*") -> str:
         return self.key("bodies", cam=cam)
 
+    def faces(self, cam: str = "*") -> str:
+        return self.key("faces", cam=cam)
+
+    def persons(self, cam: str = "*") -> str:
+        return self.key("persons", cam=cam)
+
     def gesture_event(self, cam: str = "*") -> str:
         return self.key("event", cam=cam)
 

@@ -36,6 +36,8 @@ Ray3DMethod = Literal["eye_fingertip", "index_finger", "forearm", "shoulder_wris
 DepthEncoding = Literal["16UC1", "32FC1"]
 DepthCompression = Literal["none", "png"]
 MotionDirection = Literal["forward", "back", "left", "right", "around"]
+# v1 extension (people, issue #33): how an utterance's speaker was found (REP-155's person <-> voice link).
+SpeakerMethod = Literal["mouth_motion", "only_face", "unknown"]
 GESTURES: tuple[str, ...] = get_args(GestureName)
 GESTURE_PHASES: tuple[str, ...] = get_args(GesturePhase)
 CLARIFICATION_REASONS: tuple[str, ...] = get_args(ClarificationReason)
@@ -401,6 +403,9 @@ class Hand(Struct, kw_only=True):
     ]
     gesture: Annotated[Optional[GestureName], described("this frame's raw class, or nil")] = None
     ray: Annotated[Optional[Ray], described("pointing ray, when the hand points")] = None
+    person: Annotated[
+        Optional[str], described("**v1 extension**: the id of the person whose hand it is (`Persons`), nil = unknown")
+    ] = None
 
 
 class Body(Struct, kw_only=True):
@@ -418,6 +423,52 @@ class Body(Struct, kw_only=True):
     ]
     left_ray: Annotated[Optional[Ray], described("set when the person's own left arm points (`source` `body`)")] = None
     right_ray: Annotated[Optional[Ray], described("set when the right arm points")] = None
+    person: Annotated[
+        Optional[str], described("**v1 extension**: the id of the person this skeleton belongs to, nil = unknown")
+    ] = None
+
+
+class Face(Struct, kw_only=True):
+    """One face in one frame (v1 extension, `Faces`): where it is, how open the mouth is, where it looks."""
+
+    id: Annotated[NonEmpty, described("face track id, stable while the face stays in view (REP-155 face id)")]
+    person: Annotated[Optional[str], described("the id of the person the face belongs to, nil = unknown")] = None
+    bbox: Annotated[Box, described("[x, y, w, h] px")]
+    score: Annotated[UnitFloat, described("face detection confidence")]
+    mouth_open: Annotated[
+        Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+        described("inner-lip gap over mouth width (0 = closed, about 0.5 wide open); nil when the mouth is not seen"),
+    ] = None
+    yaw: Annotated[
+        Optional[Finite], described("degrees, 0 = facing the camera, positive = turned to the image's right")
+    ] = None
+    pitch: Annotated[Optional[Finite], described("degrees, 0 = level, positive = looking up")] = None
+    looking_at_camera: Annotated[
+        Optional[bool], described("the face is turned to the camera (the robot), nil when not known")
+    ] = None
+
+
+class Person(Struct, kw_only=True):
+    """One person in view (v1 extension, `Persons`), REP-155's person: body, face, hands and voice tied by `id`."""
+
+    id: Annotated[NonEmpty, described("stable across frames while the person is tracked (a new person: a new id)")]
+    bbox: Annotated[Box, described("[x, y, w, h] px, the person's whole extent in the image")]
+    score: Annotated[UnitFloat, described("how sure the tracker is that this is a person")]
+    face: Annotated[Optional[str], described("the id of the person's face (`Faces`), nil when none is seen")] = None
+    has_body: Annotated[bool, described("a skeleton of this person is in the `Bodies` of the same frame")] = False
+    hands: Annotated[
+        list[Handedness], described("which of the person's hands are in the `Hands` of the same frame")
+    ] = msgspec.field(default_factory=list)
+    position: Annotated[
+        Optional[Point3], described("[x, y, z] metres in `frame_id` (with depth): the torso's centre")
+    ] = None
+    frame_id: Annotated[Optional[str], described("the frame of `position`")] = None
+    speaking: Annotated[
+        Optional[UnitFloat], described("how likely the person is speaking now, from mouth motion (nil = not known)")
+    ] = None
+    engaged: Annotated[
+        Optional[bool], described("facing the robot (REP-155 engagement: engaged / disengaged), nil when unknown")
+    ] = None
 
 
 class Word(Struct, kw_only=True):
@@ -626,7 +677,27 @@ class Bodies(Sample, kw_only=True):
     cam: NonEmpty
     width: Annotated[int, described("px, of the frame")]
     height: Annotated[int, described("px, of the frame")]
-    bodies: Annotated[list[Body], described("may be empty (nobody seen); MediaPipe Pose finds at most one person")]
+    bodies: Annotated[list[Body], described("may be empty (nobody seen); one per person found")]
+
+
+class Faces(Sample, kw_only=True):
+    """v1 extension: the face stage's faces for one frame (an empty list when none is seen)."""
+
+    seq: Annotated[int, described("of the frame")]
+    cam: NonEmpty
+    width: Annotated[int, described("px, of the frame")]
+    height: Annotated[int, described("px, of the frame")]
+    faces: Annotated[list[Face], described("may be empty")]
+
+
+class Persons(Sample, kw_only=True):
+    """v1 extension: the people in view for one frame, each with a stable id (REP-155's tracked persons)."""
+
+    seq: Annotated[int, described("of the frame")]
+    cam: NonEmpty
+    width: Annotated[int, described("px, of the frame")]
+    height: Annotated[int, described("px, of the frame")]
+    persons: Annotated[list[Person], described("may be empty (nobody in view)")]
 
 
 class GestureEvent(Sample, kw_only=True):
@@ -640,6 +711,9 @@ class GestureEvent(Sample, kw_only=True):
     score: UnitFloat
     hand: Annotated[Handedness, described("the hand that makes it")]
     ray: Annotated[Optional[Ray], described("for `point`")] = None
+    person: Annotated[Optional[str], described("**v1 extension**: the id of the person making it, nil = unknown")] = (
+        None
+    )
 
     def _check_sample(self) -> None:
         _check_span(self.start, self.end)
@@ -696,6 +770,21 @@ def make_transcript(
     )
 
 
+class Speaker(Struct, kw_only=True):
+    """v1 extension: who said the utterance, and whether it was said to the robot."""
+
+    person: Annotated[Optional[str], described("the speaking person's id (`Persons`), nil = unknown")] = None
+    confidence: Annotated[UnitFloat, described("how sure the attribution is (0 when unknown)")]
+    method: Annotated[
+        SpeakerMethod,
+        described("`mouth_motion`: the mouth that moved with the words; `only_face`: one face in view; `unknown`"),
+    ]
+    addressed: Annotated[
+        Optional[bool], described("the speaker faced the robot while speaking; nil when not known")
+    ] = None
+    reason: Annotated[str, described('why, in words ("two mouths moved equally", …)')] = ""
+
+
 class FusedCommand(Sample, kw_only=True):
     id: Annotated[NonEmpty, described("deterministic from the inputs: replaying the same samples gives the same id")]
     intent: Annotated[
@@ -725,6 +814,9 @@ class FusedCommand(Sample, kw_only=True):
     motion: Annotated[Optional[Motion], described("**v1 extension**, for `move` / `turn`; absent or nil otherwise")] = (
         None
     )
+    speaker: Annotated[Optional[Speaker], described("**v1 extension**: who said it; absent or nil when not known")] = (
+        None
+    )
 
 
 class Clarification(Sample, kw_only=True):
@@ -735,6 +827,9 @@ class Clarification(Sample, kw_only=True):
         NonEmpty, described('a question a person can answer ("Which candy: the red one on the left or …?")')
     ]
     candidates: Annotated[list[Target], described("the objects the question is between")]
+    speaker: Annotated[Optional[Speaker], described("**v1 extension**: who said it; absent or nil when not known")] = (
+        None
+    )
 
 
 class Stats(Sample, kw_only=True):
@@ -759,6 +854,8 @@ ALL_SAMPLES: tuple[type[Sample], ...] = (
     Detections,
     Hands,
     Bodies,
+    Faces,
+    Persons,
     GestureEvent,
     Transcript,
     FusedCommand,

@@ -24,10 +24,12 @@ from common.schema import (
     Clarification,
     DepthFrame,
     Detections,
+    Faces,
     Frame,
     FusedCommand,
     GestureEvent,
     Hands,
+    Persons,
     Sample,
     Stats,
     Transcript,
@@ -62,6 +64,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("hands", "gesture/{cam}/hands", Hands, "hands and pointing rays"),
     Topic("event", "gesture/{cam}/event", GestureEvent, "gesture starts and ends"),
     Topic("bodies", "gesture/{cam}/bodies", Bodies, "body poses"),
+    Topic("faces", "gesture/{cam}/faces", Faces, "faces: mouth opening and head orientation"),
+    Topic("persons", "gesture/{cam}/persons", Persons, "people in view with stable ids"),
     Topic("transcript", "speech/{mic}/transcript", Transcript, "recognised utterances"),
     Topic("command", "fusion/command", FusedCommand, "grounded commands"),
     Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
@@ -171,7 +175,7 @@ NODES: tuple[Node, ...] = (
         "gesture",
         "hands, bodies, pointing rays and gesture events",
         inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=4)),
-        outputs=("hands", "bodies", "event"),
+        outputs=("hands", "bodies", "event", "faces", "persons"),
         reads_images=True,
     ),
     Node(
@@ -195,6 +199,8 @@ NODES: tuple[Node, ...] = (
             Input("hands", "fifo", maxlen=600, joined=True),
             Input("event", "fifo", maxlen=200, joined=True),
             Input("bodies", "fifo", maxlen=50),  # which way the speaker faces
+            Input("faces", "fifo", maxlen=600),  # mouths over time: who is speaking (issue #33)
+            Input("persons", "fifo", maxlen=300),  # people in view with stable ids
         ),
         outputs=("command", "clarification"),
     ),

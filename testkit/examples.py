@@ -11,6 +11,8 @@ from common.schema import (
     DepthFrame,
     DetectedObject,
     Detections,
+    Face,
+    Faces,
     Frame,
     FusedCommand,
     GestureEvent,
@@ -19,8 +21,11 @@ from common.schema import (
     ImageQuality,
     Location,
     Motion,
+    Person,
+    Persons,
     Ray,
     Ray3D,
+    Speaker,
     Stats,
     Target,
     Transcript,
@@ -32,6 +37,7 @@ T = 1_790_000_000.0
 LANDMARKS = [[100.0 + i, 200.0 - i] for i in range(21)]
 RAY = Ray(origin=[120.0, 180.0], direction=[0.6, -0.8], confidence=0.9)
 TARGET = Target(id="o3", label="cup", color="red", bbox=[10, 20, 30, 40], center=[25, 40], score=0.8, cam="cam0")
+SPEAKER = Speaker(person="person-1", confidence=0.8, method="mouth_motion", addressed=True, reason="mouth moved")
 INFO_2X2 = CameraInfo(width=2, height=2, k=[600.0, 0.0, 1.0, 0.0, 600.0, 1.0, 0.0, 0.0, 1.0], frame_id="cam0_optical")
 
 
@@ -144,6 +150,7 @@ def examples():
             explanation="red cup, pointed at",
             prompt="Command: pick up ...",
             motion=Motion(direction="forward", distance=0.5, angle=0.0),
+            speaker=SPEAKER,
         ),
         Clarification(
             stamp=T,
@@ -153,6 +160,7 @@ def examples():
             reason="ambiguous",
             question="Which cup: the red one on the left or the blue one on the right?",
             candidates=[TARGET, TARGET],
+            speaker=SPEAKER,
         ),
         Stats(
             stamp=T,
@@ -178,6 +186,49 @@ def examples():
                     landmarks=[[300.0 + i, 100.0 + 8 * i] for i in range(33)],
                     visibility=[0.9] * 33,
                     right_ray=Ray(origin=[200.0, 250.0], direction=[-0.6, 0.8], confidence=0.8, source="body"),
+                    person="person-1",
+                )
+            ],
+        ),
+        Faces(
+            stamp=T,
+            source="gesture/a",
+            seq=7,
+            cam="cam0",
+            width=640,
+            height=480,
+            faces=[
+                Face(
+                    id="face-1",
+                    person="person-1",
+                    bbox=[280.0, 60.0, 80.0, 90.0],
+                    score=0.95,
+                    mouth_open=0.12,
+                    yaw=-5.0,
+                    pitch=2.0,
+                    looking_at_camera=True,
+                )
+            ],
+        ),
+        Persons(
+            stamp=T,
+            source="gesture/a",
+            seq=7,
+            cam="cam0",
+            width=640,
+            height=480,
+            persons=[
+                Person(
+                    id="person-1",
+                    bbox=[240.0, 50.0, 180.0, 420.0],
+                    score=0.9,
+                    face="face-1",
+                    has_body=True,
+                    hands=["right"],
+                    position=[0.1, 0.0, 1.8],
+                    frame_id="cam0_optical",
+                    speaking=0.7,
+                    engaged=True,
                 )
             ],
         ),

@@ -110,6 +110,8 @@ def test_a_node_may_not_publish_another_nodes_topic():
         "hri/gesture/*/hands",
         "hri/gesture/*/bodies",
         "hri/gesture/*/event",
+        "hri/gesture/*/faces",
+        "hri/gesture/*/persons",
     ]
 
 
