@@ -1,0 +1,254 @@
+"""Who said an utterance, and was it said to the robot (issue #33, items 2 and 4). Pure: Faces samples and a
+Transcript in, a wire `Speaker` out.
+
+The rule is TIMING, not loudness: a speaker's mouth moves while the words are heard and much less just before and
+after them; a listener's mouth is still while the words are heard. For each face track seen during the utterance:
+
+- motion = how fast the mouth opening changes (|d mouth_open / dt|, per second: scale- and frame-rate-free);
+- `during` = its mean inside the utterance [start, end]; `around` = its mean in `context` s before the start and
+  after the end (a `guard` s gap on each side, where the mouth still closes or already opens);
+- timing = (during - around) / (during + around), in [-1, 1]: 1 = moves only with the speech.
+
+A face moves with the speech when `during` >= `still` and timing >= `min_timing`. One such face (or the only face
+in view, whose mouth is not still) is the speaker; when two or more move with it and the best leads by less than
+`margin`, the speaker is unknown ("dub": two mouths move over one voice, and no timing tells them apart) —
+never a silent person. A face's person id is `Face.person`, else its face id (persons may be absent).
+
+`addressed`: the speaker's face looked at the camera (the robot) for at least `addressed_share` of its frames
+in the utterance; nil when the speaker or their head's orientation is unknown.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+from common.schema import Face, Faces, Speaker, Transcript
+from common.settings import setting
+
+
+@dataclass(frozen=True)
+class SpeakerConfig:
+    """Attribution's settings; each is a flag of `hri-fusion` (docs/people.md "Who is speaking")."""
+
+    speaker_still: float = setting(
+        0.2,
+        "mouth motion (change of mouth_open per second) below which a mouth is still while the words are heard",
+        at_least=0,
+        metavar="RATE",
+    )
+    speaker_min_timing: float = setting(
+        0.3,
+        "timing score (motion during vs around the utterance, -1..1) a mouth needs to go with the speech",
+        at_least=-1,
+        at_most=1,
+    )
+    speaker_margin: float = setting(
+        0.25,
+        "the lead in timing score the best mouth needs over a second moving mouth; less: unknown",
+        at_least=0,
+        at_most=2,
+    )
+    speaker_context: float = setting(
+        1.0, "seconds before the start and after the end compared with the utterance", above=0, metavar="S"
+    )
+    speaker_guard: float = setting(
+        0.1, "seconds next to the utterance left out of the comparison", at_least=0, metavar="S"
+    )
+    speaker_coverage: float = setting(
+        0.5, "share of the utterance a face's mouth must be seen in to be judged", above=0, at_most=1, metavar="P"
+    )
+    addressed_share: float = setting(
+        0.5,
+        "share of the speaker's frames in the utterance looking at the camera for it to count as said to the robot",
+        above=0,
+        at_most=1,
+        metavar="P",
+    )
+
+
+@dataclass
+class Track:
+    """One face's samples over time (stamps ascending): mouth opening and whether it looked at the camera."""
+
+    person: str
+    stamps: list[float] = field(default_factory=list)
+    mouth: list[float | None] = field(default_factory=list)
+    looking: list[bool | None] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Judged:
+    """One face's motion during and around the utterance."""
+
+    person: str
+    during: float | None  # mean mouth motion inside the utterance (per second); None: mouth not seen enough
+    around: float | None  # in the context around it; None: no frames there
+    timing: float | None  # (during - around) / (during + around)
+
+    def moves(self, cfg: SpeakerConfig) -> bool:
+        return self.during is not None and self.during >= cfg.speaker_still
+
+    def goes_with_speech(self, cfg: SpeakerConfig) -> bool:
+        return self.moves(cfg) and self.timing is not None and self.timing >= cfg.speaker_min_timing
+
+
+def person_of(face: Face) -> str:
+    """The person a face belongs to: `Face.person`, else the face id (when no person tracker runs)."""
+    return face.person or face.id
+
+
+def tracks_of(samples: Iterable[Faces]) -> dict[str, Track]:
+    """Faces samples (any order, any camera) -> one Track per person, in source time."""
+    tracks: dict[str, Track] = {}
+    for sample in sorted(samples, key=lambda s: s.stamp):
+        for face in sample.faces:
+            who = person_of(face)
+            track = tracks.setdefault(who, Track(who))
+            track.stamps.append(sample.stamp)
+            track.mouth.append(face.mouth_open)
+            track.looking.append(face.looking_at_camera)
+    return tracks
+
+
+def _motion(track: Track, lo: float, hi: float) -> tuple[float | None, int]:
+    """Mean |d mouth / dt| over consecutive measured samples both inside [lo, hi], and how many samples."""
+    rates: list[float] = []
+    seen = 0
+    prev: tuple[float, float] | None = None
+    for stamp, mouth in zip(track.stamps, track.mouth):
+        if not lo <= stamp <= hi or mouth is None:
+            prev = None
+            continue
+        seen += 1
+        if prev is not None and stamp > prev[0]:
+            rates.append(abs(mouth - prev[1]) / (stamp - prev[0]))
+        prev = (stamp, mouth)
+    return (sum(rates) / len(rates) if rates else None), seen
+
+
+def _frames_in(stamps: Sequence[float], lo: float, hi: float) -> int:
+    return sum(1 for s in stamps if lo <= s <= hi)
+
+
+def judge(track: Track, start: float, end: float, stream_frames: int, cfg: SpeakerConfig) -> Judged:
+    """`stream_frames`: frames of any face stream in [start, end] (the coverage's denominator)."""
+    during, seen = _motion(track, start, end)
+    if during is None or seen < cfg.speaker_coverage * max(stream_frames, 2):
+        return Judged(track.person, None, None, None)
+    before, n_before = _motion(track, start - cfg.speaker_guard - cfg.speaker_context, start - cfg.speaker_guard)
+    after, n_after = _motion(track, end + cfg.speaker_guard, end + cfg.speaker_guard + cfg.speaker_context)
+    sides = [(v, n) for v, n in ((before, n_before), (after, n_after)) if v is not None]
+    if not sides:
+        return Judged(track.person, during, None, None)
+    around = sum(v * n for v, n in sides) / sum(n for _, n in sides)
+    total = during + around
+    return Judged(track.person, during, around, (during - around) / total if total > 0 else 0.0)
+
+
+def addressed(track: Track, start: float, end: float, cfg: SpeakerConfig) -> bool | None:
+    looks = [lk for s, lk in zip(track.stamps, track.looking) if start <= s <= end and lk is not None]
+    if not looks:
+        return None
+    return sum(looks) / len(looks) >= cfg.addressed_share
+
+
+def _unknown(reason: str) -> Speaker:
+    return Speaker(person=None, confidence=0.0, method="unknown", addressed=None, reason=reason)
+
+
+def _only_face(j: Judged, cfg: SpeakerConfig) -> Speaker:
+    if j.during is None:
+        return Speaker(person=j.person, confidence=0.5, method="only_face", reason="the only face in view")
+    if not j.moves(cfg):
+        return _unknown(f"the only face in view ({j.person}) kept its mouth still: the voice is not theirs")
+    timing = max(0.0, j.timing) if j.timing is not None else 0.0
+    return Speaker(
+        person=j.person,
+        confidence=round(0.6 + 0.4 * min(1.0, timing), 3),
+        method="only_face",
+        reason=f"the only face in view, its mouth moving ({_numbers(j)})",
+    )
+
+
+def _numbers(j: Judged) -> str:
+    timing = "n/a" if j.timing is None else f"{j.timing:.2f}"
+    return f"motion {j.during or 0.0:.2f}/s during, timing {timing}"
+
+
+def _several(judged: list[Judged], cfg: SpeakerConfig) -> Speaker:
+    fits = sorted((j for j in judged if j.goes_with_speech(cfg)), key=lambda j: -(j.timing or 0.0))
+    if not fits:
+        moving = [j.person for j in judged if j.moves(cfg)]
+        if moving:
+            return _unknown(f"mouths moved ({', '.join(moving)}) but not with the speech's timing")
+        return _unknown("no mouth in view moved while the words were heard")
+    best = fits[0]
+    best_timing = best.timing or 0.0
+    if len(fits) > 1:
+        lead = best_timing - (fits[1].timing or 0.0)
+        if lead < cfg.speaker_margin:
+            return _unknown(
+                f"{best.person} and {fits[1].person} both moved their mouths with the speech "
+                f"(timing {best_timing:.2f} vs {fits[1].timing or 0.0:.2f}): cannot tell who spoke"
+            )
+        confidence = 0.5 + 0.5 * min(1.0, lead)
+    else:
+        confidence = 0.6 + 0.4 * min(1.0, best_timing)
+    still = [j.person for j in judged if j is not best and not j.goes_with_speech(cfg)]
+    return Speaker(
+        person=best.person,
+        confidence=round(confidence, 3),
+        method="mouth_motion",
+        reason=f"{best.person}'s mouth moved with the words ({_numbers(best)})"
+        + (f"; not {', '.join(still)}" if still else ""),
+    )
+
+
+def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None = None) -> Speaker:
+    """Who said `t`, from the faces around it (source time), with a confidence; unknown says why."""
+    cfg = cfg or SpeakerConfig()
+    samples = list(faces)
+    tracks = tracks_of(samples)
+    in_utterance = [s for s in samples if t.start <= s.stamp <= t.end]
+    present = {person_of(f) for s in in_utterance for f in s.faces}
+    if not present:
+        return _unknown("no face in view while the words were heard")
+    stream_frames = max(
+        _frames_in(sorted({s.stamp for s in in_utterance if s.cam == cam}), t.start, t.end)
+        for cam in {s.cam for s in in_utterance}
+    )
+    judged = [judge(tracks[p], t.start, t.end, stream_frames, cfg) for p in sorted(present)]
+    seen = [j for j in judged if j.during is not None]
+    if len(present) == 1:
+        speaker = _only_face(judged[0], cfg)
+    elif not seen:
+        speaker = _unknown(f"{len(present)} faces in view, no mouth seen well enough")
+    else:
+        speaker = _several(seen, cfg)
+    if speaker.person is not None:
+        speaker.addressed = addressed(tracks[speaker.person], t.start, t.end, cfg)
+    return speaker
+
+
+class FaceHistory:
+    """Fusion's buffer of Faces samples (every camera), pruned to `horizon` s of source time behind the newest."""
+
+    def __init__(self, horizon: float):
+        self.horizon = horizon
+        self.samples: deque[Faces] = deque()
+
+    def add(self, sample: Faces) -> None:
+        if self.samples and sample.stamp < self.samples[-1].stamp - self.horizon:
+            self.samples.clear()  # the timeline went back (a replay restarted): old faces mean nothing now
+        self.samples.append(sample)
+        newest = max(self.samples[-1].stamp, sample.stamp)
+        while self.samples and self.samples[0].stamp < newest - self.horizon:
+            self.samples.popleft()
+
+    def around(self, lo: float, hi: float) -> list[Faces]:
+        return [s for s in self.samples if lo <= s.stamp <= hi]
+
+    def __len__(self) -> int:
+        return len(self.samples)

@@ -1,0 +1,220 @@
+"""The face stage: MediaPipe Face Mesh (legacy `mediapipe.solutions.face_mesh`, the model ships in the wheel) on a
+frame -> faces with a stable track id, mouth opening and head orientation (issue #33: who is speaking, to whom).
+
+The rules are pure functions of the mesh's 468 landmarks (pixels; z in the scale of x, smaller = nearer the
+camera): `mouth_opening`, `head_angles`, `looking_at`; `FaceTracker` keeps ids across frames by box overlap
+(IoU), then centre distance, through a short miss. `FaceMesher` is the only part that calls MediaPipe.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from common.schema import Face
+from common.settings import setting
+
+# Face Mesh landmark indices (canonical face model): inner lips, inner mouth corners, cheeks, forehead, chin.
+UPPER_INNER_LIP, LOWER_INNER_LIP = 13, 14
+MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT = 78, 308  # the person's right / left inner corner
+CHEEK_RIGHT, CHEEK_LEFT = 234, 454
+FOREHEAD, CHIN = 10, 152
+
+
+@dataclass(frozen=True)
+class FaceConfig:
+    """The face stage's settings; each is also a flag of `hri-gesture` (common/settings.py)."""
+
+    max_faces: int = setting(4, "faces tracked per camera by the face stage", at_least=1, metavar="N")
+    look_yaw: float = setting(
+        25.0, "a face turned at most this many degrees left or right looks at the camera", at_least=0, at_most=90
+    )
+    look_pitch: float = setting(
+        20.0, "and tilted at most this many degrees up or down", at_least=0, at_most=90, metavar="DEG"
+    )
+    mouth_max_yaw: float = setting(
+        60.0,
+        "beyond this yaw (degrees) the mouth is too side-on to measure: mouth_open is nil",
+        at_least=0,
+        at_most=90,
+        metavar="DEG",
+    )
+    face_keep: float = setting(
+        0.5, "seconds a face track is kept through frames that miss it (same id when it is found again)", at_least=0
+    )
+
+
+def mouth_opening(points: np.ndarray) -> float | None:
+    """Inner-lip gap over inner mouth width (0 closed; ~0.5 wide open): scale-free, so near and far faces compare.
+    None when the mouth width is degenerate."""
+    width = float(np.linalg.norm(points[MOUTH_CORNER_RIGHT, :2] - points[MOUTH_CORNER_LEFT, :2]))
+    if width < 1e-6:
+        return None
+    gap = float(np.linalg.norm(points[UPPER_INNER_LIP, :2] - points[LOWER_INNER_LIP, :2]))
+    return gap / width
+
+
+def head_angles(points: np.ndarray) -> tuple[float, float] | None:
+    """(yaw, pitch) in degrees from the face plane's normal: the cross product of the cheek-to-cheek and the
+    forehead-to-chin vectors (3-D mesh). Yaw > 0: turned to the image's right; pitch > 0: looking up."""
+    across = points[CHEEK_LEFT] - points[CHEEK_RIGHT]  # the person's left cheek is on the image's right
+    down = points[CHIN] - points[FOREHEAD]
+    normal = np.cross(down, across)  # points out of the face, towards the camera (-z) for a frontal face
+    norm = float(np.linalg.norm(normal))
+    if norm < 1e-9:
+        return None
+    nx, ny, nz = (normal / norm).tolist()
+    yaw = math.degrees(math.atan2(nx, -nz))
+    pitch = math.degrees(math.atan2(-ny, math.hypot(nx, nz)))
+    return yaw, pitch
+
+
+def looking_at(yaw: float | None, pitch: float | None, cfg: FaceConfig) -> bool | None:
+    if yaw is None or pitch is None:
+        return None
+    return abs(yaw) <= cfg.look_yaw and abs(pitch) <= cfg.look_pitch
+
+
+def bbox_of(points: np.ndarray) -> list[float]:
+    x0, y0 = points[:, 0].min(), points[:, 1].min()
+    x1, y1 = points[:, 0].max(), points[:, 1].max()
+    return [round(float(x0), 1), round(float(y0), 1), round(float(x1 - x0), 1), round(float(y1 - y0), 1)]
+
+
+def iou(a: list[float], b: list[float]) -> float:
+    ax1, ay1, bx1, by1 = a[0] + a[2], a[1] + a[3], b[0] + b[2], b[1] + b[3]
+    iw = max(0.0, min(ax1, bx1) - max(a[0], b[0]))
+    ih = max(0.0, min(ay1, by1) - max(a[1], b[1]))
+    inter = iw * ih
+    union = a[2] * a[3] + b[2] * b[3] - inter
+    return inter / union if union > 0 else 0.0
+
+
+def centre_distance(a: list[float], b: list[float]) -> float:
+    """Distance of the centres in units of the larger box's size (so it means the same near and far)."""
+    dx = (a[0] + a[2] / 2) - (b[0] + b[2] / 2)
+    dy = (a[1] + a[3] / 2) - (b[1] + b[3] / 2)
+    return math.hypot(dx, dy) / max(a[2], a[3], b[2], b[3], 1e-6)
+
+
+@dataclass
+class _Track:
+    id: str
+    bbox: list[float]
+    seen: float  # stamp of the last frame it was found in
+
+
+@dataclass
+class FaceTracker:
+    """Stable face ids: each new box goes to the live track it overlaps most (IoU >= min_iou), else the nearest
+    live track whose centre is within max_centre box sizes; unmatched boxes start a new track. A track missed for
+    more than `keep` seconds is dropped; a clock going back resets the tracker."""
+
+    keep: float = 0.5
+    min_iou: float = 0.3
+    max_centre: float = 0.5
+    tracks: list[_Track] = field(default_factory=list)
+    next_id: int = 1
+    last_stamp: float | None = None
+
+    def update(self, stamp: float, boxes: list[list[float]]) -> list[str]:
+        if self.last_stamp is not None and stamp < self.last_stamp:
+            self.tracks = []
+        self.last_stamp = stamp
+        self.tracks = [t for t in self.tracks if stamp - t.seen <= self.keep]
+        pairs = sorted(
+            ((self._affinity(t.bbox, b), ti, bi) for ti, t in enumerate(self.tracks) for bi, b in enumerate(boxes)),
+            reverse=True,
+        )
+        ids: list[str | None] = [None] * len(boxes)
+        used: set[int] = set()
+        for affinity, ti, bi in pairs:
+            if affinity <= 0 or ti in used or ids[bi] is not None:
+                continue
+            used.add(ti)
+            ids[bi] = self.tracks[ti].id
+            self.tracks[ti].bbox, self.tracks[ti].seen = boxes[bi], stamp
+        for bi, box in enumerate(boxes):
+            if ids[bi] is None:
+                track = _Track(f"face{self.next_id}", box, stamp)
+                self.next_id += 1
+                self.tracks.append(track)
+                ids[bi] = track.id
+        return [i for i in ids if i is not None]
+
+    def _affinity(self, a: list[float], b: list[float]) -> float:
+        """> 1 for an overlap (IoU + 1), (0, 1] for a near centre, 0 for no match: overlaps are matched first."""
+        overlap = iou(a, b)
+        if overlap >= self.min_iou:
+            return 1.0 + overlap
+        near = centre_distance(a, b)
+        return 1.0 - near / self.max_centre if near < self.max_centre else 0.0
+
+
+def face_of(points: np.ndarray, face_id: str, cfg: FaceConfig) -> Face:
+    """One mesh (468x3 px) -> the wire `Face` (`person` is left to the person tracker)."""
+    angles = head_angles(points)
+    yaw, pitch = angles if angles is not None else (None, None)
+    mouth = mouth_opening(points) if yaw is not None and abs(yaw) <= cfg.mouth_max_yaw else None
+    return Face(
+        id=face_id,
+        bbox=bbox_of(points),
+        # the legacy Face Mesh API reports no per-face score: a face it returns has passed its detection and
+        # tracking thresholds (MESH_MIN_CONFIDENCE), which is the confidence we can state
+        score=MESH_MIN_CONFIDENCE,
+        mouth_open=None if mouth is None else round(mouth, 4),
+        yaw=None if yaw is None else round(yaw, 1),
+        pitch=None if pitch is None else round(pitch, 1),
+        looking_at_camera=looking_at(yaw, pitch, cfg),
+    )
+
+
+MESH_MIN_CONFIDENCE = 0.5
+
+
+class FaceMesher:
+    """One MediaPipe Face Mesh graph for one video stream (it tracks between frames). Not thread-safe."""
+
+    def __init__(self, max_faces: int = 4, video: bool = True):
+        from mediapipe.python.solutions import face_mesh
+
+        self._mesh = face_mesh.FaceMesh(
+            static_image_mode=not video,
+            max_num_faces=max_faces,
+            refine_landmarks=False,  # iris points: not needed for the mouth or the head's angles
+            min_detection_confidence=MESH_MIN_CONFIDENCE,
+            min_tracking_confidence=MESH_MIN_CONFIDENCE,
+        )
+
+    def detect(self, bgr: np.ndarray) -> list[np.ndarray]:
+        """Each face's 468 landmarks in pixels (x, y, and z in the scale of x), left to right."""
+        h, w = bgr.shape[:2]
+        result = self._mesh.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        meshes = [
+            np.array([(p.x * w, p.y * h, p.z * w) for p in lms.landmark], dtype=np.float64)
+            for lms in result.multi_face_landmarks or []
+        ]
+        return sorted(meshes, key=lambda m: float(m[:, 0].mean()))
+
+    def close(self) -> None:
+        self._mesh.close()
+
+
+class FaceStage:
+    """Frames of one stream -> `Face`s with stable ids (the mesher's graph and the tracker together)."""
+
+    def __init__(self, cfg: FaceConfig, video: bool = True):
+        self.cfg = cfg
+        self.mesher = FaceMesher(cfg.max_faces, video)
+        self.tracker = FaceTracker(keep=cfg.face_keep)
+
+    def process(self, bgr: np.ndarray, stamp: float) -> list[Face]:
+        meshes = self.mesher.detect(bgr)
+        ids = self.tracker.update(stamp, [bbox_of(m) for m in meshes])
+        return [face_of(m, i, self.cfg) for m, i in zip(meshes, ids)]
+
+    def close(self) -> None:
+        self.mesher.close()
