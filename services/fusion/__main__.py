@@ -14,6 +14,7 @@ from common.settings import add_settings, from_args
 from services.fusion.core import Config, FusionCore
 from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
+from services.fusion.speaker import SpeakerConfig
 
 DEFAULTS = Config()
 EPILOG = f"""\
@@ -45,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         EPILOG,
     )
     add_settings(parser.add_argument_group("fusion (docs/fusion.md, Settings)"), Config)
+    add_settings(parser.add_argument_group("who is speaking (docs/people.md)"), SpeakerConfig)
     return parser
 
 
@@ -53,7 +55,9 @@ def main(argv: list[str] | None = None) -> None:
 
     service = Service("fusion", args, recovering=True)
     config = from_args(Config, args)
-    core = FusionCore(config, service.source, count=service.counters.add, log=service.log)
+    core = FusionCore(
+        config, service.source, count=service.counters.add, log=service.log, speaker=from_args(SpeakerConfig, args)
+    )
     if not service.connect():
         main_exit(0)
     keys = service.keys
@@ -111,6 +115,7 @@ def main(argv: list[str] | None = None) -> None:
     service.subscribe_input("hands", handler(core.on_hands))
     service.subscribe_input("event", handler(core.on_gesture_event))
     service.subscribe_input("bodies", handler(core.on_bodies))  # which way the speaker faces
+    service.subscribe_input("faces", handler(core.on_faces))  # who is speaking
 
     last_clock_report = [0.0]
 

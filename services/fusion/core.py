@@ -15,7 +15,17 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from common.schema import (
+    Bodies,
+    Detections,
+    Faces,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    Location,
+    Speaker,
+    Transcript,
+)
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
@@ -25,6 +35,7 @@ from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_locat
 from services.fusion.join import Join, Ready, SeenOnce
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance, parse, stop_near_miss
+from services.fusion.speaker import FaceHistory, SpeakerConfig, attribute
 from services.fusion.window import Context, PendingTranscript, gather
 
 TARGET_INTENTS = ("pick_up", "bring")  # must name an object
@@ -93,6 +104,11 @@ class Config:
     episode_gap: float = setting(
         1.5, "seconds: events of one gesture this close belong to one episode (one command)", at_least=0, metavar="S"
     )
+    confirm_unaddressed: bool = setting(
+        True,
+        "a command said while the speaker faced away from the robot (Speaker.addressed false) is asked about "
+        "before it is acted on (--no-confirm-unaddressed: act on it)",
+    )
 
 
 def input_services(fusion: str = "fusion") -> tuple[str, ...]:
@@ -116,8 +132,11 @@ class FusionCore:
         source: str,
         count: Callable[[str], None] = lambda name: None,
         log: logging.Logger | None = None,
+        speaker: SpeakerConfig | None = None,
     ):
         self.cfg = config
+        self.speaker_cfg = speaker or SpeakerConfig()
+        self.faces = FaceHistory(config.horizon)  # who is speaking: mouths over time (issue #33)
         self.source = source
         self.count = count
         self.log = log or logging.getLogger("hri.fusion.core")
@@ -161,6 +180,10 @@ class FusionCore:
         self.facing.add(bodies)
         return []
 
+    def on_faces(self, key: str, faces: Faces, wall: float) -> list[Output]:
+        self.faces.add(faces)
+        return []
+
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
         if not self._add("gesture", key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
             return []
@@ -191,7 +214,9 @@ class FusionCore:
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
             if near:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
-            return [self.outputs.command(t, "stop", None, confidence=t.confidence, explanation=why, realtime=True)]
+            return self.with_speaker(
+                t, [self.outputs.command(t, "stop", None, confidence=t.confidence, explanation=why, realtime=True)]
+            )
         self.join.open(
             PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before, t.end + self.cfg.window_after)
         )
@@ -206,8 +231,43 @@ class FusionCore:
     def tick(self, wall: float) -> list[Output]:
         out: list[Output] = []
         for window, how in self.join.due(wall):
-            out.extend(self.decide(window, how))
+            speaker = self.speaker_of(window.transcript)
+            out.extend(self.with_speaker(window.transcript, self.decide(window, how, speaker), speaker))
         return out
+
+    # -- who is speaking (services/fusion/speaker.py) -------------------------------
+    def speaker_of(self, t: Transcript) -> Speaker | None:
+        """Who said `t`; None when no face stage feeds fusion (nothing to judge from, as before issue #33)."""
+        if not len(self.faces):
+            return None
+        margin = self.speaker_cfg.speaker_guard + self.speaker_cfg.speaker_context
+        speaker = attribute(t, self.faces.around(t.start - margin, t.end + margin), self.speaker_cfg)
+        self.count(f"speaker_{speaker.method}")
+        return speaker
+
+    def with_speaker(self, t: Transcript, outs: list[Output], speaker: Speaker | None = None) -> list[Output]:
+        """Every command and question on `t` carries its speaker."""
+        speaker = speaker if speaker is not None else self.speaker_of(t)
+        for out in outs:
+            out.sample.speaker = speaker
+        return outs
+
+    def confirm_unaddressed(
+        self, t: Transcript, ctx: Context, speaker: Speaker | None, outs: list[Output]
+    ) -> list[Output]:
+        """A command said while its speaker faced away (to someone else, likely) is asked about first."""
+        if not self.cfg.confirm_unaddressed or speaker is None or speaker.addressed is not False:
+            return outs
+        asked = [
+            self.dialogue.confirm_addressed(t, out.sample, ctx.objects)
+            if isinstance(out.sample, FusedCommand) and out.sample.intent != "stop"
+            else out
+            for out in outs
+        ]
+        if any(a is not o for a, o in zip(asked, outs)):
+            self.count("unaddressed_confirm")
+            self.log.info("'%s': %s faced away while saying it: asking first", t.text, speaker.person)
+        return asked
 
     def context(self, p: PendingTranscript, how: Ready) -> Context:
         return gather(
@@ -221,7 +281,7 @@ class FusionCore:
         )
 
     # -- decisions ------------------------------------------------------------
-    def decide(self, p: PendingTranscript, how: Ready) -> list[Output]:
+    def decide(self, p: PendingTranscript, how: Ready, speaker: Speaker | None = None) -> list[Output]:
         t, u = p.transcript, p.utterance
         hand_frames = (item for _, item in self.join.streams.between("gesture", t.start, p.hi))
         if self.gestures.stop_shown(t.start, p.hi, hand_frames):
@@ -240,7 +300,7 @@ class FusionCore:
             if u.obj.names_kind and u.answer is None and not u.other:
                 self.count("bare_reference")
                 self.dialogue.supersede()
-                return self.command_for(t, replace(u, intent="look_at"), ctx)
+                return self.confirm_unaddressed(t, ctx, speaker, self.command_for(t, replace(u, intent="look_at"), ctx))
             self.count("ignored_no_intent")
             self.log.info("'%s' is not a command I know; ignored", t.text)
             return []
@@ -248,7 +308,7 @@ class FusionCore:
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
             self.count("duplicate_of_gesture")
             return []
-        return self.command_for(t, u, ctx)
+        return self.confirm_unaddressed(t, ctx, speaker, self.command_for(t, u, ctx))
 
     def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         intent = u.intent

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.language import ANY_OBJECT, label_matches
-from common.schema import ClarificationReason, Location, Motion, Transcript
+from common.schema import ClarificationReason, FusedCommand, Location, Motion, Transcript
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
@@ -130,6 +130,16 @@ class Dialogue:
         return self._ask(
             t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates, question
         )
+
+    def confirm_addressed(self, t: Transcript, cmd: FusedCommand, scene: list[SceneObject]) -> Output:
+        """A command said while facing away from the robot: "Did you say that to me?" A yes acts on it."""
+        target = next(
+            (o for o in scene if cmd.target is not None and (o.id, o.cam) == (cmd.target.id, cmd.target.cam)), None
+        )
+        draft = Draft(cmd.intent, t.text, target=target, location=cmd.location, place=cmd.place, motion=cmd.motion)
+        question = f'You were facing away from me. Did you say that to me: "{t.text}"?'
+        shown = [target] if target is not None else []
+        return self._ask(t, "low_confidence", draft, ObjectPhrase(), shown, shown, question)
 
     def clarify_place(self, t: Transcript, u: Utterance, draft: Draft) -> Output:
         question = (

@@ -8,9 +8,10 @@ import time
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
-from common.settings import add_option
+from common.schema import Bodies, Body, Faces, Frame, GestureEvent, Hand, Hands, Ray
+from common.settings import add_option, add_settings, from_args
 from common.stack import node
+from services.gesture.faces import FaceConfig, FaceStages
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
 from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
@@ -49,6 +50,12 @@ def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
         left_ray=rays.get("left"),
         right_ray=rays.get("right"),
     )
+
+
+def publish_faces(service: Service, sample: Faces | None) -> None:
+    """The face stage's sample of a frame (None: the stage is off or skipped this frame)."""
+    if sample is not None:
+        service.publish_output("faces", sample, cam=sample.cam)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -98,6 +105,14 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("eyes", "forearm"),
     )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
+    add_option(
+        parser,
+        "--faces",
+        True,
+        "run the face stage (MediaPipe Face Mesh): publishes Faces, mouths and head orientation for who is "
+        "speaking (--no-faces saves its cost)",
+    )
+    add_settings(parser.add_argument_group("face stage (docs/people.md)"), FaceConfig)
     return parser
 
 
@@ -118,6 +133,8 @@ def main(argv: list[str] | None = None) -> None:
     last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
     depths: dict[str, collections.deque] = {}  # cam -> the last DEPTH_KEPT DepthFrames
     service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values()]])
+    faces = FaceStages(from_args(FaceConfig, args), enabled=args.faces)  # who is speaking (issue #33)
+    service.on_close(faces.close)
     if not service.connect():
         main_exit(0)
 
@@ -183,6 +200,7 @@ def main(argv: list[str] | None = None) -> None:
                 cam=frame.cam,
             )
         publish_events(frame, events, rays3d, hand_rays3d)
+        publish_faces(service, faces.sample(frame, img, service.source))
         if rays3d is not None and rays3d.error:
             service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {rays3d.error}")
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet

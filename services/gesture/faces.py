@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from common.schema import Face
+from common.schema import Face, Faces, Frame
 from common.settings import setting
 
 # Face Mesh landmark indices (canonical face model): inner lips, inner mouth corners, cheeks, forehead, chin.
@@ -30,7 +30,11 @@ class FaceConfig:
 
     max_faces: int = setting(4, "faces tracked per camera by the face stage", at_least=1, metavar="N")
     look_yaw: float = setting(
-        25.0, "a face turned at most this many degrees left or right looks at the camera", at_least=0, at_most=90
+        25.0,
+        "a face turned at most this many degrees left or right looks at the camera",
+        at_least=0,
+        at_most=90,
+        metavar="DEG",
     )
     look_pitch: float = setting(
         20.0, "and tilted at most this many degrees up or down", at_least=0, at_most=90, metavar="DEG"
@@ -43,7 +47,17 @@ class FaceConfig:
         metavar="DEG",
     )
     face_keep: float = setting(
-        0.5, "seconds a face track is kept through frames that miss it (same id when it is found again)", at_least=0
+        0.5,
+        "seconds a face track is kept through frames that miss it (same id when it is found again)",
+        at_least=0,
+        metavar="S",
+    )
+    faces_max_rate: float = setting(
+        0.0,
+        "at most this many frames per second per camera go through the face stage (mouth motion needs >= 12)",
+        at_least=0,
+        metavar="FPS",
+        default_text="0: every frame",
     )
 
 
@@ -114,6 +128,7 @@ class FaceTracker:
     more than `keep` seconds is dropped; a clock going back resets the tracker."""
 
     keep: float = 0.5
+    prefix: str = "face"  # ids are prefix + a number (the gesture service uses "<cam>/face": unique per camera)
     min_iou: float = 0.3
     max_centre: float = 0.5
     tracks: list[_Track] = field(default_factory=list)
@@ -139,7 +154,7 @@ class FaceTracker:
             self.tracks[ti].bbox, self.tracks[ti].seen = boxes[bi], stamp
         for bi, box in enumerate(boxes):
             if ids[bi] is None:
-                track = _Track(f"face{self.next_id}", box, stamp)
+                track = _Track(f"{self.prefix}{self.next_id}", box, stamp)
                 self.next_id += 1
                 self.tracks.append(track)
                 ids[bi] = track.id
@@ -206,10 +221,10 @@ class FaceMesher:
 class FaceStage:
     """Frames of one stream -> `Face`s with stable ids (the mesher's graph and the tracker together)."""
 
-    def __init__(self, cfg: FaceConfig, video: bool = True):
+    def __init__(self, cfg: FaceConfig, video: bool = True, id_prefix: str = "face"):
         self.cfg = cfg
         self.mesher = FaceMesher(cfg.max_faces, video)
-        self.tracker = FaceTracker(keep=cfg.face_keep)
+        self.tracker = FaceTracker(keep=cfg.face_keep, prefix=id_prefix)
 
     def process(self, bgr: np.ndarray, stamp: float) -> list[Face]:
         meshes = self.mesher.detect(bgr)
@@ -218,3 +233,38 @@ class FaceStage:
 
     def close(self) -> None:
         self.mesher.close()
+
+
+class FaceStages:
+    """The face stage of every camera: a frame -> its `Faces` sample, or None when `faces_max_rate` skips it."""
+
+    def __init__(self, cfg: FaceConfig, enabled: bool = True):
+        self.cfg = cfg
+        self.enabled = enabled  # off (--no-faces): no sample, no cost
+        self.stages: dict[str, FaceStage] = {}
+        self.last: dict[str, float] = {}  # cam -> stamp of the last frame processed
+
+    def sample(self, frame: Frame, bgr: np.ndarray, source: str) -> Faces | None:
+        if not self.enabled:
+            return None
+        last = self.last.get(frame.cam)
+        rate = self.cfg.faces_max_rate
+        if rate > 0 and last is not None and last <= frame.stamp < last + 1.0 / rate:
+            return None
+        self.last[frame.cam] = frame.stamp
+        if frame.cam not in self.stages:
+            self.stages[frame.cam] = FaceStage(self.cfg, id_prefix=f"{frame.cam}/face")
+        faces = self.stages[frame.cam].process(bgr, frame.stamp)
+        return Faces(
+            stamp=frame.stamp,
+            source=source,
+            seq=frame.seq,
+            cam=frame.cam,
+            width=frame.width,
+            height=frame.height,
+            faces=faces,
+        )
+
+    def close(self) -> None:
+        for stage in self.stages.values():
+            stage.close()
