@@ -1,0 +1,103 @@
+"""Fusion attaches who said it (issue #33), in process: the faces of a real two-person turn-taking clip (cached face
+series of ../shared/data/talking/comp_turns_bbaf2n_lbbc2a.mp4, tests/data/talking_faces.json) with commands said in
+its two speech intervals over a scene of two cups; a command said facing away is asked about, and a yes acts."""
+
+from __future__ import annotations
+
+import functools
+
+import msgspec
+
+from common.schema import Clarification, Detections, Faces, FusedCommand, Sample
+from services.fusion.core import Config, FusionCore
+from testkit.scenarios import Step, say, scene
+from testkit.scenarios.suite import TWO_CUPS
+from testkit.talking import T0, load_cache
+
+CLIP = "comp_turns_bbaf2n_lbbc2a.mp4"  # left person (P0) speaks 0.95-2.56 s, right person (P1) 3.44-5.41 s
+
+
+@functools.cache
+def faces() -> list[Faces]:
+    return load_cache()[CLIP]
+
+
+def ids() -> tuple[str, str]:
+    """The face ids of the left and the right person."""
+    first = faces()[0].faces
+    left, right = sorted(first, key=lambda f: f.bbox[0])
+    return left.id, right.id
+
+
+def facing_away(samples: list[Faces], face_id: str) -> list[Faces]:
+    return [
+        msgspec.structs.replace(
+            s,
+            faces=[
+                msgspec.structs.replace(f, looking_at_camera=False, yaw=60.0) if f.id == face_id else f for f in s.faces
+            ],
+        )
+        for s in samples
+    ]
+
+
+def run(steps: list[Step], face_samples: list[Faces], config: Config | None = None) -> list[Sample]:
+    """Faces first (the gesture service publishes them with every frame), then the scene and the words."""
+    core = FusionCore(config or Config(), "fusion/test")
+    core.on_liveliness("vision", "test", True)
+    core.on_liveliness("gesture", "test", True)
+    wall, out = 1000.0, []
+    for sample in face_samples:
+        core.on_faces("hri/gesture/cam0/faces", sample, wall)
+    for step in sorted(steps, key=lambda s: s.t):
+        key, sample = step.build(T0)
+        feed = core.on_detections if isinstance(sample, Detections) else core.on_transcript
+        out.extend(o.sample for o in feed(key, sample, wall))
+        out.extend(o.sample for o in core.tick(wall))
+        wall += 0.002
+    out.extend(o.sample for o in core.tick(wall + 100.0))
+    return out
+
+
+def commands_in_turns() -> list[Step]:
+    return [
+        *scene(TWO_CUPS, 0.0, 6.0, 0.2),
+        say(0.95, 2.56, "pick up the red cup", lag=0.3),
+        say(3.44, 5.41, "pick up the blue cup", lag=0.3),
+    ]
+
+
+def test_each_command_carries_the_person_who_said_it() -> None:
+    left, right = ids()
+    out = run(commands_in_turns(), faces())
+    assert [type(o) for o in out] == [FusedCommand, FusedCommand]
+    first, second = out
+    assert isinstance(first, FusedCommand) and isinstance(second, FusedCommand)
+    assert first.target is not None and first.target.id == "cup_red"
+    assert first.speaker is not None and (first.speaker.person, first.speaker.method) == (left, "mouth_motion")
+    assert second.speaker is not None and (second.speaker.person, second.speaker.method) == (right, "mouth_motion")
+    assert first.speaker.addressed is True and second.speaker.addressed is True
+
+
+def test_without_a_face_stage_the_speaker_stays_nil() -> None:
+    out = run(commands_in_turns(), [])
+    assert len(out) == 2 and all(isinstance(o, FusedCommand) and o.speaker is None for o in out)
+
+
+def test_a_command_said_facing_away_is_asked_about_and_a_yes_acts() -> None:
+    left, right = ids()
+    steps = [*commands_in_turns(), say(6.4, 6.8, "yes", lag=0.3)]
+    out = run(steps, facing_away(faces(), right))
+    assert [type(o) for o in out] == [FusedCommand, Clarification, FusedCommand]
+    _, question, confirmed = out
+    assert isinstance(question, Clarification) and isinstance(confirmed, FusedCommand)
+    assert question.speaker is not None and question.speaker.person == right and question.speaker.addressed is False
+    assert "facing away" in question.question and "pick up the blue cup" in question.question
+    assert confirmed.intent == "pick_up" and confirmed.target is not None and confirmed.target.id == "cup_blue"
+
+
+def test_confirming_unaddressed_commands_can_be_turned_off() -> None:
+    _, right = ids()
+    out = run(commands_in_turns(), facing_away(faces(), right), Config(confirm_unaddressed=False))
+    assert [type(o) for o in out] == [FusedCommand, FusedCommand]
+    assert out[1].speaker is not None and out[1].speaker.addressed is False  # type: ignore[attr-defined]
