@@ -8,7 +8,7 @@ import functools
 
 import msgspec
 
-from common.schema import Clarification, Detections, Faces, FusedCommand, Sample
+from common.schema import Clarification, Detections, Faces, FusedCommand, Sample, Transcript
 from services.fusion.core import Config, FusionCore
 from testkit.scenarios import Step, say, scene
 from testkit.scenarios.suite import TWO_CUPS
@@ -46,13 +46,15 @@ def run(steps: list[Step], face_samples: list[Faces], config: Config | None = No
     core = FusionCore(config or Config(), "fusion/test")
     core.on_liveliness("vision", "test", True)
     core.on_liveliness("gesture", "test", True)
-    wall, out = 1000.0, []
-    for sample in face_samples:
-        core.on_faces("hri/gesture/cam0/faces", sample, wall)
+    wall, out = 1000.0, list[Sample]()
+    for face_sample in face_samples:
+        core.on_faces("hri/gesture/cam0/faces", face_sample, wall)
     for step in sorted(steps, key=lambda s: s.t):
         key, sample = step.build(T0)
-        feed = core.on_detections if isinstance(sample, Detections) else core.on_transcript
-        out.extend(o.sample for o in feed(key, sample, wall))
+        if isinstance(sample, Detections):
+            out.extend(o.sample for o in core.on_detections(key, sample, wall))
+        elif isinstance(sample, Transcript):
+            out.extend(o.sample for o in core.on_transcript(key, sample, wall))
         out.extend(o.sample for o in core.tick(wall))
         wall += 0.002
     out.extend(o.sample for o in core.tick(wall + 100.0))
