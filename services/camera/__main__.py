@@ -77,6 +77,17 @@ def build_parser() -> argparse.ArgumentParser:
         "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
     )
     add_option(parser, "--rs-size", "640x480", "RealSense resolution WIDTHxHEIGHT", metavar="WxH")
+    add_option(
+        parser,
+        "--start-at",
+        None,
+        "wall time (Unix seconds) to start at; frames are then stamped start + n / fps, their place in the "
+        "file's own timeline, so a speech service given the same --start-at plays the file's audio in step",
+        kind=float,
+        above=0,
+        metavar="T",
+        default_text="at once, stamped when read",
+    )
     return parser
 
 
@@ -120,6 +131,9 @@ def main(argv: list[str] | None = None) -> None:
 
     def loop(stop: threading.Event) -> None:
         seq, period = 0, (1.0 / fps if fps else 0.0)
+        clip_clock = args.start_at if period else None  # the file's timeline, anchored at --start-at
+        if clip_clock is not None and stop.wait(max(0.0, clip_clock - time.time())):
+            return
         next_at = time.monotonic()
         while not stop.is_set():
             produced = False
@@ -131,7 +145,8 @@ def main(argv: list[str] | None = None) -> None:
                     if delay > 0 and stop.wait(delay):
                         return
                     next_at = max(next_at + period, time.monotonic() - period)
-                stamp = time.time()  # capture time: the moment the frame is in hand
+                # capture time: the moment the frame is in hand (or its place in the clip's timeline)
+                stamp = time.time() if clip_clock is None else clip_clock + seq * period
                 img = capture.color
                 h, w = img.shape[:2]
                 if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:

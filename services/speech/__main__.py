@@ -65,6 +65,17 @@ def build_parser():
     add_option(parser, "--exit-when-done", False, "exit after the last WAV or end of stdin")
     add_option(
         parser,
+        "--start-at",
+        None,
+        "WAV input: wall time (Unix seconds) of the first sample; the audio is stamped from it on, so a camera "
+        "given the same --start-at plays the video of the same recording in step",
+        kind=float,
+        above=0,
+        metavar="T",
+        default_text="when playing starts",
+    )
+    add_option(
+        parser,
         "--device",
         None,
         "sounddevice input device (index or name)",
@@ -304,6 +315,13 @@ def wait_for_services(service: Service, names: list[str], stop: threading.Event)
     return False
 
 
+def start_clock(start_at: float | None, stop: threading.Event) -> float | None:
+    """The source time of the first sample: now, or --start-at once it has come (None: stopped while waiting)."""
+    if start_at is None:
+        return time.time()
+    return None if stop.wait(max(0.0, start_at - time.time())) else start_at
+
+
 def play_wavs(service: Service, args, stream: MicStream, publish, stop: threading.Event) -> None:
     names = [n.strip() for n in args.wait_for.split(",") if n.strip()]
     if names and not wait_for_services(service, names, stop):
@@ -311,7 +329,9 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
     files = wav_files(args.wav)
     if not files:
         service.log.error("no .wav files in %s", " ".join(args.wav))
-    clock = time.time()  # source time of the next file's first sample
+    clock = start_clock(args.start_at, stop)  # source time of the next file's first sample
+    if clock is None:
+        return
     for i, path in enumerate(files):
         if stop.is_set():
             return
@@ -329,7 +349,7 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
             wav.rate,
             wav.channels,
         )
-        if args.realtime:
+        if args.realtime and args.start_at is None:
             clock = max(clock, time.time())
         step = max(1, int(wav.rate * CHUNK_SECONDS))
         wall0 = time.monotonic()
