@@ -178,7 +178,9 @@ def test_tracker_keeps_an_id_through_a_short_miss_and_gives_a_new_one_after() ->
     assert tracker.update(1.04, [[104.0, 101.0, 80.0, 80.0], b]) == first
     assert tracker.update(1.3, [b]) == [first[1]]  # a is missed
     assert tracker.update(1.4, [[130.0, 100.0, 80.0, 80.0], b]) == first  # a back (moved: centre match)
-    assert tracker.update(2.5, [a])[0] not in first  # gone longer than keep: a new face
+    assert tracker.update(3.0, [a, b]) == first  # no frame for 1.6 s (a slow stage) is no miss
+    assert tracker.update(3.1, [b]) == [first[1]]
+    assert tracker.update(3.7, [a])[0] not in first  # missed longer than keep: a new face
     assert tracker.update(1.0, [a])[0] not in first  # time went back: start afresh
 
 

@@ -118,14 +118,15 @@ def centre_distance(a: list[float], b: list[float]) -> float:
 class _Track:
     id: str
     bbox: list[float]
-    seen: float  # stamp of the last frame it was found in
+    missed_since: float | None = None  # stamp of the first frame that missed it (None: found in the last one)
 
 
 @dataclass
 class FaceTracker:
     """Stable face ids: each new box goes to the live track it overlaps most (IoU >= min_iou), else the nearest
-    live track whose centre is within max_centre box sizes; unmatched boxes start a new track. A track missed for
-    more than `keep` seconds is dropped; a clock going back resets the tracker."""
+    live track whose centre is within max_centre box sizes; unmatched boxes start a new track. A track is dropped
+    when the frames processed have missed it for more than `keep` seconds (a pause in the frames, a slow stage,
+    is no miss); a clock going back resets the tracker."""
 
     keep: float = 0.5
     prefix: str = "face"  # ids are prefix + a number (the gesture service uses "<cam>/face": unique per camera)
@@ -139,7 +140,7 @@ class FaceTracker:
         if self.last_stamp is not None and stamp < self.last_stamp:
             self.tracks = []
         self.last_stamp = stamp
-        self.tracks = [t for t in self.tracks if stamp - t.seen <= self.keep]
+        self.tracks = [t for t in self.tracks if t.missed_since is None or stamp - t.missed_since <= self.keep]
         pairs = sorted(
             ((self._affinity(t.bbox, b), ti, bi) for ti, t in enumerate(self.tracks) for bi, b in enumerate(boxes)),
             reverse=True,
@@ -151,10 +152,13 @@ class FaceTracker:
                 continue
             used.add(ti)
             ids[bi] = self.tracks[ti].id
-            self.tracks[ti].bbox, self.tracks[ti].seen = boxes[bi], stamp
+            self.tracks[ti].bbox, self.tracks[ti].missed_since = boxes[bi], None
+        for ti, track in enumerate(self.tracks):
+            if ti not in used and track.missed_since is None:
+                track.missed_since = stamp
         for bi, box in enumerate(boxes):
             if ids[bi] is None:
-                track = _Track(f"{self.prefix}{self.next_id}", box, stamp)
+                track = _Track(f"{self.prefix}{self.next_id}", box)
                 self.next_id += 1
                 self.tracks.append(track)
                 ids[bi] = track.id

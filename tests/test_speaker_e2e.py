@@ -1,0 +1,74 @@
+"""Who is speaking, end to end through real processes: camera (a real two-person clip from ../shared/data/talking),
+gesture (its face stage), speech (Whisper on the audio) and fusion, on loopback.
+
+The clip is comp_turns_bbaf2n_lbbc2a.mp4: the left person talks 0.95-2.56 s, then the right one 3.44-5.41 s (real
+GRID footage side by side; each listener's mouth stays still). GRID's sentences ("bin blue at f two now") are no
+commands, and fusion publishes nothing for them, so the audio here is the piper voice saying a command in each of
+the two labelled speech intervals (testkit/talking.py `spoken_commands`): the mouths and the timing are the real
+clip's, the words are synthetic. Camera and speech start together (--start-at), as one recording's video and audio.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from common.schema import Clarification, FusedCommand
+from testkit.harness import Client, ProcessGroup, requires_services
+from testkit.shared import shared_path
+from testkit.talking import TALKING, spoken_commands, talking_json
+
+pytestmark = pytest.mark.integration
+
+CLIP = "comp_turns_bbaf2n_lbbc2a.mp4"
+COMMANDS = ["please turn left", "come over here please"]  # said in the left, then the right person's turn
+LEAD = 25.0  # s from launching camera and speech to playing: Whisper and MediaPipe load first, on a busy machine
+
+
+@requires_services("camera", "gesture", "speech", "fusion")
+def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
+    video = shared_path(f"{TALKING}/{CLIP}")
+    clip = next(c for c in talking_json()["clips"] if c["clip"] == CLIP)
+    wav = spoken_commands(clip, COMMANDS, tmp_path / "commands.wav")
+    group = ProcessGroup()
+    try:
+        group.router()
+        group.service("fusion")
+        group.service("gesture", "--no-body")  # hands and faces; the body stage is not needed here
+        client = Client(group.endpoint)
+        try:
+            client.wait_alive("fusion", timeout=60)
+            client.wait_alive("gesture", timeout=60)
+            results = client.collect("hri/fusion/**")
+            faces = client.collect("hri/gesture/*/faces")
+            start = time.time() + LEAD
+            group.service("camera", "--source", str(video), "--fps", "25", "--start-at", f"{start:.3f}")
+            group.service("speech", "--input", "wav", "--wav", str(wav), "--realtime", "--start-at", f"{start:.3f}")
+            got = results.wait(2, timeout=LEAD + 60)
+            assert time.time() > start, "the outputs came before the clip played"
+            faces.drain()
+        finally:
+            client.close()
+        outputs = [sample for _, sample in got]
+        assert all(isinstance(o, (FusedCommand, Clarification)) for o in outputs)
+        ids = face_ids_left_to_right([s for _, s in faces.seen])
+        intents = [o.intent for o in outputs if isinstance(o, FusedCommand)]
+        assert intents == ["turn", "come_here"], (outputs, group.logs())
+        speakers = [o.speaker for o in outputs]
+        assert all(s is not None for s in speakers), group.logs()
+        assert [s.person for s in speakers if s is not None] == ids, (speakers, ids, group.logs())
+        assert all(s.method == "mouth_motion" and s.addressed is True for s in speakers if s is not None)
+    finally:
+        group.close()
+
+
+def face_ids_left_to_right(samples: list) -> list[str]:
+    """The two face tracks the gesture service published, left one first (one id each through the clip)."""
+    centres: dict[str, list[float]] = {}
+    for s in samples:
+        for f in s.faces:
+            centres.setdefault(f.id, []).append(f.bbox[0] + f.bbox[2] / 2)
+    assert len(centres) == 2, centres
+    return sorted(centres, key=lambda i: sum(centres[i]) / len(centres[i]))
