@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import msgspec
+import numpy as np
 
 from common.schema import Faces, Transcript, Word
 from testkit.shared import ROOT, shared_dir
@@ -166,8 +167,6 @@ def spoken_commands(clip: dict, commands: list[str], out: Path) -> Path:
     """A 16 kHz WAV as long as `clip` with `commands[i]` said by the piper voice in the clip's i-th labelled
     speech interval (stretched to fill it), silence elsewhere. The mouths and the timing stay the real clip's;
     only the words are synthetic (GRID's sentences are not commands, so fusion would publish nothing for them)."""
-    import numpy as np
-
     from testkit.synth import PIPER_VOICE, RATE, read_wav_int16, synthesize, write_wav_int16
 
     track = np.zeros(int(round(clip["duration_s"] * RATE)), dtype=np.int16)
@@ -186,10 +185,8 @@ def spoken_commands(clip: dict, commands: list[str], out: Path) -> Path:
     return out
 
 
-def _voiced(samples: "np.ndarray") -> "np.ndarray":
+def _voiced(samples: np.ndarray) -> np.ndarray:
     """`samples` without the silence before the first and after the last loud 10 ms."""
-    import numpy as np
-
     frames = len(samples) // 160
     loud = [i for i in range(frames) if np.abs(samples[i * 160 : (i + 1) * 160]).max() > 500]
     return samples[loud[0] * 160 : (loud[-1] + 1) * 160] if loud else samples
