@@ -200,7 +200,7 @@ def test_head_angles_follow_the_turn_of_the_mesh() -> None:
     mesher.close()
     yaw0, pitch0 = head_angles(mesh) or (0.0, 0.0)
     assert abs(yaw0) < 15 and abs(pitch0) < 20
-    centre = mesh.mean(axis=0)
+    centre = np.nanmean(mesh, axis=0)
     for degrees in (-50.0, -20.0, 30.0, 60.0):
         r = np.radians(degrees)
         # a turn to the image's right moves the nose to +x: x' = x cos + z sin... with z towards the camera negative

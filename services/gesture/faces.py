@@ -22,6 +22,13 @@ UPPER_INNER_LIP, LOWER_INNER_LIP = 13, 14
 MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT = 78, 308  # the person's right / left inner corner
 CHEEK_RIGHT, CHEEK_LEFT = 234, 454
 FOREHEAD, CHIN = 10, 152
+# the face's outline (mediapipe's FACEMESH_FACE_OVAL): its box
+FACE_OVAL = (10, 21, 54, 58, 67, 93, 103, 109, 127, 132, 136, 148, 149, 150, 152, 162, 172, 176, 234, 251, 284, 288,
+             297, 323, 332, 338, 356, 361, 365, 377, 378, 379, 389, 397, 400, 454)  # fmt: skip
+MESH_POINTS = 468
+# the only landmarks the rules read: reading all 468 from the protobuf result costs as much as the rules
+_OVAL = np.array(FACE_OVAL)
+USED = tuple(sorted(set(FACE_OVAL) | {UPPER_INNER_LIP, LOWER_INNER_LIP, MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT}))
 
 
 @dataclass(frozen=True)
@@ -74,13 +81,12 @@ def mouth_opening(points: np.ndarray) -> float | None:
 def head_angles(points: np.ndarray) -> tuple[float, float] | None:
     """(yaw, pitch) in degrees from the face plane's normal: the cross product of the cheek-to-cheek and the
     forehead-to-chin vectors (3-D mesh). Yaw > 0: turned to the image's right; pitch > 0: looking up."""
-    across = points[CHEEK_LEFT] - points[CHEEK_RIGHT]  # the person's left cheek is on the image's right
-    down = points[CHIN] - points[FOREHEAD]
-    normal = np.cross(down, across)  # points out of the face, towards the camera (-z) for a frontal face
-    norm = float(np.linalg.norm(normal))
-    if norm < 1e-9:
+    ax, ay, az = (points[CHEEK_LEFT] - points[CHEEK_RIGHT]).tolist()  # the person's left cheek: image right
+    dx, dy, dz = (points[CHIN] - points[FOREHEAD]).tolist()
+    # down x across: out of the face, towards the camera (-z) for a frontal face (plain floats: np.cross is slow)
+    nx, ny, nz = dy * az - dz * ay, dz * ax - dx * az, dx * ay - dy * ax
+    if math.isnan(nx + ny + nz) or math.hypot(nx, ny, nz) < 1e-9:
         return None
-    nx, ny, nz = (normal / norm).tolist()
     yaw = math.degrees(math.atan2(nx, -nz))
     pitch = math.degrees(math.atan2(-ny, math.hypot(nx, nz)))
     return yaw, pitch
@@ -93,8 +99,10 @@ def looking_at(yaw: float | None, pitch: float | None, cfg: FaceConfig) -> bool 
 
 
 def bbox_of(points: np.ndarray) -> list[float]:
-    x0, y0 = points[:, 0].min(), points[:, 1].min()
-    x1, y1 = points[:, 0].max(), points[:, 1].max()
+    """The box of the face's outline (FACE_OVAL) in the mesh's pixels."""
+    oval = points[_OVAL, :2]
+    x0, y0 = oval.min(axis=0).tolist()
+    x1, y1 = oval.max(axis=0).tolist()
     return [round(float(x0), 1), round(float(y0), 1), round(float(x1 - x0), 1), round(float(y1 - y0), 1)]
 
 
@@ -173,14 +181,14 @@ class FaceTracker:
         return 1.0 - near / self.max_centre if near < self.max_centre else 0.0
 
 
-def face_of(points: np.ndarray, face_id: str, cfg: FaceConfig) -> Face:
-    """One mesh (468x3 px) -> the wire `Face` (`person` is left to the person tracker)."""
+def face_of(points: np.ndarray, face_id: str, cfg: FaceConfig, bbox: list[float] | None = None) -> Face:
+    """One mesh (468x3 px) -> the wire `Face` (`person` is left to the person tracker); `bbox`: its box if known."""
     angles = head_angles(points)
     yaw, pitch = angles if angles is not None else (None, None)
     mouth = mouth_opening(points) if yaw is not None and abs(yaw) <= cfg.mouth_max_yaw else None
     return Face(
         id=face_id,
-        bbox=bbox_of(points),
+        bbox=bbox if bbox is not None else bbox_of(points),
         # the legacy Face Mesh API reports no per-face score: a face it returns has passed its detection and
         # tracking thresholds (MESH_MIN_CONFIDENCE), which is the confidence we can state
         score=MESH_MIN_CONFIDENCE,
@@ -209,14 +217,17 @@ class FaceMesher:
         )
 
     def detect(self, bgr: np.ndarray) -> list[np.ndarray]:
-        """Each face's 468 landmarks in pixels (x, y, and z in the scale of x), left to right."""
+        """Each face's landmarks (468 x 3) in pixels (x, y, and z in the scale of x), left to right; only the
+        rows in USED are read (the others are NaN)."""
         h, w = bgr.shape[:2]
         result = self._mesh.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-        meshes = [
-            np.array([(p.x * w, p.y * h, p.z * w) for p in lms.landmark], dtype=np.float64)
-            for lms in result.multi_face_landmarks or []
-        ]
-        return sorted(meshes, key=lambda m: float(m[:, 0].mean()))
+        meshes = []
+        for lms in result.multi_face_landmarks or []:
+            mesh = np.full((MESH_POINTS, 3), np.nan)
+            points = lms.landmark
+            mesh[list(USED)] = [(points[i].x * w, points[i].y * h, points[i].z * w) for i in USED]
+            meshes.append(mesh)
+        return sorted(meshes, key=lambda m: float(m[CHIN, 0]))
 
     def close(self) -> None:
         self._mesh.close()
@@ -232,8 +243,9 @@ class FaceStage:
 
     def process(self, bgr: np.ndarray, stamp: float) -> list[Face]:
         meshes = self.mesher.detect(bgr)
-        ids = self.tracker.update(stamp, [bbox_of(m) for m in meshes])
-        return [face_of(m, i, self.cfg) for m, i in zip(meshes, ids)]
+        boxes = [bbox_of(m) for m in meshes]
+        ids = self.tracker.update(stamp, boxes)
+        return [face_of(m, i, self.cfg, b) for m, i, b in zip(meshes, ids, boxes)]
 
     def close(self) -> None:
         self.mesher.close()
