@@ -137,7 +137,7 @@ class FaceTracker:
     is no miss); a clock going back resets the tracker."""
 
     keep: float = 0.5
-    prefix: str = "face"  # ids are prefix + a number (the gesture service uses "<cam>/face": unique per camera)
+    prefix: str = "face-"  # ids are prefix + a number (the gesture service uses "<cam>/face-": unique per camera)
     min_iou: float = 0.3
     max_centre: float = 0.5
     tracks: list[_Track] = field(default_factory=list)
@@ -236,7 +236,7 @@ class FaceMesher:
 class FaceStage:
     """Frames of one stream -> `Face`s with stable ids (the mesher's graph and the tracker together)."""
 
-    def __init__(self, cfg: FaceConfig, video: bool = True, id_prefix: str = "face"):
+    def __init__(self, cfg: FaceConfig, video: bool = True, id_prefix: str = "face-"):
         self.cfg = cfg
         self.mesher = FaceMesher(cfg.max_faces, video)
         self.tracker = FaceTracker(keep=cfg.face_keep, prefix=id_prefix)
@@ -269,7 +269,7 @@ class FaceStages:
             return None
         self.last[frame.cam] = frame.stamp
         if frame.cam not in self.stages:
-            self.stages[frame.cam] = FaceStage(self.cfg, id_prefix=f"{frame.cam}/face")
+            self.stages[frame.cam] = FaceStage(self.cfg, id_prefix=f"{frame.cam}/face-")
         faces = self.stages[frame.cam].process(bgr, frame.stamp)
         return Faces(
             stamp=frame.stamp,
