@@ -10,13 +10,14 @@ clip's, the words are synthetic. Camera and speech start together (--start-at), 
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
 import pytest
 
 from common.schema import Clarification, FusedCommand
-from testkit.harness import Client, ProcessGroup, requires_services
+from testkit.harness import Client, Proc, ProcessGroup, requires_services
 from testkit.shared import shared_path
 from testkit.talking import TALKING, spoken_commands, talking_json
 
@@ -43,6 +44,7 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
             client.wait_alive("gesture", timeout=60)
             results = client.collect("hri/fusion/**")
             faces = client.collect("hri/gesture/*/faces")
+            echo = group.start("echo", "hri.cli", "echo", "hri/fusion/**", "--count", "2")  # what a user sees
             start = time.time() + LEAD
             group.service("camera", "--source", str(video), "--fps", "25", "--start-at", f"{start:.3f}")
             group.service("speech", "--input", "wav", "--wav", str(wav), "--realtime", "--start-at", f"{start:.3f}")
@@ -60,8 +62,20 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
         assert all(s is not None for s in speakers), group.logs()
         assert [s.person for s in speakers if s is not None] == ids, (speakers, ids, group.logs())
         assert all(s.method == "mouth_motion" and s.addressed is True for s in speakers if s is not None)
+        echoed = [json.loads(line) for line in wait_lines(echo, 2)]
+        assert [line["speaker"]["person"] for line in echoed] == ids, echo.output()
     finally:
         group.close()
+
+
+def wait_lines(proc: Proc, n: int, timeout: float = 30.0) -> list[str]:
+    """The first `n` JSON lines a process printed (waits for them)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        lines = [line for line in proc.output().splitlines() if line.startswith("{")]
+        if len(lines) >= n or time.monotonic() > deadline:
+            return lines[:n]
+        time.sleep(0.1)
 
 
 def face_ids_left_to_right(samples: list) -> list[str]:
