@@ -10,7 +10,7 @@ import msgspec
 import numpy as np
 import pytest
 
-from common.schema import Faces, Speaker
+from common.schema import Face, Faces, Speaker
 from services.fusion.speaker import FaceHistory, SpeakerConfig, attribute
 from services.gesture.faces import FaceConfig, FaceTracker, head_angles, looking_at
 from testkit.shared import shared_dir, shared_path
@@ -224,3 +224,40 @@ def test_cache_is_what_the_face_stage_gives_now() -> None:
     assert CACHE.stat().st_size < 200_000
     assert str(shared_dir()) not in CACHE.read_text()
     assert T0 > 0
+
+
+def test_looking_at_the_camera_on_real_photos_of_several_people() -> None:
+    """../shared/data/people_multi: each face the stage finds, matched to a labelled head, against the label "faces
+    the camera". A face turned away must never read as looking (a command would then go unconfirmed)."""
+    import json
+
+    import cv2
+
+    from services.gesture.faces import FaceStage
+
+    labels = json.loads(shared_path("data/people_multi/people_multi.json").read_text())
+    facing: list[tuple[str, str, Face]] = []
+    turned: list[tuple[str, str, Face]] = []
+    for image in labels["images"]:
+        img = cv2.imread(str(shared_dir() / "data/people_multi" / image["file"]))
+        assert img is not None
+        stage = FaceStage(FaceConfig(), video=False)
+        faces = stage.process(img, 1.0)
+        stage.close()
+        for face in faces:
+            cx, cy = face.bbox[0] + face.bbox[2] / 2, face.bbox[1] + face.bbox[3] / 2
+            person = next(
+                p
+                for p in image["people"]
+                if p["head_box"]
+                and abs(cx - (p["head_box"][0] + p["head_box"][2] / 2)) < p["head_box"][2] / 2
+                and abs(cy - (p["head_box"][1] + p["head_box"][3] / 2)) < p["head_box"][3] / 2
+            )
+            said = person["faces_camera"].split(" ")[0]
+            (facing if said == "yes" else turned).append((image["file"], person["id"], face))
+    assert len(turned) >= 2 and len(facing) >= 4  # what Face Mesh finds there (faces of 50-80 px)
+    assert all(f.looking_at_camera is False for _, _, f in turned), turned
+    assert sum(f.looking_at_camera is True for _, _, f in facing) >= len(facing) - 1, facing
+    # the sign: intel_headpose_pair_f000's P0 is turned ~40 degrees to the image's left
+    yaw = next(f.yaw for name, pid, f in turned if (name, pid) == ("intel_headpose_pair_f000.png", "P0"))
+    assert yaw is not None and yaw < -15
