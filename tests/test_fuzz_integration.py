@@ -18,6 +18,8 @@ from common.schema import (
     AudioChunk,
     DetectedObject,
     Detections,
+    Face,
+    Faces,
     Frame,
     GestureEvent,
     Hand,
@@ -77,6 +79,15 @@ def valid_inputs(now: float) -> dict[str, object]:
         "hri/gesture/cam0/hands": Hands(
             stamp=now, source="test/g", seq=0, cam="cam0", width=640, height=480, hands=[hand]
         ),
+        "hri/gesture/cam0/faces": Faces(
+            stamp=now,
+            source="test/g",
+            seq=0,
+            cam="cam0",
+            width=640,
+            height=480,
+            faces=[Face(id="cam0/face-1", bbox=[100, 80, 90, 110], score=0.5, mouth_open=0.1, yaw=5.0, pitch=0.0)],
+        ),
         "hri/gesture/cam0/event": GestureEvent(
             stamp=now,
             source="test/g",
@@ -101,6 +112,7 @@ CONSUMERS = {
     "hri/vision/cam0/objects": ("fusion",),
     "hri/gesture/cam0/hands": ("fusion",),
     "hri/gesture/cam0/event": ("fusion",),
+    "hri/gesture/cam0/faces": ("fusion",),
 }
 
 

@@ -149,15 +149,19 @@ def test_a_stricter_margin_turns_a_clear_case_unknown_never_wrong() -> None:
     assert speaker.person is None and speaker.method == "unknown"
 
 
-def test_face_history_prunes_by_source_time_and_resets_on_a_jump_back() -> None:
+def test_face_history_prunes_by_source_time_and_resets_when_the_timeline_goes_back() -> None:
     history = FaceHistory(horizon=2.0)
     samples = cached()["comp_turns_bbaf2n_lbbc2a.mp4"]
     for s in samples:
         history.add(s)
     assert 49 <= len(history) <= 51  # 2 s of 25 fps
     assert all(s.stamp >= samples[-1].stamp - 2.0 for s in history.samples)
-    history.add(samples[0])  # the replay restarted
-    assert len(history) == 1
+    kept = len(history)
+    assert not history.add(samples[0])  # one stray old stamp is dropped, the buffer stays
+    assert len(history) == kept
+    for s in samples[:10]:  # the replay restarted: old stamps keep coming, the buffer starts over
+        history.add(s)
+    assert [s.stamp for s in history.samples] == [s.stamp for s in samples[8:10]]  # the 10th stale in a row
 
 
 # -- the face stage -------------------------------------------------------------------------------------------

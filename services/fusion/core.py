@@ -181,7 +181,8 @@ class FusionCore:
         return []
 
     def on_faces(self, key: str, faces: Faces, wall: float) -> list[Output]:
-        self.faces.add(faces)
+        if not self.faces.add(faces):
+            self.count("late")
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:

@@ -233,19 +233,30 @@ def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None =
 
 
 class FaceHistory:
-    """Fusion's buffer of Faces samples (every camera), pruned to `horizon` s of source time behind the newest."""
+    """Fusion's buffer of Faces samples (every camera), pruned to `horizon` s of source time behind the newest.
+    A sample older than that is dropped (`add` returns False) unless `reset_after` such come in a row: then the
+    timeline went back (a replay restarted) and the buffer starts over; one stray stamp never wipes it."""
 
-    def __init__(self, horizon: float):
+    def __init__(self, horizon: float, reset_after: int = 10):
         self.horizon = horizon
+        self.reset_after = reset_after
         self.samples: deque[Faces] = deque()
+        self.newest: float | None = None
+        self.stale_in_a_row = 0
 
-    def add(self, sample: Faces) -> None:
-        if self.samples and sample.stamp < self.samples[-1].stamp - self.horizon:
-            self.samples.clear()  # the timeline went back (a replay restarted): old faces mean nothing now
+    def add(self, sample: Faces) -> bool:
+        if self.newest is not None and sample.stamp < self.newest - self.horizon:
+            self.stale_in_a_row += 1
+            if self.stale_in_a_row < self.reset_after:
+                return False
+            self.samples.clear()
+            self.newest = None
+        self.stale_in_a_row = 0
+        self.newest = sample.stamp if self.newest is None else max(self.newest, sample.stamp)
         self.samples.append(sample)
-        newest = max(self.samples[-1].stamp, sample.stamp)
-        while self.samples and self.samples[0].stamp < newest - self.horizon:
+        while self.samples and self.samples[0].stamp < self.newest - self.horizon:
             self.samples.popleft()
+        return True
 
     def around(self, lo: float, hi: float) -> list[Faces]:
         return [s for s in self.samples if lo <= s.stamp <= hi]
