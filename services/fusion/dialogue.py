@@ -138,6 +138,7 @@ class Dialogue:
         )
         draft = Draft(cmd.intent, t.text, target=target, location=cmd.location, place=cmd.place, motion=cmd.motion)
         question = f'You were facing away from me. Did you say that to me: "{t.text}"?'
+        self.last = None  # nothing was acted on: there is no command to correct
         shown = [target] if target is not None else []
         return self._ask(t, "low_confidence", draft, ObjectPhrase(), shown, shown, question)
 
