@@ -58,6 +58,7 @@ CLARIFICATION = "hri_fusion_msgs/msg/Clarification"
 NECK = -1
 SKELETON_FROM_MEDIAPIPE = (0, NECK, 12, 14, 16, 11, 13, 15, 24, 26, 28, 23, 25, 27, 2, 5, 7, 8)
 SHOULDERS = (11, 12)
+TEXT_MIC = "ros"  # the mic id of typed commands from ROS: common/stack.py's ros2 node may publish them
 SPEAKING_AT = 0.5  # Person.speaking at or above it: is_speaking true
 
 
@@ -82,7 +83,6 @@ class Ros2Config:
     text_topic: str = setting("text_command", "std_msgs/String commands typed or said by the robot's own stack")
     busy_topic: str = setting("", "std_msgs/Bool, true while the robot is busy (only stop passes then); '' = none")
     cam: str = setting("ros0", "the camera id the ROS camera's frames get on the stack")
-    mic: str = setting("ros", "the microphone id of transcripts from the text topic")
 
     def own(self, name: str) -> str:
         """A topic of this node: absolute as given, else under the namespace."""
@@ -591,7 +591,7 @@ def text_transcript(text: str, now: float, config: Ros2Config, source: str) -> T
     """A typed command from the ROS side, as `hri say` makes it; None for blank text."""
     if not text.strip():
         return None
-    return make_transcript(text.strip(), mic=config.mic, end=now, confidence=1.0, source=source)
+    return make_transcript(text.strip(), mic=TEXT_MIC, end=now, confidence=1.0, source=source)
 
 
 def passes_while_busy(cmd: FusedCommand, busy: bool) -> bool:
