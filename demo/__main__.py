@@ -25,10 +25,10 @@ from pathlib import Path
 import numpy as np
 import zenoh
 
+from common import stack
 from common.codec import decode
 from common.runner import SamplePublisher
 from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
-from common import stack
 from common.stack import module_of
 from hri.launcher import Launcher, ServiceSpec
 
