@@ -187,7 +187,9 @@ def persons_messages(sample: Persons, config: Ros2Config, latch: Latch) -> list[
     persons whose speaking is measured (a voice id is its person's id), bodies are persons with a skeleton (a body
     id is its person's id)."""
     out = [
-        Outgoing(config.human("persons", "tracked"), IDS_LIST, ids_list(sample.stamp, [p.id for p in sample.persons]))
+        Outgoing(
+            config.human("persons", "tracked"), IDS_LIST, ids_list(sample.stamp, [ros_id(p.id) for p in sample.persons])
+        )
     ]
     voices = [p for p in sample.persons if p.speaking is not None]
     out.append(
@@ -587,7 +589,7 @@ class CameraBridge:
         )
 
 
-def text_transcript(text: str, now: float, config: Ros2Config, source: str) -> Transcript | None:
+def text_transcript(text: str, now: float, source: str) -> Transcript | None:
     """A typed command from the ROS side, as `hri say` makes it; None for blank text."""
     if not text.strip():
         return None
