@@ -1,0 +1,229 @@
+"""The real stack (router, vision, fusion, ros2) seen from a ROS 2 node over rmw_zenoh.
+
+zenoh-ros2-sdk stands in for the ROS 2 node (it implements rmw_zenoh's keys, liveliness tokens and attachment in
+Python, with the .msg definitions we ship: nothing is fetched). The node sends a real photo as a
+sensor_msgs/Image with its CameraInfo; vision finds the candies in it and the node receives them as
+vision_msgs/Detection2DArray; it types "pick up the red candy" on the text topic and receives the grounded
+hri_fusion_msgs/FusedCommand; it receives people (samples we publish as the gesture service would) as REP-155
+hri_msgs, and a latched id as a late joiner, as rmw_zenoh's transient-local subscription gets it.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags")
+sdk = pytest.importorskip("zenoh_ros2_sdk")
+
+import zenoh  # noqa: E402
+from zenoh import ext  # noqa: E402
+from zenoh_ros2_sdk import message_registry  # noqa: E402
+from zenoh_ros2_sdk.session import ZenohSession  # noqa: E402
+
+from common.image import decode_image, png_size  # noqa: E402
+from common.schema import Frame, FusedCommand  # noqa: E402
+from services.ros2 import core, rmw  # noqa: E402
+from services.ros2.types import MSG_ROOT, deserialize  # noqa: E402
+from testkit.examples import examples  # noqa: E402
+from testkit.harness import DATA, Client, ProcessGroup  # noqa: E402
+
+pytestmark = pytest.mark.timeout(240)
+TABLE = DATA / "demo" / "table.png"
+FPS = 5.0
+
+
+class Inbox:
+    """Messages a ROS subscriber received, waited on by condition."""
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self._cond = threading.Condition()
+
+    def __call__(self, message: Any) -> None:
+        with self._cond:
+            self.items.append(message)
+            self._cond.notify_all()
+
+    def wait_for(self, test: Any, timeout: float, what: str) -> Any:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                found = [m for m in self.items if test(m)]
+                if found:
+                    return found[-1]
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise AssertionError(f"no {what} within {timeout} s (received {len(self.items)} messages)")
+                self._cond.wait(left)
+
+
+@pytest.fixture(scope="module")
+def stack() -> Iterator[ProcessGroup]:
+    group = ProcessGroup()
+    try:
+        group.router()
+        group.service("vision", "--backend", "color", "--labels", str(DATA / "demo" / "labels.json"))
+        group.service("fusion")
+        group.service("ros2")
+        client = Client(group.endpoint)
+        for name in ("vision", "fusion", "ros2"):
+            client.wait_alive(name, timeout=90)
+        client.close()
+        yield group
+    finally:
+        group.close()
+
+
+@pytest.fixture(scope="module")
+def ros(stack: ProcessGroup) -> Iterator[None]:
+    """zenoh-ros2-sdk on the stack's router, reading only the shipped .msg files."""
+    saved = message_registry._registry
+    message_registry._registry = message_registry.MessageRegistry(messages_dir=str(MSG_ROOT))
+    ZenohSession.get_instance("127.0.0.1", stack.port)
+    try:
+        yield
+    finally:
+        ZenohSession._instance.close()
+        ZenohSession._instance = None
+        message_registry._registry = saved
+
+
+def subscriber(stack: ProcessGroup, topic: str, type_name: str, inbox: Inbox) -> Any:
+    return sdk.ROS2Subscriber(topic, type_name, inbox, router_port=stack.port, node_name="test_listener")
+
+
+def publisher(stack: ProcessGroup, topic: str, type_name: str) -> Any:
+    return sdk.ROS2Publisher(topic, type_name, router_port=stack.port, node_name="test_robot")
+
+
+def table_photo() -> np.ndarray:
+    data = TABLE.read_bytes()
+    return decode_image(data, "png", *png_size(data))
+
+
+def send_camera(stack: ProcessGroup, stop: threading.Event) -> None:
+    """A ROS camera driver: the photo as rgb8 Images with their CameraInfo, FPS times a second, stamped now."""
+    photo = table_photo()
+    height, width = photo.shape[:2]
+    rgb = np.ascontiguousarray(photo[:, :, ::-1]).reshape(-1)
+    images = publisher(stack, "/camera/color/image_raw", core.IMAGE)
+    infos = publisher(stack, "/camera/color/camera_info", core.CAMERA_INFO)
+    k = [600.0, 0.0, width / 2, 0.0, 600.0, height / 2, 0.0, 0.0, 1.0]
+    calibration = core.CameraInfo(width=width, height=height, k=k, frame_id="camera_color_optical_frame")
+    while not stop.is_set():
+        now = time.time()
+        info = core.camera_info_message(calibration, now)
+        infos.publish(
+            **{
+                f: getattr(info, f)
+                for f in (
+                    "header",
+                    "height",
+                    "width",
+                    "distortion_model",
+                    "d",
+                    "k",
+                    "r",
+                    "p",
+                    "binning_x",
+                    "binning_y",
+                    "roi",
+                )
+            }
+        )
+        images.publish(
+            header=core.header(now, "camera_color_optical_frame"),
+            height=height,
+            width=width,
+            encoding="rgb8",
+            is_bigendian=0,
+            step=width * 3,
+            data=rgb,
+        )
+        stop.wait(1.0 / FPS)
+    images.close()
+    infos.close()
+
+
+def test_a_ros_camera_and_text_drive_the_stack_and_ros_gets_objects_and_the_command(stack: ProcessGroup, ros: None):
+    detections, commands = Inbox(), Inbox()
+    subscriber(stack, "/hri_fusion/objects/detections_2d", core.DETECTIONS_2D, detections)
+    subscriber(stack, "/hri_fusion/command", core.FUSED_COMMAND, commands)
+    client = Client(stack.endpoint)
+    frames = client.collect("hri/camera/ros0/frame")
+    stack_commands = client.collect("hri/fusion/command")
+    stop = threading.Event()
+    camera = threading.Thread(target=send_camera, args=(stack, stop), daemon=True)
+    try:
+        camera.start()
+        _, frame = frames.wait(1, timeout=30)[0]
+        assert isinstance(frame, Frame) and frame.encoding == "bgr8" and frame.camera_info is not None
+        assert np.array_equal(decode_image(frame.data, "bgr8", frame.width, frame.height), table_photo())
+        assert frame.camera_info.frame_id == "camera_color_optical_frame"
+
+        seen = detections.wait_for(lambda m: len(m.detections) >= 3, 60, "Detection2DArray with the candies")
+        assert {d.results[0].hypothesis.class_id for d in seen.detections} == {"candy"}
+        assert all(0 < d.bbox.center.position.x < frame.width for d in seen.detections)
+        assert seen.header.frame_id == "ros0"
+
+        text = publisher(stack, "/hri_fusion/text_command", core.STRING)
+        client.wait_matched(["hri/speech/ros/transcript"])  # fusion listens
+        text.publish(data="pick up the red candy")
+        command = commands.wait_for(lambda m: m.intent == "pick_up", 60, "FusedCommand pick_up")
+        assert command.has_target and command.target.label == "candy" and command.target.color == "red"
+        assert command.target.cam == "ros0" and command.text == "pick up the red candy"
+        _, on_stack = stack_commands.wait(1, timeout=10, where=lambda k, s: s.intent == "pick_up")[0]
+        assert isinstance(on_stack, FusedCommand) and on_stack.id == command.id
+        text.close()
+    finally:
+        stop.set()
+        camera.join(5)
+        client.close()
+
+
+def test_people_reach_ros_as_rep155_and_a_late_joiner_gets_the_latched_ids(stack: ProcessGroup, ros: None):
+    tracked = Inbox()
+    subscriber(stack, "/humans/persons/tracked", core.IDS_LIST, tracked)
+    client = Client(stack.endpoint)
+    persons = next(e for e in examples() if type(e).__name__ == "Persons")
+    person = persons.persons[0]
+    try:
+        client.wait_matched(["hri/gesture/cam0/persons"])
+        deadline = time.monotonic() + 30
+        while not tracked.items and time.monotonic() < deadline:  # until the ROS subscriber is matched too
+            client.publish("hri/gesture/cam0/persons", persons)
+            time.sleep(0.2)
+        ids = tracked.wait_for(lambda m: len(m.ids) > 0, 10, "IdsList")
+        assert list(ids.ids) == [core.ros_id(person.id)]
+
+        # a late joiner, as rmw_zenoh's transient-local subscription: history from the publisher's cache
+        key = rmw.topic_key(0, f"/humans/persons/{core.ros_id(person.id)}/face_id", core.STRING)
+        late: list[str] = []
+        got = threading.Event()
+
+        def on_late(sample: zenoh.Sample) -> None:
+            late.append(deserialize(sample.payload.to_bytes(), core.STRING).data)
+            assert sample.attachment is not None
+            rmw.parse_attachment(sample.attachment.to_bytes())  # rmw's layout
+            got.set()
+
+        history = ext.HistoryConfig(detect_late_publishers=True, max_samples=1)
+        late_sub = ext.declare_advanced_subscriber(client.session, key, on_late, history=history)
+        assert got.wait(15), "the latched face_id never reached the late joiner"
+        assert late == [core.ros_id(person.face)]
+        late_sub.undeclare()
+
+        tokens = [str(r.ok.key_expr) for r in client.session.liveliness().get("@ros2_lv/0/**", timeout=2) if r.ok]
+        assert any(t.endswith("/NN/%/%hri_fusion/hri_fusion") for t in tokens)  # ros2 node list
+        assert any(
+            "/MP/" in t and "/%hri_fusion%command/hri_fusion_msgs::msg::dds_::FusedCommand_/" in t for t in tokens
+        )
+        assert any("/MS/" in t and "/%camera%color%image_raw/sensor_msgs::msg::dds_::Image_/" in t for t in tokens)
+    finally:
+        client.close()
