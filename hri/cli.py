@@ -43,6 +43,7 @@ examples:
   hri up --camera data/images/tabletop --speech-input text   # router + every service, type commands
   hri record -o session.mcap 'hri/**'          # everything to MCAP until Ctrl-C (--count N / --duration S)
   hri replay session.mcap --only 'hri/speech/**' --speed 2   # back onto the bus, original timing x2
+  hri export --rosbag2 session.mcap bag/        # the recording as a ROS 2 bag (ros2 bag play, Foxglove)
   hri view                                     # a web page of cameras, overlays and decisions; prints its URL
 """
 
@@ -446,6 +447,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     recording.add_replay_arguments(
         command("replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES)
+    )
+    from hri import rosbag2  # rosbags is imported only when an export runs
+
+    rosbag2.add_export_arguments(
+        command("export", "convert a recording: --rosbag2 writes a ROS 2 bag (MCAP, CDR)", rosbag2.EXPORT_EXAMPLES)
     )
     from hri.view import command as view  # aiohttp and OpenCV are imported only when `hri view` runs
 

@@ -26,12 +26,13 @@ from common.schema import (  # noqa: E402
     Weights,
 )
 from services.ros2 import core  # noqa: E402
+from services.ros2.config import Ros2Config  # noqa: E402
 from services.ros2.core import Outgoing  # noqa: E402
 from testkit.examples import T, examples  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 PHOTO = ROOT / "data" / "images" / "apple.jpg"
-CONFIG = core.Ros2Config()
+CONFIG = Ros2Config()
 
 
 def example(kind: type) -> object:
@@ -229,7 +230,7 @@ def test_clarification_with_candidates():
 
 
 def test_namespace_and_absolute_topic_names():
-    config = core.Ros2Config(namespace="/robot7/hri", humans="/robot7/humans")
+    config = Ros2Config(namespace="/robot7/hri", humans="/robot7/humans")
     assert config.own("command") == "/robot7/hri/command"
     assert config.own("/elsewhere") == "/elsewhere"
     assert config.human("persons", "tracked") == "/robot7/humans/persons/tracked"

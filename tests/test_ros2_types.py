@@ -97,9 +97,10 @@ def _documented_below(path: Path, code: str) -> bool:
 def test_payloads_round_trip_through_cdr():
     """Every shipped type's default-ish message serialises and comes back equal (rosbags, our store)."""
     from services.ros2 import core
+    from services.ros2.config import Ros2Config
     from testkit.examples import examples
 
-    config, latch = core.Ros2Config(), core.Latch()
+    config, latch = Ros2Config(), core.Latch()
     convert = {
         "Persons": lambda s: core.persons_messages(s, config, latch),
         "Bodies": lambda s: core.bodies_messages(s, config),

@@ -24,7 +24,8 @@ from common.runner import Delivery, Service, main_exit, service_parser
 from common.schema import Frame, InvalidSample
 from common.settings import add_settings, from_args
 from services.ros2 import core
-from services.ros2.core import Outgoing, Ros2Config
+from services.ros2.config import Ros2Config
+from services.ros2.core import Outgoing
 from services.ros2.rmw import LATCHED_DEPTH, NodeName, attachment, qos_text, topic_key
 from services.ros2.types import deserialize, serialize
 

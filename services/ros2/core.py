@@ -34,7 +34,7 @@ from common.schema import (
     Transcript,
     make_transcript,
 )
-from common.settings import setting
+from services.ros2.config import Ros2Config
 from services.ros2.types import message_class
 
 STRING = "std_msgs/msg/String"
@@ -60,38 +60,6 @@ SKELETON_FROM_MEDIAPIPE = (0, NECK, 12, 14, 16, 11, 13, 15, 24, 26, 28, 23, 25, 
 SHOULDERS = (11, 12)
 TEXT_MIC = "ros"  # the mic id of typed commands from ROS: common/stack.py's ros2 node may publish them
 SPEAKING_AT = 0.5  # Person.speaking at or above it: is_speaking true
-
-
-@dataclass(frozen=True)
-class Ros2Config:
-    """Where the ROS 2 side lives: domain, namespace and topic names (docs/ros2.md)."""
-
-    domain_id: int = setting(0, "ROS_DOMAIN_ID of the ROS 2 graph to join", at_least=0, at_most=232)
-    namespace: str = setting(
-        "/hri_fusion", "namespace of this node and of its own topics (command, objects, ...)", flag="--ros-namespace"
-    )
-    node_name: str = setting("hri_fusion", "the ROS 2 node's name (ros2 node list)")
-    humans: str = setting("/humans", "root of the REP-155 people topics")
-    image_topic: str = setting(
-        "/camera/color/image_raw", "a ROS camera's sensor_msgs/Image to use as the stack's camera; '' = none"
-    )
-    compressed_topic: str = setting("", "or its sensor_msgs/CompressedImage (jpeg/png); '' = none")
-    camera_info_topic: str = setting("/camera/color/camera_info", "the camera's sensor_msgs/CameraInfo")
-    depth_topic: str = setting(
-        "/camera/aligned_depth_to_color/image_raw", "depth aligned to the colour image (16UC1 mm or 32FC1 m); '' = none"
-    )
-    text_topic: str = setting("text_command", "std_msgs/String commands typed or said by the robot's own stack")
-    busy_topic: str = setting("", "std_msgs/Bool, true while the robot is busy (only stop passes then); '' = none")
-    cam: str = setting("ros0", "the camera id the ROS camera's frames get on the stack")
-
-    def own(self, name: str) -> str:
-        """A topic of this node: absolute as given, else under the namespace."""
-        if name.startswith("/"):
-            return name
-        return f"{self.namespace.rstrip('/')}/{name}"
-
-    def human(self, *parts: str) -> str:
-        return "/".join([self.humans.rstrip("/"), *parts])
 
 
 @dataclass(frozen=True)
@@ -599,3 +567,58 @@ def text_transcript(text: str, now: float, source: str) -> Transcript | None:
 def passes_while_busy(cmd: FusedCommand, busy: bool) -> bool:
     """While the robot says it is busy, only `stop` reaches it (a new task would be ignored or interrupt)."""
     return not busy or cmd.intent == "stop"
+
+
+# -- the stack's own images and speech, for a rosbag2 export ------------------------------------------------------
+def image_messages(sample: Frame, config: Ros2Config) -> list[Outgoing]:
+    """A colour frame as sensor_msgs/Image (bgr8) or CompressedImage (jpeg/png), in the camera's optical frame."""
+    frame_id = sample.camera_info.frame_id if sample.camera_info is not None else sample.cam
+    stamp = header(sample.stamp, frame_id)
+    if sample.encoding == "bgr8":
+        image = msg(
+            IMAGE,
+            header=stamp,
+            height=sample.height,
+            width=sample.width,
+            encoding="bgr8",
+            is_bigendian=0,
+            step=sample.width * 3,
+            data=np.frombuffer(sample.data, np.uint8),
+        )
+        return [Outgoing(config.own(f"{sample.cam}/image_raw"), IMAGE, image)]
+    compressed = msg(COMPRESSED_IMAGE, header=stamp, format=sample.encoding, data=np.frombuffer(sample.data, np.uint8))
+    return [Outgoing(config.own(f"{sample.cam}/image_raw/compressed"), COMPRESSED_IMAGE, compressed)]
+
+
+def depth_messages(sample: DepthFrame, values: np.ndarray, config: Ros2Config) -> list[Outgoing]:
+    """Aligned depth as sensor_msgs/Image: 16UC1 in millimetres when the scale allows it exactly, else 32FC1
+    metres (REP-118). `values`: the decoded depth image in the sample's units."""
+    metres = values.astype(np.float64) * sample.depth_scale
+    if sample.encoding == "16UC1" and sample.depth_scale == 0.001:
+        encoding, data, step = "16UC1", values.astype("<u2"), sample.width * 2
+    else:
+        encoding, data, step = "32FC1", metres.astype("<f4"), sample.width * 4
+    image = msg(
+        IMAGE,
+        header=header(sample.stamp, sample.camera_info.frame_id),
+        height=sample.height,
+        width=sample.width,
+        encoding=encoding,
+        is_bigendian=0,
+        step=step,
+        data=np.frombuffer(data.tobytes(), np.uint8),
+    )
+    return [Outgoing(config.own(f"{sample.cam}/depth/image_raw"), IMAGE, image)]
+
+
+def transcript_messages(sample: Transcript, config: Ros2Config) -> list[Outgoing]:
+    """What a microphone heard (speaker unknown until fusion attributes it) as hri_msgs/LiveSpeech."""
+    speech = msg(
+        LIVE_SPEECH,
+        header=header(sample.stamp, sample.mic),
+        incremental="" if sample.final else sample.text,
+        final=sample.text if sample.final else "",
+        confidence=sample.confidence,
+        locale="",
+    )
+    return [Outgoing(config.own(f"speech/{ros_id(sample.mic)}"), LIVE_SPEECH, speech)]
