@@ -29,7 +29,7 @@ from zenoh_ros2_sdk.session import ZenohSession  # noqa: E402
 from common.image import decode_image, png_size  # noqa: E402
 from common.schema import Frame, FusedCommand  # noqa: E402
 from services.ros2 import core, rmw  # noqa: E402
-from services.ros2.types import MSG_ROOT, deserialize  # noqa: E402
+from services.ros2.types import MSG_ROOT, deserialize, serialize  # noqa: E402
 from testkit.examples import examples  # noqa: E402
 from testkit.harness import DATA, Client, ProcessGroup  # noqa: E402
 
@@ -227,3 +227,40 @@ def test_people_reach_ros_as_rep155_and_a_late_joiner_gets_the_latched_ids(stack
         assert any("/MS/" in t and "/%camera%color%image_raw/sensor_msgs::msg::dds_::Image_/" in t for t in tokens)
     finally:
         client.close()
+
+
+def test_bridge_layout_speaks_raw_cdr_on_the_topic_name(stack: ProcessGroup):
+    """--key-layout bridge: what zenoh-bridge-ros2dds carries between a DDS system and zenoh (the topic name as the
+    key, raw CDR): a second ros2 instance in that layout, read and written here as the bridge would."""
+    bridge = stack.service("ros2", "--key-layout", "bridge", "--instance", "bridge")
+    client = Client(stack.endpoint)
+    commands: list[Any] = []
+    got = threading.Event()
+
+    def on_command(sample: zenoh.Sample) -> None:
+        assert sample.attachment is None  # the bridge layout has no rmw attachment
+        commands.append(deserialize(sample.payload.to_bytes(), core.FUSED_COMMAND))
+        got.set()
+
+    sub = client.session.declare_subscriber("hri_fusion/command", on_command)
+    transcripts = client.collect("hri/speech/ros/transcript")
+    try:
+        client.wait_alive("ros2", timeout=60)
+        deadline = time.monotonic() + 60
+        while not any(i == "bridge" for s, i in client.alive() if s == "ros2"):
+            assert bridge.alive() and time.monotonic() < deadline, bridge.output()[-2000:]
+            time.sleep(0.1)
+        client.wait_matched(["hri_fusion/text_command"])
+        text = core.msg(core.STRING, data="stop")
+        client.session.put("hri_fusion/text_command", serialize(text, core.STRING))
+        _, transcript = transcripts.wait(1, timeout=20)[0]
+        assert transcript.text == "stop" and transcript.mic == "ros"
+        assert got.wait(30), "no FusedCommand on the bridge key"
+        assert any(c.intent == "stop" for c in commands)
+        tokens = [str(r.ok.key_expr) for r in client.session.liveliness().get("@ros2_lv/**", timeout=2) if r.ok]
+        nodes = [t for t in tokens if t.endswith("/NN/%/%hri_fusion/hri_fusion")]
+        assert len(nodes) == 1  # the rmw_zenoh instance's; the bridge layout declares no graph tokens
+    finally:
+        sub.undeclare()
+        client.close()
+        bridge.terminate()

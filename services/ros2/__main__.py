@@ -26,7 +26,7 @@ from common.settings import add_settings, from_args
 from services.ros2 import core
 from services.ros2.config import Ros2Config
 from services.ros2.core import Outgoing
-from services.ros2.rmw import LATCHED_DEPTH, NodeName, attachment, qos_text, topic_key
+from services.ros2.rmw import LATCHED_DEPTH, NodeName, attachment, bridge_key, qos_text, topic_key
 from services.ros2.types import deserialize, serialize
 
 CDR = zenoh.Encoding("application/cdr")
@@ -42,18 +42,22 @@ def build_parser() -> argparse.ArgumentParser:
 class RosPublisher:
     key: str
     publisher: Any  # zenoh Publisher or AdvancedPublisher
-    token: Any
+    token: Any  # its liveliness token (None in the bridge layout: the bridge announces DDS endpoints itself)
     gid: bytes
     sequence: int = 0
 
     def put(self, payload: bytes) -> None:
         self.sequence += 1
+        if self.token is None:
+            self.publisher.put(payload)
+            return
         stamp = attachment(self.sequence, time.time_ns(), self.gid)
         self.publisher.put(payload, encoding=CDR, attachment=stamp)
 
     def undeclare(self) -> None:
         self.publisher.undeclare()
-        self.token.undeclare()
+        if self.token is not None:
+            self.token.undeclare()
 
 
 class RosNode:
@@ -67,7 +71,8 @@ class RosNode:
         self._entities = 0
         self._lock = threading.Lock()
         self._publishers: dict[str, RosPublisher] = {}
-        self._declared: list[Any] = [session.liveliness().declare_token(self.name.token())]
+        self.rmw = config.key_layout == "rmw_zenoh"
+        self._declared: list[Any] = [session.liveliness().declare_token(self.name.token())] if self.rmw else []
 
     def _next_entity(self) -> int:
         self._entities += 1
@@ -77,19 +82,29 @@ class RosNode:
         with self._lock:
             pub = self._publishers.get(out.topic)
             if pub is None:
-                key = topic_key(self.config.domain_id, out.topic, out.type)
+                key = self.key(out.topic, out.type)
                 if out.latched:  # transient local, as rmw_zenoh does it: a cache late joiners query
                     zpub: Any = ext.declare_advanced_publisher(
                         self.session, key, cache=ext.CacheConfig(max_samples=LATCHED_DEPTH), publisher_detection=True
                     )
                 else:
                     zpub = self.session.declare_publisher(key)
-                entity = self._next_entity()
-                token = self.session.liveliness().declare_token(
-                    self.name.endpoint_token(entity, "MP", out.topic, out.type, qos_text(out.latched))
-                )
-                pub = self._publishers[out.topic] = RosPublisher(key, zpub, token, os.urandom(16))
+                pub = self._publishers[out.topic] = RosPublisher(key, zpub, self._token("MP", out), os.urandom(16))
             return pub
+
+    def key(self, topic: str, type_name: str) -> str:
+        if self.rmw:
+            return topic_key(self.config.domain_id, topic, type_name)
+        return bridge_key(topic)
+
+    def _token(self, kind: str, out: Outgoing) -> Any:
+        """The liveliness token of a publisher (MP) or subscription (MS); None in the bridge layout."""
+        if not self.rmw:
+            return None
+        qos = qos_text(out.latched)
+        return self.session.liveliness().declare_token(
+            self.name.endpoint_token(self._next_entity(), kind, out.topic, out.type, qos)
+        )
 
     def publish(self, outs: list[Outgoing]) -> None:
         for out in outs:
@@ -97,19 +112,15 @@ class RosNode:
 
     def subscribe(self, topic: str, type_name: str, handler: Callable[[Any], None]) -> None:
         """Receive `topic` from ROS; `handler` gets the deserialised message (on a zenoh thread)."""
-        key = topic_key(self.config.domain_id, topic, type_name)
 
         def on_sample(sample: zenoh.Sample) -> None:
             handler(sample.payload.to_bytes())
 
+        self._declared.append(self.session.declare_subscriber(self.key(topic, type_name), on_sample))
         with self._lock:
-            entity = self._next_entity()
-        self._declared.append(self.session.declare_subscriber(key, on_sample))
-        self._declared.append(
-            self.session.liveliness().declare_token(
-                self.name.endpoint_token(entity, "MS", topic, type_name, qos_text(False))
-            )
-        )
+            token = self._token("MS", Outgoing(topic, type_name, None))
+        if token is not None:
+            self._declared.append(token)
 
     def close(self) -> None:
         for pub in self._publishers.values():

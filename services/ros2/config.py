@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from common.settings import setting
 
@@ -12,6 +13,11 @@ from common.settings import setting
 class Ros2Config:
     """Where the ROS 2 side lives: domain, namespace and topic names (docs/ros2.md)."""
 
+    key_layout: Literal["rmw_zenoh", "bridge"] = setting(
+        "rmw_zenoh",
+        "rmw_zenoh: ROS 2 nodes with rmw_zenoh_cpp (keys with type hash, liveliness, attachment); bridge: "
+        "zenoh-bridge-ros2dds for DDS systems (the topic name as key, raw CDR)",
+    )
     domain_id: int = setting(0, "ROS_DOMAIN_ID of the ROS 2 graph to join", at_least=0, at_most=232)
     namespace: str = setting(
         "/hri_fusion", "namespace of this node and of its own topics (command, objects, ...)", flag="--ros-namespace"

@@ -34,6 +34,12 @@ def topic_key(domain_id: int, topic: str, type_name: str) -> str:
     return f"{domain_id}/{topic.strip('/')}/{dds_type_name(type_name)}/{type_hash(type_name)}"
 
 
+def bridge_key(topic: str) -> str:
+    """zenoh-bridge-ros2dds's key of a ROS topic (no namespace given to the bridge): the name without the leading
+    '/'; the payload is the raw CDR, with neither type in the key nor attachment."""
+    return topic.strip("/")
+
+
 def qos_text(latched: bool) -> str:
     """Reliable, keep-last 10; latched: transient local, keep-last 1 (REP-155 ids: a late joiner gets the last)."""
     if latched:
