@@ -298,6 +298,9 @@ def test_mono8_and_unknown_encodings(photo: np.ndarray):
     assert frame.camera_info is None  # no CameraInfo received
     with pytest.raises(InvalidSample):
         camera.frame(ros_image(grey, "bayer_rggb8"), now=T)
+    small = core.CameraBridge(CONFIG, "ros2/test", max_pixels=grey.size - 1)
+    with pytest.raises(InvalidSample, match="over the cap"):  # refused before any conversion
+        small.frame(ros_image(grey, "mono8"), now=T)
 
 
 def test_compressed_jpeg_passes_through_with_its_size():

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import struct
 import threading
 import time
 from dataclasses import dataclass
@@ -136,7 +137,7 @@ class RosInputs:
         self.service = service
         self.node = node
         self.config = config
-        self.camera = core.CameraBridge(config, service.source)
+        self.camera = core.CameraBridge(config, service.source, max_pixels=service.args.max_pixels)
         self.busy = False
         self._lock = threading.Lock()
 
@@ -175,7 +176,10 @@ class RosInputs:
 
     def on_compressed(self, image: Any) -> None:
         data = bytes(image.data)
-        size = png_size(data) if "png" in image.format.lower() else jpeg_size(data)
+        try:
+            size = png_size(data) if "png" in image.format.lower() else jpeg_size(data)
+        except (ValueError, struct.error) as exc:
+            raise InvalidSample("bad_value", f"{image.format} header unreadable: {exc}") from None
         self._publish_frame(self.camera.compressed_frame(image, time.time(), size))
 
     def _publish_frame(self, frame: Frame) -> None:

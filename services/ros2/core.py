@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from common.image import DEFAULT_MAX_PIXELS
 from common.schema import (
     Bodies,
     Body,
@@ -469,6 +470,7 @@ class CameraBridge:
 
     config: Ros2Config
     source: str
+    max_pixels: int = DEFAULT_MAX_PIXELS  # --max-pixels: a larger image is refused before it is converted
     info: CameraInfo | None = None
     next_seq: int = 0
     seq_by_stamp: dict[float, int] = field(default_factory=dict)
@@ -489,9 +491,14 @@ class CameraBridge:
         info = self.info
         return info if info is not None and (info.width, info.height) == (width, height) else None
 
+    def check_pixels(self, width: int, height: int) -> None:
+        if width * height > self.max_pixels:
+            raise InvalidSample("oversized", f"image of {width}x{height} is over the cap of {self.max_pixels} pixels")
+
     def frame(self, image: Any, now: float) -> Frame:
         stamp = unix_time(image.header.stamp) or now
         width, height = int(image.width), int(image.height)
+        self.check_pixels(width, height)
         return Frame(
             stamp=stamp,
             source=self.source,
@@ -514,6 +521,7 @@ class CameraBridge:
             encoding = "jpeg"
         else:
             raise InvalidSample("bad_value", f"format {image.format!r}: jpeg or png only")
+        self.check_pixels(*size)
         stamp = unix_time(image.header.stamp) or now
         return Frame(
             stamp=stamp,
@@ -530,6 +538,7 @@ class CameraBridge:
     def depth(self, image: Any, now: float) -> DepthFrame:
         """Aligned depth: 16UC1 in millimetres (REP-118) or 32FC1 in metres; needs the camera's calibration."""
         width, height = int(image.width), int(image.height)
+        self.check_pixels(width, height)
         info = self.info_for(width, height)
         if info is None:
             raise InvalidSample("bad_value", f"depth {width}x{height} without a CameraInfo of that size")
