@@ -14,6 +14,10 @@ The 3-D ray, best method first (`Ray3D.method`; docs/gesture.md):
 - `index_finger`: the hand alone (no body stage): index knuckle -> fingertip.
 A lifted segment must have an arm's length (`SEGMENTS`): a fingertip whose window sees the wall behind it gives a
 segment metres long, and the next method is tried instead.
+
+`lift_pose` lifts the whole skeleton (NaN where there is no depth) for the arm rules of body.py, which judge an arm
+in 3-D when it has depth. `surface_meeting` gives the ray's meeting point with the floor or table even when it lies
+outside the image (`Meeting.in_view` false): the up-facing plane seen in the image, extended.
 """
 
 from __future__ import annotations
@@ -53,6 +57,9 @@ MIN_PLANE_POINTS = 150
 MAX_PLANES = 3  # the first supported plane along the ray among the largest few (a box top before the table)
 SUPPORT_RADIUS = 0.06  # m: a hit needs plane points this close to it (the plane is seen there)
 MIN_SUPPORT = 5
+# Out of view: a floor or table top faces up. A robot's camera is upright (no roll) and pitched at most ~60 deg, so
+# such a plane's normal is within this of the camera's up (-y); a wall's is ~90 deg from it.
+UP_FACING_DEG = 60.0
 
 
 def inlier_tolerance(z: np.ndarray) -> np.ndarray:
@@ -204,6 +211,19 @@ def torso_point(view: DepthView, pose: np.ndarray) -> np.ndarray | None:
     return view.back_project(float(centre[0]), float(centre[1]), float(np.median(valid)))
 
 
+def lift_pose(view: DepthView, pose: np.ndarray) -> np.ndarray:
+    """The 33 pose landmarks in metres (33x3), each at the median depth of its window; NaN where the landmark is
+    not visible, outside the image or without depth. The points are on the body's surface (its front)."""
+    p = np.asarray(pose, dtype=float).reshape(33, 3)
+    out = np.full((33, 3), np.nan)
+    for k in range(33):
+        if p[k, 2] >= MIN_VISIBILITY:
+            lifted = view.lift(float(p[k, 0]), float(p[k, 1]))
+            if lifted is not None:
+                out[k] = lifted
+    return out
+
+
 def world_ray3d(view: DepthView, pose: np.ndarray, side: str, world: np.ndarray) -> Lifted | None:
     """MediaPipe's world skeleton (metres, origin between the hips, axes along the camera's) moved so that its
     torso centre sits at the torso's measured position; eyes -> index when those are visible, else shoulder ->
@@ -281,41 +301,100 @@ def fit_plane(points: np.ndarray, iterations: int = RANSAC_ITERATIONS, seed: int
     return Plane(normal, offset, points[best])
 
 
+@dataclass(frozen=True)
+class Meeting:
+    """Where a ray meets the surface it points at."""
+
+    point: np.ndarray
+    in_view: bool  # False: outside the image (or behind the camera): the plane seen in the image, extended
+
+
 def surface_hit(view: DepthView, ray: Lifted, cloud: np.ndarray | None = None) -> np.ndarray | None:
-    """Where `ray` meets the surface it points at: planes are fitted (largest first, up to `MAX_PLANES`) to the
+    """The ray's meeting point with the surface it points at, where that surface is seen (`surface_meeting`, in
+    view only); None otherwise."""
+    meeting = surface_meeting(view, ray, cloud)
+    return meeting.point if meeting is not None and meeting.in_view else None
+
+
+def surface_meeting(view: DepthView, ray: Lifted, cloud: np.ndarray | None = None) -> Meeting | None:
+    """Where `ray` meets the surface it points at. Planes are fitted (largest first, up to `MAX_PLANES`) to the
     depth points in a cone around the ray beyond the hand, and the first one along the ray that is seen where the
-    ray meets it wins. None when the ray meets no plane in view (it points at the sky, or depth is missing)."""
+    ray meets it wins (in view). When none is, the ray may leave the image: the first meeting, outside the image,
+    with an up-facing plane (`up_facing`: floor, table top) fitted in that cone or, failing that, to the whole
+    frame (out of view). None when the ray meets nothing (it points at the sky, or depth is missing)."""
     pts = view.cloud() if cloud is None else cloud
     rel = pts - ray.origin
     along = rel @ ray.direction
     across = np.linalg.norm(rel - np.outer(along, ray.direction), axis=1)
     beyond = ray.reach + 0.05  # not the pointing arm itself
     near = (along > beyond) & (across <= CONE_BASE + along * math.tan(math.radians(CONE_DEG)))
-    remaining = pts[near]
-    hits = []
-    for k in range(MAX_PLANES):
+    planes = fit_planes(pts[near])
+    seen = [(t, hit) for t, hit, plane in _meetings(ray, planes, beyond) if _supported(plane, hit)]
+    if seen:
+        return Meeting(min(seen, key=lambda h: h[0])[1], True)
+    for candidates in (planes, fit_planes(pts)):  # the cone's planes, else the frame's
+        outside = [
+            (t, hit)
+            for t, hit, plane in _meetings(ray, candidates, beyond)
+            if up_facing(plane) and not _in_image(view, hit)
+        ]
+        if outside:
+            return Meeting(min(outside, key=lambda h: h[0])[1], False)
+    return None
+
+
+def fit_planes(points: np.ndarray, count: int = MAX_PLANES) -> list[Plane]:
+    """Up to `count` planes, largest first, each fitted to the points the previous ones left."""
+    planes: list[Plane] = []
+    remaining = points
+    for k in range(count):
         plane = fit_plane(remaining, seed=k)
         if plane is None:
             break
+        planes.append(plane)
+        remaining = remaining[plane.distance(remaining) > inlier_tolerance(remaining[:, 2])]
+    return planes
+
+
+def _meetings(ray: Lifted, planes: list[Plane], beyond: float) -> list[tuple[float, np.ndarray, Plane]]:
+    """(distance along the ray, point, plane) where the ray meets each plane beyond the hand."""
+    out = []
+    for plane in planes:
         denom = float(plane.normal @ ray.direction)
         if abs(denom) > 1e-3:
             t = -(float(plane.normal @ ray.origin) + plane.offset) / denom
-            hit = ray.origin + t * ray.direction
-            if t > beyond and int((np.linalg.norm(plane.inliers - hit, axis=1) <= SUPPORT_RADIUS).sum()) >= MIN_SUPPORT:
-                hits.append((t, hit))
-        remaining = remaining[plane.distance(remaining) > inlier_tolerance(remaining[:, 2])]
-    return min(hits, key=lambda h: h[0])[1] if hits else None
+            if t > beyond:
+                out.append((t, ray.origin + t * ray.direction, plane))
+    return out
 
 
-def to_wire(ray: Lifted, frame_id: str, hit: np.ndarray | None) -> Ray3D:
+def _supported(plane: Plane, hit: np.ndarray) -> bool:
+    return int((np.linalg.norm(plane.inliers - hit, axis=1) <= SUPPORT_RADIUS).sum()) >= MIN_SUPPORT
+
+
+def up_facing(plane: Plane) -> bool:
+    """A floor or a table top: the plane's normal (either sign) within `UP_FACING_DEG` of the camera's up (-y)."""
+    return abs(float(plane.normal[1])) >= math.cos(math.radians(UP_FACING_DEG))
+
+
+def _in_image(view: DepthView, p: np.ndarray) -> bool:
+    if p[2] <= 1e-6:
+        return False  # behind the camera
+    u, v = view.project(p)
+    return 0 <= u < view.width and 0 <= v < view.height
+
+
+def to_wire(ray: Lifted, frame_id: str, hit: Meeting | np.ndarray | None) -> Ray3D:
     direction = [float(c) for c in ray.direction]
     norm = math.sqrt(sum(c * c for c in direction))
+    meeting = Meeting(hit, True) if isinstance(hit, np.ndarray) else hit
     return Ray3D(
         origin=[round(float(c), 4) for c in ray.origin],
         direction=[c / norm for c in direction],
         method=ray.method,
         frame_id=frame_id,
-        hit=None if hit is None else [round(float(c), 4) for c in hit],
+        hit=None if meeting is None else [round(float(c), 4) for c in meeting.point],
+        hit_in_view=None if meeting is None else meeting.in_view,
     )
 
 
@@ -348,6 +427,14 @@ class FrameRays:
         self._cloud: np.ndarray | None = None
         self._done: dict = {}
 
+    def joints(self) -> np.ndarray | None:
+        """The skeleton lifted to metres (`lift_pose`; NaN where no depth), for judging arms in 3-D; None without a
+        skeleton or a decodable depth."""
+        if "joints" not in self._done:
+            view = self.view
+            self._done["joints"] = None if view is None or self.pose is None else lift_pose(view, self.pose)
+        return self._done["joints"]
+
     @property
     def view(self) -> DepthView | None:
         if self._view is None and self.error is None and isinstance(self._depth, DepthFrame):  # (else it is the view)
@@ -366,7 +453,7 @@ class FrameRays:
             else:
                 if self._cloud is None:
                     self._cloud = view.cloud()
-                self._done[key] = to_wire(ray, view.frame_id, surface_hit(view, ray, self._cloud))
+                self._done[key] = to_wire(ray, view.frame_id, surface_meeting(view, ray, self._cloud))
         return self._done[key]
 
     def arm(self, side: str, hand: np.ndarray | None = None) -> Ray3D | None:
