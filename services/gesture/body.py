@@ -38,6 +38,9 @@ MIDDLE_MCP = 9  # hand landmark
 MIN_VISIBILITY = 0.5
 EXTENDED_DEG = 150.0  # elbow at least this straight to start pointing...
 RELEASE_DEG = 135.0  # ...and to keep pointing
+# In 3-D the lifted points lie on the arm's front surface, a few cm off the joint centres: over a 25-30 cm segment
+# 2-3 cm bend a straight arm's measured elbow by 5-10 deg, so the 3-D thresholds are 10 deg lower.
+EXTENDED_3D_DEG, RELEASE_3D_DEG = 140.0, 125.0
 AWAY_DEG = 35.0  # arm (shoulder -> wrist) away from the torso line (shoulder -> hip) to start...
 RELEASE_AWAY_DEG = 25.0  # ...and to keep
 TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are out of frame
@@ -119,12 +122,16 @@ def arm(
     forearm = float(np.linalg.norm(p[w, :2] - p[e, :2]))
     if vis < MIN_VISIBILITY:
         return Arm(side, False, vis, None, None, wrist, forearm, None, None, 0.0)
-    elbow, away = arm_angles(p, side, joints3d)
-    min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_DEG, AWAY_DEG)
+    elbow, away, in3d = arm_angles(p, side, joints3d)
+    if in3d:
+        min_deg, min_away = (RELEASE_3D_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_3D_DEG, AWAY_DEG)
+    else:
+        min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_DEG, AWAY_DEG)
     pointing = elbow >= min_deg and away >= min_away and held_at_body(p, side, joints3d) is None
     ray, source = arm_ray(p, side, width, height, ray_from) if pointing else (None, None)
     pointing = pointing and ray is not None
-    extension = max(0.0, min(1.0, (elbow - RELEASE_DEG) / (180.0 - RELEASE_DEG)))
+    release = RELEASE_3D_DEG if in3d else RELEASE_DEG
+    extension = max(0.0, min(1.0, (elbow - release) / (180.0 - release)))
     confidence = round(vis * (0.5 + 0.5 * extension), 4) if pointing else 0.0
     return Arm(side, pointing, vis, elbow, away, wrist, forearm, ray, source if pointing else None, confidence)
 
@@ -143,17 +150,17 @@ def arm3d(p: np.ndarray, side: str, joints3d: np.ndarray | None) -> np.ndarray |
     return j
 
 
-def arm_angles(p: np.ndarray, side: str, joints3d: np.ndarray | None = None) -> tuple[float, float]:
-    """(elbow angle, angle between shoulder -> wrist and shoulder -> hip), degrees: in 3-D when the arm and that
-    side's hip were lifted, else in the image (the hip estimated below the shoulder when out of sight)."""
+def arm_angles(p: np.ndarray, side: str, joints3d: np.ndarray | None = None) -> tuple[float, float, bool]:
+    """(elbow angle, angle between shoulder -> wrist and shoulder -> hip, in 3-D?), degrees: in 3-D when the arm
+    and that side's hip were lifted, else in the image (the hip estimated below the shoulder when out of sight)."""
     s, e, w, _, hip = ARMS[side]
     j = arm3d(p, side, joints3d)
     if j is not None:
         hip3 = np.asarray(joints3d, dtype=float).reshape(33, 3)[hip]
         if p[hip, 2] >= MIN_VISIBILITY and np.isfinite(hip3).all():
-            return _angle(j[0], j[1], j[2]), _angle(hip3, j[0], j[2])
+            return _angle(j[0], j[1], j[2]), _angle(hip3, j[0], j[2]), True
     shoulder, hip2, _ = torso(p, side)
-    return _angle(p[s, :2], p[e, :2], p[w, :2]), _angle(hip2, shoulder, p[w, :2])
+    return _angle(p[s, :2], p[e, :2], p[w, :2]), _angle(hip2, shoulder, p[w, :2]), False
 
 
 def body_scale(p: np.ndarray) -> float:

@@ -57,9 +57,11 @@ MIN_PLANE_POINTS = 150
 MAX_PLANES = 3  # the first supported plane along the ray among the largest few (a box top before the table)
 SUPPORT_RADIUS = 0.06  # m: a hit needs plane points this close to it (the plane is seen there)
 MIN_SUPPORT = 5
-# Out of view: a floor or table top faces up. A robot's camera is upright (no roll) and pitched at most ~60 deg, so
-# such a plane's normal is within this of the camera's up (-y); a wall's is ~90 deg from it.
+# Out of view: a floor or table top faces up: its normal within this of "up", which is the seen person's torso axis
+# (hips -> shoulders, lifted) or else the camera's -y (an upright camera pitched less than ~60 deg); a wall's normal
+# is ~90 deg from up.
 UP_FACING_DEG = 60.0
+CAMERA_UP = np.array([0.0, -1.0, 0.0])
 
 
 def inlier_tolerance(z: np.ndarray) -> np.ndarray:
@@ -316,12 +318,15 @@ def surface_hit(view: DepthView, ray: Lifted, cloud: np.ndarray | None = None) -
     return meeting.point if meeting is not None and meeting.in_view else None
 
 
-def surface_meeting(view: DepthView, ray: Lifted, cloud: np.ndarray | None = None) -> Meeting | None:
+def surface_meeting(
+    view: DepthView, ray: Lifted, cloud: np.ndarray | None = None, up: np.ndarray | None = None
+) -> Meeting | None:
     """Where `ray` meets the surface it points at. Planes are fitted (largest first, up to `MAX_PLANES`) to the
     depth points in a cone around the ray beyond the hand, and the first one along the ray that is seen where the
-    ray meets it wins (in view). When none is, the ray may leave the image: the first meeting, outside the image,
-    with an up-facing plane (`up_facing`: floor, table top) fitted in that cone or, failing that, to the whole
-    frame (out of view). None when the ray meets nothing (it points at the sky, or depth is missing)."""
+    ray meets it wins (in view). When none is, the ray may leave the image: its meeting, outside the image, with
+    the largest up-facing plane (`up_facing`: the floor or the table; `up` default the camera's -y) of the frame or,
+    failing that, of the cone (out of view). A small box top is not extended beyond the image. None when the ray
+    meets nothing (the sky, or no depth)."""
     pts = view.cloud() if cloud is None else cloud
     rel = pts - ray.origin
     along = rel @ ray.direction
@@ -332,14 +337,14 @@ def surface_meeting(view: DepthView, ray: Lifted, cloud: np.ndarray | None = Non
     seen = [(t, hit) for t, hit, plane in _meetings(ray, planes, beyond) if _supported(plane, hit)]
     if seen:
         return Meeting(min(seen, key=lambda h: h[0])[1], True)
-    for candidates in (planes, fit_planes(pts)):  # the cone's planes, else the frame's
+    facing = CAMERA_UP if up is None else up
+    for candidates in (fit_planes(pts), planes):  # the frame's planes (best for extending far), else the cone's
+        largest = max((p for p in candidates if up_facing(p, facing)), key=lambda p: len(p.inliers), default=None)
         outside = [
-            (t, hit)
-            for t, hit, plane in _meetings(ray, candidates, beyond)
-            if up_facing(plane) and not _in_image(view, hit)
+            hit for _, hit, _ in _meetings(ray, [largest] if largest else [], beyond) if not _in_image(view, hit)
         ]
         if outside:
-            return Meeting(min(outside, key=lambda h: h[0])[1], False)
+            return Meeting(outside[0], False)
     return None
 
 
@@ -372,9 +377,22 @@ def _supported(plane: Plane, hit: np.ndarray) -> bool:
     return int((np.linalg.norm(plane.inliers - hit, axis=1) <= SUPPORT_RADIUS).sum()) >= MIN_SUPPORT
 
 
-def up_facing(plane: Plane) -> bool:
-    """A floor or a table top: the plane's normal (either sign) within `UP_FACING_DEG` of the camera's up (-y)."""
-    return abs(float(plane.normal[1])) >= math.cos(math.radians(UP_FACING_DEG))
+def up_facing(plane: Plane, up: np.ndarray = CAMERA_UP) -> bool:
+    """A floor or a table top: the plane's normal (either sign) within `UP_FACING_DEG` of `up` (unit)."""
+    return abs(float(plane.normal @ up)) >= math.cos(math.radians(UP_FACING_DEG))
+
+
+def body_up(joints3d: np.ndarray | None) -> np.ndarray | None:
+    """The person's up in the camera frame: mid-hips -> mid-shoulders of a lifted skeleton (upright, standing or
+    seated), or None when those four have no depth."""
+    if joints3d is None:
+        return None
+    j = np.asarray(joints3d, dtype=float).reshape(33, 3)
+    if not np.isfinite(j[list(TORSO)]).all():
+        return None
+    axis = j[[11, 12]].mean(axis=0) - j[[23, 24]].mean(axis=0)
+    norm = float(np.linalg.norm(axis))
+    return axis / norm if norm > 0.2 else None  # shorter than a torso: the depth saw something else
 
 
 def _in_image(view: DepthView, p: np.ndarray) -> bool:
@@ -453,7 +471,8 @@ class FrameRays:
             else:
                 if self._cloud is None:
                     self._cloud = view.cloud()
-                self._done[key] = to_wire(ray, view.frame_id, surface_meeting(view, ray, self._cloud))
+                up = body_up(self.joints())
+                self._done[key] = to_wire(ray, view.frame_id, surface_meeting(view, ray, self._cloud, up))
         return self._done[key]
 
     def arm(self, side: str, hand: np.ndarray | None = None) -> Ray3D | None:
