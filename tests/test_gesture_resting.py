@@ -131,10 +131,10 @@ def arm_at_camera_depth(pose: np.ndarray, dims: tuple[int, int]) -> DepthView:
     torso = pose[[11, 12, 24, 23], :2].astype(np.int32)
     cv2.fillPoly(depth, [torso], BODY_Z)
     cv2.circle(depth, tuple(int(c) for c in pose[0, :2]), 40, BODY_Z, -1)  # the head
-    joints = {12: _back(*pose[12, :2], BODY_Z)}
+    joints = {12: _back(pose[12, 0], pose[12, 1], BODY_Z)}
     for joint, parent, length in ARM_CHAIN[1:]:
-        z = _nearer_depth(joints[parent], *pose[joint, :2], length)
-        joints[joint] = _back(*pose[joint, :2], z)
+        z = _nearer_depth(joints[parent], pose[joint, 0], pose[joint, 1], length)
+        joints[joint] = _back(pose[joint, 0], pose[joint, 1], z)
     for (a, _, _), (b, _, _) in zip(ARM_CHAIN, ARM_CHAIN[1:]):  # the arm, drawn near to far so that near wins
         for t in np.linspace(0, 1, 30):
             p = joints[a] * (1 - t) + joints[b] * t
@@ -153,7 +153,13 @@ def test_an_arm_aimed_at_the_camera_points_when_depth_shows_it_straight():
     view = arm_at_camera_depth(pose, dims)
     joints = lift_pose(view, pose)
     deep = arm(pose, "right", *dims, joints3d=joints)
-    assert deep.pointing and deep.elbow_deg is not None and deep.elbow_deg >= 140 and deep.away_deg > 60
+    assert (
+        deep.pointing
+        and deep.elbow_deg is not None
+        and deep.elbow_deg >= 140
+        and deep.away_deg is not None
+        and deep.away_deg > 60
+    )
     assert started(run([], pose, dims, joints)) == ["point"]
     ray = FrameRays(view, pose, None).arm("right")
     assert ray is not None and ray.method == "eye_fingertip"
@@ -221,6 +227,7 @@ def test_resting_hands_on_the_real_photos_start_no_point_and_no_grasp(name: str)
 
     entry = BODIES[name]
     img = cv2.imread(str(shared_path(entry["source"].removeprefix("../shared/"))))
+    assert img is not None, entry["source"]
     if entry["crop"]:
         x0, y0, x1, y1 = entry["crop"]
         img = img[y0:y1, x0:x1]
