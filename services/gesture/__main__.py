@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> None:
             if frame.cam in depths:
                 service.counters.add("depth_unmatched")  # a camera with depth, but not of this capture (yet)
             return None
-        return FrameRays(depth, skeleton, world)  # decoded only if someone points
+        return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
     def on_depth(d) -> None:
         depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)

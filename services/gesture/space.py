@@ -434,7 +434,7 @@ def side_of_hand(pose: np.ndarray | None, hand: np.ndarray) -> str | None:
 
 class FrameRays:
     """The 3-D rays of one frame, computed on demand and once each: the shell asks for the hands' and arms' rays.
-    A DepthFrame is decoded only when a ray is asked for (most frames have nobody pointing); a frame that cannot be
+    A DepthFrame is decoded only when a ray or the lifted joints are asked for (a body is seen); a frame that cannot be
     decoded gives no rays and leaves its reason in `error`."""
 
     def __init__(self, depth: DepthView | DepthFrame, pose: np.ndarray | None, world: np.ndarray | None):
