@@ -200,10 +200,25 @@ def test_frame_rays_give_the_wire_ray_with_its_hit():
     rays = FrameRays(view(person.depth()), person.pose(), None)
     wire = rays.arm("right")
     assert wire.method == "eye_fingertip" and wire.frame_id == "cam_optical" and wire.hit is not None
-    assert abs(wire.hit[1] - CAMERA_HEIGHT) < 0.02
+    assert abs(wire.hit[1] - CAMERA_HEIGHT) < 0.02 and wire.hit_in_view is True
     hanging = rays.arm("left")  # no fingertip in view: the forearm, straight down
     assert hanging.method == "forearm" and angle_deg(hanging.direction, [0, 1, 0]) < 2.0
     assert FrameRays(view(person.depth()), None, None).arm("right") is None
+
+
+def test_a_floor_point_below_the_image_is_given_out_of_view():
+    """Issue #31: the person points at the floor 1.2 m from the camera, nearer than the floor the camera sees (from
+    1.75 m on): the ray meets the seen floor's plane there, outside the image, `hit_in_view` false. Up is the
+    person's torso axis (the torso has depth)."""
+    person = Person(target=(-0.3, CAMERA_HEIGHT, 1.2))
+    assert project(person.target)[1] > H  # below the image
+    wire = FrameRays(view(person.depth()), person.pose(), None).arm("right")
+    assert wire is not None and wire.method == "eye_fingertip" and wire.hit is not None
+    assert wire.hit_in_view is False
+    assert abs(wire.hit[1] - CAMERA_HEIGHT) < 0.02
+    expected = floor_point(np.array(wire.origin), np.array(wire.direction))
+    assert np.linalg.norm(np.array(wire.hit) - expected) < 0.02
+    assert wire.hit[2] < CAMERA_HEIGHT * F / (H - CY)  # nearer than any floor the camera sees
 
 
 def test_no_depth_no_ray_and_no_hit():

@@ -47,8 +47,8 @@ TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are ou
 FINGERS_UP_DEG = 60.0  # a raised palm: wrist -> middle knuckle within this of image-up
 RAISED_ABOVE_SHOULDER = 0.3  # a raised hand (no hand seen): wrist this many body scales above its shoulder...
 FOREARM_UP_DEG = 45.0  # ...and the forearm (elbow -> wrist) within this of image-up
-KNEES, THIGHS = (25, 26), ((23, 25), (24, 26))  # pose landmarks: knees; (hip, knee) per side
-FOLDED_DEG = 110.0  # elbow bent more than this: the hand is held at the body (every real point: >= 126 deg)
+THIGHS = ((23, 25), (24, 26))  # pose landmarks (hip, knee) of each leg
+FOLDED_DEG = 110.0  # elbow angle below this: the hand is held at the body (every real point: >= 126 deg)
 PLAIN_SEGMENT = 0.5  # x body scale: an arm segment at least this long in the image is not foreshortened
 ON_KNEE = 0.6  # x shoulder width: a wrist this near a knee rests on it (seated: 0.43-0.45; points: >= 1.6)
 ON_THIGH = 0.35  # x shoulder width: a wrist this near the hip -> knee segment lies on the thigh or the lap
