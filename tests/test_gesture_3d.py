@@ -14,11 +14,15 @@ from common.schema import CameraInfo, DepthFrame
 from services.gesture.space import (
     DepthView,
     FrameRays,
+    Lifted,
     arm_ray3d,
     depth_view,
     fit_plane,
+    fit_planes,
     hand_ray3d,
     surface_hit,
+    surface_meeting,
+    to_wire,
     torso_point,
 )
 from testkit.shared import shared_path
@@ -314,3 +318,28 @@ def test_the_table_plane_of_a_real_frame_fits_its_points():
     residual = plane.distance(plane.inliers)
     assert float(np.median(residual)) < 0.01
     assert len(plane.inliers) > 0.3 * len(near)
+
+
+def test_a_ray_leaving_the_image_meets_the_table_out_of_view():
+    """The real RealSense table-top frame (the camera looks down at the board: up is towards the camera, -z). A ray
+    from above the table to a point of the table's plane 0.25 m beyond the image's bottom edge meets the table there,
+    marked out of view; the same ray aimed inside the image meets it where the depth sees it, in view."""
+    view = realsense_view()
+    table = fit_planes(view.cloud())[0]
+    normal = table.normal if table.normal[2] < 0 else -table.normal  # towards the camera
+    up = np.array([0.0, 0.0, -1.0])
+    edge = view.back_project(640, 719, float(view.depth_at(640, 700) or 0.0))
+    edge = edge - (table.normal @ edge + table.offset) * table.normal  # onto the plane
+    down_image = np.array([0.0, 1.0, 0.0]) - (np.array([0.0, 1.0, 0.0]) @ table.normal) * table.normal
+    target = edge + 0.25 * down_image / np.linalg.norm(down_image)
+    assert not (0 <= view.project(target)[1] < view.height)  # really outside the image
+    origin = target + 0.6 * normal - 0.4 * down_image / np.linalg.norm(down_image)
+    direction = (target - origin) / np.linalg.norm(target - origin)
+    meeting = surface_meeting(view, Lifted(origin, direction, "eye_fingertip", 0.3), up=up)
+    assert meeting is not None and not meeting.in_view
+    assert np.linalg.norm(meeting.point - target) < 0.02
+    wire = to_wire(Lifted(origin, direction, "eye_fingertip", 0.3), "rs_optical", meeting)
+    assert wire.hit is not None and wire.hit_in_view is False
+    seen = view.back_project(900, 600, float(view.depth_at(900, 600) or 0.0))  # the board
+    inside = surface_meeting(view, Lifted(origin, (seen - origin) / np.linalg.norm(seen - origin), "forearm", 0.3))
+    assert inside is not None and inside.in_view and np.linalg.norm(inside.point - seen) < 0.02
