@@ -51,6 +51,7 @@ class Inbox:
             self._cond.notify_all()
 
     def wait_for(self, test: Any, timeout: float, what: str) -> Any:
+        """The latest received message passing `test`, waiting up to `timeout` s for one."""
         deadline = time.monotonic() + timeout
         with self._cond:
             while True:
@@ -77,6 +78,7 @@ def stack() -> Iterator[ProcessGroup]:
         client.close()
         yield group
     finally:
+        print(group.logs())  # shown by pytest when a test of this module failed
         group.close()
 
 
