@@ -338,3 +338,22 @@ def test_text_becomes_a_typed_transcript():
     assert transcript is not None
     assert (transcript.text, transcript.mic, transcript.end, transcript.final) == ("stop", "ros", T, True)
     assert core.text_transcript("   ", now=T, source="ros2/test") is None
+
+
+def test_per_id_topics_of_people_no_camera_tracks_are_gone():
+    tracked = core.Tracked()
+    topics = [
+        "/humans/persons/tracked",
+        "/humans/persons/p_1/face_id",
+        "/humans/persons/p_2/engagement_status",
+        "/humans/faces/f_1/roi",
+    ]
+    outs = core.persons_messages(persons(person("p-1"), person("p-2")), CONFIG, core.Latch())
+    for kind, ids in core.tracked_ids(outs, CONFIG).items():
+        tracked.update(kind, "cam0", ids)
+    assert tracked.gone("persons", topics, CONFIG) == []
+    tracked.update("persons", "cam0", ["p_1"])
+    assert tracked.gone("persons", topics, CONFIG) == ["/humans/persons/p_2/engagement_status"]
+    tracked.update("persons", "cam1", ["p_2"])  # another camera still sees p_2
+    assert tracked.gone("persons", topics, CONFIG) == []
+    assert tracked.gone("faces", topics, CONFIG) == ["/humans/faces/f_1/roi"]  # no camera reported faces

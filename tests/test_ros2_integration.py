@@ -15,6 +15,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -102,6 +103,11 @@ def subscriber(stack: ProcessGroup, topic: str, type_name: str, inbox: Inbox) ->
 
 def publisher(stack: ProcessGroup, topic: str, type_name: str) -> Any:
     return sdk.ROS2Publisher(topic, type_name, router_port=stack.port, node_name="test_robot")
+
+
+def graph(client: Client) -> list[str]:
+    """The rmw_zenoh graph's liveliness tokens on domain 0 (what ros2 node/topic list read)."""
+    return [str(r.ok.key_expr) for r in client.session.liveliness().get("@ros2_lv/0/**", timeout=2) if r.ok]
 
 
 def table_photo() -> np.ndarray:
@@ -221,12 +227,22 @@ def test_people_reach_ros_as_rep155_and_a_late_joiner_gets_the_latched_ids(stack
         assert late == [core.ros_id(person.face)]
         late_sub.undeclare()
 
-        tokens = [str(r.ok.key_expr) for r in client.session.liveliness().get("@ros2_lv/0/**", timeout=2) if r.ok]
+        tokens = graph(client)
         assert any(t.endswith("/NN/%/%hri_fusion/hri_fusion") for t in tokens)  # ros2 node list
         assert any(
             "/MP/" in t and "/%hri_fusion%command/hri_fusion_msgs::msg::dds_::FusedCommand_/" in t for t in tokens
         )
         assert any("/MS/" in t and "/%camera%color%image_raw/sensor_msgs::msg::dds_::Image_/" in t for t in tokens)
+        face_topic = f"/%humans%persons%{core.ros_id(person.id)}%face_id/"
+        assert any(face_topic in t for t in tokens)
+
+        # the person leaves: their per-id topics go from the graph (REP-155)
+        client.publish("hri/gesture/cam0/persons", msgspec.structs.replace(persons, persons=[], stamp=time.time()))
+        tracked.wait_for(lambda m: len(m.ids) == 0, 10, "an empty IdsList")
+        deadline = time.monotonic() + 10
+        while any(face_topic in t for t in graph(client)):
+            assert time.monotonic() < deadline, "the face_id publisher of a person who left is still declared"
+            time.sleep(0.1)
     finally:
         client.close()
 

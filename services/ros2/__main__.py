@@ -123,6 +123,17 @@ class RosNode:
         if token is not None:
             self._declared.append(token)
 
+    def topics(self) -> list[str]:
+        with self._lock:
+            return list(self._publishers)
+
+    def retire(self, topics: list[str]) -> None:
+        """Undeclare the publishers (and tokens) of these topics: ros2 topic list stops showing them."""
+        with self._lock:
+            gone = [self._publishers.pop(t) for t in topics if t in self._publishers]
+        for pub in gone:
+            pub.undeclare()
+
     def close(self) -> None:
         for pub in self._publishers.values():
             pub.undeclare()
@@ -212,11 +223,25 @@ def main(argv: list[str] | None = None) -> None:
     inputs = RosInputs(service, node, config)
     latch = core.Latch()
 
+    tracked = core.Tracked()
+
+    def retire_the_gone(cam: str, outs: list[Outgoing]) -> None:
+        """Per-id topics of people no camera tracks any more go, and their latched values are forgotten."""
+        for kind, ids in core.tracked_ids(outs, config).items():
+            tracked.update(kind, cam, ids)
+            gone = tracked.gone(kind, node.topics(), config)
+            if gone:
+                node.retire(gone)
+                for topic in gone:
+                    latch.forget(topic)
+                service.counters.add("ros_topics_retired", len(gone))
+
     def publishing(convert: Callable[[Any], list[Outgoing]]) -> Callable[[Delivery], None]:
         def handle(delivery: Delivery) -> None:
             outs = convert(delivery.sample)
             node.publish(outs)
             service.counters.add("ros_published", len(outs))
+            retire_the_gone(getattr(delivery.sample, "cam", ""), outs)
 
         return handle
 

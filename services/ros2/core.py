@@ -145,6 +145,37 @@ class Latch:
 
 
 # -- people (REP-155) ------------------------------------------------------------------------------------------
+class Tracked:
+    """Who each camera tracks now, per kind (persons, bodies, faces, voices), as ROS ids: the per-id topics of an
+    id no camera tracks any more are retired (REP-155: they vanish with the id)."""
+
+    def __init__(self) -> None:
+        self._ids: dict[tuple[str, str], set[str]] = {}
+
+    def update(self, kind: str, cam: str, ids: list[str]) -> None:
+        self._ids[(kind, cam)] = set(ids)
+
+    def gone(self, kind: str, topics: list[str], config: Ros2Config) -> list[str]:
+        """The per-id topics of `kind` among `topics` whose id no camera tracks."""
+        here = set().union(*(ids for (k, _), ids in self._ids.items() if k == kind))
+        root = config.human(kind) + "/"
+        return [
+            t
+            for t in topics
+            if t.startswith(root) and t.count("/", len(root)) >= 1 and t[len(root) :].split("/")[0] not in here
+        ]
+
+
+def tracked_ids(outs: list[Outgoing], config: Ros2Config) -> dict[str, list[str]]:
+    """kind -> ids of the `tracked` lists among `outs` (what a persons/bodies/faces sample says is here)."""
+    found = {}
+    for out in outs:
+        for kind in ("persons", "bodies", "faces", "voices"):
+            if out.topic == config.human(kind, "tracked"):
+                found[kind] = list(out.message.ids)
+    return found
+
+
 def engagement_level(engaged: bool | None) -> int:
     if engaged is None:
         return 0  # UNKNOWN
