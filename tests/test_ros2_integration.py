@@ -282,3 +282,35 @@ def test_bridge_layout_speaks_raw_cdr_on_the_topic_name(stack: ProcessGroup):
         sub.undeclare()
         client.close()
         bridge.terminate()
+
+
+def test_bad_ros_messages_are_counted_and_dropped(stack: ProcessGroup):
+    """Garbage on the camera and text keys, and an image over --max-pixels: counted, dropped, the service lives."""
+    client = Client(stack.endpoint)
+    try:
+        image_key = rmw.topic_key(0, "/camera/color/image_raw", core.IMAGE)
+        client.wait_matched([image_key])
+        before = client.stats("ros2")["rejected"]
+        client.put_raw(image_key, b"\x00\x01\x00\x00 not an image")
+        client.put_raw(rmw.topic_key(0, "/hri_fusion/text_command", core.STRING), b"\xff")
+        huge = core.msg(
+            core.IMAGE,
+            header=core.header(time.time()),
+            height=5000,
+            width=5000,
+            encoding="mono8",
+            is_bigendian=0,
+            step=5000,
+            data=np.zeros(16, np.uint8),  # the header alone is refused: nothing is allocated for it
+        )
+        client.put_raw(image_key, serialize(huge, core.IMAGE))
+        deadline = time.monotonic() + 15
+        while True:
+            rejected = client.stats("ros2")["rejected"]
+            if rejected.get("bad_cdr", 0) >= before.get("bad_cdr", 0) + 2 and rejected.get("oversized", 0) >= 1:
+                break
+            assert time.monotonic() < deadline, f"rejections not counted: {rejected}"
+            time.sleep(0.2)
+        assert any(s == "ros2" for s, _ in client.alive())
+    finally:
+        client.close()
