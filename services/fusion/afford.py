@@ -28,6 +28,7 @@ from common.language import (
     graspable_class,
     label_matches,
 )
+from services.fusion import space
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, ray_score
 from services.fusion.parse import ObjectPhrase
@@ -61,16 +62,26 @@ def _inside(point: tuple[float, float], box: tuple[float, float, float, float]) 
     return x <= point[0] <= x + w and y <= point[1] <= y + h
 
 
+def _holds_3d(p: Pointing, o: SceneObject) -> bool:
+    """In metres: the 3-D ray starts (at the eyes, the shoulder or the hand) inside this person's measured body."""
+    if p.ray3d is None or o.position is None or o.extent is None or not space.same_frame(p.ray3d, o.frame_id):
+        return False
+    return space.holds(o.position, o.extent, p.ray3d.origin, margin=space.NEAR_TOLERANCE_M)
+
+
 def commanding_person(p: Pointing | None, objects: list[SceneObject]) -> SceneObject | None:
     """The person pointing: the person detection in the pointing camera whose box holds the fingertip or the ray's
-    origin (the smallest such box: in a crowd, boxes overlap behind the pointer). None without pointing or person."""
+    origin, or, in metres, whose measured body holds the 3-D ray's origin (the smallest such box: in a crowd, boxes
+    overlap behind the pointer). None without pointing or person."""
     if p is None:
         return None
     tip = fingertip(p.origin, p.direction, p.hand_box)
     holders = [
         o
         for o in objects
-        if o.cam == p.cam and o.label == "person" and (_inside(tip, o.bbox) or _inside(p.origin, o.bbox))
+        if o.cam == p.cam
+        and o.label == "person"
+        and (_inside(tip, o.bbox) or _inside(p.origin, o.bbox) or _holds_3d(p, o))
     ]
     if not holders:
         return None

@@ -15,6 +15,7 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from common.language import PLACE_AS_OBJECT
 from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
@@ -269,6 +270,9 @@ class FusionCore:
         wants_location = (intent == "go_to" and not wants_object and not u.place) or (
             intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj)
         )
+        if intent in TARGET_INTENTS and u.place in PLACE_AS_OBJECT and u.obj.label is None and not u.obj.deictic:
+            # "pick up the table": what is picked up is the thing, not a place
+            u = replace(u, obj=replace(u.obj, label=PLACE_AS_OBJECT[u.place]), place=None)
         found = applicable(intent, u.obj, ctx.objects, ctx.pointing)
         ctx = replace(ctx, candidates=found.kept)  # nothing else is ever proposed (services/fusion/afford.py)
         target: Scored | None = None
