@@ -15,7 +15,7 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.language import PLACE_AS_OBJECT
+from common.language import ANY_OBJECT, PLACE_AS_OBJECT
 from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
@@ -109,6 +109,14 @@ MODALITIES = input_services()
 def modality_of(service: str) -> str | None:
     """The modality a service's liveliness token speaks for: the service itself if it feeds fusion, else None."""
     return service if service in MODALITIES else None
+
+
+def unseen_pointing(phrase: ObjectPhrase, winner: Scored) -> bool:
+    """ "That one" / "this" (deixis naming no kind) chose `winner` without pointing at it: no ray was seen, or the
+    ray is near nothing. Then only the absence of other candidates chose it, and the point may have been at something
+    vision does not see."""
+    names_kind = phrase.label not in (None, ANY_OBJECT) or bool(phrase.color) or bool(phrase.spatial)
+    return phrase.deictic and not names_kind and not phrase.relations and (winner.gesture or 0.0) < 0.5
 
 
 class FusionCore:
@@ -364,6 +372,10 @@ class FusionCore:
                 f"detection {best.id} ({best.name()}, score {best.score:.2f})"
             )
             return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
+        if choice.kind == "target" and choice.winner is not None and unseen_pointing(u.obj, choice.winner):
+            # "that one" said, no point seen (or none near anything) and no kind named: confirm, never guess
+            self.count("deixis_unresolved")
+            choice = replace(choice, kind="low_confidence")
         if choice.kind == "target":
             return choice
         target = choice.winner.obj if choice.kind == "low_confidence" and choice.winner else None

@@ -132,9 +132,12 @@ def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> st
     )
 
 
-def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
+def not_found_question(
+    phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool, nothing_to: str | None = None
+) -> str:
     """What I could not find, what I can see instead, and the question. An unknown noun is said as such:
-    "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?"."""
+    "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?". `nothing_to`: the
+    verb of an action none of the objects in view can take ("pick up": only people and a couch are in view)."""
     unknown = phrase.unknown_nouns
     if unknown:
         lead = " ".join(f"I don't know what {a(n)} is." for n in unknown)
@@ -148,6 +151,8 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
             if phrase.noun
             else f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
         )
+    if not visible and nothing_to:  # things in view, none the action applies to (people, furniture …)
+        return f"{lead} I see nothing here I can {nothing_to}. Can you show me?"
     if not visible:
         return f"{lead} I don't see any objects. Can you show me?"
     if phrase.relations and not unknown and phrase.label:

@@ -18,6 +18,7 @@ from typing import Callable
 from common.language import ANY_OBJECT, label_matches
 from common.schema import ClarificationReason, Location, Motion, Transcript
 from services.fusion import describe
+from services.fusion.afford import VERBS
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance
@@ -125,7 +126,8 @@ class Dialogue:
             candidates = [c.obj for c in choice.candidates]
         else:
             visible = sorted(ctx.pool, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
-            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing)
+            nothing_to = VERBS.get(draft.intent, "do that to") if ctx.objects and not ctx.pool else None
+            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing, nothing_to)
             candidates = visible
         return self._ask(
             t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates, question
