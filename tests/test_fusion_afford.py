@@ -215,3 +215,33 @@ def test_a_target_pointing_did_not_choose_is_never_explained_by_its_angle() -> N
     text = explain_target(words_won, None, {"speech": 0.6, "vision": 0.1, "gesture": 0.3}, parse("the cup").obj, None)
     assert "32 deg" not in text and "gesture 0.04" not in text
     assert "by the words" in text and "pointing did not choose it" in text
+
+
+# ---------------------------------------------------------------------------
+# Every rule, not only pointing: relations, colour, the words
+# ---------------------------------------------------------------------------
+def test_a_relation_or_a_colour_never_proposes_a_person_for_pick_up() -> None:
+    """A person standing next to the cup, dressed in red: "the red one next to the bowl" is never him."""
+    bystander = thing("p1", "person", [0.1, 0.2, 2.0], size=(0.6, 1.7, 0.4))
+    objects = [thing("bowl", "bowl", BOWL), thing("cup", "cup", CUP), bystander]
+    for text in ("pick up the one next to the bowl", "pick up the thing on the right", "bring me something"):
+        out = only(run(objects, text))
+        assert "p1" not in proposed(out), (text, out)
+        assert not isinstance(out, Clarification) or "person" not in out.question, out
+
+
+def test_that_one_without_a_point_at_anything_is_confirmed_not_guessed() -> None:
+    """One graspable object in view, "pick up that one" and no pointing seen: the point may have been at something
+    vision does not see, so the robot asks before acting. With the kind named, it acts."""
+    objects = [pointer(), thing("cup", "cup", CUP)]
+    out = only(run(objects, "pick up that one"))
+    assert isinstance(out, Clarification) and out.reason == "low_confidence", out
+    assert out.question.startswith("I'm not sure. Do you mean the cup"), out.question
+    named = only(run(objects, "pick up that cup"))
+    assert isinstance(named, FusedCommand) and named.target is not None and named.target.id == "cup", named
+
+
+def test_nothing_the_action_applies_to_is_said_so() -> None:
+    out = only(run([pointer(), thing("couch", "couch", [0.0, 0.2, 3.0], size=(2.0, 0.9, 0.9))], "pick up that one"))
+    assert isinstance(out, Clarification) and out.candidates == []
+    assert "I see nothing here I can pick up" in out.question, out.question
