@@ -3,7 +3,7 @@ path, vision's pipeline (YOLOX-Nano) and the fusion core, in process (testkit/po
 what vision saw, whether a pointing ray reached fusion, and what fusion answered; then how many answers were safe
 (never a person or something "pick up" cannot apply to) and right or honest.
 
-Usage: python benchmarks/pointing_people.py   (needs ../shared/ or HRI_SHARED, and the YOLOX-Nano model)
+Usage: python -m benchmarks.pointing_people   (needs ../shared/ or HRI_SHARED, and the YOLOX-Nano model)
 """
 
 from __future__ import annotations
