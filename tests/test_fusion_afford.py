@@ -245,3 +245,11 @@ def test_nothing_the_action_applies_to_is_said_so() -> None:
     out = only(run([pointer(), thing("couch", "couch", [0.0, 0.2, 3.0], size=(2.0, 0.9, 0.9))], "pick up that one"))
     assert isinstance(out, Clarification) and out.candidates == []
     assert "I see nothing here I can pick up" in out.question, out.question
+
+
+def test_a_place_to_put_something_may_be_furniture() -> None:
+    """Affordances are about what is acted on, not where: "put it on the couch" puts it on the couch."""
+    couch = thing("couch", "couch", [0.0, 0.2, 3.0], size=(2.0, 0.9, 0.9))
+    out = only(run([couch, thing("cup", "cup", CUP)], "put it on the couch"))
+    assert isinstance(out, FusedCommand) and out.location is not None, out
+    assert (out.location.x, out.location.y) == pytest.approx(tuple(couch.center)), out

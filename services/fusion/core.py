@@ -397,16 +397,17 @@ class FusionCore:
 
     def _location(self, u: Utterance, ctx: Context) -> Location | None:
         """Where the command goes: the object named as the destination ("put it on the red box"), else where the
-        ray points; None without either."""
+        ray points; None without either. A place may be anything (a table, a couch) but the person pointing (nor what
+        is on them: the ray starts inside their box)."""
+        places = applicable("go_to", ObjectPhrase(), ctx.objects, ctx.pointing).kept
         if u.dest_obj is not None:
-            choice = self._choose(u.dest_obj, ctx)
+            choice = self._choose(u.dest_obj, replace(ctx, candidates=places))
             if choice.kind == "target" and choice.winner is not None:
                 o = choice.winner.obj
                 return Location(x=float(o.center[0]), y=float(o.center[1]), cam=o.cam)
         if ctx.pointing is None:
             return None
-        # "there" is never the person pointing (nor what is on them): the ray starts inside their box
-        return pointed_location(ctx.pointing, applicable("go_to", ObjectPhrase(), ctx.objects, ctx.pointing).kept)
+        return pointed_location(ctx.pointing, places)
 
     def memory_items(self) -> int:
         """Buffered samples plus bookkeeping (for the benchmark's flat-memory check)."""
