@@ -35,7 +35,14 @@ from services.fusion.parse import ObjectPhrase
 from services.fusion.touch import fingertip
 
 WORN = frozenset({"tie", "backpack", "handbag"})  # what a person carries on the body, boxed inside the person's box
-VERBS = {"pick_up": "pick up", "bring": "bring", "put_down": "put down", "follow": "follow", "go_to": "go to"}
+VERBS = {
+    "pick_up": "pick up",
+    "bring": "bring",
+    "put_down": "put down",
+    "follow": "follow",
+    "go_to": "go to",
+    "look_at": "look at",
+}
 
 
 @dataclass(frozen=True)
@@ -52,9 +59,6 @@ class Applicable:
     removed: list[Removed]
     kind: Affordance | None
     commander: SceneObject | None = None
-
-    def removed_keys(self) -> set[tuple[str, str]]:
-        return {r.obj.key for r in self.removed}
 
 
 def _inside(point: tuple[float, float], box: tuple[float, float, float, float]) -> bool:
