@@ -253,3 +253,22 @@ def test_a_place_to_put_something_may_be_furniture() -> None:
     out = only(run([couch, thing("cup", "cup", CUP)], "put it on the couch"))
     assert isinstance(out, FusedCommand) and out.location is not None, out
     assert (out.location.x, out.location.y) == pytest.approx(tuple(couch.center)), out
+
+
+def aside(target: list[float], degrees: float) -> list[float]:
+    """A point the ray from EYES aims at when it misses `target` by `degrees`, turned about the vertical axis."""
+    v = [t - e for t, e in zip(target, EYES)]
+    a = math.radians(degrees)
+    x, z = v[0] * math.cos(a) - v[2] * math.sin(a), v[0] * math.sin(a) + v[2] * math.cos(a)
+    return [EYES[0] + x, EYES[1] + v[1], EYES[2] + z]
+
+
+@pytest.mark.parametrize("off", [0.0, 8.0, 12.0, 19.0])
+def test_the_issues_frames_a_ray_8_to_19_degrees_from_the_bowl(off: float) -> None:
+    """On the issue's frames fusion's ray passed 8-19 deg from the bowl and the man himself was picked up. Now the
+    bowl is picked up, or the question offers it; never the man or the couch."""
+    out = only(run(room(), "pick up that one", at=aside(BOWL, off)))
+    assert not proposed(out) & {"p0", "couch"}, out
+    assert "bowl" in proposed(out), out
+    if off == 0.0:
+        assert isinstance(out, FusedCommand), out
