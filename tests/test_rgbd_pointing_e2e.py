@@ -26,7 +26,8 @@ from common.schema import Clarification, FusedCommand, Hand, Hands, Ray, Ray3D, 
 from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client, ProcessGroup
-from testkit.shared import shared_path, yolox_model
+from testkit.rgbd import start
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 
@@ -94,17 +95,6 @@ def pointing(depth: np.ndarray) -> tuple[list[float], list[float], Ray3D]:
         hit=[float(c) for c in hit],
     )
     return [float(c) for c in tip_px], [float(c) for c in d2], ray3d
-
-
-def start(group: ProcessGroup, folder: Path) -> Client:
-    group.router()
-    group.service("vision", "--backend", "onnx", "--model", str(yolox_model()))
-    group.service("fusion")
-    client = Client(group.endpoint)
-    client.wait_alive("vision", timeout=90)
-    client.wait_alive("fusion", timeout=60)
-    group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
-    return client
 
 
 def wait_for_scene(client: Client) -> dict[str, str]:
