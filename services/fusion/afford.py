@@ -30,7 +30,7 @@ from common.language import (
 )
 from services.fusion import space
 from services.fusion.evidence import Pointing
-from services.fusion.ground import SceneObject, ray_score
+from services.fusion.ground import SceneObject, on_the_hand, ray_score
 from services.fusion.parse import ObjectPhrase
 from services.fusion.touch import fingertip
 
@@ -96,10 +96,8 @@ def _on_commander(p: Pointing | None, commander: SceneObject | None, o: SceneObj
     """Why `o` is part of the commanding person (None: it is not)."""
     if commander is not None and o.key == commander.key:
         return "the person pointing (the commanding person is never the object)"
-    if p is not None and p.hand_box is not None and o.cam == p.cam:
-        x0, y0, x1, y1 = p.hand_box
-        if x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1:
-            return "on the pointing hand"
+    if p is not None and o.cam == p.cam and on_the_hand(p, o):
+        return "on the pointing hand"
     if commander is not None and o.label in WORN and o.cam == commander.cam and _inside(o.center, commander.bbox):
         return f"worn by the person pointing ({o.label})"
     return None

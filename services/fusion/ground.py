@@ -33,7 +33,6 @@ from services.fusion.parse import ObjectPhrase, Relation
 from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
 from services.fusion.touch import fingertip, touched
 
-POINTING_SIGMA_DEG = space.POINTING_NOISE_DEG  # angular noise of a pointing ray (one definition, in space.py)
 SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
 RECENCY_S = 2.0
 DEFAULT_MARGIN = 0.1
@@ -198,7 +197,7 @@ def ray_score(p: Pointing, o: SceneObject) -> Deictic:
     """G by the ray alone. Objects in another camera, behind the hand, or on the pointing hand itself (a
     skin-coloured blob of the finger lies right on the ray) score 0. In metres (`space.pointing_score`): the
     distance from the ray against a tolerance that grows with the distance; in pixels: the angle."""
-    if o.cam != p.cam or _on_the_hand(p, o):
+    if o.cam != p.cam or on_the_hand(p, o):
         return Deictic(0.0, None)
     if p.ray3d is not None and in_3d(p, o):  # (in_3d checks the ray too; said here for the type checker)
         g3, angle3, off = space.pointing_score(p.ray3d, o.position, o.extent, p.spread_deg)
@@ -213,7 +212,7 @@ def ray_score(p: Pointing, o: SceneObject) -> Deictic:
     if cos <= 0:
         return Deictic(0.0, angle, "along the image ray")
     covered = math.degrees(math.atan2(radius, dist))
-    sigma = max(POINTING_SIGMA_DEG, p.spread_deg)
+    sigma = max(space.POINTING_NOISE_DEG, p.spread_deg)
     effective = max(0.0, angle - covered)
     return Deictic(math.exp(-0.5 * (effective / sigma) ** 2), angle, "along the image ray")
 
@@ -255,7 +254,7 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     return gap <= reach
 
 
-def _on_the_hand(p: Pointing, o: SceneObject) -> bool:
+def on_the_hand(p: Pointing, o: SceneObject) -> bool:
     """The object's centre lies on the pointing hand (a skin-coloured blob of the finger): never its target."""
     if p.hand_box is None:
         return False
@@ -270,7 +269,7 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     tip = fingertip(p.origin, p.direction, p.hand_box)
     # Objects in metres are judged by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may
     # lie far behind it.
-    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o) and not in_3d(p, o)]
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not on_the_hand(p, o) and not in_3d(p, o)]
     hit, _ = touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
 
