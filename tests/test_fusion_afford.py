@@ -272,3 +272,15 @@ def test_the_issues_frames_a_ray_8_to_19_degrees_from_the_bowl(off: float) -> No
     assert "bowl" in proposed(out), out
     if off == 0.0:
         assert isinstance(out, FusedCommand), out
+
+
+def test_with_depth_the_pointer_is_told_from_a_smaller_person_behind_him() -> None:
+    """A child standing 1.5 m behind the pointer, her box smaller and holding his fingertip's pixel too: in metres the
+    ray starts in his body, not hers: he is the commander."""
+    child = thing("p1", "person", [0.2, 0.25, 4.1], size=(0.4, 1.1, 0.3))
+    p = select_pointing(pointing_from_hands(hands(pointing_hand(BOWL, EYES), BASE_STAMP)), BASE_STAMP)
+    objs = scene_objects([detections([pointer(), child], BASE_STAMP)])
+    tip_inside_both = [o.id for o in objs if afford._inside(p.origin, o.bbox)] if p is not None else []
+    assert tip_inside_both == ["p0", "p1"]  # (the scene is what it should be)
+    commander = afford.commanding_person(p, objs)
+    assert commander is not None and commander.id == "p0"

@@ -75,8 +75,8 @@ def _holds_3d(p: Pointing, o: SceneObject) -> bool:
 
 def commanding_person(p: Pointing | None, objects: list[SceneObject]) -> SceneObject | None:
     """The person pointing: the person detection in the pointing camera whose box holds the fingertip or the ray's
-    origin, or, in metres, whose measured body holds the 3-D ray's origin (the smallest such box: in a crowd, boxes
-    overlap behind the pointer). None without pointing or person."""
+    origin, or, in metres, whose measured body holds the 3-D ray's origin (with depth, those first; then the smallest
+    box: in a crowd, boxes overlap behind the pointer). None without pointing or person."""
     if p is None:
         return None
     tip = fingertip(p.origin, p.direction, p.hand_box)
@@ -89,7 +89,8 @@ def commanding_person(p: Pointing | None, objects: list[SceneObject]) -> SceneOb
     ]
     if not holders:
         return None
-    return min(holders, key=lambda o: (o.bbox[2] * o.bbox[3], o.id))
+    in_metres = [o for o in holders if _holds_3d(p, o)]  # depth tells the pointer from a person behind him
+    return min(in_metres or holders, key=lambda o: (o.bbox[2] * o.bbox[3], o.id))
 
 
 def _on_commander(p: Pointing | None, commander: SceneObject | None, o: SceneObject) -> str | None:
