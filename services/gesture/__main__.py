@@ -8,10 +8,11 @@ import time
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
+from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Persons, Ray
 from common.settings import add_option
 from common.stack import node
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
+from services.gesture.people_stage import PeopleOfFrame, PeopleStage, other_body
 from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
 
@@ -49,6 +50,17 @@ def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
         left_ray=rays.get("left"),
         right_ray=rays.get("right"),
     )
+
+
+def people_bodies(frame: Frame, skeleton, arms, rays3d: FrameRays | None, seen: PeopleOfFrame | None) -> list[Body]:
+    """The full-frame skeleton with the tracker's arms, plus (on the person stage's frames) every other person's."""
+    main = [] if skeleton is None else [to_body(skeleton, arms, rays3d)]
+    if seen is None:
+        return main
+    for body in main:
+        body.person = seen.main_person
+    others = [(p.id, p.body) for p in seen.persons if p.id != seen.main_person] if seen.ran else []
+    return main + [other_body(b, pid, frame.width, frame.height) for pid, b in others if b is not None]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -97,6 +109,14 @@ def build_parser() -> argparse.ArgumentParser:
         "body ray: eyes -> fingertip (forearm when the eyes are out of view) or forearm (elbow -> fingertip)",
         choices=("eyes", "forearm"),
     )
+    add_option(
+        parser,
+        "--persons-every",
+        2,
+        "run the person stage (faces, a body per person, stable person ids: Persons) on every Nth frame; 0 = off",
+        at_least=0,
+        metavar="N",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -117,7 +137,8 @@ def main(argv: list[str] | None = None) -> None:
     trackers: dict[str, GestureTracker] = {}
     last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
     depths: dict[str, collections.deque] = {}  # cam -> the last DEPTH_KEPT DepthFrames
-    service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values()]])
+    people: dict[str, PeopleStage] = {}  # cam -> its person stage (issue #33)
+    service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values(), *people.values()]])
     if not service.connect():
         main_exit(0)
 
@@ -145,6 +166,7 @@ def main(argv: list[str] | None = None) -> None:
             for o, t in zip(observations, tracked)
             if rays3d is not None and t.ray is not None
         }
+        seen = see_people(frame, img, skeleton, observations, rays3d)
         hands = [
             Hand(
                 hand=o.hand,
@@ -152,8 +174,9 @@ def main(argv: list[str] | None = None) -> None:
                 landmarks=[[round(x, 2), round(y, 2)] for x, y in o.landmarks.tolist()],
                 gesture=t.gesture,
                 ray=to_ray(t.ray, hand_rays3d.get(o.hand)),
+                person=seen.hand_owners[k] if seen else None,
             )
-            for o, t in zip(observations, tracked)
+            for k, (o, t) in enumerate(zip(observations, tracked))
         ]
         service.publish_output(
             "hands",
@@ -178,15 +201,39 @@ def main(argv: list[str] | None = None) -> None:
                     cam=frame.cam,
                     width=frame.width,
                     height=frame.height,
-                    bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)],
+                    bodies=people_bodies(frame, skeleton, tracker.last_arms, rays3d, seen),
                 ),
                 cam=frame.cam,
             )
-        publish_events(frame, events, rays3d, hand_rays3d)
+        publish_events(frame, events, rays3d, hand_rays3d, seen)
         if rays3d is not None and rays3d.error:
             service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {rays3d.error}")
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
         last_frame[frame.cam] = (time.monotonic(), frame)
+
+    # -- people (issue #33): Persons with stable ids, a body per person, each hand's and gesture's person ------
+    def see_people(frame: Frame, img, skeleton, observations: list, rays3d: FrameRays | None) -> PeopleOfFrame | None:
+        if not args.persons_every:
+            return None
+        if frame.cam not in people or frame.cam not in last_frame:  # new stream (or restarted): new ids
+            people[frame.cam] = PeopleStage(every=args.persons_every)
+        seen = people[frame.cam].update(frame.stamp, img, skeleton, observations, rays3d)
+        if seen.ran:
+            persons = people[frame.cam].wire(seen)
+            service.publish_output(
+                "persons",
+                Persons(
+                    stamp=frame.stamp,
+                    source=service.source,
+                    seq=frame.seq,
+                    cam=frame.cam,
+                    width=frame.width,
+                    height=frame.height,
+                    persons=persons,
+                ),
+                cam=frame.cam,
+            )
+        return seen
 
     def frame_rays(frame: Frame, skeleton, world) -> FrameRays | None:
         """The 3-D rays of this frame, when the depth of the same capture (same seq and stamp) has come."""
@@ -203,8 +250,13 @@ def main(argv: list[str] | None = None) -> None:
         depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)
 
     def publish_events(
-        frame: Frame, events: list, rays3d: FrameRays | None = None, hand_rays3d: dict | None = None
+        frame: Frame,
+        events: list,
+        rays3d: FrameRays | None = None,
+        hand_rays3d: dict | None = None,
+        seen: PeopleOfFrame | None = None,
     ) -> None:
+        owner_of = dict(zip(seen.hand_sides, seen.hand_owners)) if seen else {}
         for ev in events:
             ray3d = None
             if ev.ray is not None and rays3d is not None:
@@ -224,6 +276,11 @@ def main(argv: list[str] | None = None) -> None:
                     score=ev.score,
                     hand=ev.hand,
                     ray=to_ray(ev.ray, ray3d),
+                    person=(
+                        seen.main_person if ev.ray is not None and ev.ray.source == "body" else owner_of.get(ev.hand)
+                    )
+                    if seen
+                    else None,
                 ),
                 lossless=True,
                 realtime=ev.gesture == "open_palm",

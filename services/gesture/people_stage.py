@@ -1,0 +1,118 @@
+"""The person stage of one camera (issue #33), the gesture shell's helper: MediaPipe face detection and pose per
+person region feeding the pure tracker (services/gesture/persons.py), turned into the wire's `Person` list, each
+hand's and skeleton's person id, and a body for every person.
+
+It runs on every `every`-th frame of a camera (`--persons-every`: pose per extra person costs a full pose run,
+~35 ms on this machine); on the frames between, hands are given to the persons of the last run (their boxes and
+wrists are at most `every - 1` frames old).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import cast
+
+import numpy as np
+
+from common.schema import Body, Handedness, Person, Ray
+from services.gesture.body import arm
+from services.gesture.landmarks import FaceDetector, RegionPose
+from services.gesture.persons import PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
+from services.gesture.space import FrameRays, torso_point
+from services.gesture.temporal import Observation
+
+
+@dataclass
+class PeopleOfFrame:
+    """What the stage says about one frame."""
+
+    ran: bool  # the stage ran on this frame (publish Persons); else the last run's persons are reused
+    persons: list[PersonTrack]
+    hand_owners: list[str | None]  # per hand observation
+    hand_sides: list[str]  # per hand observation: "left" / "right"
+    main_person: str | None  # the person of the full-frame skeleton (the gesture tracker's arms)
+    positions: dict[str, list[float]] = field(default_factory=dict)  # id -> torso centre, metres (with depth)
+    frame_id: str | None = None
+
+
+class PeopleStage:
+    def __init__(self, every: int = 2, keep_s: float = 1.0):
+        self.every = every
+        self.faces = FaceDetector()
+        self.regions = RegionPose()
+        self.tracker = PersonTracker(keep_s=keep_s)
+        self.frames = 0
+        self.last: list[PersonTrack] = []
+        self.main: str | None = None
+
+    def update(
+        self,
+        stamp: float,
+        img: np.ndarray,
+        skeleton: np.ndarray | None,
+        hands: list[Observation],
+        rays3d: FrameRays | None = None,
+    ) -> PeopleOfFrame:
+        ran = self.frames % self.every == 0
+        self.frames += 1
+        if ran:
+            h, w = img.shape[:2]
+            previous = [b for _, b in self.tracker.bodies()]
+            seen = Seen(w, h, [(box, None) for box, _ in self.faces.detect(img)], skeleton, previous)
+            found = observe_people(seen, lambda r: self.regions.detect(img, crop_int(r)))
+            self.last = self.tracker.update(stamp, found)
+            # the full-frame skeleton's person: the tracker's arms (pointing, raised palms) are theirs
+            self.main = next((p.id for p in self.last if skeleton is not None and p.body is skeleton), None)
+        owners = assign_hands([(o.hand, o.landmarks) for o in hands], self.last)
+        out = PeopleOfFrame(ran, self.last, owners, [o.hand for o in hands], self.main)
+        view = rays3d.view if rays3d is not None and ran else None
+        if view is not None:
+            out.frame_id = view.frame_id
+            for p in self.last:
+                point = torso_point(view, p.body) if p.body is not None else None
+                if point is not None:
+                    out.positions[p.id] = [round(float(v), 3) for v in point]
+        return out
+
+    def wire(self, people: PeopleOfFrame) -> list[Person]:
+        """The persons of a frame as the wire's `Person`s (`face` stays nil until a face tracker names faces)."""
+        hands: dict[str, list[Handedness]] = {}
+        for side, owner in zip(people.hand_sides, people.hand_owners):
+            if owner is not None:
+                hands.setdefault(owner, []).append(cast(Handedness, side))
+        return [
+            Person(
+                id=p.id,
+                bbox=[round(v, 1) for v in p.box],
+                score=round(p.score, 3),
+                face=p.face_id,
+                has_body=p.body is not None,
+                hands=sorted(hands.get(p.id, [])),
+                position=people.positions.get(p.id),
+                frame_id=people.frame_id if p.id in people.positions else None,
+            )
+            for p in people.persons
+        ]
+
+    def close(self) -> None:
+        self.faces.close()
+        self.regions.close()
+
+
+def other_body(landmarks: np.ndarray, person: str, width: int, height: int) -> Body:
+    """The wire `Body` of a person other than the gesture tracker's (no hysteresis: this frame's arms alone)."""
+    rays = {}
+    for side in ("left", "right"):
+        a = arm(landmarks, side, width, height)
+        if a.pointing and a.ray is not None:
+            (ox, oy), direction = a.ray
+            rays[side] = Ray(
+                origin=[round(ox, 2), round(oy, 2)], direction=list(direction), confidence=a.confidence, source="body"
+            )
+    return Body(
+        landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
+        visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
+        left_ray=rays.get("left"),
+        right_ray=rays.get("right"),
+        person=person,
+    )
