@@ -15,10 +15,12 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+import msgspec
+
+from common.schema import Bodies, Detections, FusedCommand, GestureEvent, Hands, Location, Persons, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
-from services.fusion import describe, space
+from services.fusion import describe, people, space
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
@@ -131,6 +133,10 @@ class FusionCore:
         )
         self.seen_transcripts = SeenOnce(config.horizon)
         self.facing = space.Facing()  # which way the speaker faces: "on my left"
+        # people (issue #33): who said an utterance (the speaker attribution plugs in here; None = unknown) and the
+        # persons in view, for "bring it to me"
+        self.speaker_of: Callable[[PendingTranscript], str | None] = lambda p: None
+        self.persons: list[Persons] = []
 
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
@@ -159,6 +165,10 @@ class FusionCore:
 
     def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
         self.facing.add(bodies)
+        return []
+
+    def on_persons(self, key: str, persons: Persons, wall: float) -> list[Output]:
+        self.persons = [s for s in self.persons if s.stamp >= persons.stamp - self.cfg.horizon][-299:] + [persons]
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
@@ -218,6 +228,7 @@ class FusionCore:
             vision_lookback=self.cfg.vision_lookback,
             margin=self.cfg.margin,
             log=self.log,
+            speaker_person=self.speaker_of(p),
         )
 
     # -- decisions ------------------------------------------------------------
@@ -229,6 +240,7 @@ class FusionCore:
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
             return []
         ctx = self.context(p, how)
+        recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
         if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
@@ -248,7 +260,24 @@ class FusionCore:
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
             self.count("duplicate_of_gesture")
             return []
-        return self.command_for(t, u, ctx)
+        out = self.command_for(t, u, ctx)
+        return [self._to_recipient(o, recipient, p, ctx) for o in out] if recipient is not None else out
+
+    def _to_recipient(self, out: Output, ref: people.PersonRef, p: PendingTranscript, ctx: Context) -> Output:
+        """A bring/give command goes to the person named ("to me": the speaker): their place is its `location`."""
+        sample = out.sample
+        if not isinstance(sample, FusedCommand) or sample.intent != "bring" or sample.location is not None:
+            return out
+        seen = people.latest_persons(self.persons, ctx.ref)
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if seen else None
+        if person is None or seen is None:
+            self.count("recipient_unknown")
+            return out
+        why = f"; to {person.id} ('{ref.said}')" + (" at their torso in metres" if person.position else "")
+        located = msgspec.structs.replace(
+            sample, location=people.location_of(person, seen.cam), explanation=sample.explanation + why
+        )
+        return replace(out, sample=located)
 
     def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         intent = u.intent
@@ -282,7 +311,7 @@ class FusionCore:
                 ]
             target, runner_up = choice.winner, choice.runner_up
         elif wants_object:
-            choice = self._choose(u.obj, ctx)
+            choice = self._competing(u.obj, ctx) or self._choose(u.obj, ctx)
             if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
                 best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
                 scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
@@ -356,6 +385,20 @@ class FusionCore:
 
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
         return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)
+
+    def _competing(self, phrase: ObjectPhrase, ctx: Context) -> Choice | None:
+        """Speaker unknown and two people point at different things: which one (an ambiguous choice), else None."""
+        if not ctx.competing:
+            return None
+        winners: dict[tuple[str, str], Scored] = {}
+        for pointing in ctx.competing:
+            choice = ctx.choose(phrase, ctx.objects, pointing, ctx.ref)
+            if choice.kind == "target" and choice.winner is not None:
+                winners.setdefault(choice.winner.obj.key, choice.winner)
+        if len(winners) < 2:
+            return None
+        self.count("competing_pointing")
+        return Choice("ambiguous", None, tuple(winners.values()))
 
     def _location(self, u: Utterance, ctx: Context) -> Location | None:
         """Where the command goes: the object named as the destination ("put it on the red box"), else where the

@@ -20,6 +20,7 @@ from services.fusion.evidence import (
 from services.fusion.ground import Choice, SceneObject, choose, scene_objects, score
 from services.fusion.join import WAITED_MODALITIES, Ready, Streams
 from services.fusion.parse import ObjectPhrase, Utterance, word_key
+from services.fusion.people import competing, speakers_items
 
 
 @dataclass
@@ -52,6 +53,7 @@ class Context:
     how: Ready  # why the window was closed
     adaptive: bool  # --weights adaptive
     margin: float  # the lead a winner needs
+    competing: tuple[Pointing, ...] = ()  # speaker unknown, several people point: each one's (fusion/people.py)
 
     def choose(
         self,
@@ -86,9 +88,11 @@ def gather(
     vision_lookback: float,
     margin: float,
     log: logging.Logger,
+    speaker_person: str | None = None,
 ) -> Context:
     """The window's evidence: per camera the detections nearest the reference time (looking back
-    `vision_lookback` before the window), the pointing nearest it, each modality's reliability and weight."""
+    `vision_lookback` before the window), the pointing nearest it, each modality's reliability and weight.
+    `speaker_person`: who said it (None = unknown): another person's hands are no evidence for it."""
     t, u = p.transcript, p.utterance
     ref = ref_time(t, u)
     detections = []
@@ -98,7 +102,7 @@ def gather(
     for key in sorted(by_key):
         detections.append(min(by_key[key], key=lambda d: (abs(d.stamp - ref), d.stamp)))
     obs = []
-    for _, item in streams.between("gesture", p.lo, p.hi):
+    for _, item in speakers_items(streams.between("gesture", p.lo, p.hi), speaker_person):
         obs.extend(pointing_from_hands(item) if isinstance(item, Hands) else pointing_from_event(item))
     pointing = select_pointing(obs, ref)
     rel = {
@@ -136,4 +140,5 @@ def gather(
         how,
         adaptive=weights_mode == "adaptive",
         margin=margin,
+        competing=competing(obs, ref) if speaker_person is None else (),
     )
