@@ -35,7 +35,7 @@ SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
 
 def frames_of(clip: Path, limit: int) -> list[np.ndarray]:
     cap = cv2.VideoCapture(str(clip))
-    out = []
+    out: list[np.ndarray] = []
     while len(out) < limit:
         ok, img = cap.read()
         if not ok:
@@ -92,7 +92,8 @@ def main() -> None:
         bare(img)
     stamp = {id(img): i / 25.0 for i, img in enumerate(frames)}
     # interleaved frame by frame: a load from elsewhere on the machine falls on both alike
-    bare_times, stage_times = [], []
+    bare_times: list[float] = []
+    stage_times: list[float] = []
     for img in frames:
         bare_times.extend(timed([img], bare))
         stage_times.extend(timed([img], lambda im: stage.update(stamp[id(im)], im, by_frame[id(im)], [])))
