@@ -177,3 +177,29 @@ def test_two_people_side_by_side_keep_their_ids_and_bodies_over_a_clip(stages: S
     cap.release()
     assert frames >= 70
     assert len(ids["left"]) == 1 and len(ids["right"]) == 1 and ids["left"] != ids["right"], ids
+
+
+def test_faces_from_a_face_tracker_name_the_persons_face(stages: Stages) -> None:
+    """The face stage's faces (box + id) plug into the person stage: each person carries its face id and each face
+    id maps to its person (`Face.person`), on a real two-person clip."""
+    from services.gesture.people_stage import PeopleStage
+
+    cap = cv2.VideoCapture(str(shared_path("data/talking/comp_turns_bbaf2n_lbbc2a.mp4")))
+    stage = PeopleStage(every=1)
+    try:
+        for i in range(10):
+            ok, img = cap.read()
+            assert ok
+            boxes = [b for b, _ in stages[0].detect(img)]
+            named: list[tuple[Box, str | None]] = [
+                (b, "face-left" if b[0] < img.shape[1] / 2 else "face-right") for b in boxes
+            ]
+            seen = stage.update(i / 25.0, img, None, [], faces=named)
+            wire = stage.wire(seen)
+            assert sorted(p.face for p in wire if p.face) == ["face-left", "face-right"]
+            owners = stage.face_owners()
+            assert {owners[p.face]: p.id for p in wire if p.face} == {p.id: p.id for p in wire}
+            assert all(p.has_body for p in wire)
+    finally:
+        cap.release()
+        stage.close()

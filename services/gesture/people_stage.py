@@ -17,7 +17,7 @@ import numpy as np
 from common.schema import Body, Handedness, Person, Ray
 from services.gesture.body import arm
 from services.gesture.landmarks import FaceDetector, RegionPose
-from services.gesture.persons import PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
+from services.gesture.persons import Box, PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
 from services.gesture.space import FrameRays, torso_point
 from services.gesture.temporal import Observation
 
@@ -52,13 +52,18 @@ class PeopleStage:
         skeleton: np.ndarray | None,
         hands: list[Observation],
         rays3d: FrameRays | None = None,
+        faces: list[tuple[Box, str | None]] | None = None,
     ) -> PeopleOfFrame:
+        """`faces`: the face stage's faces of this frame (box, `Face.id`) when it runs; else the stage finds the
+        faces itself (MediaPipe face detection, boxes without ids)."""
         ran = self.frames % self.every == 0
         self.frames += 1
         if ran:
             h, w = img.shape[:2]
             previous = [b for _, b in self.tracker.bodies()]
-            seen = Seen(w, h, [(box, None) for box, _ in self.faces.detect(img)], skeleton, previous)
+            if faces is None:
+                faces = [(box, None) for box, _ in self.faces.detect(img)]
+            seen = Seen(w, h, faces, skeleton, previous)
             found = observe_people(seen, lambda r: self.regions.detect(img, crop_int(r)))
             self.last = self.tracker.update(stamp, found)
             # the full-frame skeleton's person: the tracker's arms (pointing, raised palms) are theirs
@@ -93,6 +98,10 @@ class PeopleStage:
             )
             for p in people.persons
         ]
+
+    def face_owners(self) -> dict[str, str]:
+        """Face id -> person id of the persons seen last (`Face.person` for the face stage's samples)."""
+        return {p.face_id: p.id for p in self.last if p.face_id is not None and p.seen_now}
 
     def close(self) -> None:
         self.faces.close()
