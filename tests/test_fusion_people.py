@@ -147,3 +147,13 @@ def test_people_named_in_words_resolve_to_person_ids() -> None:
     assert resolve(PersonRef("other"), PEOPLE, None) is None  # two people, nobody known to speak: cannot tell
     assert resolve(PersonRef("side", "right"), PEOPLE, None) == PEOPLE[1]
     assert split_recipient("pick up the red cup") == ("pick up the red cup", None)
+
+
+def test_follow_me_and_look_at_him_target_persons_by_their_part_in_the_talk() -> None:
+    (out,) = run("Follow me.", [], "person-2")
+    assert isinstance(out, FusedCommand) and out.intent == "follow" and out.target is not None
+    assert out.target.id == "person-2" and out.target.position == PEOPLE[1].position
+    (other,) = run("Look at him.", [], "person-2")
+    assert isinstance(other, FusedCommand) and other.target is not None and other.target.id == "person-1"
+    for said in run("Follow me.", [], None):  # nobody known to be "me": never a person picked at random
+        assert not (isinstance(said, FusedCommand) and said.target is not None and said.target.id.startswith("person-"))

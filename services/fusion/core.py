@@ -260,8 +260,30 @@ class FusionCore:
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
             self.count("duplicate_of_gesture")
             return []
-        out = self.command_for(t, u, ctx)
+        out = self._person_action(t, u, ctx, p) or self.command_for(t, u, ctx)
         return [self._to_recipient(o, recipient, p, ctx) for o in out] if recipient is not None else out
+
+    def _person_action(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> list[Output]:
+        """ "Follow me", "look at him", "watch the person who is talking": the person in `Persons` (by their part in
+        the talk: the speaker, the one other person) is the target; [] when none is named or none resolves."""
+        ref = people.person_referent(t.text) if u.intent in ("follow", "look_at") else None
+        seen = people.latest_persons(self.persons, ctx.ref) if ref is not None else None
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if ref is not None and seen else None
+        if person is None or seen is None or ref is None:
+            return []
+        self.count("person_target")
+        target = people.as_scene_object(person, seen)
+        why = f"'{ref.said}' is {person.id}" + (" (the speaker)" if ref.who == "speaker" else " (the other person)")
+        return [
+            self.outputs.command(
+                t,
+                u.intent or "follow",
+                ctx,
+                confidence=ctx.reliabilities["speech"] or 0.0,
+                explanation=why,
+                target=target,
+            )
+        ]
 
     def _to_recipient(self, out: Output, ref: people.PersonRef, p: PendingTranscript, ctx: Context) -> Output:
         """A bring/give command goes to the person named ("to me": the speaker): their place is its `location`."""

@@ -22,6 +22,7 @@ import msgspec
 
 from common.schema import GestureEvent, Hands, Location, Person, Persons
 from services.fusion.evidence import Pointing, PointingObs, select_pointing
+from services.fusion.ground import SceneObject
 
 SPEAKER_WORDS = ("me", "myself", "us")
 OTHER_WORDS = ("her", "him", "them")
@@ -70,6 +71,41 @@ def split_recipient(text: str) -> tuple[str, PersonRef | None]:
 
 def _join(before: str, after: str) -> str:
     return " ".join((before + " " + after).split())
+
+
+# "follow me", "look at him", "watch the person who is talking": a person as the object of a person action
+PERSON_ACTION = re.compile(
+    rf"\b(?:follow|look\s+at|watch|face|turn\s+to)\s+(?P<who>me|us|her|him|them|the\s+{PERSON_NOUNS}\s+{TALKING})\b",
+    re.IGNORECASE,
+)
+
+
+def person_referent(text: str) -> PersonRef | None:
+    """The person a person action names, when it names one by their part in the talk ("me", "him", "the person who
+    is talking"); a description by looks or place ("the man on the left") is grounded like any object."""
+    m = PERSON_ACTION.search(text)
+    return _ref(m.group("who")) if m else None
+
+
+def as_scene_object(person: Person, seen: Persons) -> SceneObject:
+    """A person of `Persons` as a candidate a command can target (label `person`, the person's id)."""
+    x, y, w, h = person.bbox
+    return SceneObject(
+        id=person.id,
+        label="person",
+        raw_label="person",
+        color=None,
+        bbox=(x, y, w, h),
+        center=(x + w / 2, y + h / 2),
+        score=person.score,
+        cam=seen.cam,
+        width=seen.width,
+        height=seen.height,
+        stamp=seen.stamp,
+        quality=1.0,
+        position=(person.position[0], person.position[1], person.position[2]) if person.position else None,
+        frame_id=person.frame_id,
+    )
 
 
 def resolve(ref: PersonRef, persons: list[Person], speaker: str | None) -> Person | None:
