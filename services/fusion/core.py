@@ -333,7 +333,7 @@ class FusionCore:
                 ]
             target, runner_up = choice.winner, choice.runner_up
         elif wants_object:
-            choice = self._competing(u.obj, ctx) or self._choose(u.obj, ctx)
+            choice = self._choose(u.obj, ctx)
             if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
                 best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
                 scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
@@ -407,20 +407,6 @@ class FusionCore:
 
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
         return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)
-
-    def _competing(self, phrase: ObjectPhrase, ctx: Context) -> Choice | None:
-        """Speaker unknown and two people point at different things: which one (an ambiguous choice), else None."""
-        if not ctx.competing:
-            return None
-        winners: dict[tuple[str, str], Scored] = {}
-        for pointing in ctx.competing:
-            choice = ctx.choose(phrase, ctx.objects, pointing, ctx.ref)
-            if choice.kind == "target" and choice.winner is not None:
-                winners.setdefault(choice.winner.obj.key, choice.winner)
-        if len(winners) < 2:
-            return None
-        self.count("competing_pointing")
-        return Choice("ambiguous", None, tuple(winners.values()))
 
     def _location(self, u: Utterance, ctx: Context) -> Location | None:
         """Where the command goes: the object named as the destination ("put it on the red box"), else where the

@@ -17,7 +17,7 @@ from services.fusion.evidence import (
     speech_reliability,
     vision_reliability,
 )
-from services.fusion.ground import Choice, SceneObject, choose, scene_objects, score
+from services.fusion.ground import Choice, SceneObject, Scored, choose, scene_objects, score
 from services.fusion.join import WAITED_MODALITIES, Ready, Streams
 from services.fusion.parse import ObjectPhrase, Utterance, word_key
 from services.fusion.people import competing, speakers_items
@@ -63,7 +63,17 @@ class Context:
         ref: float | None,
         check_evidence: bool = True,
     ) -> Choice:
-        """Score `objects` against the words (and `pointing`) with this window's weights, and decide."""
+        """Score `objects` against the words (and `pointing`) with this window's weights, and decide. With the
+        window's pointing and several people pointing (speaker unknown), each one's is grounded: when they pick
+        different objects, which one is a question (`ambiguous` between them)."""
+        if pointing is not None and pointing is self.pointing and self.competing:
+            picks: dict[tuple[str, str], Scored] = {}
+            for theirs in self.competing:
+                choice = self.choose(phrase, objects, theirs, ref, check_evidence)
+                if choice.kind == "target" and choice.winner is not None:
+                    picks.setdefault(choice.winner.obj.key, choice.winner)
+            if len(picks) > 1:
+                return Choice("ambiguous", None, tuple(picks.values()))
         scored = score(phrase, objects, pointing, self.weights, adaptive=self.adaptive, ref=ref, scene=self.objects)
         return choose(phrase, scored, margin=self.margin, check_evidence=check_evidence)
 
