@@ -203,3 +203,14 @@ def test_faces_from_a_face_tracker_name_the_persons_face(stages: Stages) -> None
     finally:
         cap.release()
         stage.close()
+
+
+def test_a_slow_machine_keeps_the_ids_of_people_seen_in_every_frame_it_processes() -> None:
+    """Frames processed 2.5 s apart (a loaded machine): a person seen in each keeps the id; one missed at a frame is
+    gone after `keep_s`."""
+    tracker = PersonTracker(keep_s=1.0)
+    a, b = (10.0, 10.0, 50.0, 120.0), (200.0, 10.0, 50.0, 120.0)
+    assert [t.id for t in tracker.update(0.0, [_obs(a), _obs(b)])] == ["person-1", "person-2"]
+    assert [t.id for t in tracker.update(2.5, [_obs(a), _obs(b)])] == ["person-1", "person-2"]
+    assert [t.id for t in tracker.update(5.0, [_obs(a)])] == ["person-1"]
+    assert [t.id for t in tracker.update(7.5, [_obs(a), _obs(b)])] == ["person-1", "person-3"]

@@ -21,8 +21,8 @@ def test_two_people_get_stable_ids_and_a_body_each(group: ProcessGroup) -> None:
         client.wait_alive("gesture", timeout=60)
         persons = client.collect("hri/gesture/*/persons")
         bodies = client.collect("hri/gesture/*/bodies")
-        group.service("camera", "--source", str(clip), "--fps", "10")
-        got = persons.wait(12, timeout=90)
+        group.service("camera", "--source", str(clip), "--fps", "10", "--loop")
+        got = persons.wait(8, timeout=120)
         samples = [p for _, p in got if isinstance(p, Persons)]
         assert all(len(s.persons) == 2 for s in samples)
         left = {min(s.persons, key=lambda p: p.bbox[0]).id for s in samples}

@@ -16,8 +16,9 @@ crop may find the neighbour's arm rather than the person meant.
 **Tracks.** A person observed in a frame (a face, a body, or both) is matched to the tracks of the earlier frames
 by overlap of their boxes — the face box where both have a face (a face stays put while an arm moves), else the
 person box — best overlap first, at least `MIN_IOU`, and a face id from a face tracker always wins. A track not
-seen is kept `keep_s` seconds of source time (a short occlusion, a turn of the head); an observation that matches
-no track starts a new person with a new id (`person-<n>`, never reused).
+seen is kept `keep_s` seconds of source time (a short occlusion, a turn of the head) — and always until the next
+update after it was last seen, so that a slow machine processing a frame a second keeps everyone's id; an
+observation that matches no track starts a new person with a new id (`person-<n>`, never reused).
 
 **Hands.** A hand (the hand stage's 21 landmarks, its handedness the person's own side) belongs to the person whose
 pose wrist of the same side is nearest its wrist, within `WRIST_MATCH` body scales; else to the one person whose
@@ -180,7 +181,11 @@ class PersonTracker:
 
     def update(self, stamp: float, observations: list[PersonObs]) -> list[PersonTrack]:
         """The tracks seen in this frame, in the order of `observations` (one per observation)."""
-        self.tracks = [t for t in self.tracks if stamp - t.last_seen <= self.keep_s and t.last_seen <= stamp]
+        # a track seen in the last update is always matched again, however long ago that was in source time (a
+        # slow machine processes few frames); one missed since is kept `keep_s`; a stream gone back: all new
+        self.tracks = [
+            t for t in self.tracks if t.last_seen <= stamp and (t.seen_now or stamp - t.last_seen <= self.keep_s)
+        ]
         pairs = sorted(
             ((_affinity(t, o), ti, oi) for ti, t in enumerate(self.tracks) for oi, o in enumerate(observations)),
             key=lambda p: (-p[0], p[1], p[2]),
