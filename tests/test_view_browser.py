@@ -11,6 +11,7 @@ import re
 import socket
 import time
 from pathlib import Path
+from typing import Any
 
 import cv2
 import msgpack
@@ -158,7 +159,7 @@ def test_bad_input_on_any_key_is_ignored_counted_and_the_page_goes_on(live):
     live["browser"].tabs.remove(tab)
 
 
-def test_persons_are_drawn_and_the_speaker_is_marked_on_the_page(live):
+def test_persons_are_drawn_and_the_speaker_is_marked_on_the_page(live: dict[str, Any]) -> None:
     """Persons (issue #33) published for the camera: the page draws each person's box with their id, the one whose
     mouth moves (`speaking`) in the speaker's red, the other in the person blue."""
     tab = live["browser"].tab(live["url"])
@@ -189,7 +190,9 @@ def test_persons_are_drawn_and_the_speaker_is_marked_on_the_page(live):
     tab.wait_for(f"hriView.framesDrawn > {drawn + 2}", 20, "frames drawn with the persons")
     rect = tab.js("JSON.parse(JSON.stringify(document.querySelector('#cam-table canvas').getBoundingClientRect()))")
     png = tab.screenshot({"x": rect["x"], "y": rect["y"], "width": rect["width"], "height": rect["height"]})
-    shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR).astype(int)
+    picture = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert picture is not None
+    shot = picture.astype(int)
     scale = shot.shape[1] / frame_w
 
     def edge(person: Person, rgb: tuple[int, int, int]) -> int:
