@@ -3,11 +3,16 @@ photo of a person pointing."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+
+import cv2
 import pytest
 
 from common.schema import Hands, Persons
 from testkit.harness import DATA, Client, ProcessGroup
 from testkit.shared import shared_path
+from tests.test_gesture_3d_integration import FRAME, F, synthetic_depth
 
 pytestmark = pytest.mark.integration
 
@@ -58,3 +63,36 @@ def test_a_hand_carries_its_persons_id_and_a_close_up_hand_is_nobodys(group: Pro
         assert isinstance(close_up, Hands) and close_up.hands[0].person is None
     finally:
         client.close()
+
+
+def test_with_depth_a_person_has_a_position_in_metres_at_their_torso(group: ProcessGroup, tmp_path: Path) -> None:
+    """A real photo of a person 4-5 m away (shared/data/pointing) with the documented synthetic depth of
+    tests/test_gesture_3d_integration.py (a floor, the person standing on it): the person's `position` is a point
+    of the depth image inside their box, in the intrinsics' frame."""
+    photo = shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")
+    bgr = cv2.imread(str(photo))
+    assert bgr is not None
+    h, w = bgr.shape[:2]
+    depth = synthetic_depth(bgr)
+    folder = tmp_path / "rgbd"
+    folder.mkdir()
+    cv2.imwrite(str(folder / "room-color.png"), bgr)
+    cv2.imwrite(str(folder / "room-depth.png"), depth)
+    intrinsics = {"width": w, "height": h, "fx": F, "fy": F, "cx": w / 2, "cy": h / 2}
+    (folder / "intrinsics.json").write_text(json.dumps({**intrinsics, "depth_scale": 0.001, "frame_id": FRAME}))
+    group.router()
+    group.service("gesture", "--persons-every", "1")
+    client = Client(group.endpoint)
+    try:
+        client.wait_alive("gesture", timeout=90)
+        persons = client.collect("hri/gesture/*/persons")
+        group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
+        ((_, seen),) = persons.wait(1, timeout=90, where=lambda k, p: any(q.position for q in p.persons))
+    finally:
+        client.close()
+    (person,) = [p for p in seen.persons if p.position]
+    x, y, z = person.position or [0.0, 0.0, 0.0]
+    u, v = F * x / z + w / 2, F * y / z + h / 2
+    bx, by, bw, bh = person.bbox
+    assert person.frame_id == FRAME and bx <= u <= bx + bw and by <= v <= by + bh, (u, v, person.bbox)
+    assert abs(depth[int(v), int(u)] / 1000.0 - z) < 0.05, (depth[int(v), int(u)], z)
