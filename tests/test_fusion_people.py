@@ -157,3 +157,12 @@ def test_follow_me_and_look_at_him_target_persons_by_their_part_in_the_talk() ->
     assert isinstance(other, FusedCommand) and other.target is not None and other.target.id == "person-1"
     for said in run("Follow me.", [], None):  # nobody known to be "me": never a person picked at random
         assert not (isinstance(said, FusedCommand) and said.target is not None and said.target.id.startswith("person-"))
+
+
+def test_the_man_on_the_left_is_a_person_in_view_when_vision_finds_no_people() -> None:
+    """The colour backend detects no people: "look at the man on the left" picks among the persons of `Persons`."""
+    (out,) = run("Look at the man on the left.", [], None)
+    assert isinstance(out, FusedCommand) and out.target is not None and out.target.id == "person-1"
+    (right,) = run("Look at the man on the right.", [], None)
+    assert isinstance(right, FusedCommand) and right.target is not None and right.target.id == "person-2"
+    assert right.target.position == PEOPLE[1].position

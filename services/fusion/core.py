@@ -239,7 +239,7 @@ class FusionCore:
             self.count("cancelled_by_stop_gesture")
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
             return []
-        ctx = self.context(p, how)
+        ctx = self._with_persons(u, self.context(p, how))
         recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
         if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
@@ -263,11 +263,22 @@ class FusionCore:
         out = self._person_action(t, u, ctx, p) or self.command_for(t, u, ctx)
         return [self._to_recipient(o, recipient, p, ctx) for o in out] if recipient is not None else out
 
+    def _with_persons(self, u: Utterance, ctx: Context) -> Context:
+        """ "The man on the left" with no person among the detections (the colour backend finds none): the persons
+        in view (`Persons`, within the vision lookback of the utterance) are the candidates, by their ids."""
+        if u.obj.label != "person":
+            return ctx
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        if seen is None or any(o.label == "person" and o.cam == seen.cam for o in ctx.objects):
+            return ctx
+        self.count("persons_as_candidates")
+        return replace(ctx, objects=ctx.objects + [people.as_scene_object(q, seen) for q in seen.persons])
+
     def _person_action(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> list[Output]:
         """ "Follow me", "look at him", "watch the person who is talking": the person in `Persons` (by their part in
         the talk: the speaker, the one other person) is the target; [] when none is named or none resolves."""
         ref = people.person_referent(t.text) if u.intent in ("follow", "look_at") else None
-        seen = people.latest_persons(self.persons, ctx.ref) if ref is not None else None
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback) if ref is not None else None
         person = people.resolve(ref, seen.persons, self.speaker_of(p)) if ref is not None and seen else None
         if person is None or seen is None or ref is None:
             return []
@@ -290,7 +301,7 @@ class FusionCore:
         sample = out.sample
         if not isinstance(sample, FusedCommand) or sample.intent != "bring" or sample.location is not None:
             return out
-        seen = people.latest_persons(self.persons, ctx.ref)
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
         person = people.resolve(ref, seen.persons, self.speaker_of(p)) if seen else None
         if person is None or seen is None:
             self.count("recipient_unknown")

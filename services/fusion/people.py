@@ -125,9 +125,10 @@ def location_of(person: Person, cam: str) -> Location:
     return Location(x=x + w / 2, y=y + h / 2, cam=cam, position=person.position, frame_id=person.frame_id)
 
 
-def latest_persons(samples: Iterable[Persons], ref: float) -> Persons | None:
-    """The Persons sample nearest `ref` (ties: the earlier)."""
-    return min(samples, key=lambda s: (abs(s.stamp - ref), s.stamp), default=None)
+def latest_persons(samples: Iterable[Persons], ref: float, within: float = 2.0) -> Persons | None:
+    """The Persons sample nearest `ref` (ties: the earlier), if one is within `within` seconds of it."""
+    near = min(samples, key=lambda s: (abs(s.stamp - ref), s.stamp), default=None)
+    return near if near is not None and abs(near.stamp - ref) <= within else None
 
 
 # -- whose gesture counts ------------------------------------------------------------------------------------
