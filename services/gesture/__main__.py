@@ -5,14 +5,17 @@ from __future__ import annotations
 import argparse
 import collections
 import time
+from typing import cast
+
+import numpy as np
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Persons, Ray
+from common.schema import Bodies, Body, Frame, GestureEvent, GestureName, Hand, Handedness, Hands, Ray
 from common.settings import add_option
 from common.stack import node
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
-from services.gesture.people_stage import PeopleOfFrame, PeopleStage, other_body
+from services.gesture.people_stage import CameraPeople, PeopleOfFrame, event_person, hand_person, other_body
 from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
 
@@ -52,7 +55,9 @@ def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
     )
 
 
-def people_bodies(frame: Frame, skeleton, arms, rays3d: FrameRays | None, seen: PeopleOfFrame | None) -> list[Body]:
+def people_bodies(
+    frame: Frame, skeleton: np.ndarray | None, arms: list, rays3d: FrameRays | None, seen: PeopleOfFrame | None
+) -> list[Body]:
     """The full-frame skeleton with the tracker's arms, plus (on the person stage's frames) every other person's."""
     main = [] if skeleton is None else [to_body(skeleton, arms, rays3d)]
     if seen is None:
@@ -61,6 +66,12 @@ def people_bodies(frame: Frame, skeleton, arms, rays3d: FrameRays | None, seen: 
         body.person = seen.main_person
     others = [(p.id, p.body) for p in seen.persons if p.id != seen.main_person] if seen.ran else []
     return main + [other_body(b, pid, frame.width, frame.height) for pid, b in others if b is not None]
+
+
+def close_all(graphs: list[HandLandmarker | PoseLandmarker], people: CameraPeople) -> None:
+    for graph in graphs:
+        graph.close()
+    people.close()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -137,8 +148,8 @@ def main(argv: list[str] | None = None) -> None:
     trackers: dict[str, GestureTracker] = {}
     last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
     depths: dict[str, collections.deque] = {}  # cam -> the last DEPTH_KEPT DepthFrames
-    people: dict[str, PeopleStage] = {}  # cam -> its person stage (issue #33)
-    service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values(), *people.values()]])
+    people = CameraPeople(args.persons_every)  # issue #33: Persons, a body per person, whose hand is whose
+    service.on_close(lambda: close_all([*landmarkers.values(), *posers.values()], people))
     if not service.connect():
         main_exit(0)
 
@@ -167,15 +178,17 @@ def main(argv: list[str] | None = None) -> None:
             for o, t in zip(observations, tracked)
             if rays3d is not None and t.ray is not None
         }
-        seen = see_people(frame, img, skeleton, observations, rays3d)
+        seen = people.update(frame, img, skeleton, observations, rays3d, fresh=frame.cam not in last_frame)
+        if seen is not None and seen.ran:  # the stage ran on this frame: its Persons
+            service.publish_output("persons", people.sample(frame, seen, service.source), cam=frame.cam)
         hands = [
             Hand(
-                hand=o.hand,
+                hand=cast(Handedness, o.hand),
                 score=round(o.score, 4),
                 landmarks=[[round(x, 2), round(y, 2)] for x, y in o.landmarks.tolist()],
-                gesture=t.gesture,
+                gesture=cast(GestureName | None, t.gesture),
                 ray=to_ray(t.ray, hand_rays3d.get(o.hand)),
-                person=seen.hand_owners[k] if seen else None,
+                person=hand_person(seen, k),
             )
             for k, (o, t) in enumerate(zip(observations, tracked))
         ]
@@ -212,30 +225,6 @@ def main(argv: list[str] | None = None) -> None:
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
         last_frame[frame.cam] = (time.monotonic(), frame)
 
-    # -- people (issue #33): Persons with stable ids, a body per person, each hand's and gesture's person ------
-    def see_people(frame: Frame, img, skeleton, observations: list, rays3d: FrameRays | None) -> PeopleOfFrame | None:
-        if not args.persons_every:
-            return None
-        if frame.cam not in people or frame.cam not in last_frame:  # new stream (or restarted): new ids
-            people[frame.cam] = PeopleStage(every=args.persons_every)
-        seen = people[frame.cam].update(frame.stamp, img, skeleton, observations, rays3d)
-        if seen.ran:
-            persons = people[frame.cam].wire(seen)
-            service.publish_output(
-                "persons",
-                Persons(
-                    stamp=frame.stamp,
-                    source=service.source,
-                    seq=frame.seq,
-                    cam=frame.cam,
-                    width=frame.width,
-                    height=frame.height,
-                    persons=persons,
-                ),
-                cam=frame.cam,
-            )
-        return seen
-
     def frame_rays(frame: Frame, skeleton, world) -> FrameRays | None:
         """The 3-D rays of this frame, when the depth of the same capture (same seq and stamp) has come."""
         depth = next(
@@ -257,7 +246,6 @@ def main(argv: list[str] | None = None) -> None:
         hand_rays3d: dict | None = None,
         seen: PeopleOfFrame | None = None,
     ) -> None:
-        owner_of = dict(zip(seen.hand_sides, seen.hand_owners)) if seen else {}
         for ev in events:
             ray3d = None
             if ev.ray is not None and rays3d is not None:
@@ -277,11 +265,7 @@ def main(argv: list[str] | None = None) -> None:
                     score=ev.score,
                     hand=ev.hand,
                     ray=to_ray(ev.ray, ray3d),
-                    person=(
-                        seen.main_person if ev.ray is not None and ev.ray.source == "body" else owner_of.get(ev.hand)
-                    )
-                    if seen
-                    else None,
+                    person=event_person(seen, ev.hand, ev.ray),
                 ),
                 lossless=True,
                 realtime=ev.gesture == "open_palm",

@@ -14,12 +14,12 @@ from typing import cast
 
 import numpy as np
 
-from common.schema import Body, Handedness, Person, Ray
+from common.schema import Body, Frame, Handedness, Person, Persons, Ray
 from services.gesture.body import arm
 from services.gesture.landmarks import FaceDetector, RegionPose
 from services.gesture.persons import Box, PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
 from services.gesture.space import FrameRays, torso_point
-from services.gesture.temporal import Observation
+from services.gesture.temporal import Observation, Ray as TrackedRay
 
 
 @dataclass
@@ -33,6 +33,21 @@ class PeopleOfFrame:
     main_person: str | None  # the person of the full-frame skeleton (the gesture tracker's arms)
     positions: dict[str, list[float]] = field(default_factory=dict)  # id -> torso centre, metres (with depth)
     frame_id: str | None = None
+
+
+def hand_person(seen: PeopleOfFrame | None, k: int) -> str | None:
+    """The person of the frame's k-th hand observation (None: no stage, or nobody's)."""
+    return seen.hand_owners[k] if seen is not None else None
+
+
+def event_person(seen: PeopleOfFrame | None, hand: str, ray: TrackedRay | None) -> str | None:
+    """The person of a gesture event: for an arm seen by pose alone (a `body` ray), the full-frame skeleton's
+    person; else the person of this frame's hand of that side."""
+    if seen is None:
+        return None
+    if ray is not None and ray.source == "body":
+        return seen.main_person
+    return next((owner for side, owner in zip(seen.hand_sides, seen.hand_owners) if side == hand), None)
 
 
 class PeopleStage:
@@ -125,3 +140,45 @@ def other_body(landmarks: np.ndarray, person: str, width: int, height: int) -> B
         right_ray=rays.get("right"),
         person=person,
     )
+
+
+class CameraPeople:
+    """The person stage of every camera (`every` 0: off). A camera whose stream restarts (`fresh`: new, or gone
+    quiet and back) gets a new stage: new ids."""
+
+    def __init__(self, every: int):
+        self.every = every
+        self.stages: dict[str, PeopleStage] = {}
+
+    def update(
+        self,
+        frame: Frame,
+        img: np.ndarray,
+        skeleton: np.ndarray | None,
+        hands: list[Observation],
+        rays3d: FrameRays | None,
+        fresh: bool,
+    ) -> PeopleOfFrame | None:
+        if not self.every:
+            return None
+        if fresh or frame.cam not in self.stages:
+            if frame.cam in self.stages:
+                self.stages[frame.cam].close()
+            self.stages[frame.cam] = PeopleStage(every=self.every)
+        return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d)
+
+    def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
+        """The `Persons` of a frame the stage ran on."""
+        return Persons(
+            stamp=frame.stamp,
+            source=source,
+            seq=frame.seq,
+            cam=frame.cam,
+            width=frame.width,
+            height=frame.height,
+            persons=self.stages[frame.cam].wire(seen),
+        )
+
+    def close(self) -> None:
+        for stage in self.stages.values():
+            stage.close()
