@@ -15,7 +15,7 @@ from common.schema import Bodies, Body, Frame, GestureEvent, GestureName, Hand, 
 from common.settings import add_option
 from common.stack import node
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
-from services.gesture.people_stage import CameraPeople, PeopleOfFrame, event_person, hand_person, other_body
+from services.gesture.people_stage import CameraPeople, PeopleOfFrame, event_person, hand_person, other_arms
 from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
 
@@ -64,8 +64,13 @@ def people_bodies(
         return main
     for body in main:
         body.person = seen.main_person
-    others = [(p.id, p.body) for p in seen.persons if p.id != seen.main_person] if seen.ran else []
-    return main + [other_body(b, pid, frame.width, frame.height) for pid, b in others if b is not None]
+    others = (
+        [(p.id, p.body) for p in seen.persons if p.id != seen.main_person and p.body is not None] if seen.ran else []
+    )
+    for pid, b in others:  # their own arms, this frame's; no 3-D rays (FrameRays lifts the full-frame skeleton)
+        main.append(to_body(b, other_arms(b, frame.width, frame.height)))
+        main[-1].person = pid
+    return main
 
 
 def close_all(graphs: list[HandLandmarker | PoseLandmarker], people: CameraPeople) -> None:

@@ -14,8 +14,8 @@ from typing import cast
 
 import numpy as np
 
-from common.schema import Body, Frame, Handedness, Person, Persons, Ray
-from services.gesture.body import arm
+from common.schema import Frame, Handedness, Person, Persons
+from services.gesture.body import Arm, arm
 from services.gesture.landmarks import FaceDetector, RegionPose
 from services.gesture.persons import Box, PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
 from services.gesture.space import FrameRays, torso_point
@@ -123,23 +123,15 @@ class PeopleStage:
         self.regions.close()
 
 
-def other_body(landmarks: np.ndarray, person: str, width: int, height: int) -> Body:
-    """The wire `Body` of a person other than the gesture tracker's (no hysteresis: this frame's arms alone)."""
-    rays = {}
+def other_arms(landmarks: np.ndarray, width: int, height: int) -> list[tuple[Arm, TrackedRay | None]]:
+    """The arms of a person other than the gesture tracker's, judged on this frame alone (no hysteresis, no
+    steadying), in the shape of `GestureTracker.last_arms` (the shell's `to_body` makes the wire `Body`)."""
+    out: list[tuple[Arm, TrackedRay | None]] = []
     for side in ("left", "right"):
         a = arm(landmarks, side, width, height)
-        if a.pointing and a.ray is not None:
-            (ox, oy), direction = a.ray
-            rays[side] = Ray(
-                origin=[round(ox, 2), round(oy, 2)], direction=list(direction), confidence=a.confidence, source="body"
-            )
-    return Body(
-        landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
-        visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
-        left_ray=rays.get("left"),
-        right_ray=rays.get("right"),
-        person=person,
-    )
+        ray = TrackedRay(a.ray[0], a.ray[1], a.confidence, "body") if a.pointing and a.ray is not None else None
+        out.append((a, ray))
+    return out
 
 
 class CameraPeople:

@@ -32,9 +32,11 @@ from typing import Callable
 
 import numpy as np
 
+from services.gesture.body import MIN_VISIBILITY
+from services.gesture.temporal import body_scale
+
 Box = tuple[float, float, float, float]  # x, y, w, h px
 
-MIN_VISIBILITY = 0.5  # a pose landmark below this is a guess (services/gesture/body.py)
 REGION_SIDE = 2.5  # face widths each side of the face's centre: elbows out, an arm pointing sideways
 REGION_ABOVE = 0.6  # face heights above the face: a raised hand
 REGION_BELOW = 7.0  # face heights below the face: hips and thighs (a standing body is ~7.5 heads tall)
@@ -219,13 +221,6 @@ class PersonTracker:
         return [(t.id, b) for t in self.tracks if t.body is not None and (b := body_box(t.body)) is not None]
 
 
-def _body_scale(body: np.ndarray) -> float:
-    p = np.asarray(body, dtype=float).reshape(33, 3)
-    shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2]))
-    torso = float(np.linalg.norm((p[11, :2] + p[12, :2]) / 2 - (p[23, :2] + p[24, :2]) / 2))
-    return max(shoulders, torso / 1.4, 1.0)
-
-
 def _by_wrist(side: str, wrist: np.ndarray, persons: list[PersonTrack]) -> str | None:
     best: tuple[float, str] | None = None
     for p in persons:
@@ -234,7 +229,7 @@ def _by_wrist(side: str, wrist: np.ndarray, persons: list[PersonTrack]) -> str |
         joint = p.body[WRISTS[side]]
         if joint[2] < MIN_VISIBILITY * 0.5:  # a wrist pose barely saw cannot claim a hand
             continue
-        d = float(np.hypot(*(wrist - joint[:2]))) / _body_scale(p.body)
+        d = float(np.hypot(*(wrist - joint[:2]))) / body_scale(p.body)
         if d <= WRIST_MATCH and (best is None or d < best[0]):
             best = (d, p.id)
     return best[1] if best else None
@@ -282,7 +277,7 @@ class Seen:
 def _claimed(body: np.ndarray, bodies: list[np.ndarray]) -> bool:
     """The same skeleton found twice (two regions over one person): the noses within a tenth of its size."""
     nose = body[NOSE, :2]
-    return any(float(np.hypot(*(nose - b[NOSE, :2]))) <= 0.1 * _body_scale(b) for b in bodies)
+    return any(float(np.hypot(*(nose - b[NOSE, :2]))) <= 0.1 * body_scale(b) for b in bodies)
 
 
 def observe_people(seen: Seen, pose_in: PoseIn) -> list[PersonObs]:
