@@ -51,6 +51,8 @@ def event_person(seen: PeopleOfFrame | None, hand: str, ray: TrackedRay | None) 
 
 
 class PeopleStage:
+    """One camera's person stage: its face detector, its pose-per-region graph and its person tracker."""
+
     def __init__(self, every: int = 2, keep_s: float = 1.0):
         self.every = every
         self.faces = FaceDetector()
