@@ -59,6 +59,23 @@ def summarise(value: Any) -> Any:
     return value
 
 
+def compact_persons(line: dict[str, Any]) -> dict[str, Any]:
+    """A `Persons` sample on one short line: each person's nil fields left out, the box in whole pixels."""
+    persons = line.get("persons")
+    if not isinstance(persons, list):
+        return line
+    short = [
+        {
+            k: ([round(v) for v in value] if k == "bbox" and isinstance(value, list) else value)
+            for k, value in p.items()
+            if value not in (None, [], False)
+        }
+        for p in persons
+        if isinstance(p, dict)
+    ]
+    return {**line, "persons": short}
+
+
 def _install_stop(stop: threading.Event) -> None:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -144,7 +161,7 @@ def cmd_echo(args: argparse.Namespace) -> int:
                 print(f"hri echo: invalid sample on {key}: {exc}", file=sys.stderr, flush=True)
                 continue
             line = {"key": key, **(body if isinstance(body, dict) else {"value": body})}
-            print(json.dumps(summarise(line), separators=(",", ":")), flush=True)
+            print(json.dumps(summarise(compact_persons(line)), separators=(",", ":")), flush=True)
             printed += 1
     finally:
         sub.undeclare()
