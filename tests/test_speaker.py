@@ -265,3 +265,49 @@ def test_looking_at_the_camera_on_real_photos_of_several_people() -> None:
     # the sign: intel_headpose_pair_f000's P0 is turned ~40 degrees to the image's left
     yaw = next(f.yaw for name, pid, f in turned if (name, pid) == ("intel_headpose_pair_f000.png", "P0"))
     assert yaw is not None and yaw < -15
+
+
+def test_faces_are_tied_to_the_person_whose_box_holds_them() -> None:
+    from common.schema import Person, Persons
+    from services.gesture.faces import link_faces
+
+    sample = cached()["comp_turns_bbaf2n_lbbc2a.mp4"][0]
+    left, right = sorted(sample.faces, key=lambda f: f.bbox[0])
+    persons = Persons(
+        stamp=sample.stamp,
+        source="test/g",
+        seq=0,
+        cam="cam0",
+        width=sample.width,
+        height=sample.height,
+        persons=[
+            Person(id="person-7", bbox=[left.bbox[0] - 20, left.bbox[1] - 10, 200, 280], score=0.9),
+            Person(id="person-8", bbox=[right.bbox[0] - 30, right.bbox[1] - 5, 190, 283], score=0.9),
+        ],
+    )
+    faces = msgspec.structs.replace(sample, faces=[msgspec.structs.replace(f) for f in sample.faces])
+    link_faces(faces, persons)
+    by_id = {f.id: f.person for f in faces.faces}
+    assert (by_id[left.id], by_id[right.id]) == ("person-7", "person-8")
+    assert [p.face for p in persons.persons] == [left.id, right.id]
+    link_faces(faces, None)  # no person stage: nothing changes
+    assert {f.id: f.person for f in faces.faces} == by_id
+
+
+def test_a_face_track_keeps_one_speaker_when_the_person_tracker_misses_frames() -> None:
+    """Face.person set on most frames, nil on some (the person stage runs every other frame): one track, the
+    person's id."""
+    clip, u = all_utterances("comp_turns_bbaf2n")[0]  # P0 (left) speaks
+    mapping = person_of_face(clips()[clip], cached()[clip])
+    faces = [
+        msgspec.structs.replace(
+            s,
+            faces=[
+                msgspec.structs.replace(f, person=None if s.seq % 3 == 0 else f"person-{mapping[f.id]}")
+                for f in s.faces
+            ],
+        )
+        for s in cached()[clip]
+    ]
+    speaker = attribute(transcript_of(u), faces)
+    assert (speaker.person, speaker.method) == ("person-P0", "mouth_motion")

@@ -20,11 +20,11 @@ in the utterance; nil when the speaker or their head's orientation is unknown.
 
 from __future__ import annotations
 
-from collections import deque
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-from common.schema import Face, Faces, Speaker, Transcript
+from common.schema import Faces, Speaker, Transcript
 from common.settings import setting
 
 
@@ -72,10 +72,17 @@ class SpeakerConfig:
 class Track:
     """One face's samples over time (stamps ascending): mouth opening and whether it looked at the camera."""
 
-    person: str
+    face: str
+    people: Counter[str] = field(default_factory=Counter)  # the person ids the face was given, how often
     stamps: list[float] = field(default_factory=list)
     mouth: list[float | None] = field(default_factory=list)
     looking: list[bool | None] = field(default_factory=list)
+
+    @property
+    def person(self) -> str:
+        """The person the face belongs to: the person id it was given most (`Face.person`), else the face id (no
+        person tracker). Keyed by the face track, a frame where the person tracker missed the face splits nothing."""
+        return self.people.most_common(1)[0][0] if self.people else self.face
 
 
 @dataclass(frozen=True)
@@ -94,18 +101,14 @@ class Judged:
         return self.moves(cfg) and self.timing is not None and self.timing >= cfg.speaker_min_timing
 
 
-def person_of(face: Face) -> str:
-    """The person a face belongs to: `Face.person`, else the face id (when no person tracker runs)."""
-    return face.person or face.id
-
-
 def tracks_of(samples: Iterable[Faces]) -> dict[str, Track]:
-    """Faces samples (any order, any camera) -> one Track per person, in source time."""
+    """Faces samples (any order, any camera) -> one Track per face id, in source time."""
     tracks: dict[str, Track] = {}
     for sample in sorted(samples, key=lambda s: s.stamp):
         for face in sample.faces:
-            who = person_of(face)
-            track = tracks.setdefault(who, Track(who))
+            track = tracks.setdefault(face.id, Track(face.id))
+            if face.person:
+                track.people[face.person] += 1
             track.stamps.append(sample.stamp)
             track.mouth.append(face.mouth_open)
             track.looking.append(face.looking_at_camera)
@@ -212,7 +215,7 @@ def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None =
     samples = list(faces)
     tracks = tracks_of(samples)
     in_utterance = [s for s in samples if t.start <= s.stamp <= t.end]
-    present = {person_of(f) for s in in_utterance for f in s.faces}
+    present = {f.id for s in in_utterance for f in s.faces}
     if not present:
         return _unknown("no face in view while the words were heard")
     stream_frames = max(
@@ -228,7 +231,8 @@ def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None =
     else:
         speaker = _several(seen, cfg)
     if speaker.person is not None:
-        speaker.addressed = addressed(tracks[speaker.person], t.start, t.end, cfg)
+        track = next(tracks[f] for f in sorted(present) if tracks[f].person == speaker.person)
+        speaker.addressed = addressed(track, t.start, t.end, cfg)
     return speaker
 
 

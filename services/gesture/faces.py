@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from common.schema import Face, Faces, Frame
+from common.schema import Face, Faces, Frame, Persons
 from common.settings import setting
 
 # Face Mesh landmark indices (canonical face model): inner lips, inner mouth corners, cheeks, forehead, chin.
@@ -200,6 +200,27 @@ def face_of(points: np.ndarray, face_id: str, cfg: FaceConfig, bbox: list[float]
 
 
 MESH_MIN_CONFIDENCE = 0.5
+
+
+def link_faces(faces: Faces | None, persons: Persons | None) -> None:
+    """Tie each face to its person, both ways (`Face.person`, `Person.face`): the person whose box holds the face's
+    centre, of those the one whose top is nearest the face's top (a face is at the top of its person's extent).
+    Nothing changes without persons (no person stage): the face id then stands for the person."""
+    if faces is None or persons is None:
+        return
+    for face in faces.faces:
+        cx, cy = face.bbox[0] + face.bbox[2] / 2, face.bbox[1] + face.bbox[3] / 2
+        holders = [
+            p
+            for p in persons.persons
+            if p.bbox[0] <= cx <= p.bbox[0] + p.bbox[2] and p.bbox[1] <= cy <= p.bbox[1] + p.bbox[3]
+        ]
+        if not holders:
+            continue
+        person = min(holders, key=lambda p: abs(p.bbox[1] - face.bbox[1]))
+        face.person = person.id
+        if person.face is None:
+            person.face = face.id
 
 
 class FaceMesher:
