@@ -6,10 +6,13 @@ GRID footage side by side; each listener's mouth stays still). GRID's sentences 
 commands, and fusion publishes nothing for them, so the audio here is the piper voice saying a command in each of
 the two labelled speech intervals (testkit/talking.py `spoken_commands`): the mouths and the timing are the real
 clip's, the words are synthetic. Camera and speech start together (--start-at), as one recording's video and audio.
+Each command's speaker is the person who talked in that turn (their face id: the person stage is off here, see
+the comment at its start; tests/test_speaker.py covers faces tied to persons).
 """
 
 from __future__ import annotations
 
+import collections
 import json
 import time
 from pathlib import Path
@@ -37,7 +40,10 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
     try:
         group.router()
         group.service("fusion")
-        group.service("gesture", "--no-body")  # hands and faces; the body stage is not needed here
+        # hands and faces. Not the person stage (a pose per person): on 2 shared cores under load it held the
+        # gesture service to 3.5 frames/s, too slow to follow a mouth (attribution then says unknown, rightly);
+        # without persons a face's person is its face id (docs/people.md)
+        group.service("gesture", "--no-body", "--persons-every", "0")
         client = Client(group.endpoint)
         try:
             client.wait_alive("fusion", timeout=60)
@@ -55,12 +61,15 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
             client.close()
         outputs = [sample for _, sample in got]
         assert all(isinstance(o, (FusedCommand, Clarification)) for o in outputs)
-        ids = face_ids_left_to_right([s for _, s in faces.seen])
+        ids = people_left_to_right([s for _, s in faces.seen])
+        assert all(i.startswith("cam0/face-") for i in ids), ids  # no person stage: the face ids stand for them
         intents = [o.intent for o in outputs if isinstance(o, FusedCommand)]
         assert intents == ["turn", "come_here"], (outputs, group.logs())
+        seen_in_clip = [s for _, s in faces.seen if start <= s.stamp <= start + clip["duration_s"]]
+        rate = f"face stage at {len(seen_in_clip) / clip['duration_s']:.1f} frames/s of the clip's 25"
         speakers = [o.speaker for o in outputs]
         assert all(s is not None for s in speakers), group.logs()
-        assert [s.person for s in speakers if s is not None] == ids, (speakers, ids, group.logs())
+        assert [s.person for s in speakers if s is not None] == ids, (rate, speakers, ids, group.logs())
         assert all(s.method == "mouth_motion" and s.addressed is True for s in speakers if s is not None)
         echoed = [json.loads(line) for line in wait_lines(echo, 2)]
         assert [line["speaker"]["person"] for line in echoed] == ids, echo.output()
@@ -78,11 +87,15 @@ def wait_lines(proc: Proc, n: int, timeout: float = 30.0) -> list[str]:
         time.sleep(0.1)
 
 
-def face_ids_left_to_right(samples: list) -> list[str]:
-    """The two face tracks the gesture service published, left one first (one id each through the clip)."""
+def people_left_to_right(samples: list) -> list[str]:
+    """The person of each of the two face tracks the gesture service published, left one first: the person id its
+    faces were given most (the person stage links them), else the face id."""
     centres: dict[str, list[float]] = {}
+    people: dict[str, collections.Counter] = {}
     for s in samples:
         for f in s.faces:
             centres.setdefault(f.id, []).append(f.bbox[0] + f.bbox[2] / 2)
+            people.setdefault(f.id, collections.Counter())[f.person or f.id] += 1
     assert len(centres) == 2, centres
-    return sorted(centres, key=lambda i: sum(centres[i]) / len(centres[i]))
+    left_first = sorted(centres, key=lambda i: sum(centres[i]) / len(centres[i]))
+    return [people[i].most_common(1)[0][0] for i in left_first]

@@ -56,6 +56,12 @@ class SpeakerConfig:
     speaker_guard: float = setting(
         0.1, "seconds next to the utterance left out of the comparison", at_least=0, metavar="S"
     )
+    speaker_min_rate: float = setting(
+        8.0,
+        "frames per second of a face needed inside the utterance to follow its mouth (sparser: not judged)",
+        at_least=0,
+        metavar="FPS",
+    )
     speaker_coverage: float = setting(
         0.5, "share of the utterance a face's mouth must be seen in to be judged", above=0, at_most=1, metavar="P"
     )
@@ -138,7 +144,8 @@ def _frames_in(stamps: Sequence[float], lo: float, hi: float) -> int:
 def judge(track: Track, start: float, end: float, stream_frames: int, cfg: SpeakerConfig) -> Judged:
     """`stream_frames`: frames of any face stream in [start, end] (the coverage's denominator)."""
     during, seen = _motion(track, start, end)
-    if during is None or seen < cfg.speaker_coverage * max(stream_frames, 2):
+    too_sparse = seen < cfg.speaker_min_rate * (end - start)  # a mouth sampled slowly looks still
+    if during is None or too_sparse or seen < cfg.speaker_coverage * max(stream_frames, 2):
         return Judged(track.person, None, None, None)
     before, n_before = _motion(track, start - cfg.speaker_guard - cfg.speaker_context, start - cfg.speaker_guard)
     after, n_after = _motion(track, end + cfg.speaker_guard, end + cfg.speaker_guard + cfg.speaker_context)
@@ -227,7 +234,11 @@ def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None =
     if len(present) == 1:
         speaker = _only_face(judged[0], cfg)
     elif not seen:
-        speaker = _unknown(f"{len(present)} faces in view, no mouth seen well enough")
+        rate = stream_frames / max(t.end - t.start, 1e-3)
+        speaker = _unknown(
+            f"{len(present)} faces in view, no mouth seen well enough (faces at {rate:.0f} frames/s, "
+            f"{cfg.speaker_min_rate:g} needed)"
+        )
     else:
         speaker = _several(seen, cfg)
     if speaker.person is not None:
