@@ -103,3 +103,56 @@ def test_confirming_unaddressed_commands_can_be_turned_off() -> None:
     out = run(commands_in_turns(), facing_away(faces(), right), Config(confirm_unaddressed=False))
     assert [type(o) for o in out] == [FusedCommand, FusedCommand]
     assert out[1].speaker is not None and out[1].speaker.addressed is False  # type: ignore[attr-defined]
+
+
+def test_with_two_people_pointing_the_attributed_speakers_target_is_chosen() -> None:
+    """Whose gesture counts (tests/test_fusion_people.py) with the real attribution instead of a given speaker: the
+    clip's left face is person-1 (pointing at the red cup), the right face person-2 (at the blue cup); both point
+    all along; "pick up that one" said in each person's turn picks that person's cup."""
+    from common.schema import Hands, Persons
+    from testkit.scenarios import H, W
+    from tests.test_fusion_people import BLUE, BOTH_POINT, PEOPLE, RED
+
+    left, right = ids()
+    named = [
+        msgspec.structs.replace(
+            s, faces=[msgspec.structs.replace(f, person="person-1" if f.id == left else "person-2") for f in s.faces]
+        )
+        for s in faces()
+    ]
+    core = FusionCore(Config(), "fusion/test")
+    for modality in ("vision", "gesture"):
+        core.on_liveliness(modality, "test", True)
+    for s in named:
+        core.on_faces("hri/gesture/cam0/faces", s, 1000.0)
+    people_frames = [
+        (T0 + 0.1 * i, Hands(stamp=T0 + 0.1 * i, source="g", seq=i, cam="cam0", width=W, height=H, hands=BOTH_POINT))
+        for i in range(60)
+    ]
+    steps = [s.build(T0) for s in scene([RED, BLUE], 0.0, 6.0, 0.2)]
+    steps += [("hri/gesture/cam0/hands", h) for _, h in people_frames]
+    steps += [
+        ("hri/gesture/cam0/persons", Persons(stamp=t, source="g", seq=i, cam="cam0", width=W, height=H, persons=PEOPLE))
+        for i, (t, _) in enumerate(people_frames)
+    ]
+    steps += [say(0.95, 2.56, "Pick up that one.").build(T0), say(3.44, 5.41, "Pick up that one.").build(T0)]
+    out: list[Sample] = []
+    wall = 1000.0
+    for key, sample in sorted(steps, key=lambda ks: ks[1].stamp):
+        feed = {
+            "Detections": core.on_detections,
+            "Hands": core.on_hands,
+            "Persons": core.on_persons,
+            "Transcript": core.on_transcript,
+        }[type(sample).__name__]
+        out.extend(o.sample for o in feed(key, sample, wall))  # type: ignore[operator]
+        out.extend(o.sample for o in core.tick(wall))
+        wall += 0.002
+    out.extend(o.sample for o in core.tick(wall + 100.0))
+    assert [type(o) for o in out] == [FusedCommand, FusedCommand], out
+    first, second = out
+    assert isinstance(first, FusedCommand) and isinstance(second, FusedCommand)
+    assert first.speaker is not None and first.speaker.person == "person-1"
+    assert first.target is not None and first.target.id == "cup_red"
+    assert second.speaker is not None and second.speaker.person == "person-2"
+    assert second.target is not None and second.target.id == "cup_blue"
