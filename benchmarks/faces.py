@@ -33,6 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from benchmarks.persons import frames_of  # noqa: E402
 from common.schema import Faces  # noqa: E402
 from services.fusion.core import Config, FusionCore  # noqa: E402
 from services.fusion.speaker import attribute  # noqa: E402
@@ -41,18 +42,6 @@ from testkit.scenarios import say, scene  # noqa: E402
 from testkit.scenarios.suite import TWO_CUPS  # noqa: E402
 from testkit.shared import shared_dir  # noqa: E402
 from testkit.talking import T0, TALKING, Utterance, extract, person_of_face, talking_json, transcript_of, utterances  # noqa: E402
-
-
-def clip_frames(path: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(path))
-    frames = []
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        frames.append(img)
-    cap.release()
-    return frames
 
 
 def bare_run(clips: list[list[np.ndarray]], max_faces: int) -> float:
@@ -91,7 +80,7 @@ def stage_run(clips: list[list[np.ndarray]], cfg: FaceConfig) -> float:
 
 def speed(names: list[str], repeats: int) -> None:
     """Bare and face stage alternate clip by clip (the machine's load hits both alike); per-run medians."""
-    clips = [clip_frames(shared_dir() / TALKING / name) for name in names]
+    clips = [frames_of(shared_dir() / TALKING / name, limit=10**6) for name in names]
     cfg = FaceConfig()
     frames = sum(len(c) for c in clips)
     bare: list[float] = []
