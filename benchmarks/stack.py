@@ -61,8 +61,8 @@ OUTPUTS: dict[str, tuple[type[Sample], str]] = {
     "speech/*/transcript": (Transcript, "speech transcript"),
     "fusion/command": (FusedCommand, "fusion command"),
 }
-# The "before" of issue #34 (flags that turn its knobs off), for --compare; empty while a knob is not built.
-BEFORE_ARGS: list[str] = []
+# The "before" of issue #34 (flags that turn its knobs off), for --compare: frame services at normal priority.
+BEFORE_ARGS: list[str] = ["--vision-arg=--nice=0", "--gesture-arg=--nice=0"]
 
 
 @dataclass

@@ -78,6 +78,15 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         at_least=1,
         metavar="N",
     )
+    add_option(
+        parser,
+        "--nice",
+        node.nice,
+        "lower this process's CPU priority by N (os.nice): frame services yield to speech and fusion",
+        at_least=0,
+        at_most=19,
+        metavar="N",
+    )
     if node.reads_images:
         add_option(
             g,
@@ -90,6 +99,15 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         )
     add_zenoh_arguments(parser)
     return parser
+
+
+def lower_priority(by: int) -> None:
+    """Make this process nicer by `by` (never less nice: that needs privileges and is nobody's right here)."""
+    if by > 0:
+        try:
+            os.nice(min(int(by), 19))
+        except OSError:  # a sandbox without setpriority: run at the priority given
+            pass
 
 
 class RateLimitedLog:
@@ -265,6 +283,7 @@ class Service:
         self.node = name if isinstance(name, stack.Node) else stack.node(name)
         name = self.node.name
         resolve(args)
+        lower_priority(getattr(args, "nice", 0))
         self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
         self.name = check_chunk(name, "service name")

@@ -97,6 +97,11 @@ class Container:
     mounts: tuple[str, ...] = ()  # volumes besides HRI_DATA at /data, compose syntax
 
 
+# Niceness of the services that read frames: weight 110 against 1024 for a nice-0 process (Linux CFS), so a
+# speech decode or a fusion decision gets the cores at once; the frame services take what is left and skip.
+FRAME_NICE = 10
+
+
 @dataclass(frozen=True)
 class Node:
     name: str
@@ -106,6 +111,9 @@ class Node:
     reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding); must be True
     # when an input is an image topic
     container: Container = Container()  # docker-compose.yml: no flags, HRI_<NAME>_ARGS adds some
+    # default --nice: how much lower its CPU priority is. Frame services skip stale frames when they fall behind;
+    # speech and fusion cannot skip, so on a small machine frame work yields to them (issue #34)
+    nice: int = 0
 
     @property
     def module(self) -> str:
@@ -163,6 +171,7 @@ NODES: tuple[Node, ...] = (
         ),
         outputs=("objects",),
         reads_images=True,
+        nice=FRAME_NICE,
         container=Container(
             "--backend color --labels /data/demo/labels.json",
             note='Colour segmentation, objects named "candy" as in the demo scene. '
@@ -177,6 +186,7 @@ NODES: tuple[Node, ...] = (
         inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=4)),
         outputs=("hands", "bodies", "event", "faces", "persons"),
         reads_images=True,
+        nice=FRAME_NICE,
     ),
     Node(
         "speech",
