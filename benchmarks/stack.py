@@ -42,10 +42,16 @@ from common.codec import decode
 from common.keys import Keys
 from common.schema import Bodies, Detections, Faces, FusedCommand, Hands, Persons, Sample, Transcript
 from services.speech.audio import RATE, read_wav
-from testkit.harness import ROOT, Client, free_port
+from testkit.harness import Client, free_port
 from testkit.synth import PIPER_VOICE, SynthError, read_wav_int16, synthesize, write_wav_int16
 
-SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
+# this checkout (not testkit's ROOT: run as `python benchmarks/stack.py`, testkit may come from an installed copy);
+# `hri up` runs here, so the services are this checkout's
+ROOT = Path(__file__).resolve().parent.parent
+SHARED = Path(
+    os.environ.get("HRI_SHARED")
+    or next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
+)  # beside the checkout, or beside its worktrees' folder
 DEFAULT_CLIP = SHARED / "data" / "talking" / "real_single_vr1_cfr25.mp4"
 DEFAULT_MODEL = SHARED / "models" / "yolox_nano.onnx"
 SERVICES = ("camera", "vision", "gesture", "speech", "fusion")
@@ -357,6 +363,9 @@ def service_figures(first: Window, last: Window, cores: int) -> dict[str, Any]:
         for counter in ("received", "published", "skipped"):
             if counter in a and counter in b:
                 out[name][counter] = b[counter] - a[counter]
+        clocks = {k: v for k, v in b.get("other", {}).items() if k.startswith(("clock_offset_ms:", "delay_ms:"))}
+        if clocks:
+            out[name]["clocks"] = clocks  # fusion's view of each source: clock offset, or delay by design
     out["total_cpu_cores"] = sum(v["cpu_share_of_machine"] for v in out.values()) * cores
     return out
 
@@ -430,6 +439,7 @@ def print_run(result: dict[str, Any], cores: int) -> None:
                 f"{s.get('published', '-'):>9} {s.get('skipped', '-'):>8}"
             )
     print(f"whole stack: {services['total_cpu_cores']:.2f} of {cores} cores")
+    print(f"fusion's clocks: {services.get('fusion', {}).get('clocks', {})}")
     print(f"{'output':18s} {'count':>6s} {'Hz':>6s} {'p50 ms':>7s} {'p99 ms':>7s} {'p50 1st/3rd third':>18s}")
     for label, o in result["outputs"].items():
         print(

@@ -260,14 +260,98 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     return {mine[i].key for i in hit}
 
 
+def _flat_2d(p: Pointing, objects: list[SceneObject]) -> list[int]:
+    """Indices of the objects judged in the image plane: in the ray's camera, not on the hand, not in metres."""
+    box = p.hand_box
+    return [
+        i
+        for i, o in enumerate(objects)
+        if o.cam == p.cam
+        and not (box is not None and box[0] <= o.center[0] <= box[2] and box[1] <= o.center[1] <= box[3])
+        and not in_3d(p, o)
+    ]
+
+
+@dataclass(frozen=True)
+class RayGeometry:
+    """`pointing_score` and `ray_gap` of many image-plane objects at once (numpy): G, angle and whether the ray
+    enters the box within reach of the fingertip, the same formulas as the one-object functions."""
+
+    g: np.ndarray
+    angle: np.ndarray  # degrees; NaN where the one-object function gives None (never: image-plane objects)
+    under_tip: np.ndarray
+
+    @staticmethod
+    def of(p: Pointing, objects: list[SceneObject]) -> "RayGeometry":
+        b = np.array([o.bbox for o in objects], dtype=float).reshape(-1, 4)
+        c = np.array([o.center for o in objects], dtype=float).reshape(-1, 2)
+        vx, vy = c[:, 0] - p.origin[0], c[:, 1] - p.origin[1]
+        dist = np.hypot(vx, vy)
+        radius = 0.5 * np.hypot(b[:, 2], b[:, 3]) * 0.5
+        at_origin = dist <= 1e-6
+        safe = np.where(at_origin, 1.0, dist)
+        cos = (vx * p.direction[0] + vy * p.direction[1]) / safe
+        angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+        covered = np.degrees(np.arctan2(radius, safe))
+        effective = np.maximum(0.0, angle - covered)
+        g = np.where(cos <= 0, 0.0, np.exp(-0.5 * (effective / max(POINTING_SIGMA_DEG, p.spread_deg)) ** 2))
+        g = np.where(at_origin, 1.0, g)
+        angle = np.where(at_origin, 0.0, angle)
+        return RayGeometry(g, angle, _enters_within_reach(p, b))
+
+
+def _enters_within_reach(p: Pointing, b: np.ndarray) -> np.ndarray:
+    """`under_fingertip` for image-plane boxes: the ray enters the box (slab test, as `ray_gap`) within reach."""
+    t_near = np.zeros(len(b))
+    t_far = np.full(len(b), np.inf)
+    hit = np.ones(len(b), dtype=bool)
+    for axis in (0, 1):
+        o, d = p.origin[axis], p.direction[axis]
+        lo, hi = b[:, axis], b[:, axis] + b[:, axis + 2]
+        if abs(d) < 1e-9:
+            hit &= (lo <= o) & (o <= hi)
+            continue
+        t0, t1 = (lo - o) / d, (hi - o) / d
+        t_near, t_far = np.maximum(t_near, np.minimum(t0, t1)), np.minimum(t_far, np.maximum(t0, t1))
+    reach = UNDER_TIP_GAP * np.hypot(b[:, 2], b[:, 3])
+    if p.hand_box is not None:
+        reach = reach + 0.5 * math.hypot(p.hand_box[2] - p.hand_box[0], p.hand_box[3] - p.hand_box[1])
+    return hit & (t_near <= t_far) & (t_near <= reach)
+
+
+Deictic = dict[tuple[str, str], tuple[float, float | None]]  # object key -> (G, angle in degrees or None)
+
+
+def pointing_scores(p: Pointing, objects: list[SceneObject]) -> tuple[Deictic, set[tuple[str, str]]]:
+    """(G, angle) of every object as `pointing_score` gives it, and the keys of those under the fingertip with
+    G > 0 (`under_fingertip`); the image-plane ones (all of them, but for depth) in one numpy pass."""
+    out: Deictic = {o.key: (0.0, None) for o in objects}
+    flat = _flat_2d(p, objects)
+    flat_set = set(flat)
+    under: set[tuple[str, str]] = set()
+    for i, o in enumerate(objects):
+        if i not in flat_set:
+            out[o.key] = pointing_score(p, o)
+            g, a = out[o.key]
+            if a is not None and g > 0 and under_fingertip(p, o):
+                under.add(o.key)
+    if flat:
+        geo = RayGeometry.of(p, [objects[i] for i in flat])
+        for j, i in enumerate(flat):
+            out[objects[i].key] = (float(geo.g[j]), float(geo.angle[j]))
+            if geo.g[j] > 0 and geo.under_tip[j]:
+                under.add(objects[i].key)
+    return out, under
+
+
 def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], tuple[float, float | None]]:
     """(G, angle) per object: `pointing_score`; then an object the fingertip touches gets G = 1 (even when its
     centre lies behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what
-    lies further along the ray."""
-    out = {o.key: pointing_score(p, o) for o in objects}
+    lies further along the ray. Vectorised over the image-plane objects (1000 objects in about a millisecond)."""
+    out, under = pointing_scores(p, objects)
     near = touched_objects(p, objects)
     if not near:
-        near = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
+        near = under
     if near:
         out = {
             k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
@@ -287,7 +371,13 @@ def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[S
     the anchor's colour and spatial words count exactly as they would for the object itself."""
     if anchor.unknown_nouns or (anchor.label is None and not anchor.color):
         return []
-    return [(s.obj, s.match) for s in score(anchor, scene, None, ANCHOR_WEIGHTS, adaptive=False) if s.match >= 0.5]
+    # pruned by the words first: an object whose label does not fit has match 0 whatever the other words say, and
+    # the colour, spatial and ordinal steps look only at the objects that fit (the same result, 1000 objects fast)
+    named = [o for o in scene if _attribute_match(anchor, o) > 0]
+    if not named:
+        return []
+    scored = score(anchor, named, None, ANCHOR_WEIGHTS, adaptive=False, scene=scene)
+    return [(s.obj, s.match) for s in scored if s.match >= 0.5]
 
 
 def _relation_scores(
