@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -82,8 +83,8 @@ class SceneObject:
             frame_id=self.frame_id if self.position else None,
         )
 
-    @property
-    def key(self) -> tuple[str, str]:
+    @cached_property
+    def key(self) -> tuple[str, str]:  # read tens of times per object and decision: computed once
         return self.cam, self.id
 
     def name(self) -> str:
@@ -92,28 +93,32 @@ class SceneObject:
 
 def scene_objects(detections: list[Detections]) -> list[SceneObject]:
     out = []
+    labels: dict[str, str] = {}  # canonical_label once per label, not once per object (1000 objects: issue #34)
     for det in detections:
         q = image_quality(det.quality)
         for o in det.objects:
+            label = labels.get(o.label)
+            if label is None:
+                label = labels[o.label] = canonical_label(o.label)
             out.append(
                 SceneObject(
-                    id=o.id,
-                    label=canonical_label(o.label),
-                    raw_label=o.label,
-                    color=o.color,
-                    bbox=space.box4(o.bbox),
-                    center=space.vec2(o.center),
-                    score=o.score,
-                    cam=det.cam,
-                    width=det.width,
-                    height=det.height,
-                    stamp=det.stamp,
-                    quality=q,
-                    position=space.vec3(o.position) if o.position else None,
-                    extent=space.vec3(o.extent) if o.extent else None,
-                    frame_id=det.frame_id,
-                    lab=None if o.lab is None else space.vec3(o.lab),
-                    colors=tuple((c.name, c.p) for c in o.colors),
+                    o.id,
+                    label,
+                    o.label,
+                    o.color,
+                    tuple(o.bbox),  # type: ignore[arg-type]  # a wire Box: 4 numbers (schema)
+                    tuple(o.center),  # type: ignore[arg-type]  # a wire Point: 2 numbers
+                    o.score,
+                    det.cam,
+                    det.width,
+                    det.height,
+                    det.stamp,
+                    q,
+                    space.vec3(o.position) if o.position else None,
+                    space.vec3(o.extent) if o.extent else None,
+                    det.frame_id,
+                    None if o.lab is None else space.vec3(o.lab),
+                    tuple([(c.name, c.p) for c in o.colors]) if o.colors else (),
                 )
             )
     return out
