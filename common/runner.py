@@ -31,6 +31,7 @@ import zenoh
 
 import common.stack as stack
 from common.codec import ENCODING, decode, encode
+from common.cpu import limit_opencv_threads
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
@@ -85,6 +86,15 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         "lower this process's CPU priority by N (os.nice): frame services yield to speech and fusion",
         at_least=0,
         at_most=19,
+        metavar="N",
+    )
+    add_option(
+        parser,
+        "--cv-threads",
+        1,
+        "OpenCV's thread pool (decoding, resizing): 1, as the services run side by side on the machine's cores; "
+        "0 leaves OpenCV's own choice (every core)",
+        at_least=0,
         metavar="N",
     )
     if node.reads_images:
@@ -284,6 +294,7 @@ class Service:
         name = self.node.name
         resolve(args)
         lower_priority(getattr(args, "nice", 0))
+        limit_opencv_threads(getattr(args, "cv_threads", 0))
         self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
         self.name = check_chunk(name, "service name")
