@@ -67,8 +67,13 @@ OUTPUTS: dict[str, tuple[type[Sample], str]] = {
     "speech/*/transcript": (Transcript, "speech transcript"),
     "fusion/command": (FusedCommand, "fusion command"),
 }
-# The "before" of issue #34 (flags that turn its knobs off), for --compare: frame services at normal priority.
-BEFORE_ARGS: list[str] = ["--vision-arg=--nice=0", "--gesture-arg=--nice=0"]
+# The "before" of issue #34 (flags that turn its knobs off), for --compare: frame services at normal priority and
+# OpenCV's pools at its own size (every core); the rest of the issue's changes (fusion, gestures) have no switch.
+BEFORE_ARGS: list[str] = [
+    "--vision-arg=--nice=0",
+    "--gesture-arg=--nice=0",
+    *(f"--{name}-arg=--cv-threads=0" for name in ("camera", "vision", "gesture")),
+]
 
 
 @dataclass
@@ -287,6 +292,7 @@ class RunConfig:
     fps: float
     extra: list[str]  # more `hri up` flags (e.g. the "before" knobs)
     label: str
+    size: str | None = None  # camera --size WxH
 
 
 def up_argv(cfg: RunConfig, endpoint: str, prefix: str) -> list[str]:
@@ -313,6 +319,7 @@ def up_argv(cfg: RunConfig, endpoint: str, prefix: str) -> list[str]:
         "--wav",
         str(cfg.audio.path),
         "--speech-arg=--realtime",
+        *([f"--camera-arg=--size={cfg.size}"] if cfg.size else []),
         *cfg.extra,
     ]
 
@@ -463,6 +470,7 @@ def main() -> None:
     ap.add_argument("--clip", type=Path, default=DEFAULT_CLIP, help="video with a .wav of its audio beside it")
     ap.add_argument("--model", type=Path, default=DEFAULT_MODEL, help="ONNX detector for vision")
     ap.add_argument("--fps", type=float, default=30.0)
+    ap.add_argument("--size", default="640x480", help="camera --size (frames fitted inside); '' for the clip's own")
     ap.add_argument("--commands", type=int, default=5, help="spoken commands put into the audio")
     ap.add_argument("--compare", action="store_true", help="run the 'before' knobs first, then as shipped")
     ap.add_argument("--up-arg", action="append", default=[], metavar="ARG", help="one more `hri up` flag")
@@ -481,7 +489,9 @@ def main() -> None:
         runs.append(("as shipped", []))
         results = []
         for label, flags in runs:
-            cfg = RunConfig(args.clip, args.model, audio, args.seconds, args.fps, [*flags, *args.up_arg], label)
+            cfg = RunConfig(
+                args.clip, args.model, audio, args.seconds, args.fps, [*flags, *args.up_arg], label, args.size or None
+            )
             results.append(run_stack(cfg))
     for result in results:
         print_run(result, cores)
