@@ -18,8 +18,11 @@ What it reports, over the measured window (from the moment every service is live
 
 `--compare` runs the stack twice in one invocation, first with the knobs of issue #34 turned off (the "before":
 `BEFORE_ARGS`), then as it ships, and prints both side by side so the ratio is meaningful on a shared machine.
+`--speech-alone` adds a third run with no camera, vision or gesture: the same audio, speech's latency with no video
+flowing (the control: what video costs speech on this machine, now).
 
-Usage: python benchmarks/stack.py [--seconds 60] [--clip PATH] [--commands 5] [--compare] [--json out.json]
+Usage: python benchmarks/stack.py [--seconds 60] [--clip PATH] [--commands 5] [--compare] [--speech-alone]
+                                  [--size 640x480] [--json out.json]
 """
 
 from __future__ import annotations
@@ -331,9 +334,14 @@ def _stats(client: Client, service: str) -> dict[str, Any]:
         return {}
 
 
-def _wait_live(client: Client, up: subprocess.Popen, timeout: float) -> None:
+def started(extra: list[str]) -> set[str]:
+    """The services a run starts (`--no-NAME` among its flags leaves one out)."""
+    return {s for s in SERVICES if f"--no-{s}" not in extra}
+
+
+def _wait_live(client: Client, up: subprocess.Popen, timeout: float, expected: set[str]) -> None:
     deadline = time.monotonic() + timeout
-    while {s for s, _ in client.alive()} < set(SERVICES):
+    while {s for s, _ in client.alive()} < expected:
         if up.poll() is not None:
             raise RuntimeError(f"hri up exited with code {up.returncode} before the stack came up")
         if time.monotonic() > deadline:
@@ -357,7 +365,7 @@ def _window(client: Client, pids: dict[str, int]) -> Window:
     return Window(
         time.time(),
         {name: cpu_seconds(pid) for name, pid in pids.items()},
-        {name: _stats(client, name) for name in SERVICES},
+        {name: _stats(client, name) for name in SERVICES if name in pids},
     )
 
 
@@ -395,7 +403,7 @@ def run_stack(cfg: RunConfig) -> dict[str, Any]:
                 if time.monotonic() > deadline or up.poll() is not None:
                     raise
                 time.sleep(0.3)
-        _wait_live(client, up, timeout=180)
+        _wait_live(client, up, timeout=180, expected=started(cfg.extra))
         recorder = Recorder(Keys(prefix))
         recorder.listen(client)
         pids = service_pids(up.pid)
@@ -473,6 +481,9 @@ def main() -> None:
     ap.add_argument("--size", default="640x480", help="camera --size (frames fitted inside); '' for the clip's own")
     ap.add_argument("--commands", type=int, default=5, help="spoken commands put into the audio")
     ap.add_argument("--compare", action="store_true", help="run the 'before' knobs first, then as shipped")
+    ap.add_argument(
+        "--speech-alone", action="store_true", help="also run router, speech and fusion alone (the control)"
+    )
     ap.add_argument("--up-arg", action="append", default=[], metavar="ARG", help="one more `hri up` flag")
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     args = ap.parse_args()
@@ -487,6 +498,8 @@ def main() -> None:
         print(f"audio: {audio.seconds:.0f} s; commands at {[round(s.at, 1) for s in audio.spoken]} s", flush=True)
         runs = [("before", BEFORE_ARGS)] if args.compare else []
         runs.append(("as shipped", []))
+        if args.speech_alone:  # the control: the same audio with no video flowing, on the same machine
+            runs.append(("speech alone", [f"--no-{s}" for s in ("camera", "vision", "gesture")]))
         results = []
         for label, flags in runs:
             cfg = RunConfig(
