@@ -70,11 +70,12 @@ OUTPUTS: dict[str, tuple[type[Sample], str]] = {
     "speech/*/transcript": (Transcript, "speech transcript"),
     "fusion/command": (FusedCommand, "fusion command"),
 }
-# The "before" of issue #34 (flags that turn its knobs off), for --compare: frame services at normal priority and
+# The "before" of issue #34 (flags that turn its knobs off), for --compare: every service at normal priority and
 # OpenCV's pools at its own size (every core); the rest of the issue's changes (fusion, gestures) have no switch.
 BEFORE_ARGS: list[str] = [
     "--vision-arg=--nice=0",
     "--gesture-arg=--nice=0",
+    "--speech-arg=--nice=0",
     *(f"--{name}-arg=--cv-threads=0" for name in ("camera", "vision", "gesture")),
 ]
 

@@ -41,3 +41,15 @@ def limit_opencv_threads(threads: int) -> None:
     cv2 = sys.modules.get("cv2")
     if cv2 is not None and threads > 0:
         cv2.setNumThreads(threads)
+
+
+def change_priority(by: int) -> str | None:
+    """Change this process's niceness by `by` (os.nice): positive yields the CPU to others, negative asks for more,
+    which needs root or CAP_SYS_NICE. Returns why it was not done, None when it was (or nothing was asked)."""
+    if by == 0:
+        return None
+    try:
+        os.nice(max(-20, min(19, int(by))))
+    except OSError as exc:  # EPERM without the capability (a container, a normal user): run at the usual priority
+        return f"CPU priority left as it is (--nice {by}: {exc.strerror}; needs root or CAP_SYS_NICE to raise it)"
+    return None

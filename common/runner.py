@@ -31,7 +31,7 @@ import zenoh
 
 import common.stack as stack
 from common.codec import ENCODING, decode, encode
-from common.cpu import limit_opencv_threads
+from common.cpu import change_priority, limit_opencv_threads
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
@@ -83,8 +83,9 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         parser,
         "--nice",
         node.nice,
-        "lower this process's CPU priority by N (os.nice): frame services yield to speech and fusion",
-        at_least=0,
+        "change this process's CPU priority by N (os.nice): > 0 yields (the frame services, which skip frames), "
+        "< 0 asks for more (speech, where the system allows it: root or CAP_SYS_NICE; else it runs at 0)",
+        at_least=-20,
         at_most=19,
         metavar="N",
     )
@@ -109,15 +110,6 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         )
     add_zenoh_arguments(parser)
     return parser
-
-
-def lower_priority(by: int) -> None:
-    """Make this process nicer by `by` (never less nice: that needs privileges and is nobody's right here)."""
-    if by > 0:
-        try:
-            os.nice(min(int(by), 19))
-        except OSError:  # a sandbox without setpriority: run at the priority given
-            pass
 
 
 class RateLimitedLog:
@@ -293,7 +285,6 @@ class Service:
         self.node = name if isinstance(name, stack.Node) else stack.node(name)
         name = self.node.name
         resolve(args)
-        lower_priority(getattr(args, "nice", 0))
         limit_opencv_threads(getattr(args, "cv_threads", 0))
         self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
@@ -303,6 +294,9 @@ class Service:
         self.args = args
         self.keys = Keys(args.prefix)
         self.log = log or setup_logging(f"hri.{name}", getattr(args, "log_level", None))
+        refused = change_priority(getattr(args, "nice", 0))
+        if refused:
+            self.log.info("%s", refused)
         self.counters = Counters(self.log)
         self.stop_event = threading.Event()
         self.session: zenoh.Session | None = None

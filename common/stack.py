@@ -100,6 +100,9 @@ class Container:
 # Niceness of the services that read frames: weight 110 against 1024 for a nice-0 process (Linux CFS), so a
 # speech decode or a fusion decision gets the cores at once; the frame services take what is left and skip.
 FRAME_NICE = 10
+# Speech asks for more than a nice-0 process (weight 3121 vs 1024) where the system allows it (root or
+# CAP_SYS_NICE; else it runs at 0): a decode is short (under a CPU-second) and every word waits for it.
+SPEECH_NICE = -5
 
 
 @dataclass(frozen=True)
@@ -111,8 +114,8 @@ class Node:
     reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding); must be True
     # when an input is an image topic
     container: Container = Container()  # docker-compose.yml: no flags, HRI_<NAME>_ARGS adds some
-    # default --nice: how much lower its CPU priority is. Frame services skip stale frames when they fall behind;
-    # speech and fusion cannot skip, so on a small machine frame work yields to them (issue #34)
+    # default --nice: its CPU priority (> 0 lower, < 0 higher where allowed). Frame services skip stale frames
+    # when they fall behind; speech and fusion cannot skip, so on a small machine frame work yields (issue #34)
     nice: int = 0
 
     @property
@@ -193,6 +196,7 @@ NODES: tuple[Node, ...] = (
         "voice activity -> Whisper -> transcripts with times and confidence",
         inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
         outputs=("transcript",),
+        nice=SPEECH_NICE,
         container=Container(
             "--input zenoh",
             note="Default: AudioChunks over zenoh from a microphone elsewhere (a container has no sound card).\n"

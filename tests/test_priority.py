@@ -3,6 +3,7 @@ skip; library thread pools sized for the cores a process may use."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -12,18 +13,30 @@ from common.runner import service_parser
 from testkit.harness import ROOT
 
 
-def test_frame_services_are_nicer_than_speech_and_fusion_by_default() -> None:
+def test_frame_services_yield_and_speech_asks_for_more_by_default() -> None:
     nice = {name: service_parser(name, "").parse_args([]).nice for name in ("vision", "gesture", "speech", "fusion")}
     assert nice["vision"] == nice["gesture"] > 0
-    assert nice["speech"] == nice["fusion"] == 0
+    assert nice["speech"] < nice["fusion"] == 0
     assert service_parser("vision", "").parse_args(["--nice", "0"]).nice == 0  # a user can turn it off
 
 
-def test_lower_priority_makes_the_process_nicer_and_never_less_nice() -> None:
-    code = "import os\nfrom common.runner import lower_priority\n"
-    code += "lower_priority(3)\nlower_priority(0)\nprint(os.nice(0))"
+def _niceness_after(*changes: int) -> tuple[int, list[str | None]]:
+    code = "import json, os\nfrom common.cpu import change_priority\n"
+    code += f"refused = [change_priority(n) for n in {list(changes)!r}]\nprint(os.nice(0))\nprint(json.dumps(refused))"
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
-    assert int(out.stdout) == min(os.nice(0) + 3, 19)
+    first, second = out.stdout.splitlines()
+    return int(first), json.loads(second)
+
+
+def test_a_process_can_always_yield_and_asks_for_more_only_where_allowed() -> None:
+    base = os.nice(0)
+    niceness, refused = _niceness_after(3, 0)
+    assert niceness == min(base + 3, 19) and refused == [None, None]
+    niceness, refused = _niceness_after(-2)
+    if refused[0] is None:  # root or CAP_SYS_NICE: raised
+        assert niceness == max(base - 2, -20)
+    else:  # refused: said why, and the priority is the one it had
+        assert niceness == base and "CAP_SYS_NICE" in refused[0]
 
 
 def test_a_container_quota_caps_the_cores_a_service_sizes_its_pools_for(tmp_path: Path) -> None:
