@@ -125,7 +125,7 @@ def test_the_vectorised_ray_step_gives_what_the_one_object_functions_give() -> N
     import dataclasses
     import random
 
-    from services.fusion.ground import pointing_scores, under_fingertip
+    from services.fusion.ground import ray_score, ray_scores, under_fingertip
 
     rng = random.Random(7)
     objs = [
@@ -147,14 +147,14 @@ def test_the_vectorised_ray_step_gives_what_the_one_object_functions_give() -> N
         assert base is not None
         hand_box = (base.origin[0] - 30, base.origin[1] - 30, base.origin[0] + 30, base.origin[1] + 30)
         for p in (base, dataclasses.replace(base, hand_box=hand_box), dataclasses.replace(base, direction=(1.0, 0.0))):
-            got, under = pointing_scores(p, objects)
+            got, under = ray_scores(p, objects)
             for o in objects:
-                g, angle = pointing_score(p, o)
-                assert got[o.key][0] == pytest.approx(g, abs=1e-12)
-                assert (got[o.key][1] is None) == (angle is None)
-                if angle is not None:
-                    assert got[o.key][1] == pytest.approx(angle, abs=1e-9)
-                expected = angle is not None and g > 0 and under_fingertip(p, o)
+                one = ray_score(p, o)
+                assert got[o.key].gesture == pytest.approx(one.gesture, abs=1e-12)
+                assert (got[o.key].angle is None) == (one.angle is None) and got[o.key].rule == one.rule
+                if one.angle is not None:
+                    assert got[o.key].angle == pytest.approx(one.angle, abs=1e-9)
+                expected = one.angle is not None and one.gesture > 0 and under_fingertip(p, o)
                 assert (o.key in under) == expected, (o, p)
                 checked_under += expected
     assert checked_under > 20  # the scenes do put objects under the fingertip

@@ -15,10 +15,12 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from common.language import ANY_OBJECT, PLACE_AS_OBJECT
 from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
+from services.fusion.afford import Applicable, applicable, refusal, removed_words
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
@@ -107,6 +109,14 @@ MODALITIES = input_services()
 def modality_of(service: str) -> str | None:
     """The modality a service's liveliness token speaks for: the service itself if it feeds fusion, else None."""
     return service if service in MODALITIES else None
+
+
+def unseen_pointing(phrase: ObjectPhrase, winner: Scored) -> bool:
+    """ "That one" / "this" (deixis naming no kind) chose `winner` without pointing at it: no ray was seen, or the
+    ray is near nothing. Then only the absence of other candidates chose it, and the point may have been at something
+    vision does not see."""
+    names_kind = phrase.label not in (None, ANY_OBJECT) or bool(phrase.color) or bool(phrase.spatial)
+    return phrase.deictic and not names_kind and not phrase.relations and (winner.gesture or 0.0) < 0.5
 
 
 class FusionCore:
@@ -233,7 +243,7 @@ class FusionCore:
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
         if u.intent is None:
-            reply = self.dialogue.reply(t, u, ctx)
+            reply = self.dialogue.reply(t, u, self._for_dialogue(ctx))
             if reply is not None:
                 return reply
             # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
@@ -268,40 +278,19 @@ class FusionCore:
         wants_location = (intent == "go_to" and not wants_object and not u.place) or (
             intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj)
         )
+        if intent in TARGET_INTENTS and u.place in PLACE_AS_OBJECT and u.obj.label is None and not u.obj.deictic:
+            # "pick up the table": what is picked up is the thing, not a place
+            u = replace(u, obj=replace(u.obj, label=PLACE_AS_OBJECT[u.place]), place=None)
+        found = applicable(intent, u.obj, ctx.objects, ctx.pointing)
+        ctx = replace(ctx, candidates=found.kept)  # nothing else is ever proposed (services/fusion/afford.py)
         target: Scored | None = None
         runner_up: Scored | None = None
         overruled = None
-        if wants_object and u.obj.noun is not None:  # a word I don't know: only a clear point can say which
-            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
-            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
-                self.count("unknown_noun")
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
-                    )
-                ]
-            target, runner_up = choice.winner, choice.runner_up
-        elif wants_object:
-            choice = self._choose(u.obj, ctx)
-            if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
-                best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
-                scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
-                expl = (
-                    f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
-                    f"detection {best.id} ({best.name()}, score {best.score:.2f})"
-                )
-                return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
-            if choice.kind not in ("target", "low_confidence"):
-                return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, place=u.place))]
-            target = choice.winner
-            runner_up = choice.runner_up
-            overruled = choice.overruled
-            if choice.kind == "low_confidence":
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, choice, Draft(intent, t.text, target=target.obj if target else None, place=u.place)
-                    )
-                ]
+        if wants_object:
+            picked = self._object(t, u, ctx, found)
+            if isinstance(picked, list):
+                return picked
+            target, runner_up, overruled = picked.winner, picked.runner_up, picked.overruled
         elif intent == "put_down" and u.obj.specific:
             choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
             target = choice.winner if choice.kind == "target" else None
@@ -327,6 +316,7 @@ class FusionCore:
             return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
         if target is not None:
             expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
+            expl += removed_words(found, u.obj, ctx.pointing)
             if u.obj.noun is not None:
                 expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
             if u.obj.unmatched:  # said back, never silently dropped
@@ -354,18 +344,70 @@ class FusionCore:
             )
         ]
 
+    def _object(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Choice | list[Output]:
+        """The object the command acts on (a target Choice), or what to publish instead: a refusal ("I can't pick up
+        a couch."), a question, or the --fallback-most-confident command."""
+        intent = u.intent
+        assert intent is not None
+        no = refusal(intent, u.obj, found)
+        if no is not None:
+            self.count("refused_affordance")
+            return [self.dialogue.refuse(t, u, no, Draft(intent, t.text, place=u.place))]
+        if u.obj.noun is not None:  # a word I don't know: only a clear point can say which
+            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
+            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
+                self.count("unknown_noun")
+                return [
+                    self.dialogue.clarify(
+                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
+                    )
+                ]
+            return choice
+        choice = self._choose(u.obj, ctx)
+        if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.pool:
+            best = max(ctx.pool, key=lambda o: (o.score, o.cam, o.id))
+            scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
+            expl = (
+                f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
+                f"detection {best.id} ({best.name()}, score {best.score:.2f})"
+            )
+            return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
+        if choice.kind == "target" and choice.winner is not None and unseen_pointing(u.obj, choice.winner):
+            # "that one" said, no point seen (or none near anything) and no kind named: confirm, never guess
+            self.count("deixis_unresolved")
+            choice = replace(choice, kind="low_confidence")
+        if choice.kind == "target":
+            return choice
+        target = choice.winner.obj if choice.kind == "low_confidence" and choice.winner else None
+        return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target, place=u.place))]
+
+    def _for_dialogue(self, ctx: Context) -> Context:
+        """An answer or a correction chooses among what the asked (or corrected) command may act on."""
+        q, last = self.dialogue.question, self.dialogue.last
+        if q is not None:
+            intent, phrase = q.draft.intent, q.phrase
+        elif last is not None:
+            intent, phrase = last.intent, last.phrase
+        else:
+            return ctx
+        return replace(ctx, candidates=applicable(intent, phrase, ctx.objects, ctx.pointing).kept)
+
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
-        return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)
+        return ctx.choose(phrase, ctx.pool, ctx.pointing, ctx.ref)
 
     def _location(self, u: Utterance, ctx: Context) -> Location | None:
         """Where the command goes: the object named as the destination ("put it on the red box"), else where the
-        ray points; None without either."""
+        ray points; None without either. A place may be anything (a table, a couch) but the person pointing (nor what
+        is on them: the ray starts inside their box)."""
+        places = applicable("go_to", ObjectPhrase(), ctx.objects, ctx.pointing).kept
         if u.dest_obj is not None:
-            choice = self._choose(u.dest_obj, ctx)
+            choice = self._choose(u.dest_obj, replace(ctx, candidates=places))
             if choice.kind == "target" and choice.winner is not None:
                 o = choice.winner.obj
                 return Location(x=float(o.center[0]), y=float(o.center[1]), cam=o.cam)
-        return pointed_location(ctx.pointing, ctx.objects) if ctx.pointing is not None else None
+        if ctx.pointing is None:
+            return None
+        return pointed_location(ctx.pointing, places)
 
     def memory_items(self) -> int:
         """Buffered samples plus bookkeeping (for the benchmark's flat-memory check)."""

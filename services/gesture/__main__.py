@@ -138,8 +138,9 @@ def main(argv: list[str] | None = None) -> None:
         observations = landmarkers[frame.cam].detect(img)
         skeleton = posers[frame.cam].detect(img) if args.body else None
         tracker = trackers[frame.cam]
-        tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
         rays3d = frame_rays(frame, skeleton, posers[frame.cam].world if args.body and skeleton is not None else None)
+        joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
+        tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height), joints3d)
         hand_rays3d = {
             o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
             for o, t in zip(observations, tracked)
@@ -197,7 +198,7 @@ def main(argv: list[str] | None = None) -> None:
             if frame.cam in depths:
                 service.counters.add("depth_unmatched")  # a camera with depth, but not of this capture (yet)
             return None
-        return FrameRays(depth, skeleton, world)  # decoded only if someone points
+        return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
     def on_depth(d) -> None:
         depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)
