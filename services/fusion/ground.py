@@ -19,8 +19,7 @@ each back a different object).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from functools import cached_property
+from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 import numpy as np
@@ -67,6 +66,11 @@ class SceneObject:
     frame_id: str | None = None
     lab: tuple[float, float, float] | None = None  # measured colour (CIELAB), when vision's colour model sent one
     colors: tuple[tuple[str, float], ...] = ()  # likeliest colour names with probabilities
+    # (cam, id): read tens of times per object and decision, so made once (not a property: 1000 objects, #34)
+    key: tuple[str, str] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "key", (self.cam, self.id))
 
     def to_target(self) -> Target:
         return Target(
@@ -81,10 +85,6 @@ class SceneObject:
             extent=list(self.extent) if self.extent else None,
             frame_id=self.frame_id if self.position else None,
         )
-
-    @cached_property
-    def key(self) -> tuple[str, str]:  # read tens of times per object and decision: computed once
-        return self.cam, self.id
 
     def name(self) -> str:
         return f"{self.color + ' ' if self.color else ''}{self.label}"
