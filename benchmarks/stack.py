@@ -22,7 +22,7 @@ What it reports, over the measured window (from the moment every service is live
 flowing (the control: what video costs speech on this machine, now).
 
 Usage: python benchmarks/stack.py [--seconds 60] [--clip PATH] [--commands 5] [--compare] [--speech-alone]
-                                  [--size 640x480] [--json out.json]
+                                  [--rounds N] [--size 640x480] [--json out.json]
 """
 
 from __future__ import annotations
@@ -473,6 +473,18 @@ def print_run(result: dict[str, Any], cores: int) -> None:
     )
 
 
+def planned_runs(compare: bool, speech_alone: bool, rounds: int) -> list[tuple[str, list[str]]]:
+    """The runs, alternated round by round (before, as shipped, speech alone, then again) so that a machine whose
+    load drifts does not favour whichever ran first."""
+    one: list[tuple[str, list[str]]] = [("before", BEFORE_ARGS)] if compare else []
+    one.append(("as shipped", []))
+    if speech_alone:  # the control: the same audio with no video flowing, on the same machine
+        one.append(("speech alone", [f"--no-{s}" for s in ("camera", "vision", "gesture")]))
+    if rounds == 1:
+        return one
+    return [(f"{label} #{r + 1}", flags) for r in range(rounds) for label, flags in one]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=60.0, help="measured window (default 60)")
@@ -485,6 +497,7 @@ def main() -> None:
     ap.add_argument(
         "--speech-alone", action="store_true", help="also run router, speech and fusion alone (the control)"
     )
+    ap.add_argument("--rounds", type=int, default=1, help="repeat the set of runs, alternating (default 1)")
     ap.add_argument("--up-arg", action="append", default=[], metavar="ARG", help="one more `hri up` flag")
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     args = ap.parse_args()
@@ -497,12 +510,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="hri-stack-bench-") as tmp:
         audio = build_audio(wav, args.seconds, args.commands, Path(tmp))
         print(f"audio: {audio.seconds:.0f} s; commands at {[round(s.at, 1) for s in audio.spoken]} s", flush=True)
-        runs = [("before", BEFORE_ARGS)] if args.compare else []
-        runs.append(("as shipped", []))
-        if args.speech_alone:  # the control: the same audio with no video flowing, on the same machine
-            runs.append(("speech alone", [f"--no-{s}" for s in ("camera", "vision", "gesture")]))
         results = []
-        for label, flags in runs:
+        for label, flags in planned_runs(args.compare, args.speech_alone, args.rounds):
             cfg = RunConfig(
                 args.clip, args.model, audio, args.seconds, args.fps, [*flags, *args.up_arg], label, args.size or None
             )
