@@ -15,11 +15,13 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+import msgspec
+
 from common.language import ANY_OBJECT, PLACE_AS_OBJECT
-from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from common.schema import Bodies, Detections, FusedCommand, GestureEvent, Hands, Location, Persons, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
-from services.fusion import describe, space
+from services.fusion import describe, people, space
 from services.fusion.afford import Applicable, applicable, refusal, removed_words
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
@@ -141,6 +143,10 @@ class FusionCore:
         )
         self.seen_transcripts = SeenOnce(config.horizon)
         self.facing = space.Facing()  # which way the speaker faces: "on my left"
+        # people (issue #33): who said an utterance (the speaker attribution plugs in here; None = unknown) and the
+        # persons in view, for "bring it to me"
+        self.speaker_of: Callable[[PendingTranscript], str | None] = lambda p: None
+        self.persons: list[Persons] = []
 
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
@@ -169,6 +175,10 @@ class FusionCore:
 
     def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
         self.facing.add(bodies)
+        return []
+
+    def on_persons(self, key: str, persons: Persons, wall: float) -> list[Output]:
+        self.persons = [s for s in self.persons if s.stamp >= persons.stamp - self.cfg.horizon][-299:] + [persons]
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
@@ -228,6 +238,7 @@ class FusionCore:
             vision_lookback=self.cfg.vision_lookback,
             margin=self.cfg.margin,
             log=self.log,
+            speaker_person=self.speaker_of(p),
         )
 
     # -- decisions ------------------------------------------------------------
@@ -238,7 +249,8 @@ class FusionCore:
             self.count("cancelled_by_stop_gesture")
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
             return []
-        ctx = self.context(p, how)
+        ctx = self._with_persons(u, self.context(p, how))
+        recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
         if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
@@ -258,7 +270,57 @@ class FusionCore:
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
             self.count("duplicate_of_gesture")
             return []
-        return self.command_for(t, u, ctx)
+        out = self._person_action(t, u, ctx, p) or self.command_for(t, u, ctx)
+        return [self._to_recipient(o, recipient, p, ctx) for o in out] if recipient is not None else out
+
+    def _with_persons(self, u: Utterance, ctx: Context) -> Context:
+        """ "The man on the left" with no person among the detections (the colour backend finds none): the persons
+        in view (`Persons`, within the vision lookback of the utterance) are the candidates, by their ids."""
+        if u.obj.label != "person":
+            return ctx
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        if seen is None or any(o.label == "person" and o.cam == seen.cam for o in ctx.objects):
+            return ctx
+        self.count("persons_as_candidates")
+        return replace(ctx, objects=ctx.objects + [people.as_scene_object(q, seen) for q in seen.persons])
+
+    def _person_action(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> list[Output]:
+        """ "Follow me", "look at him", "watch the person who is talking": the person in `Persons` (by their part in
+        the talk: the speaker, the one other person) is the target; [] when none is named or none resolves."""
+        ref = people.person_referent(t.text) if u.intent in ("follow", "look_at") else None
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback) if ref is not None else None
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if ref is not None and seen else None
+        if person is None or seen is None or ref is None:
+            return []
+        self.count("person_target")
+        target = people.as_scene_object(person, seen)
+        why = f"'{ref.said}' is {person.id}" + (" (the speaker)" if ref.who == "speaker" else " (the other person)")
+        return [
+            self.outputs.command(
+                t,
+                u.intent or "follow",
+                ctx,
+                confidence=ctx.reliabilities["speech"] or 0.0,
+                explanation=why,
+                target=target,
+            )
+        ]
+
+    def _to_recipient(self, out: Output, ref: people.PersonRef, p: PendingTranscript, ctx: Context) -> Output:
+        """A bring/give command goes to the person named ("to me": the speaker): their place is its `location`."""
+        sample = out.sample
+        if not isinstance(sample, FusedCommand) or sample.intent != "bring" or sample.location is not None:
+            return out
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if seen else None
+        if person is None or seen is None:
+            self.count("recipient_unknown")
+            return out
+        why = f"; to {person.id} ('{ref.said}')" + (" at their torso in metres" if person.position else "")
+        located = msgspec.structs.replace(
+            sample, location=people.location_of(person, seen.cam), explanation=sample.explanation + why
+        )
+        return replace(out, sample=located)
 
     def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         intent = u.intent
