@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -15,8 +17,8 @@ from common.runner import Service, main_exit, service_parser
 from common.schema import Frame
 from common.settings import add_option
 from services.camera.opener import open_source
-from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
-from services.camera.source import SourceError, encode_image
+from services.camera.rgbd import Capture, Intrinsics, check_intrinsics, mirror_capture, read_intrinsics
+from services.camera.source import SourceError, encode_image, fit_within, parse_size
 
 EPILOG = """\
 examples:
@@ -88,17 +90,98 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="T",
         default_text="at once, stamped when read",
     )
+    add_option(
+        parser,
+        "--size",
+        None,
+        "video, image or folder: frames scaled to fit inside WIDTHxHEIGHT, aspect kept (e.g. 640x480: a 1080p "
+        "clip costs every service a quarter of the pixels); not for depth sources (--rs-size for RealSense)",
+        kind=str,
+        metavar="WxH",
+        default_text="the source's own",
+    )
     return parser
+
+
+@dataclass(frozen=True)
+class ClipClock:
+    """Frame stamps: capture time (the moment the frame is in hand), or with --start-at and a frame rate the frame's
+    place in the file's own timeline anchored at that wall time (a speech service given the same plays its audio)."""
+
+    start_at: float | None
+    period: float  # s per frame, 0 without a frame rate
+
+    def wait(self, stop: threading.Event) -> None:
+        """Until --start-at (if any), or until stopped."""
+        if self.start_at is not None and self.period:
+            stop.wait(max(0.0, self.start_at - time.time()))
+
+    def stamp(self, seq: int) -> float:
+        if self.start_at is None or not self.period:
+            return time.time()
+        return self.start_at + seq * self.period
+
+
+def resize_colour_only(capture: Capture, size: tuple[int, int], has_intrinsics: bool, service: Service) -> None:
+    """--size: the colour image fitted inside `size`; a capture with depth or intrinsics is left as it is (its
+    pixels are tied to them), said once."""
+    if capture.depth is None and capture.camera_info is None and not has_intrinsics:
+        capture.color = fit_within(capture.color, size)
+    else:
+        service.counters.ratelog.warn(
+            "size_ignored", "--size is ignored for a source with depth or intrinsics (RealSense: --rs-size)"
+        )
+
+
+def sizes(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[tuple[int, int], tuple[int, int] | None]:
+    """(--rs-size, --size or None), or the parser's error."""
+    try:
+        rs_size = parse_size(args.rs_size)
+    except ValueError:
+        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
+    try:
+        return rs_size, (parse_size(args.size) if args.size else None)
+    except ValueError:
+        parser.error("--size must be WIDTHxHEIGHT, e.g. 640x480")
+
+
+class Preparer:
+    """The source's image or capture made ready to publish: fitted to --size, with the intrinsics that belong to
+    it (checked once per resolution), mirrored if asked."""
+
+    def __init__(
+        self,
+        args: argparse.Namespace,
+        intrinsics: Intrinsics | None,
+        fit_size: tuple[int, int] | None,
+        description: str,
+        service: Service,
+    ):
+        self.args, self.intrinsics, self.fit_size = args, intrinsics, fit_size
+        self.description, self.service = description, service
+        self.checked: set[tuple[int, int]] = set()
+
+    def __call__(self, item: Any) -> Capture:
+        capture = item if isinstance(item, Capture) else Capture(item)
+        intrinsics = self.intrinsics
+        if self.fit_size is not None:
+            resize_colour_only(capture, self.fit_size, intrinsics is not None, self.service)
+        if intrinsics is not None:
+            capture.camera_info = intrinsics.camera_info
+            if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
+                capture.depth_scale = intrinsics.depth_scale
+        if capture.camera_info is not None:
+            size = capture.color.shape[1], capture.color.shape[0]
+            if size not in self.checked:  # once per resolution: a wrong K is refused with the first frame
+                check_intrinsics(capture.camera_info, *size, self.args.intrinsics or self.description)
+                self.checked.add(size)
+        return mirror_capture(capture) if self.args.mirror else capture
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = build_parser()
     args = parser.parse_args(argv)
-    try:
-        rs_size = tuple(int(v) for v in args.rs_size.lower().split("x"))
-        assert len(rs_size) == 2 and min(rs_size) > 0
-    except (ValueError, AssertionError):
-        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
+    rs_size, fit_size = sizes(parser, args)
 
     service = Service("camera", args)
     try:
@@ -111,29 +194,14 @@ def main(argv: list[str] | None = None) -> None:
     fps = args.fps or source.native_fps or (10.0 if source.finite else None)
     key = service.output_key("frame", cam=args.cam)
     depth_key = service.output_key("depth", cam=args.cam)
-    checked: set[tuple[int, int]] = set()
-
-    def prepare(item) -> Capture:
-        """The source's image or capture with the intrinsics that belong to it, mirrored if asked."""
-        capture = item if isinstance(item, Capture) else Capture(item)
-        if intrinsics is not None:
-            capture.camera_info = intrinsics.camera_info
-            if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
-                capture.depth_scale = intrinsics.depth_scale
-        if capture.camera_info is not None:
-            size = capture.color.shape[1], capture.color.shape[0]
-            if size not in checked:  # once per resolution: a wrong K is refused with the first frame
-                check_intrinsics(capture.camera_info, *size, args.intrinsics or source.description)
-                checked.add(size)
-        return mirror_capture(capture) if args.mirror else capture
+    prepare = Preparer(args, intrinsics, fit_size, source.description, service)
 
     service.log.info("publishing %s on %s at %s", source.description, key, f"{fps:g} fps" if fps else "device rate")
 
     def loop(stop: threading.Event) -> None:
         seq, period = 0, (1.0 / fps if fps else 0.0)
-        clip_clock = args.start_at if period else None  # the file's timeline, anchored at --start-at
-        if clip_clock is not None and stop.wait(max(0.0, clip_clock - time.time())):
-            return
+        clock = ClipClock(args.start_at, period)
+        clock.wait(stop)  # stopped meanwhile: the loop below does not start
         next_at = time.monotonic()
         while not stop.is_set():
             produced = False
@@ -145,8 +213,7 @@ def main(argv: list[str] | None = None) -> None:
                     if delay > 0 and stop.wait(delay):
                         return
                     next_at = max(next_at + period, time.monotonic() - period)
-                # capture time: the moment the frame is in hand (or its place in the clip's timeline)
-                stamp = time.time() if clip_clock is None else clip_clock + seq * period
+                stamp = clock.stamp(seq)
                 img = capture.color
                 h, w = img.shape[:2]
                 if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:

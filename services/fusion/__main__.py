@@ -30,8 +30,10 @@ after the transcript arrived; a clarification stays open {DEFAULTS.dialogue_time
 while its service's liveliness token exists or it sent a sample in the last {DEFAULTS.live_recent_s:g} s.
 
 clocks: each source's clock offset against this machine's is estimated from the router's Zenoh timestamps
-(`hri stats fusion`: other["clock_offset_ms:SOURCE"]); a warning is logged (at most every 30 s per source)
-when a source runs more than half the window after its end ahead, or half the window before its start behind.
+(`hri stats fusion`: other["clock_offset_ms:SOURCE"]; a source of transcripts, late by design, shows its
+recognition delay as other["delay_ms:SOURCE"] instead unless its clock runs ahead); a warning is logged (at
+most every 30 s per source) when a source runs more than half the window after its end ahead, or half the window
+before its start behind.
 """
 
 
@@ -50,6 +52,71 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class ClockReport:
+    """Fusion's clock estimates (ClockOffsets) as `Stats.other` gauges, once a second, and the warning."""
+
+    def __init__(self, service: Service, config: Config):
+        self.estimates = ClockOffsets()
+        self.service = service
+        self.log = RateLimitedLog(service.log, interval=30.0)
+        self.ahead_tol = CLOCK_WARN_SHARE * config.window_after
+        self.behind_tol = CLOCK_WARN_SHARE * config.window_before
+        self.last_report = 0.0
+
+    def forget(self, source: str) -> None:
+        self.estimates.forget(source)
+        self._clear(source)
+
+    def _clear(self, source: str) -> None:
+        self.service.counters.set(f"clock_offset_ms:{source}", None)
+        self.service.counters.set(f"delay_ms:{source}", None)
+
+    def report(self, now: float) -> None:
+        if now - self.last_report < 1.0:
+            return
+        self.last_report = now
+        counters = self.service.counters
+        for source in self.estimates.expire(now):
+            self._clear(source)
+        for source, delay in self.estimates.delays().items():
+            counters.set(f"clock_offset_ms:{source}", None)
+            counters.set(f"delay_ms:{source}", round(delay * 1000))
+        for source, offset in self.estimates.offsets().items():
+            counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
+            counters.set(f"delay_ms:{source}", None)
+            self._warn(source, offset)
+
+    def _warn(self, source: str, offset: float) -> None:
+        verdict = clock_verdict(offset, self.ahead_tol, self.behind_tol)
+        if verdict is not None:
+            self.log.warn(
+                f"clock:{source}",
+                f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
+                f"this machine's clock (tolerated: {self.ahead_tol * 1000:.0f} ms ahead, "
+                f"{self.behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
+                f"at the wrong moment. Keep the hosts in step with chrony or PTP "
+                f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
+            )
+
+
+def publish_outputs(service: Service, outputs: list[Output], command_key: str, clarification_key: str) -> None:
+    for out in outputs:
+        sample = out.sample
+        if isinstance(sample, FusedCommand):
+            # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
+            service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
+            service.log.info(
+                "command %s %s%s: %s",
+                sample.id,
+                sample.intent,
+                f" -> {sample.target.id}" if sample.target else "",
+                sample.explanation,
+            )
+        elif isinstance(sample, Clarification):
+            service.publish(clarification_key, sample, lossless=True, recovering=True)
+            service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
+
+
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
 
@@ -65,21 +132,7 @@ def main(argv: list[str] | None = None) -> None:
     command_key, clarification_key = service.output_key("command"), service.output_key("clarification")
 
     def emit(outputs: list[Output]) -> None:
-        for out in outputs:
-            sample = out.sample
-            if isinstance(sample, FusedCommand):
-                # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
-                service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
-                service.log.info(
-                    "command %s %s%s: %s",
-                    sample.id,
-                    sample.intent,
-                    f" -> {sample.target.id}" if sample.target else "",
-                    sample.explanation,
-                )
-            elif isinstance(sample, Clarification):
-                service.publish(clarification_key, sample, lossless=True, recovering=True)
-                service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
+        publish_outputs(service, outputs, command_key, clarification_key)
 
     # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
     liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
@@ -89,23 +142,16 @@ def main(argv: list[str] | None = None) -> None:
         if parsed:
             liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
 
-    clocks = ClockOffsets()
-    clock_log = RateLimitedLog(service.log, interval=30.0)
-    ahead_tol, behind_tol = CLOCK_WARN_SHARE * config.window_after, CLOCK_WARN_SHARE * config.window_before
-
+    clocks = ClockReport(service, config)
     token_sub = service.session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)
     service.on_close(token_sub.undeclare)
 
-    # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
-    # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
-    delayed_sources: set[str] = set()
-
+    # A transcript is stamped at the utterance's end and published after recognition (0.2-2 s later): late by
+    # design, so that delay is reported as such (delay_ms:SOURCE), never read as the clock running behind.
     def handler(feed, delayed: bool = False):
         def handle(d: Delivery) -> None:
-            if delayed:
-                delayed_sources.add(d.sample.source)
             service.log.debug("in %s %.3f", d.key, d.sample.stamp)
-            clocks.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
+            clocks.estimates.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed)
             emit(feed(d.key, d.sample, d.received_at))
 
         return handle
@@ -118,28 +164,6 @@ def main(argv: list[str] | None = None) -> None:
     service.subscribe_input("faces", handler(core.on_faces))  # who is speaking
     service.subscribe_input("persons", handler(core.on_persons))  # people in view: "bring it to me"
 
-    last_clock_report = [0.0]
-
-    def report_clocks(now: float) -> None:
-        if now - last_clock_report[0] < 1.0:
-            return
-        last_clock_report[0] = now
-        for source in clocks.expire(now):
-            service.counters.set(f"clock_offset_ms:{source}", None)
-            delayed_sources.discard(source)
-        for source, offset in clocks.offsets().items():
-            service.counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
-            verdict = clock_verdict(offset, ahead_tol, behind_tol)
-            if verdict == "ahead" or (verdict == "behind" and source not in delayed_sources):
-                clock_log.warn(
-                    f"clock:{source}",
-                    f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
-                    f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
-                    f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
-                    f"at the wrong moment. Keep the hosts in step with chrony or PTP "
-                    f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
-                )
-
     def tick() -> None:
         while True:
             try:
@@ -149,9 +173,8 @@ def main(argv: list[str] | None = None) -> None:
             core.on_liveliness(service_name, instance, present)
             if not present:  # a restarted instance starts a new estimate
                 clocks.forget(f"{service_name}/{instance}")
-                service.counters.set(f"clock_offset_ms:{service_name}/{instance}", None)
         now = time.time()
-        report_clocks(now)
+        clocks.report(now)
         emit(core.tick(now))
 
     service.log.info(

@@ -315,11 +315,18 @@ def wait_for_services(service: Service, names: list[str], stop: threading.Event)
     return False
 
 
-def start_clock(start_at: float | None, stop: threading.Event) -> float | None:
-    """The source time of the first sample: now, or --start-at once it has come (None: stopped while waiting)."""
+def start_clock(start_at: float | None, stop: threading.Event) -> float:
+    """The source time of the first sample: now, or --start-at once it has come (or once stopped)."""
     if start_at is None:
         return time.time()
-    return None if stop.wait(max(0.0, start_at - time.time())) else start_at
+    stop.wait(max(0.0, start_at - time.time()))
+    return start_at
+
+
+def file_clock(clock: float, realtime: bool, start_at: float | None) -> float:
+    """Where the next file starts on the audio clock: a realtime player without --start-at starts it no earlier
+    than now; with --start-at the files follow each other exactly on the audio clock."""
+    return max(clock, time.time()) if realtime and start_at is None else clock
 
 
 def play_wavs(service: Service, args, stream: MicStream, publish, stop: threading.Event) -> None:
@@ -329,9 +336,7 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
     files = wav_files(args.wav)
     if not files:
         service.log.error("no .wav files in %s", " ".join(args.wav))
-    clock = start_clock(args.start_at, stop)  # source time of the next file's first sample
-    if clock is None:
-        return
+    clock = start_clock(args.start_at, stop)  # source time of the next file's first sample (stopped: no file plays)
     for i, path in enumerate(files):
         if stop.is_set():
             return
@@ -349,8 +354,7 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
             wav.rate,
             wav.channels,
         )
-        if args.realtime and args.start_at is None:
-            clock = max(clock, time.time())
+        clock = file_clock(clock, args.realtime, args.start_at)
         step = max(1, int(wav.rate * CHUNK_SECONDS))
         wall0 = time.monotonic()
         for offset in range(0, len(wav.samples), step):
