@@ -143,6 +143,30 @@ def say_and_time(client: Client, transcripts, samples) -> float:
     return time.monotonic() - t0
 
 
+def flood(client: Client) -> tuple[collections.Counter[str], collections.Counter[str], float]:
+    """SAMPLES malformed samples spread over every input key, plus one oversized payload per key: (how many of
+    each kind were thrown, how many each service should receive, seconds it took)."""
+    bomb = image_bomb()
+    valid = valid_inputs(time.time())
+    fuzzers = {key: Fuzzer(sample, seed=i, bomb=bomb) for i, (key, sample) in enumerate(valid.items())}
+    thrown: collections.Counter[str] = collections.Counter()
+    per_key = SAMPLES // len(fuzzers)
+    t0 = time.monotonic()
+    for key, fuzzer in fuzzers.items():
+        payloads = list(fuzzer.payloads(per_key))
+        if key != "hri/camera/cam0/frame":  # a 64 MiB frame only slows loopback; test_codec covers that cap
+            payloads.append(("oversized", fuzzer.oversized()))
+        for kind, payload in payloads:
+            client.put_raw(key, payload)
+            thrown[kind] += 1
+    throw_s = time.monotonic() - t0
+    expected: collections.Counter[str] = collections.Counter()
+    for key in fuzzers:
+        for name in CONSUMERS[key]:
+            expected[name] += per_key + (key != "hri/camera/cam0/frame")
+    return thrown, expected, throw_s
+
+
 def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
     from testkit.synth import read_wav_int16, synthesize
 
@@ -172,25 +196,7 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
         baseline = {name: rss_mb(procs[name].pid)[0] for name in SERVICES}
         received0 = {name: client.stats(name)["received"] for name in SERVICES}
 
-        # the flood: SAMPLES spread over every input key, plus one oversized payload per key
-        bomb = image_bomb()
-        valid = valid_inputs(time.time())
-        fuzzers = {key: Fuzzer(sample, seed=i, bomb=bomb) for i, (key, sample) in enumerate(valid.items())}
-        thrown: collections.Counter[str] = collections.Counter()
-        per_key = SAMPLES // len(fuzzers)
-        t0 = time.monotonic()
-        for key, fuzzer in fuzzers.items():
-            payloads = list(fuzzer.payloads(per_key))
-            if key != "hri/camera/cam0/frame":  # a 64 MiB frame only slows loopback; test_codec covers that cap
-                payloads.append(("oversized", fuzzer.oversized()))
-            for kind, payload in payloads:
-                client.put_raw(key, payload)
-                thrown[kind] += 1
-        throw_s = time.monotonic() - t0
-        expected = collections.Counter()
-        for key in fuzzers:
-            for name in CONSUMERS[key]:
-                expected[name] += per_key + (key != "hri/camera/cam0/frame")
+        thrown, expected, throw_s = flood(client)
         for name in SERVICES:  # raises if a service does not get its share in time
             wait_received(client, name, received0[name] + expected[name], timeout=180)
         time.sleep(0.5)  # let the worker threads finish what passed validation

@@ -151,18 +151,28 @@ class ViewState:
         entry.last_sample = sample.stamp if entry.last_sample is None else max(entry.last_sample, sample.stamp)
 
     def _take(self, sample: Sample, now: float) -> None:
+        if isinstance(sample, Frame | Detections | Hands | DepthFrame):
+            self._take_camera_sample(sample, now)
+        else:
+            self._take_event(sample)
+
+    def _take_camera_sample(self, sample: Frame | Detections | Hands | DepthFrame, now: float) -> None:
+        """What one camera shows: its latest frame (released within the frame budget), objects, hands, depth."""
+        cam = self._camera(sample.cam)
         if isinstance(sample, Frame):
-            cam = self._camera(sample.cam)
             cam.received += 1
             cam.pending = sample
             self._release(cam, now)
         elif isinstance(sample, Detections):
-            self._camera(sample.cam).detections = sample
+            cam.detections = sample
         elif isinstance(sample, Hands):
-            self._camera(sample.cam).hands = sample
-        elif isinstance(sample, DepthFrame):
-            self._camera(sample.cam).depth = sample
-        elif isinstance(sample, GestureEvent):
+            cam.hands = sample
+        else:
+            cam.depth = sample
+
+    def _take_event(self, sample: Sample) -> None:
+        """What goes on the timeline: gestures as they start, final transcripts, commands and questions."""
+        if isinstance(sample, GestureEvent):
             if sample.phase == "start":  # "hold" comes every 100 ms; the start is the event a person sees
                 self._add_entry(
                     sample.stamp,
@@ -241,7 +251,7 @@ class ViewState:
         with self.lock:
             state = self.cameras.get(cam)
             depth = state.depth if state else None
-            if depth is None:
+            if state is None or depth is None:
                 return None
             if state.depth_jpeg is not None and state.depth_jpeg[:2] == (depth.seq, depth.stamp):
                 return state.depth_jpeg

@@ -107,22 +107,29 @@ class Expect:
         return not self.mismatch(sample)
 
     def mismatch(self, sample: Any) -> str:
+        """What in `sample` is not as expected ("" when it matches)."""
         if self.kind == "command":
-            if not isinstance(sample, FusedCommand):
-                return f"expected a command, got {describe(sample)}"
-            if sample.intent != self.intent:
-                return f"intent {sample.intent} != {self.intent}"
-            got = sample.target.id if sample.target else None
-            if got != self.target:
-                return f"target {got} != {self.target}"
-            if self.location != (sample.location is not None):
-                return f"location {sample.location} (expected {'one' if self.location else 'none'})"
-            if self.motion is not None:
-                m = sample.motion
-                got_motion = (m.direction, m.distance, m.angle) if m is not None else None
-                if got_motion != self.motion:
-                    return f"motion {got_motion} != {self.motion}"
-            return ""
+            return self._command_mismatch(sample)
+        return self._clarification_mismatch(sample)
+
+    def _command_mismatch(self, sample: Any) -> str:
+        if not isinstance(sample, FusedCommand):
+            return f"expected a command, got {describe(sample)}"
+        if sample.intent != self.intent:
+            return f"intent {sample.intent} != {self.intent}"
+        got = sample.target.id if sample.target else None
+        if got != self.target:
+            return f"target {got} != {self.target}"
+        if self.location != (sample.location is not None):
+            return f"location {sample.location} (expected {'one' if self.location else 'none'})"
+        if self.motion is not None:
+            m = sample.motion
+            got_motion = (m.direction, m.distance, m.angle) if m is not None else None
+            if got_motion != self.motion:
+                return f"motion {got_motion} != {self.motion}"
+        return ""
+
+    def _clarification_mismatch(self, sample: Any) -> str:
         if not isinstance(sample, Clarification):
             return f"expected a clarification ({self.reason}), got {describe(sample)}"
         if sample.reason != self.reason:
@@ -243,7 +250,7 @@ def ray_towards(
     return (math.cos(a), math.sin(a))
 
 
-def hands(
+def hands(  # noqa: PLR0913 - a scenario step: every detail has a default and a scenario names the few it changes
     t: float,
     point_at: tuple[float, float] | None = None,
     origin: tuple[float, float] = (320.0, 470.0),
@@ -279,7 +286,7 @@ def hands(
     return Step(t, build, "hands" + (f" pointing at {point_at}" if point_at else " (none)"))
 
 
-def gesture(
+def gesture(  # noqa: PLR0913 - a scenario step: every detail has a default and a scenario names the few it changes
     t: float,
     name: str,
     phase: str = "start",
