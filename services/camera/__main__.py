@@ -7,15 +7,16 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
 from common.depth import depth_frame
-from common.runner import Service, main_exit, service_parser
+from common.runner import App, Service, StartupError, serve, service_parser
 from common.schema import Frame
 from common.settings import add_option
 from services.camera.opener import open_source
-from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
+from services.camera.rgbd import Capture, Intrinsics, check_intrinsics, mirror_capture, read_intrinsics
 from services.camera.source import SourceError, encode_image
 
 EPILOG = """\
@@ -80,108 +81,142 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+def rs_size_of(text: str) -> tuple[int, int] | None:
+    """--rs-size WIDTHxHEIGHT as (width, height); None when it is not two positive integers."""
     try:
-        rs_size = tuple(int(v) for v in args.rs_size.lower().split("x"))
-        assert len(rs_size) == 2 and min(rs_size) > 0
-    except (ValueError, AssertionError):
-        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        return None
+    return (w, h) if min(w, h) > 0 else None
 
-    service = Service("camera", args)
-    try:
-        intrinsics = read_intrinsics(args.intrinsics) if args.intrinsics else None
-        source = open_source(args.source, rs_size, args.fps, intrinsics)
-    except SourceError as exc:
-        service.log.error("%s", exc)
-        main_exit(2)
-    service.on_close(source.close)
-    fps = args.fps or source.native_fps or (10.0 if source.finite else None)
-    key = service.output_key("frame", cam=args.cam)
-    depth_key = service.output_key("depth", cam=args.cam)
-    checked: set[tuple[int, int]] = set()
 
-    def prepare(item) -> Capture:
+class CameraApp(App):
+    """A source (device, file, folder, RealSense) -> Frame (+ DepthFrame from an RGB-D source) at a steady rate."""
+
+    node = "camera"
+
+    def __init__(self, args: argparse.Namespace, rs_size: tuple[int, int]) -> None:
+        self.args = args
+        self.rs_size = rs_size
+        self.intrinsics: Intrinsics | None = None
+        self.checked: set[tuple[int, int]] = set()  # resolutions whose intrinsics were checked
+
+    def open(self, service: Service) -> None:
+        args = self.args
+        try:
+            self.intrinsics = read_intrinsics(args.intrinsics) if args.intrinsics else None
+            self.source = open_source(args.source, self.rs_size, args.fps, self.intrinsics)
+        except SourceError as exc:
+            raise StartupError(str(exc)) from None
+        service.on_close(self.source.close)
+        self.service = service
+        self.fps = args.fps or self.source.native_fps or (10.0 if self.source.finite else None)
+        self.key = service.output_key("frame", cam=args.cam)
+        self.depth_key = service.output_key("depth", cam=args.cam)
+        rate = f"{self.fps:g} fps" if self.fps else "device rate"
+        service.log.info("publishing %s on %s at %s", self.source.description, self.key, rate)
+
+    def prepare(self, item: Any) -> Capture:
         """The source's image or capture with the intrinsics that belong to it, mirrored if asked."""
         capture = item if isinstance(item, Capture) else Capture(item)
+        intrinsics = self.intrinsics
         if intrinsics is not None:
             capture.camera_info = intrinsics.camera_info
             if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
                 capture.depth_scale = intrinsics.depth_scale
         if capture.camera_info is not None:
             size = capture.color.shape[1], capture.color.shape[0]
-            if size not in checked:  # once per resolution: a wrong K is refused with the first frame
-                check_intrinsics(capture.camera_info, *size, args.intrinsics or source.description)
-                checked.add(size)
-        return mirror_capture(capture) if args.mirror else capture
+            if size not in self.checked:  # once per resolution: a wrong K is refused with the first frame
+                check_intrinsics(capture.camera_info, *size, self.args.intrinsics or self.source.description)
+                self.checked.add(size)
+        return mirror_capture(capture) if self.args.mirror else capture
 
-    service.log.info("publishing %s on %s at %s", source.description, key, f"{fps:g} fps" if fps else "device rate")
+    def publish(self, capture: Capture, seq: int) -> None:
+        """One capture: its depth first (whoever matches depth to colour has it when the colour frame arrives)."""
+        args, service = self.args, self.service
+        stamp = time.time()  # capture time: the moment the frame is in hand
+        img = capture.color
+        h, w = img.shape[:2]
+        if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:
+            depth = depth_frame(
+                capture.depth,
+                stamp=stamp,
+                source=service.source,
+                seq=seq,
+                cam=args.cam,
+                depth_scale=capture.depth_scale,
+                camera_info=capture.camera_info,
+                compression=args.depth_compression,
+            )
+            service.publish(self.depth_key, depth, lossless=False)
+        frame = Frame(
+            stamp=stamp,
+            source=service.source,
+            seq=seq,
+            cam=args.cam,
+            width=w,
+            height=h,
+            encoding=args.encoding,
+            data=encode_image(img, args.encoding, args.quality),
+            camera_info=capture.camera_info,
+        )
+        service.publish(self.key, frame, lossless=False)
 
-    def loop(stop: threading.Event) -> None:
-        seq, period = 0, (1.0 / fps if fps else 0.0)
-        next_at = time.monotonic()
+    def loop(self, stop: threading.Event) -> None:
+        try:
+            self._frames(stop)
+        except SourceError as exc:
+            self.service.fail(2, str(exc))
+
+    def _frames(self, stop: threading.Event) -> None:
+        """Publishes the source's frames at the rate asked, over again with --loop, until --count or stopped."""
+        args = self.args
+        pacer = Pacer(1.0 / self.fps if self.fps else 0.0)
+        seq = 0
         while not stop.is_set():
             produced = False
-            for item in source.frames():
-                capture = prepare(item)
+            for item in self.source.frames():
+                capture = self.prepare(item)
                 produced = True
-                if period:
-                    delay = next_at - time.monotonic()
-                    if delay > 0 and stop.wait(delay):
-                        return
-                    next_at = max(next_at + period, time.monotonic() - period)
-                stamp = time.time()  # capture time: the moment the frame is in hand
-                img = capture.color
-                h, w = img.shape[:2]
-                if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:
-                    # depth first: whoever matches depth to colour has it when the colour frame arrives
-                    service.publish(
-                        depth_key,
-                        depth_frame(
-                            capture.depth,
-                            stamp=stamp,
-                            source=service.source,
-                            seq=seq,
-                            cam=args.cam,
-                            depth_scale=capture.depth_scale,
-                            camera_info=capture.camera_info,
-                            compression=args.depth_compression,
-                        ),
-                        lossless=False,
-                    )
-                service.publish(
-                    key,
-                    Frame(
-                        stamp=stamp,
-                        source=service.source,
-                        seq=seq,
-                        cam=args.cam,
-                        width=w,
-                        height=h,
-                        encoding=args.encoding,
-                        data=encode_image(img, args.encoding, args.quality),
-                        camera_info=capture.camera_info,
-                    ),
-                    lossless=False,
-                )
+                if not pacer.wait(stop):
+                    return
+                self.publish(capture, seq)
                 seq += 1
                 if stop.is_set() or (args.count is not None and seq >= args.count):
                     stop.set()
                     return
             if not args.loop or not produced:
-                service.log.info("source ended after %d frames", seq)
+                self.service.log.info("source ended after %d frames", seq)
                 stop.set()
                 return
-            source.rewind()
+            self.source.rewind()
 
-    def guarded_loop(stop: threading.Event) -> None:
-        try:
-            loop(stop)
-        except SourceError as exc:
-            service.fail(2, str(exc))
 
-    main_exit(service.run(loop=guarded_loop))
+class Pacer:
+    """Waits for the next frame's time at a steady period (0: no wait); a late frame does not make the next early."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.next_at = time.monotonic()
+
+    def wait(self, stop: threading.Event) -> bool:
+        """False when stopped while waiting."""
+        if not self.period:
+            return True
+        delay = self.next_at - time.monotonic()
+        if delay > 0 and stop.wait(delay):
+            return False
+        self.next_at = max(self.next_at + self.period, time.monotonic() - self.period)
+        return True
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    rs_size = rs_size_of(args.rs_size)
+    if rs_size is None:
+        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
+    serve(CameraApp(args, rs_size), args)
 
 
 if __name__ == "__main__":
