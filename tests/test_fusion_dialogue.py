@@ -24,6 +24,7 @@ def asked_which_cup(counts: list[str]) -> tuple[Dialogue, Context, Clarification
     assert choice.kind == "ambiguous"
     out = dialogue.clarify(t, u, ctx, choice, Draft("pick_up", t.text))
     assert dialogue.question is not None and dialogue.question.clarification_id == out.sample.id
+    assert isinstance(out.sample, Clarification)
     return dialogue, ctx, out.sample
 
 

@@ -24,10 +24,12 @@ from common.schema import (
     Hands,
     ImageQuality,
     Ray,
+    Sample,
 )
 from hri.cli import make_transcript
 from testkit.fuzz import Fuzzer, image_bomb
 from testkit.harness import DATA, Client
+from testkit.images import read_image
 
 pytestmark = pytest.mark.integration
 
@@ -39,7 +41,7 @@ MAX_GROWTH_MB = 150  # peak RSS over the RSS after warm-up: bounded, not growing
 
 
 def jpeg_frame(seq: int, stamp: float) -> Frame:
-    img = cv2.imread(str(PHOTO))
+    img = read_image(str(PHOTO))
     return Frame(
         stamp=stamp,
         source="test/cam",
@@ -52,7 +54,7 @@ def jpeg_frame(seq: int, stamp: float) -> Frame:
     )
 
 
-def valid_inputs(now: float) -> dict[str, object]:
+def valid_inputs(now: float) -> dict[str, Sample]:
     obj = DetectedObject(id="o1", label="candy", color="red", score=0.9, bbox=[10, 10, 20, 20], center=[20, 20])
     ray = Ray(origin=[100.0, 100.0], direction=[1.0, 0.0], confidence=0.9)
     hand = Hand(hand="right", score=0.9, landmarks=[[float(i), float(i)] for i in range(21)], gesture="point", ray=ray)

@@ -21,6 +21,7 @@ from common.schema import (
     FusedCommand,
     GestureEvent,
     Hand,
+    ImageEncoding,
     Ray,
     Stats,
     Target,
@@ -34,10 +35,11 @@ from hri.view.player import Player
 from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter
 from testkit.harness import DATA, ROOT
+from testkit.images import read_image
 
 KEYS = Keys("hri")
 T0 = 1_790_000_000.0
-TABLE = cv2.imread(str(DATA / "demo" / "table.png"))
+TABLE = read_image(str(DATA / "demo" / "table.png"))
 JPEG = cv2.imencode(".jpg", TABLE)[1].tobytes()
 H, W = TABLE.shape[:2]
 
@@ -50,7 +52,7 @@ def objects():
     return found, quality
 
 
-def frame(seq: int, stamp: float, data: bytes = JPEG, encoding: str = "jpeg") -> bytes:
+def frame(seq: int, stamp: float, data: bytes = JPEG, encoding: ImageEncoding = "jpeg") -> bytes:
     return encode(
         Frame(stamp=stamp, source="camera/t", seq=seq, cam="table", width=W, height=H, encoding=encoding, data=data)
     )
@@ -297,7 +299,7 @@ def test_render_draws_the_target_candidates_hand_and_ray(objects):
     assert count(TARGET, target.bbox) > 300
     for green in (o for o in objects[0] if o.color == "green"):
         assert count(CANDIDATE, green.bbox) > 300 and count(TARGET, green.bbox) < 50
-    assert np.array_equal(TABLE, cv2.imread(str(DATA / "demo" / "table.png")))  # drawn on a copy
+    assert np.array_equal(TABLE, read_image(str(DATA / "demo" / "table.png")))  # drawn on a copy
 
 
 def write_session(path, objects) -> None:
@@ -346,7 +348,7 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
         timeout=60,
     )
     assert res.returncode == 0, res.stderr
-    img = cv2.imread(str(out))
+    img = read_image(str(out))
     assert img.shape == TABLE.shape
     x, y, w, h = (int(v) for v in red(objects).bbox)
     box = img[y - 3 : y + h + 4, x - 3 : x + w + 4].astype(int)
@@ -360,7 +362,7 @@ def test_snapshot_of_a_recording_writes_the_annotated_frame(tmp_path, objects):
         timeout=60,
     )
     assert res.returncode == 0, res.stderr
-    box = cv2.imread(str(before))[y - 3 : y + h + 4, x - 3 : x + w + 4].astype(int)
+    box = read_image(str(before))[y - 3 : y + h + 4, x - 3 : x + w + 4].astype(int)
     assert (np.abs(box - np.array(TARGET)).sum(axis=2) < 60).sum() == 0
     res = subprocess.run(
         [sys.executable, "-m", "hri.cli", "view", str(tmp_path / "none.mcap"), "--snapshot", str(out)],

@@ -19,7 +19,7 @@ from common.settings import add_option
 from common.transport import live_tokens
 from services.speech.audio import RATE, AudioError, WavAudio, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
-from services.speech.pipeline import Heard, MicStream
+from services.speech.pipeline import Heard, MicStream, Recogniser
 from services.speech.recognizers import BackendError, PocketsphinxRecognizer
 from services.speech.vad import VadConfig, make_segmenter
 from services.speech.whisper import MAX_COMMAND_COPIES, MODEL_ENV, PROMPTS, WhisperRecognizer, WhisperSettings
@@ -297,7 +297,7 @@ def main(argv: list[str] | None = None) -> None:
     serve(SpeechApp(args), args)
 
 
-def make_recogniser(args: argparse.Namespace, service: Service) -> WhisperRecognizer | PocketsphinxRecognizer:
+def make_recogniser(args: argparse.Namespace, service: Service) -> Recogniser:
     started = time.monotonic()
     commands = None
     if args.commands:

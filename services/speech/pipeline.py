@@ -35,8 +35,10 @@ class Recogniser(Protocol):
     name: str
     min_confidence: float
     speculative: bool  # decode at the first silence, before the VAD confirms the end
-    # a grammar the text must be a sentence of (pocketsphinx), or None: publish whatever was heard (whisper)
-    matches: Callable[[str], bool] | None
+
+    @property
+    def matches(self) -> Callable[[str], bool] | None:
+        """A grammar the text must be a sentence of (pocketsphinx), or None: publish whatever was heard (whisper)."""
 
     def recognise(self, audio: np.ndarray) -> Recognition | None: ...
 
