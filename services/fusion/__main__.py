@@ -48,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> None:  # noqa: C901 - fusion's shell becomes a FusionApp (common.runner.App) once #31/#33 fusion work has landed
     args = build_parser().parse_args(argv)
 
     service = Service("fusion", args, recovering=True)

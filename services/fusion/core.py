@@ -250,7 +250,9 @@ class FusionCore:
             return []
         return self.command_for(t, u, ctx)
 
-    def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
+    def command_for(  # noqa: C901 - the decision moves to one typed value (issue #32 item 2) after #31 lands
+        self, t: Transcript, u: Utterance, ctx: Context
+    ) -> list[Output]:
         intent = u.intent
         assert intent is not None
         spatial, why = self.facing.camera_words(u.obj.spatial, t.text, ctx.ref)

@@ -218,7 +218,7 @@ def motion_words(m: Motion) -> str:
     return f"move {m.direction} {amount}"
 
 
-def planner_prompt(
+def planner_prompt(  # noqa: PLR0913 - its arguments become the typed decision (issue #32 item 2) after #31 lands
     *,
     text: str | None,
     intent: str,

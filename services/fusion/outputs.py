@@ -41,7 +41,7 @@ class Outputs:
     def __init__(self, source: str):
         self.source = source
 
-    def command(
+    def command(  # noqa: PLR0913 - its arguments become the typed decision (issue #32 item 2) after #31 lands
         self,
         t: Transcript,
         intent: str,

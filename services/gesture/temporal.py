@@ -101,7 +101,7 @@ def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float 
     return "extended" not in finger_states(landmarks)[1:]
 
 
-def fuse_arms(
+def fuse_arms(  # noqa: C901 - edited for #33 (persons) now; split after it lands
     observations: list[Observation],
     arms: list[Arm],
     body: np.ndarray | None,
