@@ -27,13 +27,13 @@ import numpy as np
 from common.language import canonical_label, label_matches
 from common.schema import ClarificationReason, Detections, Location, Target, Weights
 from services.fusion import space
-from services.fusion.colour import colour_factors
+from services.fusion.color import colour_factors
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase, Relation
 from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
+from services.fusion.space import POINTING_SIGMA_DEG
 from services.fusion.touch import fingertip, touched
 
-POINTING_SIGMA_DEG = 8.0  # angular noise of a pointing ray from hand landmarks
 SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
 RECENCY_S = 2.0
 DEFAULT_MARGIN = 0.1
@@ -399,7 +399,7 @@ def score(
     if not objects:
         return []
     match = {o.key: _attribute_match(phrase, o) for o in objects}
-    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/colour.py)
+    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/color.py)
         factors = colour_factors(phrase.color, [o for o in objects if match[o.key] > 0])
         match = {k: m * factors.get(k, 0.0) for k, m in match.items()}
     fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)

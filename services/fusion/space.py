@@ -17,7 +17,9 @@ from typing import Sequence
 
 from common.schema import Location, Ray3D
 
-SIGMA_DEG = 8.0  # angular noise of a 3-D pointing ray (as in 2-D: the eye-fingertip line is the better cue)
+# angular noise of a pointing ray, the same in 2-D (from hand landmarks) and 3-D (the eye-fingertip line is the
+# better cue); grounding in the image (ground.py) and in metres (here) both use it
+POINTING_SIGMA_DEG = 8.0
 DEFAULT_RADIUS = 0.03  # m: an object's core radius when its extent is unknown
 DEPTH_SCALE = 0.05  # m: how much nearer an object must be for "the nearest" to prefer it clearly (about e^-1)
 # Distance from the ray's origin to the pointing fingertip (m), per method: an object within TOUCH of the ray's
@@ -115,7 +117,7 @@ def radius(extent) -> float:
     return max(0.25 * math.hypot(extent[0], extent[1]), 0.01)
 
 
-def pointing_score(ray: Ray3, position, extent, sigma_deg: float = SIGMA_DEG) -> tuple[float, float]:
+def pointing_score(ray: Ray3, position, extent, sigma_deg: float = POINTING_SIGMA_DEG) -> tuple[float, float]:
     """(G, angle in degrees) of an object at `position` (m): the angle between the ray and the direction from the
     ray's origin to the object, less the angle the object's core covers; 0 behind the origin."""
     v = _sub(position, ray.origin)
@@ -128,7 +130,7 @@ def pointing_score(ray: Ray3, position, extent, sigma_deg: float = SIGMA_DEG) ->
         return 0.0, angle
     covered = math.degrees(math.atan2(radius(extent), dist))
     effective = max(0.0, angle - covered)
-    return math.exp(-0.5 * (effective / max(sigma_deg, SIGMA_DEG)) ** 2), angle
+    return math.exp(-0.5 * (effective / max(sigma_deg, POINTING_SIGMA_DEG)) ** 2), angle
 
 
 def along_across(ray: Ray3, point) -> tuple[float, float]:
@@ -309,7 +311,12 @@ def holds(position, extent, point, margin: float = 0.05) -> bool:
 
 
 def there(
-    ray: Ray3, objects, cam: str, fallback_px: tuple[float, float], on_ray: float = 0.7, sigma_deg: float = SIGMA_DEG
+    ray: Ray3,
+    objects,
+    cam: str,
+    fallback_px: tuple[float, float],
+    on_ray: float = 0.7,
+    sigma_deg: float = POINTING_SIGMA_DEG,
 ) -> Location:
     """ "There" when the ray met a surface: the object the ray points at (G >= `on_ray`, in metres) if the ray
     reaches it before the surface and the surface's spot is not on that object (a table holds the spot: the spot

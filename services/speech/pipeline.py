@@ -28,7 +28,7 @@ import numpy as np
 from common.schema import Transcript, Word
 from services.speech.audio import RATE, AudioError, Resampler, check_rate
 from services.speech.recognizers import Recognition
-from services.speech.vad import Segmenter, Utterance
+from services.speech.vad import Segmenter, VoicedSegment
 
 
 class Recogniser(Protocol):
@@ -99,7 +99,7 @@ class MicStream:
         # (audio_start, speech_end, decode started at the pause) of the utterance in progress
         self._speculation: tuple[int, int, Future] | None = None
         self.partial_every = partial_every
-        self._partial: tuple[Utterance, Future] | None = None
+        self._partial: tuple[VoicedSegment, Future] | None = None
         self._partial_at = 0  # segmenter position when the last partial decode was started
         if getattr(recogniser, "speculative", False):
             self.segmenter.on_pause = self._speculate
@@ -205,7 +205,7 @@ class MicStream:
             self._partial = (so_far, self.worker.submit(so_far.audio))
         return out
 
-    def _speculate(self, tentative: Utterance) -> None:
+    def _speculate(self, tentative: VoicedSegment) -> None:
         if tentative.speech_seconds < self.segmenter.config.min_speech:
             return  # would be dropped as too short unless speech resumes; then the next pause speculates
         if self._speculation is not None:
@@ -213,7 +213,7 @@ class MicStream:
             self.count("speculation_wasted", "")
         self._speculation = (tentative.audio_start, tentative.speech_end, self.worker.submit(tentative.audio))
 
-    def _decode(self, utt: Utterance) -> Recognition | None:
+    def _decode(self, utt: VoicedSegment) -> Recognition | None:
         spec, self._speculation = self._speculation, None
         if spec is not None and spec[:2] == (utt.audio_start, utt.speech_end) and not spec[2].cancelled():
             self.count("speculation_used", "")
@@ -223,7 +223,7 @@ class MicStream:
             self.count("speculation_wasted", "")
         return self.worker.submit(utt.audio).result()
 
-    def _recognise(self, utt: Utterance) -> Heard | None:
+    def _recognise(self, utt: VoicedSegment) -> Heard | None:
         if self._partial is not None:  # the final result supersedes it
             self._partial[1].cancel()
             self._partial = None
@@ -262,7 +262,7 @@ class MicStream:
             return None
         return self._heard(utt, result, final=True)
 
-    def _heard(self, utt: Utterance, result: Recognition, final: bool) -> Heard:
+    def _heard(self, utt: VoicedSegment, result: Recognition, final: bool) -> Heard:
         audio_t0 = self.stamp_of(utt.audio_start)
         words = [
             Word(
@@ -288,10 +288,4 @@ class MicStream:
         return Heard(transcript, utt.speech_end, result)
 
 
-def chunk_to_samples(data: bytes, channels: int) -> np.ndarray:
-    from services.speech.audio import pcm_to_mono
-
-    return pcm_to_mono(data, channels)
-
-
-__all__ = ["MicStream", "Heard", "AudioError", "chunk_to_samples"]
+__all__ = ["MicStream", "Heard", "AudioError"]
