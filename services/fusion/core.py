@@ -15,7 +15,7 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEvent, Hands, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
@@ -150,11 +150,11 @@ class FusionCore:
         return True
 
     def on_detections(self, key: str, det: Detections, wall: float) -> list[Output]:
-        self._add("vision", key, det.stamp, det, wall)
+        self._add(VISION, key, det.stamp, det, wall)
         return []
 
     def on_hands(self, key: str, hands: Hands, wall: float) -> list[Output]:
-        self._add("gesture", key, hands.stamp, hands, wall)
+        self._add(GESTURE, key, hands.stamp, hands, wall)
         return []
 
     def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
@@ -162,7 +162,7 @@ class FusionCore:
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
-        if not self._add("gesture", key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
+        if not self._add(GESTURE, key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
             return []
         command = self.gestures.on_event(key, ev)
         if command is None:
@@ -173,7 +173,7 @@ class FusionCore:
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
 
     def on_transcript(self, key: str, t: Transcript, wall: float) -> list[Output]:
-        self.join.liveness.arrived("speech", wall)
+        self.join.liveness.arrived(SPEECH, wall)
         if not t.final:
             self.count("partial_ignored")
             return []
@@ -223,7 +223,7 @@ class FusionCore:
     # -- decisions ------------------------------------------------------------
     def decide(self, p: PendingTranscript, how: Ready) -> list[Output]:
         t, u = p.transcript, p.utterance
-        hand_frames = (item for _, item in self.join.streams.between("gesture", t.start, p.hi))
+        hand_frames = (item for _, item in self.join.streams.between(GESTURE, t.start, p.hi))
         if self.gestures.stop_shown(t.start, p.hi, hand_frames):
             self.count("cancelled_by_stop_gesture")
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
@@ -260,7 +260,7 @@ class FusionCore:
             u = replace(u, obj=replace(u.obj, spatial=spatial))
             self.count("speaker_side")
             self.log.info("'%s': %s", t.text, why)
-        speech_rel = ctx.reliabilities["speech"] or 0.0
+        speech_rel = ctx.reliabilities[SPEECH] or 0.0
         named = u.obj.specific or u.obj.noun is not None
         wants_object = (
             intent in TARGET_INTENTS

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
-from common.schema import Location, Motion
+from common.schema import GESTURE, SPEECH, Location, Motion
 from services.fusion import space
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, Scored
@@ -196,16 +196,16 @@ def explain_target(
     text = f"{o.id} ({o.name()}, {region(o)}) won with {choice_winner.total:.2f}: " + "; ".join(reasons)
     if runner_up is not None:
         text += f"; runner-up {runner_up.obj.id} ({runner_up.obj.name()}) {runner_up.total:.2f}"
-    if overruled == "speech":
+    if overruled == SPEECH:
         text += (
-            f". Speech and pointing disagreed; pointing won (gesture weight {weights['gesture']:.2f} vs "
-            f"speech {weights['speech']:.2f}, and vision trusts its labels for the said object only "
+            f". Speech and pointing disagreed; pointing won (gesture weight {weights[GESTURE]:.2f} vs "
+            f"speech {weights[SPEECH]:.2f}, and vision trusts its labels for the said object only "
             f"{choice_winner.trust:.2f})"
         )
-    elif overruled == "gesture":
+    elif overruled == GESTURE:
         text += (
-            f". Speech and pointing disagreed; speech won (speech weight {weights['speech']:.2f} vs "
-            f"gesture {weights['gesture']:.2f})"
+            f". Speech and pointing disagreed; speech won (speech weight {weights[SPEECH]:.2f} vs "
+            f"gesture {weights[GESTURE]:.2f})"
         )
     return text
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.language import ANY_OBJECT, label_matches
-from common.schema import ClarificationReason, Location, Motion, Transcript
+from common.schema import SPEECH, VISION, ClarificationReason, Location, Motion, Transcript
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
@@ -125,7 +125,7 @@ class Dialogue:
             candidates = [c.obj for c in choice.candidates]
         else:
             visible = sorted(ctx.objects, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
-            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing)
+            question = describe.not_found_question(u.obj, visible, VISION in ctx.missing)
             candidates = visible
         return self._ask(
             t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates, question
@@ -196,7 +196,7 @@ class Dialogue:
             return []
         if not u.obj.specific and not pointing_answer:
             if u.answer == "confirm" and (q.reason == "low_confidence" or len(q.candidates) <= 1):
-                heard = ctx.reliabilities["speech"]
+                heard = ctx.reliabilities[SPEECH]
                 if heard is not None and heard < self.doubt:
                     self.count("dialogue_doubted_confirm")
                     self.log.info("'%s' (speech %.2f) is too doubtful to confirm %s", t.text, heard, q.clarification_id)
@@ -285,7 +285,7 @@ class Dialogue:
         self.question = None
         if draft.target is not None:
             self.acted(t, draft.intent, draft.text, draft.target, phrase or ObjectPhrase(), draft.place)
-        conf = confidence if confidence is not None else (ctx.reliabilities["speech"] or 0.0)
+        conf = confidence if confidence is not None else (ctx.reliabilities[SPEECH] or 0.0)
         return self.outputs.command(
             t,
             draft.intent,

@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 
 from common.language import canonical_label, label_matches
-from common.schema import ClarificationReason, Detections, Location, Target, Weights
+from common.schema import GESTURE, SPEECH, ClarificationReason, Detections, Location, Target, Weights
 from services.fusion import space
 from services.fusion.color import colour_factors
 from services.fusion.evidence import Pointing, image_quality
@@ -524,7 +524,7 @@ def choose(
         return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
     overruled: Literal["speech", "gesture"] | None = None
     if disagree:
-        overruled = "speech" if winner is gesture_best else "gesture"
+        overruled = SPEECH if winner is gesture_best else GESTURE
     return Choice("target", winner, (winner,), speech_best, gesture_best, overruled, runner_up)
 
 

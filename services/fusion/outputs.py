@@ -7,6 +7,9 @@ import hashlib
 from dataclasses import dataclass
 
 from common.schema import (
+    GESTURE,
+    SPEECH,
+    VISION,
     Clarification,
     ClarificationReason,
     FusedCommand,
@@ -87,7 +90,7 @@ class Outputs:
             gesture=gesture,
             confidence=unit(confidence),
             weights=ctx.weights if ctx else Weights(speech=1.0, vision=0.0, gesture=0.0),
-            inputs=ctx.inputs if ctx else {"speech": t.stamp, "vision": None, "gesture": None},
+            inputs=ctx.inputs if ctx else {SPEECH: t.stamp, VISION: None, GESTURE: None},
             explanation=explanation,
             prompt=prompt,
             motion=motion,
@@ -144,7 +147,7 @@ class Outputs:
             gesture=ev.gesture,
             confidence=round(ev.score, 4),
             weights=Weights(speech=0.0, vision=0.0, gesture=1.0),
-            inputs={"speech": None, "vision": None, "gesture": ev.stamp},
+            inputs={SPEECH: None, VISION: None, GESTURE: ev.stamp},
             explanation=why,
             prompt=prompt,
         )
