@@ -31,6 +31,7 @@ import zenoh
 
 import common.stack as stack
 from common.codec import ENCODING, decode, encode
+from common.counters import CounterName
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
@@ -148,7 +149,7 @@ class Counters:
         self.rejected: collections.Counter[str] = collections.Counter()
         self.other: collections.Counter[str] = collections.Counter()
 
-    def add(self, name: str, n: int = 1) -> None:
+    def add(self, name: CounterName, n: int = 1) -> None:
         with self._lock:
             if name in ("received", "published", "skipped"):
                 setattr(self, name, getattr(self, name) + n)

@@ -15,6 +15,7 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from common.counters import GESTURE_COMMAND_COUNTER, FusionCounter
 from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEvent, Hands, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
@@ -114,7 +115,7 @@ class FusionCore:
         self,
         config: Config,
         source: str,
-        count: Callable[[str], None] = lambda name: None,
+        count: Callable[[FusionCounter], None] = lambda name: None,
         log: logging.Logger | None = None,
     ):
         self.cfg = config
@@ -169,7 +170,7 @@ class FusionCore:
             return []
         if command.intent == "stop":
             self.dialogue.close()
-        self.count(f"gesture_{command.intent}")
+        self.count(GESTURE_COMMAND_COUNTER[command.intent])
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
 
     def on_transcript(self, key: str, t: Transcript, wall: float) -> list[Output]:

@@ -15,6 +15,7 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from common.counters import CLARIFICATION_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, label_matches
 from common.schema import SPEECH, VISION, ClarificationReason, Location, Motion, Transcript
 from services.fusion import describe
@@ -67,7 +68,7 @@ class Dialogue:
         self,
         outputs: Outputs,
         timeout: float,
-        count: Callable[[str], None],
+        count: Callable[[FusionCounter], None],
         log: logging.Logger,
         doubt: float = 0.0,
     ):
@@ -151,7 +152,7 @@ class Dialogue:
     ) -> Output:
         out = self.outputs.clarification(t, reason, question, shown)
         self.question = Question(out.sample.id, reason, draft, phrase, candidates, t.end + self.timeout, question)
-        self.count(f"clarification_{reason}")
+        self.count(CLARIFICATION_COUNTER[reason])
         return out
 
     def _reask(

@@ -13,6 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from common.counters import SpeechCounter
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
 from common.schema import AudioChunk, make_transcript
 from common.settings import add_option
@@ -189,7 +190,7 @@ def build_parser():
 
 
 # what the recogniser says of an utterance it does not publish (or publishes changed): logged, and counted
-EXPLAINED_COUNTERS = (
+EXPLAINED_COUNTERS: tuple[SpeechCounter, ...] = (
     "not_a_command",
     "low_confidence",
     "too_short",
@@ -237,7 +238,7 @@ class SpeechApp(App):
         if self.args.backend != "text" and self.args.input == "zenoh":
             service.subscribe_input("audio", self.on_chunk)
 
-    def count(self, name: str, detail: str) -> None:
+    def count(self, name: SpeechCounter, detail: str) -> None:
         if name in EXPLAINED_COUNTERS and detail:
             self.service.log.info("%s", detail)
         self.service.counters.add(name)

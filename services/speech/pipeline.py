@@ -25,6 +25,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from common.counters import SpeechCounter
 from common.schema import Transcript, Word
 from services.speech.audio import RATE, AudioError, Resampler, check_rate
 from services.speech.recognizers import Recognition
@@ -71,7 +72,7 @@ def worker_for(recogniser: Recogniser) -> RecognitionWorker:
         return worker
 
 
-Count = Callable[[str, str], None]  # (counter name, detail for the log)
+Count = Callable[[SpeechCounter, str], None]  # (counter name, detail for the log)
 
 
 @dataclass
