@@ -49,7 +49,8 @@ MODALITY_NAMES: tuple[Modality, ...] = (SPEECH, VISION, GESTURE)
 GESTURES: tuple[str, ...] = get_args(GestureName)
 GESTURE_PHASES: tuple[str, ...] = get_args(GesturePhase)
 CLARIFICATION_REASONS: tuple[str, ...] = get_args(ClarificationReason)
-INTENTS = (
+# What a FusedCommand asks the robot to do: the values its `intent` documents (the field stays a string on the wire)
+Intent = Literal[
     "pick_up",
     "bring",
     "put_down",
@@ -61,7 +62,17 @@ INTENTS = (
     "greet",
     "move",
     "turn",  # v1 extension: with FusedCommand.motion
-)
+]
+INTENTS: tuple[Intent, ...] = get_args(Intent)
+
+
+def as_intent(word: str) -> Intent:
+    """`word` as an Intent; ValueError for one that is not (a language table out of step with the contract)."""
+    for intent in INTENTS:
+        if intent == word:
+            return intent
+    raise ValueError(f"{word!r} is not an intent of the contract ({', '.join(INTENTS)})")
+
 
 # Number and string types of the contract. Every float is finite: a plain `float` would let NaN through,
 # so even "any float" is bounded by the largest finite double.

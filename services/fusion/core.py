@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.counters import GESTURE_COMMAND_COUNTER, FusionCounter
-from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEvent, Hands, Location, Transcript
+from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEvent, Hands, Intent, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
@@ -28,7 +28,7 @@ from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance, parse, stop_near_miss
 from services.fusion.window import Context, PendingTranscript, gather
 
-TARGET_INTENTS = ("pick_up", "bring")  # must name an object
+TARGET_INTENTS: tuple[Intent, ...] = ("pick_up", "bring")  # must name an object
 
 
 @dataclass

@@ -17,7 +17,7 @@ from typing import Callable
 
 from common.counters import CLARIFICATION_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, label_matches
-from common.schema import SPEECH, VISION, ClarificationReason, Location, Motion, Transcript
+from common.schema import SPEECH, VISION, ClarificationReason, Intent, Location, Motion, Transcript
 from services.fusion import describe
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
@@ -29,7 +29,7 @@ from services.fusion.window import Context
 class Draft:
     """A command that is ready except for the person's answer."""
 
-    intent: str
+    intent: Intent
     text: str
     target: SceneObject | None = None
     location: Location | None = None
@@ -42,7 +42,7 @@ class Draft:
 class LastCommand:
     """The latest command that acted on an object: "no, the other one" corrects it."""
 
-    intent: str
+    intent: Intent
     text: str
     target: SceneObject
     phrase: ObjectPhrase
@@ -101,7 +101,7 @@ class Dialogue:
             self.last = None
 
     def acted(
-        self, t: Transcript, intent: str, text: str, target: SceneObject, phrase: ObjectPhrase, place: str | None
+        self, t: Transcript, intent: Intent, text: str, target: SceneObject, phrase: ObjectPhrase, place: str | None
     ) -> None:
         """A command acted on `target`: "no, the other one" may follow."""
         self.last = LastCommand(intent, text, target, phrase, place, t.end + self.timeout)

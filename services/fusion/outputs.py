@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 
+from common.counters import GestureIntent
 from common.schema import (
     GESTURE,
     SPEECH,
@@ -14,6 +15,7 @@ from common.schema import (
     ClarificationReason,
     FusedCommand,
     GestureEvent,
+    Intent,
     Location,
     Motion,
     Transcript,
@@ -47,7 +49,7 @@ class Outputs:
     def command(  # noqa: PLR0913 - its arguments become the typed decision (issue #32 item 2) after #31 lands
         self,
         t: Transcript,
-        intent: str,
+        intent: Intent,
         ctx: Context | None,
         *,
         confidence: float,
@@ -100,7 +102,7 @@ class Outputs:
     def target_command(
         self,
         t: Transcript,
-        intent: str,
+        intent: Intent,
         target: Scored,
         location: Location | None,
         ctx: Context,
@@ -122,7 +124,7 @@ class Outputs:
             place=place,
         )
 
-    def gesture_command(self, ev: GestureEvent, intent: str, why: str, realtime: bool) -> Output:
+    def gesture_command(self, ev: GestureEvent, intent: GestureIntent, why: str, realtime: bool) -> Output:
         """A command from a gesture alone (stop, come here)."""
         prompt = describe.planner_prompt(
             text=None,

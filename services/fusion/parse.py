@@ -21,10 +21,10 @@ from __future__ import annotations
 import difflib
 import re
 from dataclasses import dataclass, field, replace
-from typing import cast
+from typing import Literal, cast
 
 from common import language as L
-from common.schema import Motion, MotionDirection
+from common.schema import Intent, Motion, MotionDirection, as_intent
 
 # Stop words win wherever they appear: a false stop is cheap, a missed one is not (stop_requested).
 SAFETY_STOP_WORDS = L.STOP_WORDS
@@ -199,7 +199,7 @@ class ObjectPhrase:
 class Utterance:
     text: str
     tokens: tuple[str, ...]
-    intent: str | None = None
+    intent: Intent | None = None
     answer: str | None = None  # confirm / deny
     obj: ObjectPhrase = field(default_factory=ObjectPhrase)
     place: str | None = None  # a named place (table, kitchen …)
@@ -511,10 +511,10 @@ def _number(tags: list[Tag], k: int, tokens: tuple[str, ...]) -> tuple[float | N
 
 def _motion(  # noqa: C901 - one branch per way of saying a motion; to split with the parser after #31
     tags: list[Tag], tokens: tuple[str, ...], verb: Tag
-) -> tuple[str, Motion, str] | None:
+) -> tuple[Intent, Motion, str] | None:
     """Direction and amount after a motion verb; the last one said wins ("forward, no, back"). Returns the
     intent ("move" or "turn"), the motion and its amount as said."""
-    kind = "turn" if verb.kind == "motion" and verb.value == "turn" else "move"
+    kind: Literal["move", "turn"] = "turn" if verb.kind == "motion" and verb.value == "turn" else "move"
     direction: str | None = None
     if verb.kind == "motion" and verb.words == ("back", "up"):
         direction = "back"
@@ -665,7 +665,7 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
             before = []
     intents = [t for t in tags if t.kind == "intent"]
     chosen = next((t for t in intents if t.value != "greet"), intents[0] if intents else None)
-    intent = chosen.value if chosen else None
+    intent: Intent | None = as_intent(chosen.value) if chosen else None
     stop = stop_requested(heard_tags, tokens)
     if stop is not None:
         intent, chosen = "stop", stop
