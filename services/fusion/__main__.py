@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import queue
 import time
+from typing import Any, Callable
 
 import zenoh
 
-from common.runner import Delivery, RateLimitedLog, Service, main_exit, service_parser
+from common.runner import App, Delivery, RateLimitedLog, Service, serve, service_parser
 from common.schema import Clarification, FusedCommand
 from common.settings import add_settings, from_args
 from services.fusion.core import Config, FusionCore
@@ -48,24 +49,118 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> None:  # noqa: C901 - fusion's shell becomes a FusionApp (common.runner.App) once #31/#33 fusion work has landed
-    args = build_parser().parse_args(argv)
+class ClockWatch:
+    """Each source's clock offset against this machine's (from the router's Zenoh timestamps), shown as gauges in
+    the stats and warned about (rate-limited) when it eats into the window's margins."""
 
-    service = Service("fusion", args, recovering=True)
-    config = from_args(Config, args)
-    core = FusionCore(config, service.source, count=service.counters.add, log=service.log)
-    if not service.connect():
-        main_exit(0)
-    keys = service.keys
-    assert service.session is not None
-    command_key, clarification_key = service.output_key("command"), service.output_key("clarification")
+    def __init__(self, service: Service, config: Config) -> None:
+        self.service = service
+        self.offsets = ClockOffsets()
+        self.log = RateLimitedLog(service.log, interval=30.0)
+        self.ahead_tol = CLOCK_WARN_SHARE * config.window_after
+        self.behind_tol = CLOCK_WARN_SHARE * config.window_before
+        # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
+        # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
+        self.delayed_sources: set[str] = set()
+        self.last_report = 0.0
 
-    def emit(outputs: list[Output]) -> None:
+    def add(self, d: Delivery, delayed: bool) -> None:
+        if delayed:
+            self.delayed_sources.add(d.sample.source)
+        self.offsets.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
+
+    def forget(self, source: str) -> None:
+        """A restarted instance starts a new estimate."""
+        self.offsets.forget(source)
+        self.service.counters.set(f"clock_offset_ms:{source}", None)
+
+    def report(self, now: float) -> None:
+        if now - self.last_report < 1.0:
+            return
+        self.last_report = now
+        counters = self.service.counters
+        for source in self.offsets.expire(now):
+            counters.set(f"clock_offset_ms:{source}", None)
+            self.delayed_sources.discard(source)
+        for source, offset in self.offsets.offsets().items():
+            counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
+            verdict = clock_verdict(offset, self.ahead_tol, self.behind_tol)
+            if verdict == "ahead" or (verdict == "behind" and source not in self.delayed_sources):
+                self.log.warn(
+                    f"clock:{source}",
+                    f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
+                    f"this machine's clock (tolerated: {self.ahead_tol * 1000:.0f} ms ahead, "
+                    f"{self.behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
+                    f"at the wrong moment. Keep the hosts in step with chrony or PTP "
+                    f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
+                )
+
+
+Feed = Callable[[str, Any, float], list[Output]]
+
+
+class FusionApp(App):
+    """Transcripts, objects, hands, gesture events and bodies -> FusionCore -> FusedCommand / Clarification."""
+
+    node = "fusion"
+    recovering = True  # commands survive a dropped link (common/transport.py)
+    tick_interval = 0.02
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.config = from_args(Config, args)
+        # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
+        self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
+
+    def open(self, service: Service) -> None:
+        self.service = service
+        self.core = FusionCore(self.config, service.source, count=service.counters.add, log=service.log)
+        self.clocks = ClockWatch(service, self.config)
+        self.command_key = service.output_key("command")
+        self.clarification_key = service.output_key("clarification")
+        self.tick = self.tick_once
+
+    def wire(self, service: Service) -> None:
+        assert service.session is not None  # wired once connected
+        token_sub = service.session.liveliness().declare_subscriber(
+            service.keys.alive("*", "*"), self.on_token, history=True
+        )
+        service.on_close(token_sub.undeclare)
+        core = self.core
+        service.subscribe_input("transcript", self.handler(core.on_transcript, delayed=True))
+        service.subscribe_input("objects", self.handler(core.on_detections))
+        service.subscribe_input("hands", self.handler(core.on_hands))
+        service.subscribe_input("event", self.handler(core.on_gesture_event))
+        service.subscribe_input("bodies", self.handler(core.on_bodies))  # which way the speaker faces
+        config = self.config
+        service.log.info(
+            "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
+            config.window_before,
+            config.window_after,
+            config.max_wait,
+            config.weights,
+            ", fallback to the most confident detection" if config.fallback_most_confident else "",
+        )
+
+    def on_token(self, sample: zenoh.Sample) -> None:
+        parsed = self.service.keys.parse_alive(str(sample.key_expr))
+        if parsed:
+            self.liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
+
+    def handler(self, feed: Feed, delayed: bool = False) -> Callable[[Delivery], None]:
+        def handle(d: Delivery) -> None:
+            self.service.log.debug("in %s %.3f", d.key, d.sample.stamp)
+            self.clocks.add(d, delayed)
+            self.emit(feed(d.key, d.sample, d.received_at))
+
+        return handle
+
+    def emit(self, outputs: list[Output]) -> None:
+        service = self.service
         for out in outputs:
             sample = out.sample
             if isinstance(sample, FusedCommand):
                 # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
-                service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
+                service.publish(self.command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
                 service.log.info(
                     "command %s %s%s: %s",
                     sample.id,
@@ -74,89 +169,26 @@ def main(argv: list[str] | None = None) -> None:  # noqa: C901 - fusion's shell 
                     sample.explanation,
                 )
             elif isinstance(sample, Clarification):
-                service.publish(clarification_key, sample, lossless=True, recovering=True)
+                service.publish(self.clarification_key, sample, lossless=True, recovering=True)
                 service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
 
-    # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
-    liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
-
-    def on_token(sample: zenoh.Sample) -> None:
-        parsed = keys.parse_alive(str(sample.key_expr))
-        if parsed:
-            liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
-
-    clocks = ClockOffsets()
-    clock_log = RateLimitedLog(service.log, interval=30.0)
-    ahead_tol, behind_tol = CLOCK_WARN_SHARE * config.window_after, CLOCK_WARN_SHARE * config.window_before
-
-    token_sub = service.session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)
-    service.on_close(token_sub.undeclare)
-
-    # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
-    # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
-    delayed_sources: set[str] = set()
-
-    def handler(feed, delayed: bool = False):
-        def handle(d: Delivery) -> None:
-            if delayed:
-                delayed_sources.add(d.sample.source)
-            service.log.debug("in %s %.3f", d.key, d.sample.stamp)
-            clocks.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
-            emit(feed(d.key, d.sample, d.received_at))
-
-        return handle
-
-    service.subscribe_input("transcript", handler(core.on_transcript, delayed=True))
-    service.subscribe_input("objects", handler(core.on_detections))
-    service.subscribe_input("hands", handler(core.on_hands))
-    service.subscribe_input("event", handler(core.on_gesture_event))
-    service.subscribe_input("bodies", handler(core.on_bodies))  # which way the speaker faces
-
-    last_clock_report = [0.0]
-
-    def report_clocks(now: float) -> None:
-        if now - last_clock_report[0] < 1.0:
-            return
-        last_clock_report[0] = now
-        for source in clocks.expire(now):
-            service.counters.set(f"clock_offset_ms:{source}", None)
-            delayed_sources.discard(source)
-        for source, offset in clocks.offsets().items():
-            service.counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
-            verdict = clock_verdict(offset, ahead_tol, behind_tol)
-            if verdict == "ahead" or (verdict == "behind" and source not in delayed_sources):
-                clock_log.warn(
-                    f"clock:{source}",
-                    f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
-                    f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
-                    f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
-                    f"at the wrong moment. Keep the hosts in step with chrony or PTP "
-                    f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
-                )
-
-    def tick() -> None:
+    def tick_once(self) -> None:
         while True:
             try:
-                service_name, instance, present = liveliness_events.get_nowait()
+                service_name, instance, present = self.liveliness_events.get_nowait()
             except queue.Empty:
                 break
-            core.on_liveliness(service_name, instance, present)
+            self.core.on_liveliness(service_name, instance, present)
             if not present:  # a restarted instance starts a new estimate
-                clocks.forget(f"{service_name}/{instance}")
-                service.counters.set(f"clock_offset_ms:{service_name}/{instance}", None)
+                self.clocks.forget(f"{service_name}/{instance}")
         now = time.time()
-        report_clocks(now)
-        emit(core.tick(now))
+        self.clocks.report(now)
+        self.emit(self.core.tick(now))
 
-    service.log.info(
-        "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
-        config.window_before,
-        config.window_after,
-        config.max_wait,
-        config.weights,
-        ", fallback to the most confident detection" if config.fallback_most_confident else "",
-    )
-    main_exit(service.run(tick=tick, tick_interval=0.02))
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    serve(FusionApp(args), args)
 
 
 if __name__ == "__main__":
