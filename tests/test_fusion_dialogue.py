@@ -7,7 +7,8 @@ from __future__ import annotations
 import logging
 
 from common.schema import Clarification, FusedCommand
-from services.fusion.dialogue import Dialogue, Draft
+from services.fusion.decision import Draft
+from services.fusion.dialogue import Dialogue
 from services.fusion.ground import Choice
 from services.fusion.outputs import Outputs
 from services.fusion.window import Context

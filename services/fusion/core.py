@@ -20,9 +20,10 @@ from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEv
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
-from services.fusion.dialogue import Dialogue, Draft
+from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore
+from services.fusion.dialogue import Dialogue
 from services.fusion.gestures import Gestures
-from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
+from services.fusion.ground import DEFAULT_MARGIN, Choice, pointed_location, score
 from services.fusion.join import Join, Ready, SeenOnce
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance, parse, stop_near_miss
@@ -110,6 +111,28 @@ def modality_of(service: str) -> str | None:
     return service if service in MODALITIES else None
 
 
+def wanted(intent: Intent, u: Utterance) -> tuple[bool, bool]:
+    """(the command needs an object, the command needs a location): from the intent and what was said."""
+    named = u.obj.specific or u.obj.noun is not None
+    wants_object = (
+        intent in TARGET_INTENTS
+        or (intent in ("look_at", "follow") and (named or u.obj.deictic))
+        or (intent == "go_to" and named)
+    )
+    wants_location = (intent == "go_to" and not wants_object and not u.place) or (
+        intent in ("put_down", "look_at") and not wants_object and bool(u.deictic_place or u.dest_obj)
+    )
+    return wants_object, wants_location
+
+
+@dataclass(frozen=True)
+class Decided:
+    """A decision and the utterance as understood when it was made (re-parsed with the labels in view)."""
+
+    utterance: Utterance
+    decision: Decision
+
+
 class FusionCore:
     def __init__(
         self,
@@ -192,7 +215,8 @@ class FusionCore:
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
             if near:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
-            return [self.outputs.command(t, "stop", None, confidence=t.confidence, explanation=why, realtime=True)]
+            stop = Act("stop", confidence=t.confidence, explanation=why, realtime=True)
+            return [self.outputs.command(t, stop, None)]
         self.join.open(
             PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before, t.end + self.cfg.window_after)
         )
@@ -223,100 +247,64 @@ class FusionCore:
 
     # -- decisions ------------------------------------------------------------
     def decide(self, p: PendingTranscript, how: Ready) -> list[Output]:
-        t, u = p.transcript, p.utterance
+        """The window of an utterance is due: decide what to do (one Decision), then render it."""
+        t = p.transcript
         hand_frames = (item for _, item in self.join.streams.between(GESTURE, t.start, p.hi))
         if self.gestures.stop_shown(t.start, p.hi, hand_frames):
-            self.count("cancelled_by_stop_gesture")
-            self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
-            return []
+            why = f"'{t.text}' dropped: an open palm (stop) was shown while it was said"
+            return self.ignore(Ignore("cancelled_by_stop_gesture", why))
         ctx = self.context(p, how)
+        replied, decided = self.decide_utterance(p, ctx)
+        if replied is not None:
+            return replied
+        assert decided is not None
+        return self.render(t, decided.utterance, ctx, decided.decision)
+
+    def decide_utterance(self, p: PendingTranscript, ctx: Context) -> tuple[list[Output] | None, Decided | None]:
+        """What to do with an utterance whose window is due: (the dialogue's own reply to an answer, None) or
+        (None, the decision about the utterance as understood in this window)."""
+        t, u = p.transcript, p.utterance
         if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
         if u.intent is None:
             reply = self.dialogue.reply(t, u, ctx)
             if reply is not None:
-                return reply
+                return reply, None
             # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
             if u.obj.names_kind and u.answer is None and not u.other:
                 self.count("bare_reference")
                 self.dialogue.supersede()
-                return self.command_for(t, replace(u, intent="look_at"), ctx)
-            self.count("ignored_no_intent")
-            self.log.info("'%s' is not a command I know; ignored", t.text)
-            return []
+                return None, self.command(t, replace(u, intent="look_at"), ctx)
+            return None, Decided(u, Ignore("ignored_no_intent", f"'{t.text}' is not a command I know; ignored"))
         self.dialogue.supersede()
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
-            self.count("duplicate_of_gesture")
-            return []
-        return self.command_for(t, u, ctx)
+            return None, Decided(u, Ignore("duplicate_of_gesture"))
+        return None, self.command(t, u, ctx)
 
-    def command_for(  # noqa: C901 - the decision moves to one typed value (issue #32 item 2) after #31 lands
-        self, t: Transcript, u: Utterance, ctx: Context
-    ) -> list[Output]:
+    def command(self, t: Transcript, u: Utterance, ctx: Context) -> Decided:
+        """A command utterance: its words about sides turned into the camera's, then decided."""
+        u = self._in_camera_words(t, u, ctx)
+        return Decided(u, self.decide_command(t, u, ctx))
+
+    def decide_command(self, t: Transcript, u: Utterance, ctx: Context) -> Decision:
+        """A command utterance, grounded in its window: act, ask which / where / whether heard right."""
         intent = u.intent
         assert intent is not None
-        spatial, why = self.facing.camera_words(u.obj.spatial, t.text, ctx.ref)
-        if why:  # "on my left": the speaker's side, turned into the camera's
-            u = replace(u, obj=replace(u.obj, spatial=spatial))
-            self.count("speaker_side")
-            self.log.info("'%s': %s", t.text, why)
-        speech_rel = ctx.reliabilities[SPEECH] or 0.0
-        named = u.obj.specific or u.obj.noun is not None
-        wants_object = (
-            intent in TARGET_INTENTS
-            or (intent in ("look_at", "follow") and (named or u.obj.deictic))
-            or (intent == "go_to" and named)
-        )
-        wants_location = (intent == "go_to" and not wants_object and not u.place) or (
-            intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj)
-        )
-        target: Scored | None = None
-        runner_up: Scored | None = None
-        overruled = None
-        if wants_object and u.obj.noun is not None:  # a word I don't know: only a clear point can say which
-            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
-            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
-                self.count("unknown_noun")
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
-                    )
-                ]
-            target, runner_up = choice.winner, choice.runner_up
-        elif wants_object:
-            choice = self._choose(u.obj, ctx)
-            if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
-                best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
-                scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
-                expl = (
-                    f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
-                    f"detection {best.id} ({best.name()}, score {best.score:.2f})"
-                )
-                return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
-            if choice.kind not in ("target", "low_confidence"):
-                return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, place=u.place))]
-            target = choice.winner
-            runner_up = choice.runner_up
-            overruled = choice.overruled
-            if choice.kind == "low_confidence":
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, choice, Draft(intent, t.text, target=target.obj if target else None, place=u.place)
-                    )
-                ]
-        elif intent == "put_down" and u.obj.specific:
-            choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
-            target = choice.winner if choice.kind == "target" else None
+        wants_object, wants_location = wanted(intent, u)
+        grounded = self._ground(t, u, ctx, wants_object)
+        if not isinstance(grounded, Grounded):
+            return grounded
+        target = grounded.target
         location = None
         if wants_location:
             location = self._location(u, ctx)
             if location is None:
-                return [self.dialogue.clarify_place(t, u, Draft(intent, t.text, target=target.obj if target else None))]
+                return Ask(Draft(intent, t.text, target=target.obj if target else None), where=True)
         gesture_carried = (
             target is not None and (target.gesture or 0.0) >= 0.5 and ctx.weights.gesture >= ctx.weights.speech
         )
-        if speech_rel < self.cfg.low_speech_confidence and not gesture_carried:
+        if (ctx.reliabilities[SPEECH] or 0.0) < self.cfg.low_speech_confidence and not gesture_carried:
             draft = Draft(
                 intent,
                 t.text,
@@ -326,36 +314,96 @@ class FusionCore:
                 motion=u.motion,
                 motion_said=u.motion_said,
             )
-            choice = Choice("low_confidence", target, (target,) if target else ())
-            return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
+            return Ask(draft, Choice("low_confidence", target, (target,) if target else ()), heard=True)
         if target is not None:
-            expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
+            return ActOnTarget(intent, grounded, location, u.place)
+        return Act(
+            intent,
+            confidence=ctx.reliabilities[SPEECH] or 0.0,
+            explanation=describe.explain_command(t.text, intent, u, location),
+            location=location,
+            gesture="point" if location and ctx.pointing else None,
+            place=u.place,
+            motion=u.motion,
+            motion_said=u.motion_said,
+        )
+
+    def _in_camera_words(self, t: Transcript, u: Utterance, ctx: Context) -> Utterance:
+        spatial, why = self.facing.camera_words(u.obj.spatial, t.text, ctx.ref)
+        if not why:
+            return u
+        # "on my left": the speaker's side, turned into the camera's
+        self.count("speaker_side")
+        self.log.info("'%s': %s", t.text, why)
+        return replace(u, obj=replace(u.obj, spatial=spatial))
+
+    def _ground(self, t: Transcript, u: Utterance, ctx: Context, wants_object: bool) -> Grounded | Decision:
+        """The object the command is about: Grounded (possibly none), or the decision to ask or fall back."""
+        intent = u.intent
+        assert intent is not None
+        if wants_object and u.obj.noun is not None:  # a word I don't know: only a clear point can say which
+            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
+            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
+                self.count("unknown_noun")
+                return Ask(Draft(intent, t.text, place=u.place), Choice("not_found", None, ()))
+            return Grounded(choice.winner, choice.runner_up)
+        if wants_object:
+            return self._ground_named(t, u, ctx)
+        if intent == "put_down" and u.obj.specific:
+            choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
+            return Grounded(choice.winner if choice.kind == "target" else None)
+        return Grounded()
+
+    def _ground_named(self, t: Transcript, u: Utterance, ctx: Context) -> Grounded | Decision:
+        intent = u.intent
+        assert intent is not None
+        choice = self._choose(u.obj, ctx)
+        if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
+            best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
+            scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
+            expl = (
+                f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
+                f"detection {best.id} ({best.name()}, score {best.score:.2f})"
+            )
+            return ActOnTarget(intent, Grounded(scored), None, u.place, explanation=expl, remember=False)
+        if choice.kind not in ("target", "low_confidence"):
+            return Ask(Draft(intent, t.text, place=u.place), choice)
+        if choice.kind == "low_confidence":
+            target = choice.winner
+            return Ask(Draft(intent, t.text, target=target.obj if target else None, place=u.place), choice)
+        return Grounded(choice.winner, choice.runner_up, choice.overruled)
+
+    # -- rendering --------------------------------------------------------------
+    def ignore(self, decision: Ignore) -> list[Output]:
+        self.count(decision.reason)
+        if decision.why:
+            self.log.info("%s", decision.why)
+        return []
+
+    def render(self, t: Transcript, u: Utterance, ctx: Context, decision: Decision) -> list[Output]:
+        """A decision into what is published (and what the dialogue remembers)."""
+        if isinstance(decision, Ignore):
+            return self.ignore(decision)
+        if isinstance(decision, Ask):
+            if decision.where:
+                return [self.dialogue.clarify_place(t, u, decision.draft)]
+            assert decision.choice is not None
+            return [self.dialogue.clarify(t, u, ctx, decision.choice, decision.draft, heard=decision.heard)]
+        if isinstance(decision, Act):
+            return [self.outputs.command(t, decision, ctx)]
+        target = decision.grounded.target
+        assert target is not None
+        expl = decision.explanation
+        if expl is None:
+            g = decision.grounded
+            expl = describe.explain_target(target, g.runner_up, ctx.weights.to_dict(), u.obj, g.overruled)
             if u.obj.noun is not None:
                 expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
             if u.obj.unmatched:  # said back, never silently dropped
                 expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
-            self.dialogue.acted(t, intent, t.text, target.obj, u.obj, u.place)
-            return [self.outputs.target_command(t, intent, target, location, ctx, expl, place=u.place)]
-        expl = (
-            f"'{t.text}' -> {intent}"
-            + (f" to the {u.place}" if u.place else "")
-            + (f"; location from the pointing ray at ({location.x:.0f}, {location.y:.0f})" if location else "")
-            + (f": {describe.motion_words(u.motion)}" if u.motion else "")
-        )
-        return [
-            self.outputs.command(
-                t,
-                intent,
-                ctx,
-                confidence=speech_rel,
-                explanation=expl,
-                location=location,
-                gesture="point" if location and ctx.pointing else None,
-                place=u.place,
-                motion=u.motion,
-                motion_said=u.motion_said,
-            )
-        ]
+        if decision.remember:
+            self.dialogue.acted(t, decision.intent, t.text, target.obj, u.obj, decision.place)
+        return [self.outputs.target_command(t, decision, ctx, expl)]
 
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
         return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Sequence
+
 from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
 from common.schema import GESTURE, SPEECH, Location, Motion
 from services.fusion import space
+from services.fusion.decision import Act
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, Scored
-from services.fusion.parse import ObjectPhrase
+from services.fusion.parse import ObjectPhrase, Utterance
 from services.fusion.relations import fit_matrix
 
 PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
@@ -210,6 +214,16 @@ def explain_target(
     return text
 
 
+def explain_command(text: str, intent: str, u: Utterance, location: Location | None) -> str:
+    """Why a command without a target: what was heard, where it goes and how it moves."""
+    return (
+        f"'{text}' -> {intent}"
+        + (f" to the {u.place}" if u.place else "")
+        + (f"; location from the pointing ray at ({location.x:.0f}, {location.y:.0f})" if location else "")
+        + (f": {motion_words(u.motion)}" if u.motion else "")
+    )
+
+
 def motion_words(m: Motion) -> str:
     """'move forward 10 m', 'turn left 90 degrees', 'move back (distance not said)'."""
     if m.angle is not None:  # a turn has an angle, a move a distance (or none said)
@@ -218,25 +232,24 @@ def motion_words(m: Motion) -> str:
     return f"move {m.direction} {amount}"
 
 
-def planner_prompt(  # noqa: PLR0913 - its arguments become the typed decision (issue #32 item 2) after #31 lands
-    *,
-    text: str | None,
-    intent: str,
-    target: SceneObject | None,
-    location: Location | None,
-    place: str | None,
-    pointing: Pointing | None,
-    gesture: str | None,
-    objects: list[SceneObject],
-    missing: list[str],
-    explanation: str,
-    motion: Motion | None = None,
-    motion_said: str = "",
-) -> str:
+@dataclass(frozen=True)
+class PromptScene:
+    """What the planner is told was perceived: the pointing, a gesture alone (its words), the objects in view
+    and the inputs that were missing."""
+
+    pointing: Pointing | None = None
+    gesture: str | None = None
+    objects: Sequence[SceneObject] = ()
+    missing: Sequence[str] = ()
+
+
+def planner_prompt(act: Act, text: str | None, scene: PromptScene) -> str:
     """Everything a planner needs, in plain text, from the same data the decision used."""
+    intent, target, location, place, motion = act.intent, act.target, act.location, act.place, act.motion
+    pointing, gesture, objects, missing = scene.pointing, scene.gesture, scene.objects, scene.missing
     lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
     if motion is not None:
-        said = f', said as "{motion_said}"' if motion_said else ""
+        said = f', said as "{act.motion_said}"' if act.motion_said else ""
         lines.append(
             f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces, "
             f"left/right = its own left/right{said})"
@@ -281,5 +294,5 @@ def planner_prompt(  # noqa: PLR0913 - its arguments become the typed decision (
         lines.append("Objects in view: none reported")
     if missing:
         lines.append("Missing inputs: " + ", ".join(missing))
-    lines.append(f"Why: {explanation}")
+    lines.append(f"Why: {act.explanation}")
     return "\n".join(lines)

@@ -17,25 +17,13 @@ from typing import Callable
 
 from common.counters import CLARIFICATION_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, label_matches
-from common.schema import SPEECH, VISION, ClarificationReason, Intent, Location, Motion, Transcript
+from common.schema import SPEECH, VISION, ClarificationReason, Intent, Transcript
 from services.fusion import describe
+from services.fusion.decision import Act, Draft
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance
 from services.fusion.window import Context
-
-
-@dataclass
-class Draft:
-    """A command that is ready except for the person's answer."""
-
-    intent: Intent
-    text: str
-    target: SceneObject | None = None
-    location: Location | None = None
-    place: str | None = None
-    motion: Motion | None = None
-    motion_said: str = ""
 
 
 @dataclass
@@ -287,10 +275,8 @@ class Dialogue:
         if draft.target is not None:
             self.acted(t, draft.intent, draft.text, draft.target, phrase or ObjectPhrase(), draft.place)
         conf = confidence if confidence is not None else (ctx.reliabilities[SPEECH] or 0.0)
-        return self.outputs.command(
-            t,
+        act = Act(
             draft.intent,
-            ctx,
             confidence=conf,
             explanation=why,
             text=f"{draft.text} / {t.text}",
@@ -301,3 +287,4 @@ class Dialogue:
             motion=draft.motion,
             motion_said=draft.motion_said,
         )
+        return self.outputs.command(t, act, ctx)
