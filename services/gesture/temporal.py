@@ -101,7 +101,38 @@ def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float 
     return "extended" not in finger_states(landmarks)[1:]
 
 
-def fuse_arms(  # noqa: C901 - edited for #33 (persons) now; split after it lands
+def _arm_of(obs: Observation, palm: float, arms: list[Arm]) -> Arm | None:
+    """The arm whose wrist is at this hand's wrist (within 1.5 palms or half a forearm), the nearest one."""
+    near = [
+        a for a in arms if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))) <= max(1.5 * palm, 0.5 * a.forearm)
+    ]
+    return min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
+
+
+def _arm_only_cue(a: Arm, body: np.ndarray | None) -> Cue | None:
+    """An arm whose hand is not seen: a pointing arm points; one raised at room distance, its hand too small to
+    be seen, is a stop (open palm); otherwise nothing."""
+    if a.pointing:
+        return Cue(
+            a.side,
+            a.visibility,
+            np.array(a.wrist),
+            max(0.5 * a.forearm, 1.0),
+            "point",
+            a.ray,
+            "body",
+            a.confidence,
+            None,
+            a,
+        )
+    if body is not None and raised_hand(body, a.side, body_scale(body)):
+        return Cue(
+            a.side, a.visibility, np.array(a.wrist), max(0.5 * a.forearm, 1.0), "open_palm", None, "body", 1.0, None, a
+        )
+    return None
+
+
+def fuse_arms(
     observations: list[Observation],
     arms: list[Arm],
     body: np.ndarray | None,
@@ -123,12 +154,7 @@ def fuse_arms(  # noqa: C901 - edited for #33 (persons) now; split after it land
     for k, obs in enumerate(observations):
         palm = palms[k]
         raw = hand_class = classify(obs.landmarks)
-        near = [
-            a
-            for a in free
-            if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))) <= max(1.5 * palm, 0.5 * a.forearm)
-        ]
-        match = min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
+        match = _arm_of(obs, palm, free)
         if match is None or close_up(palm, body):
             if match is not None:
                 free.remove(match)  # its hand is in view: no second, pose-only cue for the same arm
@@ -150,41 +176,8 @@ def fuse_arms(  # noqa: C901 - edited for #33 (persons) now; split after it land
             else:
                 ray, source, conf = match.ray, "body", match.confidence
         cues.append(Cue(match.side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, source, conf, k, match))
-    for a in free:
-        if any_close_up:
-            continue
-        if a.pointing:
-            cues.append(
-                Cue(
-                    a.side,
-                    a.visibility,
-                    np.array(a.wrist),
-                    max(0.5 * a.forearm, 1.0),
-                    "point",
-                    a.ray,
-                    "body",
-                    a.confidence,
-                    None,
-                    a,
-                )
-            )
-        elif body is not None and raised_hand(
-            body, a.side, body_scale(body)
-        ):  # a hand raised at room distance, too small to be seen
-            cues.append(
-                Cue(
-                    a.side,
-                    a.visibility,
-                    np.array(a.wrist),
-                    max(0.5 * a.forearm, 1.0),
-                    "open_palm",
-                    None,
-                    "body",
-                    1.0,
-                    None,
-                    a,
-                )
-            )
+    if not any_close_up:
+        cues.extend(c for c in (_arm_only_cue(a, body) for a in free) if c is not None)
     return cues
 
 
