@@ -49,6 +49,8 @@ FusionCounter = Literal[
     "ignored_no_intent",
     "bare_reference",
     "unknown_noun",
+    "refused_affordance",
+    "deixis_unresolved",
     "speaker_side",
     "cancelled_by_stop_gesture",
     "gesture_stop",

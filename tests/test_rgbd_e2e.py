@@ -27,7 +27,8 @@ from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client
 from testkit.images import read_image
-from testkit.shared import shared_path, yolox_model
+from testkit.rgbd import start
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 
@@ -48,8 +49,8 @@ NEARER = 0.35  # m
 
 def two_bottles(folder) -> tuple[np.ndarray, np.ndarray]:
     src = shared_path("data/rgbd/ycb_video")
-    colour = read_image(str(src / "000002-color.png"))
-    depth = read_image(str(src / "000002-depth.png"), cv2.IMREAD_UNCHANGED)
+    colour = read_image(src / "000002-color.png")
+    depth = read_image(src / "000002-depth.png", cv2.IMREAD_UNCHANGED)
     x, y, w, h = BOTTLE
     dx, dy = COPY_AT
     z = depth[y : y + h, x : x + w].astype(float) * K["depth_scale"]
@@ -68,17 +69,6 @@ def say(client: Client, text: str) -> None:
         "hri/speech/kbd/transcript",
         make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"),
     )
-
-
-def start(group, folder) -> Client:
-    group.router()
-    group.service("vision", "--backend", "onnx", "--model", str(yolox_model()))
-    group.service("fusion")
-    client = Client(group.endpoint)
-    client.wait_alive("vision", timeout=90)
-    client.wait_alive("fusion", timeout=60)
-    group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
-    return client
 
 
 def wait_for_bottles(client: Client) -> list:

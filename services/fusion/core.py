@@ -16,14 +16,16 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 from common.counters import GESTURE_COMMAND_COUNTER, FusionCounter
+from common.language import ANY_OBJECT, PLACE_AS_OBJECT
 from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEvent, Hands, Intent, Location, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, space
-from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore
+from services.fusion.afford import Applicable, applicable, refusal, removed_words
+from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore, Refuse
 from services.fusion.dialogue import Dialogue
 from services.fusion.gestures import Gestures
-from services.fusion.ground import DEFAULT_MARGIN, Choice, pointed_location, score
+from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
 from services.fusion.join import Join, Ready, SeenOnce
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance, parse, stop_near_miss
@@ -125,12 +127,24 @@ def wanted(intent: Intent, u: Utterance) -> tuple[bool, bool]:
     return wants_object, wants_location
 
 
+def unseen_pointing(phrase: ObjectPhrase, winner: Scored) -> bool:
+    """ "That one" / "this" (deixis naming no kind) chose `winner` without pointing at it: no ray was seen, or the
+    ray is near nothing. Then only the absence of other candidates chose it, and the point may have been at something
+    vision does not see."""
+    names_kind = phrase.label not in (None, ANY_OBJECT) or bool(phrase.color) or bool(phrase.spatial)
+    return phrase.deictic and not names_kind and not phrase.relations and (winner.gesture or 0.0) < 0.5
+
+
 @dataclass(frozen=True)
 class Decided:
-    """A decision and the utterance as understood when it was made (re-parsed with the labels in view)."""
+    """A decision with what it was made from: the utterance as understood then (re-parsed with the labels in view,
+    sides in the camera's words), the window (its candidates: what the action may apply to) and what the
+    affordances removed (said back in the explanation)."""
 
     utterance: Utterance
     decision: Decision
+    ctx: Context
+    found: Applicable | None = None
 
 
 class FusionCore:
@@ -258,7 +272,7 @@ class FusionCore:
         if replied is not None:
             return replied
         assert decided is not None
-        return self.render(t, decided.utterance, ctx, decided.decision)
+        return self.render(t, decided)
 
     def decide_utterance(self, p: PendingTranscript, ctx: Context) -> tuple[list[Output] | None, Decided | None]:
         """What to do with an utterance whose window is due: (the dialogue's own reply to an answer, None) or
@@ -268,7 +282,7 @@ class FusionCore:
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
         if u.intent is None:
-            reply = self.dialogue.reply(t, u, ctx)
+            reply = self.dialogue.reply(t, u, self._for_dialogue(ctx))
             if reply is not None:
                 return reply, None
             # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
@@ -276,23 +290,31 @@ class FusionCore:
                 self.count("bare_reference")
                 self.dialogue.supersede()
                 return None, self.command(t, replace(u, intent="look_at"), ctx)
-            return None, Decided(u, Ignore("ignored_no_intent", f"'{t.text}' is not a command I know; ignored"))
+            return None, Decided(u, Ignore("ignored_no_intent", f"'{t.text}' is not a command I know; ignored"), ctx)
         self.dialogue.supersede()
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
-            return None, Decided(u, Ignore("duplicate_of_gesture"))
+            return None, Decided(u, Ignore("duplicate_of_gesture"), ctx)
         return None, self.command(t, u, ctx)
 
     def command(self, t: Transcript, u: Utterance, ctx: Context) -> Decided:
-        """A command utterance: its words about sides turned into the camera's, then decided."""
+        """A command utterance: its words about sides turned into the camera's, a place that is a thing said as
+        the thing, the window narrowed to what the action may apply to (services/fusion/afford.py); then decided."""
         u = self._in_camera_words(t, u, ctx)
-        return Decided(u, self.decide_command(t, u, ctx))
+        intent = u.intent
+        assert intent is not None
+        if intent in TARGET_INTENTS and u.place in PLACE_AS_OBJECT and u.obj.label is None and not u.obj.deictic:
+            # "pick up the table": what is picked up is the thing, not a place
+            u = replace(u, obj=replace(u.obj, label=PLACE_AS_OBJECT[u.place]), place=None)
+        found = applicable(intent, u.obj, ctx.objects, ctx.pointing)
+        ctx = replace(ctx, candidates=found.kept)  # nothing else is ever proposed (services/fusion/afford.py)
+        return Decided(u, self.decide_command(t, u, ctx, found), ctx, found)
 
-    def decide_command(self, t: Transcript, u: Utterance, ctx: Context) -> Decision:
-        """A command utterance, grounded in its window: act, ask which / where / whether heard right."""
+    def decide_command(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Decision:
+        """A command utterance, grounded in its window: act, refuse, ask which / where / whether heard right."""
         intent = u.intent
         assert intent is not None
         wants_object, wants_location = wanted(intent, u)
-        grounded = self._ground(t, u, ctx, wants_object)
+        grounded = self._ground(t, u, ctx, wants_object, found)
         if not isinstance(grounded, Grounded):
             return grounded
         target = grounded.target
@@ -337,41 +359,51 @@ class FusionCore:
         self.log.info("'%s': %s", t.text, why)
         return replace(u, obj=replace(u.obj, spatial=spatial))
 
-    def _ground(self, t: Transcript, u: Utterance, ctx: Context, wants_object: bool) -> Grounded | Decision:
-        """The object the command is about: Grounded (possibly none), or the decision to ask or fall back."""
+    def _ground(
+        self, t: Transcript, u: Utterance, ctx: Context, wants_object: bool, found: Applicable
+    ) -> Grounded | Decision:
+        """The object the command is about: Grounded (possibly none), or the decision to refuse, ask or fall back."""
         intent = u.intent
         assert intent is not None
-        if wants_object and u.obj.noun is not None:  # a word I don't know: only a clear point can say which
-            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
-            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
-                self.count("unknown_noun")
-                return Ask(Draft(intent, t.text, place=u.place), Choice("not_found", None, ()))
-            return Grounded(choice.winner, choice.runner_up)
         if wants_object:
-            return self._ground_named(t, u, ctx)
+            return self._object(t, u, ctx, found)
         if intent == "put_down" and u.obj.specific:
             choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
             return Grounded(choice.winner if choice.kind == "target" else None)
         return Grounded()
 
-    def _ground_named(self, t: Transcript, u: Utterance, ctx: Context) -> Grounded | Decision:
+    def _object(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Grounded | Decision:
+        """The object the command acts on, or instead: a refusal ("I can't pick up a couch."), a question, or the
+        --fallback-most-confident command."""
         intent = u.intent
         assert intent is not None
+        no = refusal(intent, u.obj, found)
+        if no is not None:
+            self.count("refused_affordance")
+            return Refuse(no, Draft(intent, t.text, place=u.place))
+        if u.obj.noun is not None:  # a word I don't know: only a clear point can say which
+            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
+            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
+                self.count("unknown_noun")
+                return Ask(Draft(intent, t.text, place=u.place), Choice("not_found", None, ()))
+            return Grounded(choice.winner, choice.runner_up, choice.overruled)
         choice = self._choose(u.obj, ctx)
-        if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
-            best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
+        if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.pool:
+            best = max(ctx.pool, key=lambda o: (o.score, o.cam, o.id))
             scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
             expl = (
                 f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
                 f"detection {best.id} ({best.name()}, score {best.score:.2f})"
             )
             return ActOnTarget(intent, Grounded(scored), None, u.place, explanation=expl, remember=False)
-        if choice.kind not in ("target", "low_confidence"):
-            return Ask(Draft(intent, t.text, place=u.place), choice)
-        if choice.kind == "low_confidence":
-            target = choice.winner
-            return Ask(Draft(intent, t.text, target=target.obj if target else None, place=u.place), choice)
-        return Grounded(choice.winner, choice.runner_up, choice.overruled)
+        if choice.kind == "target" and choice.winner is not None and unseen_pointing(u.obj, choice.winner):
+            # "that one" said, no point seen (or none near anything) and no kind named: confirm, never guess
+            self.count("deixis_unresolved")
+            choice = replace(choice, kind="low_confidence")
+        if choice.kind == "target":
+            return Grounded(choice.winner, choice.runner_up, choice.overruled)
+        target = choice.winner.obj if choice.kind == "low_confidence" and choice.winner else None
+        return Ask(Draft(intent, t.text, target=target, place=u.place), choice)
 
     # -- rendering --------------------------------------------------------------
     def ignore(self, decision: Ignore) -> list[Output]:
@@ -380,10 +412,13 @@ class FusionCore:
             self.log.info("%s", decision.why)
         return []
 
-    def render(self, t: Transcript, u: Utterance, ctx: Context, decision: Decision) -> list[Output]:
+    def render(self, t: Transcript, decided: Decided) -> list[Output]:
         """A decision into what is published (and what the dialogue remembers)."""
+        u, ctx, decision = decided.utterance, decided.ctx, decided.decision
         if isinstance(decision, Ignore):
             return self.ignore(decision)
+        if isinstance(decision, Refuse):
+            return [self.dialogue.refuse(t, u, decision.answer, decision.draft)]
         if isinstance(decision, Ask):
             if decision.where:
                 return [self.dialogue.clarify_place(t, u, decision.draft)]
@@ -395,28 +430,49 @@ class FusionCore:
         assert target is not None
         expl = decision.explanation
         if expl is None:
-            g = decision.grounded
-            expl = describe.explain_target(target, g.runner_up, ctx.weights.to_dict(), u.obj, g.overruled)
-            if u.obj.noun is not None:
-                expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
-            if u.obj.unmatched:  # said back, never silently dropped
-                expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
+            expl = self._explain_target(u, ctx, decision.grounded, decided.found)
         if decision.remember:
             self.dialogue.acted(t, decision.intent, t.text, target.obj, u.obj, decision.place)
         return [self.outputs.target_command(t, decision, ctx, expl)]
 
+    def _explain_target(self, u: Utterance, ctx: Context, g: Grounded, found: Applicable | None) -> str:
+        assert g.target is not None
+        expl = describe.explain_target(g.target, g.runner_up, ctx.weights.to_dict(), u.obj, g.overruled)
+        if found is not None:
+            expl += removed_words(found, u.obj, ctx.pointing)
+        if u.obj.noun is not None:
+            expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
+        if u.obj.unmatched:  # said back, never silently dropped
+            expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
+        return expl
+
+    def _for_dialogue(self, ctx: Context) -> Context:
+        """An answer or a correction chooses among what the asked (or corrected) command may act on."""
+        q, last = self.dialogue.question, self.dialogue.last
+        if q is not None:
+            intent, phrase = q.draft.intent, q.phrase
+        elif last is not None:
+            intent, phrase = last.intent, last.phrase
+        else:
+            return ctx
+        return replace(ctx, candidates=applicable(intent, phrase, ctx.objects, ctx.pointing).kept)
+
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
-        return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)
+        return ctx.choose(phrase, ctx.pool, ctx.pointing, ctx.ref)
 
     def _location(self, u: Utterance, ctx: Context) -> Location | None:
         """Where the command goes: the object named as the destination ("put it on the red box"), else where the
-        ray points; None without either."""
+        ray points; None without either. A place may be anything (a table, a couch) but the person pointing (nor what
+        is on them: the ray starts inside their box)."""
+        places = applicable("go_to", ObjectPhrase(), ctx.objects, ctx.pointing).kept
         if u.dest_obj is not None:
-            choice = self._choose(u.dest_obj, ctx)
+            choice = self._choose(u.dest_obj, replace(ctx, candidates=places))
             if choice.kind == "target" and choice.winner is not None:
                 o = choice.winner.obj
                 return Location(x=float(o.center[0]), y=float(o.center[1]), cam=o.cam)
-        return pointed_location(ctx.pointing, ctx.objects) if ctx.pointing is not None else None
+        if ctx.pointing is None:
+            return None
+        return pointed_location(ctx.pointing, places)
 
     def memory_items(self) -> int:
         """Buffered samples plus bookkeeping (for the benchmark's flat-memory check)."""

@@ -5,6 +5,7 @@ services/fusion/outputs.py builds the wire messages, services/fusion/describe.py
 - `Act`: publish a command, on a target, a location, a place, a motion or none of them;
 - `Ask`: publish a clarification with the command drafted so far: which object (the choice's candidates and
   reason), where (`where`), or whether it was heard right (`heard`);
+- `Refuse`: say why the command cannot be done ("I can't pick up a couch.", services/fusion/afford.py);
 - `Ignore`: publish nothing, and count why.
 """
 
@@ -83,6 +84,15 @@ class Ask:
 
 
 @dataclass(frozen=True)
+class Refuse:
+    """The words name only what the action cannot apply to: `answer` says so (on the wire a `not_found`
+    Clarification without candidates, open like a question)."""
+
+    answer: str
+    draft: Draft
+
+
+@dataclass(frozen=True)
 class Ignore:
     """Publish nothing: `reason` is counted, `why` logged."""
 
@@ -90,4 +100,4 @@ class Ignore:
     why: str = ""
 
 
-Decision = Act | ActOnTarget | Ask | Ignore
+Decision = Act | ActOnTarget | Ask | Refuse | Ignore

@@ -52,6 +52,14 @@ class Context:
     how: Ready  # why the window was closed
     adaptive: bool  # --weights adaptive
     margin: float  # the lead a winner needs
+    # What the command may act on (services/fusion/afford.py): None = every object in view. `objects` stays the
+    # whole scene (a relation's anchor, the prompt's objects in view).
+    candidates: list[SceneObject] | None = None
+
+    @property
+    def pool(self) -> list[SceneObject]:
+        """The objects the command may act on."""
+        return self.objects if self.candidates is None else self.candidates
 
     def choose(
         self,

@@ -128,15 +128,17 @@ class GestureCore:
             if frame.cam in self.depths:
                 self.depth_unmatched += 1  # a camera with depth, but not of this capture (yet)
             return None
-        return FrameRays(depth, skeleton, world)  # decoded only if someone points
+        return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
     def process(self, frame: Frame, img: np.ndarray) -> FrameResult:
         cam = self.camera(frame)
         observations = cam.hands.detect(img)
         skeleton = cam.pose.detect(img) if cam.pose is not None else None
-        tracked, events = cam.tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
         world = cam.pose.world if cam.pose is not None and skeleton is not None else None
         rays3d = self.frame_rays(frame, skeleton, world)
+        joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
+        size = (frame.width, frame.height)
+        tracked, events = cam.tracker.update(frame.stamp, observations, skeleton, size, joints3d)
         hand_rays3d = {
             o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
             for o, t in zip(observations, tracked)
