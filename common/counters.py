@@ -39,6 +39,9 @@ NoTextReason = Literal["no_speech", "no_words"]
 # gesture
 GestureCounter = Literal["depth_unmatched", "ended_idle_stream"]
 
+# ros2 (the ROS 2 bridge, services/ros2)
+Ros2Counter = Literal["ros_published", "ros_topics_retired", "held_while_busy"]
+
 # fusion: inputs it did not use, and what became of utterances, gestures and questions
 FusionCounter = Literal[
     "late",
@@ -52,6 +55,9 @@ FusionCounter = Literal[
     "refused_affordance",
     "deixis_unresolved",
     "speaker_side",
+    "persons_as_candidates",
+    "person_target",
+    "recipient_unknown",
     "cancelled_by_stop_gesture",
     "gesture_stop",
     "gesture_come_here",
@@ -74,4 +80,4 @@ CLARIFICATION_COUNTER: dict[ClarificationReason, FusionCounter] = {
     "low_confidence": "clarification_low_confidence",
 }
 
-CounterName = RunnerCounter | SpeechCounter | GestureCounter | FusionCounter
+CounterName = RunnerCounter | SpeechCounter | GestureCounter | FusionCounter | Ros2Counter

@@ -131,6 +131,7 @@ class FusionApp(App):
         service.subscribe_input("hands", self.handler(core.on_hands))
         service.subscribe_input("event", self.handler(core.on_gesture_event))
         service.subscribe_input("bodies", self.handler(core.on_bodies))  # which way the speaker faces
+        service.subscribe_input("persons", self.handler(core.on_persons))  # people in view: "bring it to me"
         config = self.config
         service.log.info(
             "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",

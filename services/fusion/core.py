@@ -15,12 +15,27 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+import msgspec
+
 from common.counters import GESTURE_COMMAND_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, PLACE_AS_OBJECT
-from common.schema import GESTURE, SPEECH, VISION, Bodies, Detections, GestureEvent, Hands, Intent, Location, Transcript
+from common.schema import (
+    GESTURE,
+    SPEECH,
+    VISION,
+    Bodies,
+    Detections,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    Intent,
+    Location,
+    Persons,
+    Transcript,
+)
 from common.settings import setting
 from common.stack import node, publishers_of
-from services.fusion import describe, space
+from services.fusion import describe, people, space
 from services.fusion.afford import Applicable, applicable, refusal, removed_words
 from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore, Refuse
 from services.fusion.dialogue import Dialogue
@@ -145,6 +160,7 @@ class Decided:
     decision: Decision
     ctx: Context
     found: Applicable | None = None
+    to_recipient: bool = False  # a new command: "bring it to me" sends it to the person named
 
 
 class FusionCore:
@@ -169,6 +185,10 @@ class FusionCore:
         )
         self.seen_transcripts = SeenOnce(config.horizon)
         self.facing = space.Facing()  # which way the speaker faces: "on my left"
+        # people (issue #33): who said an utterance (the speaker attribution plugs in here; None = unknown) and the
+        # persons in view, for "bring it to me"
+        self.speaker_of: Callable[[PendingTranscript], str | None] = lambda p: None
+        self.persons: list[Persons] = []
 
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
@@ -197,6 +217,10 @@ class FusionCore:
 
     def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
         self.facing.add(bodies)
+        return []
+
+    def on_persons(self, key: str, persons: Persons, wall: float) -> list[Output]:
+        self.persons = [s for s in self.persons if s.stamp >= persons.stamp - self.cfg.horizon][-299:] + [persons]
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
@@ -257,6 +281,7 @@ class FusionCore:
             vision_lookback=self.cfg.vision_lookback,
             margin=self.cfg.margin,
             log=self.log,
+            speaker_person=self.speaker_of(p),
         )
 
     # -- decisions ------------------------------------------------------------
@@ -267,12 +292,16 @@ class FusionCore:
         if self.gestures.stop_shown(t.start, p.hi, hand_frames):
             why = f"'{t.text}' dropped: an open palm (stop) was shown while it was said"
             return self.ignore(Ignore("cancelled_by_stop_gesture", why))
-        ctx = self.context(p, how)
+        ctx = self._with_persons(p.utterance, self.context(p, how))
+        recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
         replied, decided = self.decide_utterance(p, ctx)
         if replied is not None:
             return replied
         assert decided is not None
-        return self.render(t, decided)
+        out = self.render(t, decided)
+        if recipient is not None and decided.to_recipient:
+            return [self._to_recipient(o, recipient, p, ctx) for o in out]
+        return out
 
     def decide_utterance(self, p: PendingTranscript, ctx: Context) -> tuple[list[Output] | None, Decided | None]:
         """What to do with an utterance whose window is due: (the dialogue's own reply to an answer, None) or
@@ -294,7 +323,53 @@ class FusionCore:
         self.dialogue.supersede()
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
             return None, Decided(u, Ignore("duplicate_of_gesture"), ctx)
-        return None, self.command(t, u, ctx)
+        person = self._person_decision(t, u, ctx, p)
+        decided = Decided(u, person, ctx) if person is not None else self.command(t, u, ctx)
+        return None, replace(decided, to_recipient=True)
+
+    def _with_persons(self, u: Utterance, ctx: Context) -> Context:
+        """ "The man on the left" with no person among the detections (the colour backend finds none): the persons
+        in view (`Persons`, within the vision lookback of the utterance) are the candidates, by their ids."""
+        if u.obj.label != "person":
+            return ctx
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        if seen is None or any(o.label == "person" and o.cam == seen.cam for o in ctx.objects):
+            return ctx
+        self.count("persons_as_candidates")
+        return replace(ctx, objects=ctx.objects + [people.as_scene_object(q, seen) for q in seen.persons])
+
+    def _person_decision(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> Act | None:
+        """ "Follow me", "look at him", "watch the person who is talking": the person in `Persons` (by their part in
+        the talk: the speaker, the one other person) is the target; None when none is named or none resolves."""
+        ref = people.person_referent(t.text) if u.intent in ("follow", "look_at") else None
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback) if ref is not None else None
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if ref is not None and seen else None
+        if person is None or seen is None or ref is None:
+            return None
+        self.count("person_target")
+        why = f"'{ref.said}' is {person.id}" + (" (the speaker)" if ref.who == "speaker" else " (the other person)")
+        return Act(
+            u.intent or "follow",
+            confidence=ctx.reliabilities[SPEECH] or 0.0,
+            explanation=why,
+            target=people.as_scene_object(person, seen),
+        )
+
+    def _to_recipient(self, out: Output, ref: people.PersonRef, p: PendingTranscript, ctx: Context) -> Output:
+        """A bring/give command goes to the person named ("to me": the speaker): their place is its `location`."""
+        sample = out.sample
+        if not isinstance(sample, FusedCommand) or sample.intent != "bring" or sample.location is not None:
+            return out
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if seen else None
+        if person is None or seen is None:
+            self.count("recipient_unknown")
+            return out
+        why = f"; to {person.id} ('{ref.said}')" + (" at their torso in metres" if person.position else "")
+        located = msgspec.structs.replace(
+            sample, location=people.location_of(person, seen.cam), explanation=sample.explanation + why
+        )
+        return replace(out, sample=located)
 
     def command(self, t: Transcript, u: Utterance, ctx: Context) -> Decided:
         """A command utterance: its words about sides turned into the camera's, a place that is a thing said as

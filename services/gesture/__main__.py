@@ -15,6 +15,7 @@ from common.settings import add_option
 from common.stack import node
 from services.gesture.core import GestureCore, GestureSettings, to_ray
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
+from services.gesture.people_stage import PeopleOfFrame, event_person
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event
 
@@ -77,6 +78,14 @@ def build_parser() -> argparse.ArgumentParser:
         "body ray: eyes -> fingertip (forearm when the eyes are out of view) or forearm (elbow -> fingertip)",
         choices=("eyes", "forearm"),
     )
+    add_option(
+        parser,
+        "--persons-every",
+        2,
+        "run the person stage (faces, a body per person, stable person ids: Persons) on every Nth frame; 0 = off",
+        at_least=0,
+        metavar="N",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -91,6 +100,7 @@ def settings_of(args: argparse.Namespace) -> GestureSettings:
         start_s=args.start_ms / 1000.0,
         ray_from=args.ray,
         body=args.body,
+        persons_every=args.persons_every,
     )
 
 
@@ -130,13 +140,15 @@ class GestureApp(App):
 
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         service, unmatched = self.service, self.core.depth_unmatched
-        result = self.core.process(frame, img)
+        result = self.core.process(frame, img, fresh=frame.cam not in self.last_frame)
         if self.core.depth_unmatched > unmatched:
             service.counters.add("depth_unmatched")
+        if result.persons is not None:  # the person stage ran on this frame: its Persons
+            service.publish_output("persons", result.persons, cam=frame.cam)
         service.publish_output("hands", result.hands, cam=frame.cam)
         if result.bodies is not None:
             service.publish_output("bodies", result.bodies, cam=frame.cam)
-        self.publish_events(frame, result.events, result.rays3d, result.hand_rays3d)
+        self.publish_events(frame, result.events, result.rays3d, result.hand_rays3d, result.seen)
         if result.rays3d is not None and result.rays3d.error:
             service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {result.rays3d.error}")
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
@@ -148,6 +160,7 @@ class GestureApp(App):
         events: list[Event],
         rays3d: FrameRays | None = None,
         hand_rays3d: dict[str, Ray3D | None] | None = None,
+        seen: PeopleOfFrame | None = None,
     ) -> None:
         service = self.service
         for ev in events:
@@ -167,6 +180,7 @@ class GestureApp(App):
                 score=ev.score,
                 hand=cast(Handedness, ev.hand),
                 ray=to_ray(ev.ray, ray3d),
+                person=event_person(seen, ev.hand, ev.ray),
             )
             service.publish_output("event", event, lossless=True, realtime=ev.gesture == "open_palm", cam=frame.cam)
             if ev.phase != "hold":

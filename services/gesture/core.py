@@ -10,8 +10,9 @@ from typing import Any, cast
 import numpy as np
 
 from common.image import frame_fields
-from common.schema import Bodies, Body, DepthFrame, Frame, GestureName, Hand, Handedness, Hands, Ray, Ray3D
+from common.schema import Bodies, Body, DepthFrame, Frame, GestureName, Hand, Handedness, Hands, Persons, Ray, Ray3D
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
+from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 
@@ -49,6 +50,7 @@ class GestureSettings:
     start_s: float = 0.0
     ray_from: str = "eyes"
     body: bool = True
+    persons_every: int = 2  # the person stage on every Nth frame (issue #33; 0: off)
 
 
 @dataclass
@@ -61,6 +63,8 @@ class FrameResult:
     events: list[Event]
     rays3d: FrameRays | None
     hand_rays3d: dict[str, Ray3D | None]
+    persons: Persons | None = None  # on the frames the person stage ran on
+    seen: PeopleOfFrame | None = None  # whose hands and gestures these are
 
 
 @dataclass
@@ -103,10 +107,12 @@ class GestureCore:
         self.depth_kept = depth_kept
         self.last_stamp: dict[str, float] = {}
         self.depth_unmatched = 0  # frames of a camera with depth whose own depth had not come (yet)
+        self.people = CameraPeople(settings.persons_every)  # issue #33: Persons, a body per person, whose hand
 
     def close(self) -> None:
         for cam in self.cameras.values():
             cam.close()
+        self.people.close()
 
     def add_depth(self, depth: DepthFrame) -> None:
         self.depths.setdefault(depth.cam, collections.deque(maxlen=self.depth_kept)).append(depth)
@@ -130,7 +136,8 @@ class GestureCore:
             return None
         return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
-    def process(self, frame: Frame, img: np.ndarray) -> FrameResult:
+    def process(self, frame: Frame, img: np.ndarray, fresh: bool) -> FrameResult:
+        """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
         cam = self.camera(frame)
         observations = cam.hands.detect(img)
         skeleton = cam.pose.detect(img) if cam.pose is not None else None
@@ -144,16 +151,39 @@ class GestureCore:
             for o, t in zip(observations, tracked)
             if rays3d is not None and t.ray is not None
         }
+        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh)
+        persons = self.people.sample(frame, seen, self.source) if seen is not None and seen.ran else None
         fields = frame_fields(frame, self.source)
-        hands = Hands(**fields, hands=[to_hand(o, t, hand_rays3d.get(o.hand)) for o, t in zip(observations, tracked)])
+        found = [
+            to_hand(o, t, hand_rays3d.get(o.hand), hand_person(seen, k))
+            for k, (o, t) in enumerate(zip(observations, tracked))
+        ]
+        hands = Hands(**fields, hands=found)
         bodies = None
         if self.settings.body:
-            found = [] if skeleton is None else [to_body(skeleton, cam.tracker.last_arms, rays3d)]
-            bodies = Bodies(**fields, bodies=found)
-        return FrameResult(hands, bodies, events, rays3d, hand_rays3d)
+            bodies = Bodies(**fields, bodies=people_bodies(frame, skeleton, cam.tracker.last_arms, rays3d, seen))
+        return FrameResult(hands, bodies, events, rays3d, hand_rays3d, persons, seen)
 
 
-def to_hand(o: Observation, t: TrackedHand, ray3d: Ray3D | None) -> Hand:
+def people_bodies(
+    frame: Frame, skeleton: np.ndarray | None, arms: list, rays3d: FrameRays | None, seen: PeopleOfFrame | None
+) -> list[Body]:
+    """The full-frame skeleton with the tracker's arms, plus (on the person stage's frames) every other person's."""
+    main = [] if skeleton is None else [to_body(skeleton, arms, rays3d)]
+    if seen is None:
+        return main
+    for body in main:
+        body.person = seen.main_person
+    others = (
+        [(p.id, p.body) for p in seen.persons if p.id != seen.main_person and p.body is not None] if seen.ran else []
+    )
+    for pid, b in others:  # their own arms, this frame's; no 3-D rays (FrameRays lifts the full-frame skeleton)
+        main.append(to_body(b, other_arms(b, frame.width, frame.height)))
+        main[-1].person = pid
+    return main
+
+
+def to_hand(o: Observation, t: TrackedHand, ray3d: Ray3D | None, person: str | None) -> Hand:
     # the tracker's words are the schema's (its classes and hands are GestureName and Handedness values)
     return Hand(
         hand=cast(Handedness, o.hand),
@@ -161,4 +191,5 @@ def to_hand(o: Observation, t: TrackedHand, ray3d: Ray3D | None) -> Hand:
         landmarks=[[round(x, 2), round(y, 2)] for x, y in o.landmarks.tolist()],
         gesture=cast(GestureName | None, t.gesture),
         ray=to_ray(t.ray, ray3d),
+        person=person,
     )
