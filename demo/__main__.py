@@ -310,14 +310,14 @@ class Player:
         return problem is None
 
 
-def run_script(launcher: Launcher, audio: dict[str, Path], timeout: float) -> int:
-    """Starts the stack, plays every step; the number of steps that failed."""
+def run_script(launcher: Launcher, endpoint: str, audio: dict[str, Path], timeout: float) -> int:
+    """Starts the stack (its router on `endpoint`), plays every step; the number of steps that failed."""
     services = demo_services()
-    print(f"starting router ({launcher.endpoint}), {', '.join(s.name for s in services)} ...", flush=True)
+    print(f"starting router ({endpoint}), {', '.join(s.name for s in services)} ...", flush=True)
     launcher.start(services, live_timeout=120)
     session = launcher.session
     assert session is not None
-    print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {launcher.endpoint}\n")
+    print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {endpoint}\n")
     watch = Watch()
     subs = watch.subscribe(session)
     mic = SamplePublisher(session, f"hri/audio/{MIC}/pcm", lossless=True)
@@ -345,9 +345,10 @@ def main() -> int:
 
     logs: list[str] = []
     out = print if args.verbose else logs.append
-    launcher = Launcher(free_endpoint(), "hri", start_router=True, out=out)
+    endpoint = free_endpoint()
+    launcher = Launcher(endpoint, "hri", start_router=True, out=out)
     try:
-        failures = run_script(launcher, audio, args.timeout)
+        failures = run_script(launcher, endpoint, audio, args.timeout)
     except (RuntimeError, KeyboardInterrupt) as exc:
         print(f"demo stopped: {exc}")
         failures = 1
