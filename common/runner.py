@@ -32,6 +32,7 @@ import zenoh
 import common.stack as stack
 from common.codec import ENCODING, decode, encode
 from common.counters import CounterName
+from common.cpu import change_priority, limit_opencv_threads
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
@@ -77,6 +78,25 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         DEFAULT_RESET_RUN,
         "follow a stream that went back in time after N consistent samples",
         at_least=1,
+        metavar="N",
+    )
+    add_option(
+        parser,
+        "--nice",
+        node.nice,
+        "change this process's CPU priority by N (os.nice): > 0 yields (the frame services, which skip frames), "
+        "< 0 asks for more (speech, where the system allows it: root or CAP_SYS_NICE; else it runs at 0)",
+        at_least=-20,
+        at_most=19,
+        metavar="N",
+    )
+    add_option(
+        parser,
+        "--cv-threads",
+        1,
+        "OpenCV's thread pool (decoding, resizing): 1, as the services run side by side on the machine's cores; "
+        "0 leaves OpenCV's own choice (every core)",
+        at_least=0,
         metavar="N",
     )
     if node.reads_images:
@@ -266,6 +286,7 @@ class Service:
         self.node = name if isinstance(name, stack.Node) else stack.node(name)
         name = self.node.name
         resolve(args)
+        limit_opencv_threads(getattr(args, "cv_threads", 0))
         self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
         self.name = check_chunk(name, "service name")
@@ -274,6 +295,9 @@ class Service:
         self.args = args
         self.keys = Keys(args.prefix)
         self.log = log or setup_logging(f"hri.{name}", getattr(args, "log_level", None))
+        refused = change_priority(getattr(args, "nice", 0))
+        if refused:
+            self.log.info("%s", refused)
         self.counters = Counters(self.log)
         self.stop_event = threading.Event()
         self.session: zenoh.Session | None = None

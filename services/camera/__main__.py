@@ -17,7 +17,7 @@ from common.schema import Frame
 from common.settings import add_option
 from services.camera.opener import open_source
 from services.camera.rgbd import Capture, Intrinsics, check_intrinsics, mirror_capture, read_intrinsics
-from services.camera.source import SourceError, encode_image
+from services.camera.source import SourceError, encode_image, fit_within, parse_size
 
 EPILOG = """\
 examples:
@@ -78,16 +78,73 @@ def build_parser() -> argparse.ArgumentParser:
         "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
     )
     add_option(parser, "--rs-size", "640x480", "RealSense resolution WIDTHxHEIGHT", metavar="WxH")
+    add_option(
+        parser,
+        "--size",
+        None,
+        "video, image or folder: frames scaled to fit inside WIDTHxHEIGHT, aspect kept (e.g. 640x480: a 1080p "
+        "clip costs every service a quarter of the pixels); not for depth sources (--rs-size for RealSense)",
+        kind=str,
+        metavar="WxH",
+        default_text="the source's own",
+    )
     return parser
 
 
-def rs_size_of(text: str) -> tuple[int, int] | None:
-    """--rs-size WIDTHxHEIGHT as (width, height); None when it is not two positive integers."""
+def resize_colour_only(capture: Capture, size: tuple[int, int], has_intrinsics: bool, service: Service) -> None:
+    """--size: the colour image fitted inside `size`; a capture with depth or intrinsics is left as it is (its
+    pixels are tied to them), said once."""
+    if capture.depth is None and capture.camera_info is None and not has_intrinsics:
+        capture.color = fit_within(capture.color, size)
+    else:
+        service.counters.ratelog.warn(
+            "size_ignored", "--size is ignored for a source with depth or intrinsics (RealSense: --rs-size)"
+        )
+
+
+def sizes(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[tuple[int, int], tuple[int, int] | None]:
+    """(--rs-size, --size or None), or the parser's error."""
     try:
-        w, h = (int(v) for v in text.lower().split("x"))
+        rs_size = parse_size(args.rs_size)
     except ValueError:
-        return None
-    return (w, h) if min(w, h) > 0 else None
+        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
+    try:
+        return rs_size, (parse_size(args.size) if args.size else None)
+    except ValueError:
+        parser.error("--size must be WIDTHxHEIGHT, e.g. 640x480")
+
+
+class Preparer:
+    """The source's image or capture made ready to publish: fitted to --size, with the intrinsics that belong to
+    it (checked once per resolution), mirrored if asked."""
+
+    def __init__(
+        self,
+        args: argparse.Namespace,
+        intrinsics: Intrinsics | None,
+        fit_size: tuple[int, int] | None,
+        description: str,
+        service: Service,
+    ):
+        self.args, self.intrinsics, self.fit_size = args, intrinsics, fit_size
+        self.description, self.service = description, service
+        self.checked: set[tuple[int, int]] = set()
+
+    def __call__(self, item: Any) -> Capture:
+        capture = item if isinstance(item, Capture) else Capture(item)
+        intrinsics = self.intrinsics
+        if self.fit_size is not None:
+            resize_colour_only(capture, self.fit_size, intrinsics is not None, self.service)
+        if intrinsics is not None:
+            capture.camera_info = intrinsics.camera_info
+            if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
+                capture.depth_scale = intrinsics.depth_scale
+        if capture.camera_info is not None:
+            size = capture.color.shape[1], capture.color.shape[0]
+            if size not in self.checked:  # once per resolution: a wrong K is refused with the first frame
+                check_intrinsics(capture.camera_info, *size, self.args.intrinsics or self.description)
+                self.checked.add(size)
+        return mirror_capture(capture) if self.args.mirror else capture
 
 
 class CameraApp(App):
@@ -95,11 +152,11 @@ class CameraApp(App):
 
     node = "camera"
 
-    def __init__(self, args: argparse.Namespace, rs_size: tuple[int, int]) -> None:
+    def __init__(self, args: argparse.Namespace, rs_size: tuple[int, int], fit_size: tuple[int, int] | None) -> None:
         self.args = args
         self.rs_size = rs_size
+        self.fit_size = fit_size
         self.intrinsics: Intrinsics | None = None
-        self.checked: set[tuple[int, int]] = set()  # resolutions whose intrinsics were checked
 
     def open(self, service: Service) -> None:
         args = self.args
@@ -110,26 +167,12 @@ class CameraApp(App):
             raise StartupError(str(exc)) from None
         service.on_close(self.source.close)
         self.service = service
+        self.prepare = Preparer(args, self.intrinsics, self.fit_size, self.source.description, service)
         self.fps = args.fps or self.source.native_fps or (10.0 if self.source.finite else None)
         self.key = service.output_key("frame", cam=args.cam)
         self.depth_key = service.output_key("depth", cam=args.cam)
         rate = f"{self.fps:g} fps" if self.fps else "device rate"
         service.log.info("publishing %s on %s at %s", self.source.description, self.key, rate)
-
-    def prepare(self, item: Any) -> Capture:
-        """The source's image or capture with the intrinsics that belong to it, mirrored if asked."""
-        capture = item if isinstance(item, Capture) else Capture(item)
-        intrinsics = self.intrinsics
-        if intrinsics is not None:
-            capture.camera_info = intrinsics.camera_info
-            if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
-                capture.depth_scale = intrinsics.depth_scale
-        if capture.camera_info is not None:
-            size = capture.color.shape[1], capture.color.shape[0]
-            if size not in self.checked:  # once per resolution: a wrong K is refused with the first frame
-                check_intrinsics(capture.camera_info, *size, self.args.intrinsics or self.source.description)
-                self.checked.add(size)
-        return mirror_capture(capture) if self.args.mirror else capture
 
     def publish(self, capture: Capture, seq: int) -> None:
         """One capture: its depth first (whoever matches depth to colour has it when the colour frame arrives)."""
@@ -213,10 +256,8 @@ class Pacer:
 def main(argv: list[str] | None = None) -> None:
     parser = build_parser()
     args = parser.parse_args(argv)
-    rs_size = rs_size_of(args.rs_size)
-    if rs_size is None:
-        parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
-    serve(CameraApp(args, rs_size), args)
+    rs_size, fit_size = sizes(parser, args)
+    serve(CameraApp(args, rs_size, fit_size), args)
 
 
 if __name__ == "__main__":

@@ -30,8 +30,10 @@ after the transcript arrived; a clarification stays open {DEFAULTS.dialogue_time
 while its service's liveliness token exists or it sent a sample in the last {DEFAULTS.live_recent_s:g} s.
 
 clocks: each source's clock offset against this machine's is estimated from the router's Zenoh timestamps
-(`hri stats fusion`: other["clock_offset_ms:SOURCE"]); a warning is logged (at most every 30 s per source)
-when a source runs more than half the window after its end ahead, or half the window before its start behind.
+(`hri stats fusion`: other["clock_offset_ms:SOURCE"]; a source of transcripts, late by design, shows its
+recognition delay as other["delay_ms:SOURCE"] instead unless its clock runs ahead); a warning is logged (at
+most every 30 s per source) when a source runs more than half the window after its end ahead, or half the window
+before its start behind.
 """
 
 
@@ -49,51 +51,69 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-class ClockWatch:
-    """Each source's clock offset against this machine's (from the router's Zenoh timestamps), shown as gauges in
-    the stats and warned about (rate-limited) when it eats into the window's margins."""
+class ClockReport:
+    """Fusion's clock estimates (ClockOffsets) as `Stats.other` gauges, once a second, and the warning."""
 
-    def __init__(self, service: Service, config: Config) -> None:
+    def __init__(self, service: Service, config: Config):
+        self.estimates = ClockOffsets()
         self.service = service
-        self.offsets = ClockOffsets()
         self.log = RateLimitedLog(service.log, interval=30.0)
         self.ahead_tol = CLOCK_WARN_SHARE * config.window_after
         self.behind_tol = CLOCK_WARN_SHARE * config.window_before
-        # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
-        # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
-        self.delayed_sources: set[str] = set()
         self.last_report = 0.0
 
-    def add(self, d: Delivery, delayed: bool) -> None:
-        if delayed:
-            self.delayed_sources.add(d.sample.source)
-        self.offsets.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
-
     def forget(self, source: str) -> None:
-        """A restarted instance starts a new estimate."""
-        self.offsets.forget(source)
+        self.estimates.forget(source)
+        self._clear(source)
+
+    def _clear(self, source: str) -> None:
         self.service.counters.set(f"clock_offset_ms:{source}", None)
+        self.service.counters.set(f"delay_ms:{source}", None)
 
     def report(self, now: float) -> None:
         if now - self.last_report < 1.0:
             return
         self.last_report = now
         counters = self.service.counters
-        for source in self.offsets.expire(now):
+        for source in self.estimates.expire(now):
+            self._clear(source)
+        for source, delay in self.estimates.delays().items():
             counters.set(f"clock_offset_ms:{source}", None)
-            self.delayed_sources.discard(source)
-        for source, offset in self.offsets.offsets().items():
+            counters.set(f"delay_ms:{source}", round(delay * 1000))
+        for source, offset in self.estimates.offsets().items():
             counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
-            verdict = clock_verdict(offset, self.ahead_tol, self.behind_tol)
-            if verdict == "ahead" or (verdict == "behind" and source not in self.delayed_sources):
-                self.log.warn(
-                    f"clock:{source}",
-                    f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
-                    f"this machine's clock (tolerated: {self.ahead_tol * 1000:.0f} ms ahead, "
-                    f"{self.behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
-                    f"at the wrong moment. Keep the hosts in step with chrony or PTP "
-                    f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
-                )
+            counters.set(f"delay_ms:{source}", None)
+            self._warn(source, offset)
+
+    def _warn(self, source: str, offset: float) -> None:
+        verdict = clock_verdict(offset, self.ahead_tol, self.behind_tol)
+        if verdict is not None:
+            self.log.warn(
+                f"clock:{source}",
+                f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
+                f"this machine's clock (tolerated: {self.ahead_tol * 1000:.0f} ms ahead, "
+                f"{self.behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
+                f"at the wrong moment. Keep the hosts in step with chrony or PTP "
+                f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
+            )
+
+
+def publish_outputs(service: Service, outputs: list[Output], command_key: str, clarification_key: str) -> None:
+    for out in outputs:
+        sample = out.sample
+        if isinstance(sample, FusedCommand):
+            # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
+            service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
+            service.log.info(
+                "command %s %s%s: %s",
+                sample.id,
+                sample.intent,
+                f" -> {sample.target.id}" if sample.target else "",
+                sample.explanation,
+            )
+        elif isinstance(sample, Clarification):
+            service.publish(clarification_key, sample, lossless=True, recovering=True)
+            service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
 
 
 Feed = Callable[[str, Any, float], list[Output]]
@@ -114,7 +134,7 @@ class FusionApp(App):
     def open(self, service: Service) -> None:
         self.service = service
         self.core = FusionCore(self.config, service.source, count=service.counters.add, log=service.log)
-        self.clocks = ClockWatch(service, self.config)
+        self.clocks = ClockReport(service, self.config)
         self.command_key = service.output_key("command")
         self.clarification_key = service.output_key("clarification")
         self.tick = self.tick_once
@@ -150,28 +170,17 @@ class FusionApp(App):
     def handler(self, feed: Feed, delayed: bool = False) -> Callable[[Delivery], None]:
         def handle(d: Delivery) -> None:
             self.service.log.debug("in %s %.3f", d.key, d.sample.stamp)
-            self.clocks.add(d, delayed)
+            # a transcript is stamped at the utterance's end and published after recognition (0.2-2 s later): late
+            # by design, so that delay is reported as such (delay_ms:SOURCE), never read as the clock running behind
+            self.clocks.estimates.add(
+                d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed
+            )
             self.emit(feed(d.key, d.sample, d.received_at))
 
         return handle
 
     def emit(self, outputs: list[Output]) -> None:
-        service = self.service
-        for out in outputs:
-            sample = out.sample
-            if isinstance(sample, FusedCommand):
-                # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
-                service.publish(self.command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
-                service.log.info(
-                    "command %s %s%s: %s",
-                    sample.id,
-                    sample.intent,
-                    f" -> {sample.target.id}" if sample.target else "",
-                    sample.explanation,
-                )
-            elif isinstance(sample, Clarification):
-                service.publish(self.clarification_key, sample, lossless=True, recovering=True)
-                service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
+        publish_outputs(self.service, outputs, self.command_key, self.clarification_key)
 
     def tick_once(self) -> None:
         while True:

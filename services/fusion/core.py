@@ -226,7 +226,7 @@ class FusionCore:
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
         if not self._add(GESTURE, key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
             return []
-        command = self.gestures.on_event(key, ev)
+        command = self.gestures.on_event(key, ev, facing=self.facing.at(ev.stamp))
         if command is None:
             return []
         if command.intent == "stop":
