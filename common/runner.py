@@ -31,6 +31,7 @@ import zenoh
 
 import common.stack as stack
 from common.codec import ENCODING, decode, encode
+from common.counters import CounterName
 from common.cpu import change_priority, limit_opencv_threads
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
@@ -168,7 +169,7 @@ class Counters:
         self.rejected: collections.Counter[str] = collections.Counter()
         self.other: collections.Counter[str] = collections.Counter()
 
-    def add(self, name: str, n: int = 1) -> None:
+    def add(self, name: CounterName, n: int = 1) -> None:
         with self._lock:
             if name in ("received", "published", "skipped"):
                 setattr(self, name, getattr(self, name) + n)
@@ -618,3 +619,41 @@ def _quietly(fn: Callable[[], Any]) -> None:
 def main_exit(code: int) -> None:
     logging.shutdown()
     sys.exit(code)
+
+
+class StartupError(Exception):
+    """A service cannot start as configured (a missing model, an unreadable file): logged, exit code 2."""
+
+
+class App:
+    """The one shape of a service: its pure core and settings (built in `__init__` from the parsed arguments),
+    what it needs before the session opens (`open`), what it subscribes (`wire`, with the handlers that call the
+    core and publish), and, for a source such as the camera, a `loop` run on the worker thread instead of
+    handlers. `serve` drives it; `__main__.py` only parses the arguments and calls `serve`."""
+
+    node: str = ""  # the node of common/stack.py this app runs
+    recovering = False  # see Service(recovering=...)
+
+    def open(self, service: Service) -> None:
+        """Load what the app needs (models, sources, files) before connecting; StartupError if it cannot."""
+
+    def wire(self, service: Service) -> None:
+        """Subscribe the app's inputs (`service.subscribe_input`) once the session is open."""
+
+    loop: Callable[[threading.Event], None] | None = None
+    tick: Callable[[], None] | None = None
+    tick_interval = 0.05
+
+
+def serve(app: App, args: argparse.Namespace) -> None:
+    """Run `app` as a process: open it, connect, wire its inputs, run until stopped; exits with the code."""
+    service = Service(app.node, args, recovering=app.recovering)
+    try:
+        app.open(service)
+    except StartupError as exc:
+        service.log.error("%s", exc)
+        main_exit(2)
+    if not service.connect():
+        main_exit(0)
+    app.wire(service)
+    main_exit(service.run(loop=app.loop, tick=app.tick, tick_interval=app.tick_interval))

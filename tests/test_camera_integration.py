@@ -8,6 +8,7 @@ import pytest
 
 from common.image import frame_image
 from testkit.harness import DATA, ROOT, Client
+from testkit.images import read_image
 
 pytestmark = pytest.mark.integration
 TABLETOP = DATA / "images" / "tabletop"
@@ -113,7 +114,7 @@ def test_size_fits_a_video_and_a_folder_inside_the_given_size_keeping_the_aspect
                 assert (frame.width, frame.height) == (img.shape[1], img.shape[0])
                 assert frame.width <= 320 and frame.height <= 240 and (frame.width == 320 or frame.height == 240)
                 if source == TABLETOP:
-                    photo = cv2.imread(str(sorted(TABLETOP.iterdir())[frame.seq % len(list(TABLETOP.iterdir()))]))
+                    photo = read_image(sorted(TABLETOP.iterdir())[frame.seq % len(list(TABLETOP.iterdir()))])
                     assert abs(photo.shape[1] / photo.shape[0] - frame.width / frame.height) < 1.5 / frame.height
                     scaled = cv2.resize(photo, (frame.width, frame.height), interpolation=cv2.INTER_AREA)
                     assert np.abs(img.astype(int) - scaled.astype(int)).mean() < 6  # JPEG noise only

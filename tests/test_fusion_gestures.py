@@ -7,12 +7,13 @@ import math
 import cv2
 import pytest
 
-from common.schema import GestureEvent
+from common.schema import GestureEvent, Handedness
 from services.fusion.core import Config, FusionCore
 from services.fusion.gestures import OPEN_PALM_FRAMES, WAVE_HOLD_S, Gestures
 from services.gesture.landmarks import HandLandmarker
 from services.gesture.temporal import GestureTracker
 from testkit.harness import DATA
+from testkit.images import read_image
 from testkit.scenarios import BASE_STAMP, gesture, hands
 
 
@@ -45,7 +46,7 @@ def test_an_open_palm_during_an_utterance_is_seen_from_the_event_or_from_enough_
     assert gestures.on_event(key, weak) is None
 
 
-def _wave(t0: float, seconds: float, hand: str = "right", end: bool = True) -> list:
+def _wave(t0: float, seconds: float, hand: Handedness = "right", end: bool = True) -> list[tuple[str, GestureEvent]]:
     """A wave as the gesture service reports it: `start` at its first frame, `hold` every 0.1 s, `end`."""
     steps = [gesture(t0, "wave", "start", duration=0.0, hand=hand)]
     steps += [
@@ -53,11 +54,13 @@ def _wave(t0: float, seconds: float, hand: str = "right", end: bool = True) -> l
     ]
     if end:
         steps.append(gesture(t0 + seconds, "wave", "end", duration=seconds, hand=hand))
-    return [s.build(BASE_STAMP) for s in steps]
+    return [(key, ev) for key, ev in (s.build(BASE_STAMP) for s in steps) if isinstance(ev, GestureEvent)]
 
 
-def _commands(gestures: Gestures, events: list, facing: bool | None = None) -> list[tuple[str, float]]:
-    out = []
+def _commands(
+    gestures: Gestures, events: list[tuple[str, GestureEvent]], facing: bool | None = None
+) -> list[tuple[str, object]]:
+    out: list[tuple[str, object]] = []
     for key, ev in events:
         command = gestures.on_event(key, ev, facing=facing)
         if command is not None:
@@ -82,6 +85,7 @@ def test_a_wave_calls_the_robot_only_when_held_and_not_turned_away() -> None:
 def test_a_stop_is_never_held_back() -> None:
     gestures = Gestures(0.5, 1.5, 30.0)
     key, palm = gesture(1.0, "open_palm", "start", duration=0.1).build(BASE_STAMP)
+    assert isinstance(palm, GestureEvent)
     command = gestures.on_event(key, palm, facing=False)
     assert command is not None and command.intent == "stop" and command.realtime
 
@@ -89,7 +93,7 @@ def test_a_stop_is_never_held_back() -> None:
 def _real_palm_events(waving_s: float, still_s: float, fps: float = 30.0) -> list[GestureEvent]:
     """The real open palm of data/demo/stop.png slid side to side (±100 px, 1.5 Hz: a wave) for `waving_s`, then
     held still for `still_s`, through MediaPipe and the gesture service's tracker, as the GestureEvents it sends."""
-    img = cv2.imread(str(DATA / "demo" / "stop.png"))
+    img = read_image(DATA / "demo" / "stop.png")
     margin = 120
     landmarker = HandLandmarker("lite", max_hands=2, video=True)
     tracker = GestureTracker()

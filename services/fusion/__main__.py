@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import queue
 import time
+from typing import Any, Callable
 
 import zenoh
 
-from common.runner import Delivery, RateLimitedLog, Service, main_exit, service_parser
+from common.runner import App, Delivery, RateLimitedLog, Service, serve, service_parser
 from common.schema import Clarification, FusedCommand
 from common.settings import add_settings, from_args
 from services.fusion.core import Config, FusionCore
@@ -117,75 +118,94 @@ def publish_outputs(service: Service, outputs: list[Output], command_key: str, c
             service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
 
 
-def main(argv: list[str] | None = None) -> None:
-    args = build_parser().parse_args(argv)
+Feed = Callable[[str, Any, float], list[Output]]
 
-    service = Service("fusion", args, recovering=True)
-    config = from_args(Config, args)
-    core = FusionCore(
-        config, service.source, count=service.counters.add, log=service.log, speaker=from_args(SpeakerConfig, args)
-    )
-    if not service.connect():
-        main_exit(0)
-    keys = service.keys
-    assert service.session is not None
-    command_key, clarification_key = service.output_key("command"), service.output_key("clarification")
 
-    def emit(outputs: list[Output]) -> None:
-        publish_outputs(service, outputs, command_key, clarification_key)
+class FusionApp(App):
+    """Transcripts, objects, hands, gesture events, bodies, faces and persons -> FusionCore -> FusedCommand /
+    Clarification."""
 
-    # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
-    liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
+    node = "fusion"
+    recovering = True  # commands survive a dropped link (common/transport.py)
+    tick_interval = 0.02
 
-    def on_token(sample: zenoh.Sample) -> None:
-        parsed = keys.parse_alive(str(sample.key_expr))
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.config = from_args(Config, args)
+        self.speaker = from_args(SpeakerConfig, args)
+        # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
+        self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
+
+    def open(self, service: Service) -> None:
+        self.service = service
+        self.core = FusionCore(
+            self.config, service.source, count=service.counters.add, log=service.log, speaker=self.speaker
+        )
+        self.clocks = ClockReport(service, self.config)
+        self.command_key = service.output_key("command")
+        self.clarification_key = service.output_key("clarification")
+        self.tick = self.tick_once
+
+    def wire(self, service: Service) -> None:
+        assert service.session is not None  # wired once connected
+        token_sub = service.session.liveliness().declare_subscriber(
+            service.keys.alive("*", "*"), self.on_token, history=True
+        )
+        service.on_close(token_sub.undeclare)
+        core = self.core
+        service.subscribe_input("transcript", self.handler(core.on_transcript, delayed=True))
+        service.subscribe_input("objects", self.handler(core.on_detections))
+        service.subscribe_input("hands", self.handler(core.on_hands))
+        service.subscribe_input("event", self.handler(core.on_gesture_event))
+        service.subscribe_input("bodies", self.handler(core.on_bodies))  # which way the speaker faces
+        service.subscribe_input("faces", self.handler(core.on_faces))  # who is speaking
+        service.subscribe_input("persons", self.handler(core.on_persons))  # people in view: "bring it to me"
+        config = self.config
+        service.log.info(
+            "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
+            config.window_before,
+            config.window_after,
+            config.max_wait,
+            config.weights,
+            ", fallback to the most confident detection" if config.fallback_most_confident else "",
+        )
+
+    def on_token(self, sample: zenoh.Sample) -> None:
+        parsed = self.service.keys.parse_alive(str(sample.key_expr))
         if parsed:
-            liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
+            self.liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
 
-    clocks = ClockReport(service, config)
-    token_sub = service.session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)
-    service.on_close(token_sub.undeclare)
-
-    # A transcript is stamped at the utterance's end and published after recognition (0.2-2 s later): late by
-    # design, so that delay is reported as such (delay_ms:SOURCE), never read as the clock running behind.
-    def handler(feed, delayed: bool = False):
+    def handler(self, feed: Feed, delayed: bool = False) -> Callable[[Delivery], None]:
         def handle(d: Delivery) -> None:
-            service.log.debug("in %s %.3f", d.key, d.sample.stamp)
-            clocks.estimates.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed)
-            emit(feed(d.key, d.sample, d.received_at))
+            self.service.log.debug("in %s %.3f", d.key, d.sample.stamp)
+            # a transcript is stamped at the utterance's end and published after recognition (0.2-2 s later): late
+            # by design, so that delay is reported as such (delay_ms:SOURCE), never read as the clock running behind
+            self.clocks.estimates.add(
+                d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed
+            )
+            self.emit(feed(d.key, d.sample, d.received_at))
 
         return handle
 
-    service.subscribe_input("transcript", handler(core.on_transcript, delayed=True))
-    service.subscribe_input("objects", handler(core.on_detections))
-    service.subscribe_input("hands", handler(core.on_hands))
-    service.subscribe_input("event", handler(core.on_gesture_event))
-    service.subscribe_input("bodies", handler(core.on_bodies))  # which way the speaker faces
-    service.subscribe_input("faces", handler(core.on_faces))  # who is speaking
-    service.subscribe_input("persons", handler(core.on_persons))  # people in view: "bring it to me"
+    def emit(self, outputs: list[Output]) -> None:
+        publish_outputs(self.service, outputs, self.command_key, self.clarification_key)
 
-    def tick() -> None:
+    def tick_once(self) -> None:
         while True:
             try:
-                service_name, instance, present = liveliness_events.get_nowait()
+                service_name, instance, present = self.liveliness_events.get_nowait()
             except queue.Empty:
                 break
-            core.on_liveliness(service_name, instance, present)
+            self.core.on_liveliness(service_name, instance, present)
             if not present:  # a restarted instance starts a new estimate
-                clocks.forget(f"{service_name}/{instance}")
+                self.clocks.forget(f"{service_name}/{instance}")
         now = time.time()
-        clocks.report(now)
-        emit(core.tick(now))
+        self.clocks.report(now)
+        self.emit(self.core.tick(now))
 
-    service.log.info(
-        "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
-        config.window_before,
-        config.window_after,
-        config.max_wait,
-        config.weights,
-        ", fallback to the most confident detection" if config.fallback_most_confident else "",
-    )
-    main_exit(service.run(tick=tick, tick_interval=0.02))
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    serve(FusionApp(args), args)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ import collections
 from dataclasses import dataclass
 from typing import Any, Iterable
 
+from common.counters import GestureIntent
 from common.schema import GestureEvent, Hands
 
 OPEN_PALM_FRAMES = 3  # hand frames showing an open palm during an utterance cancel it (one frame may be noise)
@@ -32,7 +33,7 @@ class Episode:
 
 @dataclass(frozen=True)
 class GestureCommand:
-    intent: str  # "stop" or "come_here"
+    intent: GestureIntent
     realtime: bool  # a stop goes out at once, at REAL_TIME priority
     why: str
 

@@ -25,9 +25,9 @@ from typing import Literal, NamedTuple
 import numpy as np
 
 from common.language import canonical_label, label_matches
-from common.schema import ClarificationReason, Detections, Location, Target, Weights
+from common.schema import GESTURE, SPEECH, ClarificationReason, Detections, Location, Target, Weights
 from services.fusion import space
-from services.fusion.colour import colour_factors
+from services.fusion.color import colour_factors
 from services.fusion.evidence import Pointing, image_quality
 from services.fusion.parse import ObjectPhrase, Relation
 from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
@@ -509,7 +509,7 @@ def score(
     if not objects:
         return []
     match = {o.key: _attribute_match(phrase, o) for o in objects}
-    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/colour.py)
+    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/color.py)
         factors = colour_factors(phrase.color, [o for o in objects if match[o.key] > 0])
         match = {k: m * factors.get(k, 0.0) for k, m in match.items()}
     fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
@@ -635,7 +635,7 @@ def choose(
         return Choice("low_confidence", winner, (winner,), speech_best, gesture_best, runner_up=runner_up)
     overruled: Literal["speech", "gesture"] | None = None
     if disagree:
-        overruled = "speech" if winner is gesture_best else "gesture"
+        overruled = SPEECH if winner is gesture_best else GESTURE
     return Choice("target", winner, (winner,), speech_best, gesture_best, overruled, runner_up)
 
 
