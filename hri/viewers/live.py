@@ -26,6 +26,9 @@ A recording needs no server: open the .mcap of `hri record` in Foxglove directly
 """
 
 
+FIRST_MESSAGE_DELAY_S = 0.3
+
+
 class FoxgloveBridge:
     """Sink of a LiveFeed: converts each sample and logs it on its (lazily created) foxglove channel."""
 
@@ -38,8 +41,10 @@ class FoxgloveBridge:
         self.channels: dict[tuple[str, str], Any] = {}
         self.lock = threading.Lock()  # the feed's worker and the stats poller both log
 
-    def channel(self, m: ViewerMessage) -> Any:
+    def channel(self, m: ViewerMessage) -> tuple[Any, bool]:
+        """The channel of a message's topic and schema, and whether it was created just now."""
         channel = self.channels.get((m.topic, m.schema.name))
+        created = channel is None
         if channel is None:
             fg = self._foxglove
             schema = fg.Schema(name=m.schema.name, encoding=m.schema.encoding, data=m.schema.data)
@@ -50,12 +55,20 @@ class FoxgloveBridge:
                 context=self.context,
                 metadata={VIEWER_METADATA: "true"},
             )
-        return channel
+        return channel, created
 
     def __call__(self, key: str, sample: Sample, receive_ns: int) -> None:
         with self.lock:
             for m in self.converter.convert(key, sample):
-                self.channel(m).log(m.data, log_time=receive_ns)
+                channel, created = self.channel(m)
+                if created:
+                    # a client subscribes only once the channel is advertised: the first message of a new
+                    # channel (the first command, the first words) waits for that round trip instead of being lost
+                    timer = threading.Timer(FIRST_MESSAGE_DELAY_S, channel.log, (m.data,), {"log_time": receive_ns})
+                    timer.daemon = True
+                    timer.start()
+                else:
+                    channel.log(m.data, log_time=receive_ns)
 
 
 def add_foxglove_arguments(p: argparse.ArgumentParser) -> None:

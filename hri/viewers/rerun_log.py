@@ -4,7 +4,8 @@ Entity tree (the camera's optical frame is x right, y down, z forward; `world` i
 - `world/<cam>`: the camera's pose (Transform3D, optical -> world);
 - `world/<cam>/image`: Pinhole (from the frame's CameraInfo) + the frame as an EncodedImage (JPEG/PNG as sent;
   raw bgr8 frames are JPEG-encoded once: logging an encoded image costs Rerun a sixth of a raw one);
-  `.../image/depth` (DepthImage, metres), `.../image/objects` (Boxes2D, labels, the object's colour),
+  `world/<cam>/depth` (Pinhole + DepthImage, metres; a point cloud in 3-D),
+  `.../image/objects` (Boxes2D, labels, the object's colour),
   `.../image/hands` + `.../image/rays` (LineStrips2D), `.../image/bodies`, `.../image/faces`,
   `.../image/persons` (Boxes2D, the speaker magenta and labelled "speaking");
 - `world/<cam>/objects` (Boxes3D, metres), `world/<cam>/pointing` (Arrows3D) and `.../pointing/hits`
@@ -145,8 +146,12 @@ class RerunMapper:
     def _DepthFrame(self, d: DepthFrame) -> Iterator[Item]:
         from common.depth import depth_metres
 
+        rr = self.rr
         yield from self._camera(d.cam)
-        yield f"world/{d.cam}/image/depth", self.rr.DepthImage(depth_metres(d), meter=1.0), False
+        k = np.asarray(d.camera_info.k, float).reshape(3, 3)
+        pinhole = rr.Pinhole(image_from_camera=k, resolution=[d.width, d.height], camera_xyz=rr.ViewCoordinates.RDF)
+        yield f"world/{d.cam}/depth", pinhole, False  # a view of its own: over the colour image it would hide it
+        yield f"world/{d.cam}/depth", rr.DepthImage(depth_metres(d), meter=1.0), False
 
     def _Detections(self, d: Detections) -> Iterator[Item]:
         rr = self.rr

@@ -1,0 +1,236 @@
+"""`hri foxglove` and `hri rerun` against the real stack on a real photo (issue #36).
+
+The viewer apps cannot run here; their own protocols and libraries stand in: a WebSocket client speaking
+Foxglove's `foxglove.sdk.v1`, Rerun's RrdReader on the `.rrd` that `hri rerun --save` wrote, and Rerun's web
+viewer (served by `hri rerun`) in headless Chromium with WebGL on SwiftShader.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import base64
+import json
+import re
+import struct
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+from testkit.browser import Browser, require_chromium
+from testkit.harness import DATA, Client, Proc, ProcessGroup, requires_services
+
+pytestmark = [pytest.mark.integration, requires_services("camera", "vision", "fusion")]
+pytest.importorskip("foxglove", reason="foxglove-sdk (the foxglove extra) is not installed")
+websockets = pytest.importorskip("websockets", reason="websockets is not installed")
+mcap_protobuf_decoder = pytest.importorskip("mcap_protobuf.decoder", reason="mcap-protobuf-support is not installed")
+
+TABLE = DATA / "demo" / "table.png"
+CAM = "table"
+
+
+@pytest.fixture(scope="module")
+def stack() -> Any:
+    group = ProcessGroup()
+    client = None
+    try:
+        group.router()
+        group.service("camera", "--source", str(TABLE), "--cam", CAM, "--fps", "10", "--loop")
+        group.service("vision", "--labels", str(DATA / "demo" / "labels.json"))
+        group.service("fusion")
+        client = Client(group.endpoint)
+        for name in ("camera", "vision", "fusion"):
+            client.wait_alive(name, timeout=90)
+        yield group
+    finally:
+        if client is not None:
+            client.close()
+        group.close()
+
+
+def printed(proc: Proc, pattern: str, timeout: float = 60.0) -> re.Match[str]:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        m = re.search(pattern, proc.output())
+        if m:
+            return m
+        assert proc.alive(), proc.output()
+        time.sleep(0.1)
+    raise TimeoutError(f"{proc.name} never printed {pattern!r}:\n{proc.output()}")
+
+
+# ---------------------------------------------------------------------------
+# Foxglove
+# ---------------------------------------------------------------------------
+def protobuf_decoder(channel: dict[str, Any]) -> Any:
+    from mcap.records import Schema
+
+    schema = Schema(
+        id=channel["id"], name=channel["schemaName"], encoding="protobuf", data=base64.b64decode(channel["schema"])
+    )
+    return mcap_protobuf_decoder.DecoderFactory().decoder_for("protobuf", schema)
+
+
+async def foxglove_session(url: str, want: dict[str, int], timeout: float) -> dict[str, list[bytes]]:
+    """Connect with subprotocol foxglove.sdk.v1, subscribe to the wanted topics once advertised, collect their
+    messages until each has its wanted count (or the timeout)."""
+    topics = set(want)
+    got: dict[str, list[bytes]] = {}
+    channels: dict[int, dict[str, Any]] = {}
+    subscribed: dict[int, str] = {}
+    async with websockets.connect(url, subprotocols=["foxglove.sdk.v1"], max_size=None) as ws:
+        assert ws.subprotocol == "foxglove.sdk.v1"
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not all(len(got.get(t, [])) >= n for t, n in want.items()):
+            try:
+                raw = await asyncio.wait_for(ws.recv(), timeout=max(0.1, deadline - time.monotonic()))
+            except asyncio.TimeoutError:
+                break
+            if isinstance(raw, str):
+                await on_control(ws, json.loads(raw), topics, channels, subscribed)
+            elif raw[0] == 0x01:  # MessageData: opcode, u32 subscription id, u64 log time, payload
+                sub_id, _ = struct.unpack_from("<IQ", raw, 1)
+                got.setdefault(subscribed[sub_id], []).append(bytes(raw[13:]))
+    got["__advertised__"] = [json.dumps(c).encode() for c in channels.values()]
+    return got
+
+
+async def on_control(
+    ws: Any, msg: dict[str, Any], topics: set[str], channels: dict[int, dict[str, Any]], subscribed: dict[int, str]
+) -> None:
+    if msg.get("op") != "advertise":
+        return
+    subs = []
+    for ch in msg["channels"]:
+        channels[ch["id"]] = ch
+        if ch["topic"] in topics:
+            subscribed[ch["id"]] = ch["topic"]
+            subs.append({"id": ch["id"], "channelId": ch["id"]})
+    if subs:
+        await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+
+
+def test_a_foxglove_client_gets_the_advertised_channels_and_live_messages(stack: ProcessGroup) -> None:
+    fox = stack.start("foxglove", "hri.cli", "foxglove", "--port", "0")
+    port = int(printed(fox, r"hri foxglove: ws://127\.0\.0\.1:(\d+)").group(1))
+    image, boxes, log = f"/hri/camera/{CAM}/frame", f"/hri/vision/{CAM}/objects/annotations", "/hri/log"
+    said = {}
+
+    async def run() -> dict[str, list[bytes]]:
+        session = asyncio.create_task(foxglove_session(f"ws://127.0.0.1:{port}", {image: 3, boxes: 3, log: 2}, 90))
+        await asyncio.sleep(4)  # subscribed by now; then a command happens live
+        said["res"] = await asyncio.to_thread(stack.hri, "say", "pick up the red one")
+        return await session
+
+    got = asyncio.run(run())
+    assert said["res"].returncode == 0, said["res"].stderr
+    advertised = {c["topic"]: c for c in (json.loads(x) for x in got.pop("__advertised__"))}
+    assert advertised[image]["schemaName"] == "foxglove.CompressedImage"
+    assert advertised[boxes]["schemaName"] == "foxglove.ImageAnnotations"
+    assert advertised[f"/hri/vision/{CAM}/objects"]["encoding"] == "json"  # with its generated JSON Schema
+    assert "Detections" in json.loads(advertised[f"/hri/vision/{CAM}/objects"]["schema"])["$defs"]
+
+    frames = [protobuf_decoder(advertised[image])(m) for m in got[image]]
+    assert len(frames) >= 3
+    photo = cv2.imread(str(TABLE), cv2.IMREAD_COLOR)
+    for f in frames:  # the camera's frames as it sent them (JPEG): the photo, up to compression
+        assert f.format == "jpeg" and f.frame_id
+        shown = cv2.imdecode(np.frombuffer(f.data, np.uint8), cv2.IMREAD_COLOR)
+        assert shown.shape == photo.shape and np.abs(shown.astype(int) - photo).mean() < 4
+    annotations = [protobuf_decoder(advertised[boxes])(m) for m in got[boxes]]
+    labels = {t.text for a in annotations for t in a.texts}
+    assert any("red candy" in label for label in labels), labels
+    lines = [protobuf_decoder(advertised[log])(m).message for m in got.get(log, [])]
+    counts = {t: len(v) for t, v in got.items()}
+    assert any('"pick up the red one"' in line for line in lines), (lines, counts, fox.output()[-3000:])
+    assert any(line.startswith("command pick_up") and "red candy" in line for line in lines), lines
+    fox.terminate(timeout=10)
+    assert "samples shown" in fox.output()
+
+
+# ---------------------------------------------------------------------------
+# Rerun
+# ---------------------------------------------------------------------------
+def rrd_columns(path: Path) -> dict[str, dict[str, list[Any]]]:
+    """entity path -> component column -> values, read back with Rerun's own reader."""
+    from rerun.chunk import RrdReader
+
+    out: dict[str, dict[str, list[Any]]] = {}
+    for chunk in RrdReader(path).store().stream():
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if ":" in name:  # components; the index columns (log_time, stamp) are timestamps
+                out.setdefault(chunk.entity_path, {}).setdefault(name, []).extend(batch.column(name).to_pylist())
+    return out
+
+
+def test_hri_rerun_writes_an_rrd_of_the_live_stack_with_the_expected_entities(
+    stack: ProcessGroup, tmp_path: Path
+) -> None:
+    pytest.importorskip("rerun", reason="rerun-sdk (the rerun extra) is not installed")
+    out = tmp_path / "live.rrd"
+    rerun = stack.start("rerun", "hri.cli", "rerun", "--save", str(out), "--duration", "12")
+    time.sleep(4)
+    res = stack.hri("say", "pick up the red one")
+    assert res.returncode == 0, res.stderr
+    deadline = time.monotonic() + 60
+    while rerun.alive() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not rerun.alive() and "samples logged" in rerun.output(), rerun.output()
+
+    columns = rrd_columns(out)
+    image = columns[f"/world/{CAM}/image"]
+    blobs = [bytes(b[0]) for b in image["EncodedImage:blob"]]
+    assert blobs and all(b == TABLE.read_bytes() for b in blobs)  # the frames, encoded as sent
+    assert image["EncodedImage:media_type"][0] == ["image/png"]
+    labels = [label for row in columns[f"/world/{CAM}/image/objects"]["Boxes2D:labels"] for label in row]
+    assert any("red candy" in label for label in labels), labels
+    commands = [t for row in columns["/log/commands"]["TextLog:text"] for t in row]
+    assert any(t.startswith("pick_up") and "red candy" in t for t in commands), commands
+    speech = [t for row in columns["/log/speech"]["TextLog:text"] for t in row]
+    assert any("pick up the red one" in t for t in speech), speech
+    for service in ("camera", "vision", "fusion"):
+        latencies = [v for row in columns[f"/latency/{service}"]["Scalars:scalars"] for v in row]
+        assert latencies and all(-1000 < v < 10_000 for v in latencies), (service, latencies[:5])
+
+
+def photo_in_screenshot(photo: np.ndarray, shot: np.ndarray) -> int:
+    """How many ORB features of the photo are found again, consistently placed (RANSAC homography inliers)."""
+    orb = cv2.ORB_create(2000)
+    kp1, d1 = orb.detectAndCompute(cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY), None)
+    kp2, d2 = orb.detectAndCompute(cv2.cvtColor(shot, cv2.COLOR_BGR2GRAY), None)
+    if d1 is None or d2 is None:
+        return 0
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(d1, d2, k=2)
+    good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < 0.75 * p[1].distance]
+    if len(good) < 8:
+        return 0
+    src = np.float32([kp1[m.queryIdx].pt for m in good])
+    dst = np.float32([kp2[m.trainIdx].pt for m in good])
+    _, mask = cv2.findHomography(src, dst, cv2.RANSAC, 5.0)
+    return int(mask.sum()) if mask is not None else 0
+
+
+def test_the_rerun_web_viewer_served_by_hri_rerun_shows_the_camera_image(stack: ProcessGroup, tmp_path: Path) -> None:
+    pytest.importorskip("rerun", reason="rerun-sdk (the rerun extra) is not installed")
+    require_chromium()
+    served = stack.start("rerun-web", "hri.cli", "rerun", "--web-port", "0", "--grpc-port", "0")
+    url = printed(served, r"hri rerun: (http://\S+)").group(1)
+    photo = cv2.imread(str(TABLE), cv2.IMREAD_COLOR)
+    assert photo is not None
+    browser = Browser(webgl=True)
+    try:
+        tab = browser.tab(url)
+        deadline, inliers, shot = time.monotonic() + 120, 0, b""
+        while time.monotonic() < deadline and inliers < 40:
+            time.sleep(3)  # the viewer's wasm loads, connects, then draws the streamed frames
+            shot = tab.screenshot()
+            decoded = cv2.imdecode(np.frombuffer(shot, np.uint8), cv2.IMREAD_COLOR)
+            inliers = photo_in_screenshot(photo, decoded)
+        (tmp_path / "rerun-web.png").write_bytes(shot)
+        assert inliers >= 40, f"the camera image is not in the screenshot ({inliers} matching features)"
+    finally:
+        browser.close()
