@@ -30,6 +30,7 @@ mcap_protobuf_decoder = pytest.importorskip("mcap_protobuf.decoder", reason="mca
 
 TABLE = DATA / "demo" / "table.png"
 CAM = "table"
+FOUND = 0.5  # the photo is there: measured 0.64-0.93 once drawn; 0.16 (loading page), 0.31 (a small faded thumbnail)
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +50,18 @@ def stack() -> Any:
         if client is not None:
             client.close()
         group.close()
+
+
+def read_photo() -> np.ndarray:
+    photo = cv2.imread(str(TABLE), cv2.IMREAD_COLOR)
+    assert photo is not None
+    return photo
+
+
+def is_the_photo(encoded: bytes, photo: np.ndarray) -> bool:
+    """The camera's frame (JPEG) is the photo, up to compression."""
+    shown = cv2.imdecode(np.frombuffer(encoded, np.uint8), cv2.IMREAD_COLOR)
+    return shown is not None and shown.shape == photo.shape and float(np.abs(shown.astype(int) - photo).mean()) < 4
 
 
 def printed(proc: Proc, pattern: str, timeout: float = 60.0) -> re.Match[str]:
@@ -135,11 +148,9 @@ def test_a_foxglove_client_gets_the_advertised_channels_and_live_messages(stack:
 
     frames = [protobuf_decoder(advertised[image])(m) for m in got[image]]
     assert len(frames) >= 3
-    photo = cv2.imread(str(TABLE), cv2.IMREAD_COLOR)
-    for f in frames:  # the camera's frames as it sent them (JPEG): the photo, up to compression
-        assert f.format == "jpeg" and f.frame_id
-        shown = cv2.imdecode(np.frombuffer(f.data, np.uint8), cv2.IMREAD_COLOR)
-        assert shown.shape == photo.shape and np.abs(shown.astype(int) - photo).mean() < 4
+    photo = read_photo()
+    for f in frames:  # the camera's frames as it sent them
+        assert f.format == "jpeg" and f.frame_id and is_the_photo(f.data, photo)
     annotations = [protobuf_decoder(advertised[boxes])(m) for m in got[boxes]]
     labels = {t.text for a in annotations for t in a.texts}
     assert any("red candy" in label for label in labels), labels
@@ -184,8 +195,9 @@ def test_hri_rerun_writes_an_rrd_of_the_live_stack_with_the_expected_entities(
     columns = rrd_columns(out)
     image = columns[f"/world/{CAM}/image"]
     blobs = [bytes(b[0]) for b in image["EncodedImage:blob"]]
-    assert blobs and all(b == TABLE.read_bytes() for b in blobs)  # the frames, encoded as sent
-    assert image["EncodedImage:media_type"][0] == ["image/png"]
+    photo = read_photo()
+    assert blobs and all(is_the_photo(b, photo) for b in blobs)  # the frames, encoded as sent
+    assert image["EncodedImage:media_type"][0] == ["image/jpeg"]
     labels = [label for row in columns[f"/world/{CAM}/image/objects"]["Boxes2D:labels"] for label in row]
     assert any("red candy" in label for label in labels), labels
     commands = [t for row in columns["/log/commands"]["TextLog:text"] for t in row]
@@ -197,21 +209,21 @@ def test_hri_rerun_writes_an_rrd_of_the_live_stack_with_the_expected_entities(
         assert latencies and all(-1000 < v < 10_000 for v in latencies), (service, latencies[:5])
 
 
-def photo_in_screenshot(photo: np.ndarray, shot: np.ndarray) -> int:
-    """How many ORB features of the photo are found again, consistently placed (RANSAC homography inliers)."""
-    orb = cv2.ORB_create(2000)
-    kp1, d1 = orb.detectAndCompute(cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY), None)
-    kp2, d2 = orb.detectAndCompute(cv2.cvtColor(shot, cv2.COLOR_BGR2GRAY), None)
-    if d1 is None or d2 is None:
-        return 0
-    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(d1, d2, k=2)
-    good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < 0.75 * p[1].distance]
-    if len(good) < 8:
-        return 0
-    src = np.float32([kp1[m.queryIdx].pt for m in good])
-    dst = np.float32([kp2[m.trainIdx].pt for m in good])
-    _, mask = cv2.findHomography(src, dst, cv2.RANSAC, 5.0)
-    return int(mask.sum()) if mask is not None else 0
+def photo_in_screenshot(photo: np.ndarray, shot: np.ndarray) -> float:
+    """How well the photo is found in the screenshot at any size: the best normalised correlation (1 = exact,
+    insensitive to the viewer's brightness and contrast) of the photo scaled to widths from 15 % to 100 % of
+    the screenshot's."""
+    grey_photo = cv2.cvtColor(photo, cv2.COLOR_BGR2GRAY)
+    grey_shot = cv2.cvtColor(cv2.resize(shot, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA), cv2.COLOR_BGR2GRAY)
+    best = 0.0
+    for width in np.linspace(0.15, 1.0, 35) * grey_shot.shape[1]:
+        scale = width / grey_photo.shape[1]
+        size = (int(width), int(grey_photo.shape[0] * scale))
+        if size[1] >= grey_shot.shape[0] or size[0] < 30:
+            continue
+        template = cv2.resize(grey_photo, size, interpolation=cv2.INTER_AREA)
+        best = max(best, float(cv2.matchTemplate(grey_shot, template, cv2.TM_CCOEFF_NORMED).max()))
+    return best
 
 
 def test_the_rerun_web_viewer_served_by_hri_rerun_shows_the_camera_image(stack: ProcessGroup, tmp_path: Path) -> None:
@@ -219,18 +231,17 @@ def test_the_rerun_web_viewer_served_by_hri_rerun_shows_the_camera_image(stack: 
     require_chromium()
     served = stack.start("rerun-web", "hri.cli", "rerun", "--web-port", "0", "--grpc-port", "0")
     url = printed(served, r"hri rerun: (http://\S+)").group(1)
-    photo = cv2.imread(str(TABLE), cv2.IMREAD_COLOR)
-    assert photo is not None
+    photo = read_photo()
     browser = Browser(webgl=True)
     try:
         tab = browser.tab(url)
-        deadline, inliers, shot = time.monotonic() + 120, 0, b""
-        while time.monotonic() < deadline and inliers < 40:
+        deadline, found, shot = time.monotonic() + 120, 0.0, b""
+        while time.monotonic() < deadline and found < FOUND:
             time.sleep(3)  # the viewer's wasm loads, connects, then draws the streamed frames
             shot = tab.screenshot()
             decoded = cv2.imdecode(np.frombuffer(shot, np.uint8), cv2.IMREAD_COLOR)
-            inliers = photo_in_screenshot(photo, decoded)
+            found = photo_in_screenshot(photo, decoded) if decoded is not None else 0.0
         (tmp_path / "rerun-web.png").write_bytes(shot)
-        assert inliers >= 40, f"the camera image is not in the screenshot ({inliers} matching features)"
+        assert found >= FOUND, f"the camera image is not in the screenshot (best correlation {found:.2f})"
     finally:
         browser.close()

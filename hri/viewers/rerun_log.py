@@ -258,17 +258,36 @@ class RerunMapper:
         yield "log/commands", self.rr.TextLog(f"question ({q.reason}): {q.question}", level="WARN"), False
 
 
+def blueprint(cams: list[str]) -> Any:
+    """The layout: each camera's image with its overlays (left, large); the 3-D scene, the text logs and the
+    latencies (right); side panels collapsed."""
+    import rerun.blueprint as rrb
+
+    images = [rrb.Spatial2DView(origin=f"world/{cam}/image", name=cam) for cam in cams]
+    right = rrb.Vertical(
+        rrb.Spatial3DView(origin="world", name="scene (metres)"),
+        rrb.TextLogView(origin="log", name="speech, gestures, commands"),
+        rrb.TimeSeriesView(origin="latency", name="latency (ms)"),
+    )
+    return rrb.Blueprint(rrb.Horizontal(rrb.Vertical(*images), right, column_shares=[3, 2]), collapse_panels=True)
+
+
 class RerunSink:
-    """Sink of a LiveFeed (or a recording): maps each sample and logs it on the `stamp` timeline."""
+    """Sink of a LiveFeed (or a recording): maps each sample and logs it on the `stamp` timeline; a new
+    camera sends a layout with a view of its own."""
 
     def __init__(self, recording: Any):
         self.mapper = RerunMapper()
         self.recording = recording
         self.lock = threading.Lock()
+        self.cams: list[str] = []
 
     def __call__(self, key: str, sample: Sample, receive_ns: int) -> None:
         rr = self.mapper.rr
         with self.lock:
+            if isinstance(sample, Frame) and sample.cam not in self.cams:
+                self.cams.append(sample.cam)
+                rr.send_blueprint(blueprint(self.cams), recording=self.recording)
             items = self.mapper.items(key, sample, receive_ns)
             rr.set_time("stamp", timestamp=sample.stamp, recording=self.recording)
             for path, archetype, static in items:
