@@ -328,3 +328,23 @@ def test_old_and_new_recordings_give_the_same_samples_and_payloads(tmp_path: Pat
     finally:
         new.close()
         old.close()
+
+
+@pytest.mark.integration
+def test_hri_replay_republishes_a_recording_made_before_the_viewer_channels_byte_for_byte(group: Any) -> None:
+    from testkit.harness import Client
+    from tests.test_record_replay import RawTap
+
+    reader = SessionReader(OLD_RECORDING)
+    recorded = [(m.key, m.payload) for m in reader.messages()]
+    reader.close()
+    group.router()
+    client = Client(group.endpoint)
+    try:
+        tap = RawTap(client, "hri/**")
+        res = group.hri("replay", str(OLD_RECORDING), "--speed", "0", timeout=60)
+        assert res.returncode == 0, res.stderr
+        got = tap.wait(len(recorded))
+        assert [(k, d) for k, d, _, _ in got] == recorded  # every sample, in order, byte for byte
+    finally:
+        client.close()
