@@ -92,6 +92,7 @@ RAY_LENGTH_PX = 200.0  # how long a 2-D pointing ray is drawn
 RAY_LENGTH_M = 1.5  # a 3-D ray without a hit
 
 
+@functools.cache
 def _fox() -> Any:
     try:
         import foxglove.messages as fm
@@ -150,6 +151,7 @@ def _time(stamp: float) -> Any:
     return _fox().Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
 
 
+@functools.cache
 def _colour(rgba: tuple[float, float, float, float]) -> Any:
     return _fox().Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
 
@@ -186,6 +188,9 @@ class Annotations:
     points: list[Any] = field(default_factory=list)
     texts: list[Any] = field(default_factory=list)
 
+    def __post_init__(self) -> None:
+        self.time = _time(self.stamp)  # one Timestamp for every annotation of the sample
+
     def box(self, bbox: list[float], rgba: tuple[float, float, float, float], thickness: float = 2.0) -> None:
         x, y, w, h = bbox
         corners = [[x, y], [x + w, y], [x + w, y + h], [x, y + h]]
@@ -197,7 +202,7 @@ class Annotations:
         fm = _fox()
         self.points.append(
             fm.PointsAnnotation(
-                timestamp=_time(self.stamp),
+                timestamp=self.time,
                 type=getattr(fm.PointsAnnotationType, kind),
                 points=[_pt2(p) for p in pts],
                 outline_color=_colour(rgba),
@@ -209,7 +214,7 @@ class Annotations:
         fm = _fox()
         self.texts.append(
             fm.TextAnnotation(
-                timestamp=_time(self.stamp),
+                timestamp=self.time,
                 position=_pt2(at),
                 text=text,
                 font_size=14.0,
