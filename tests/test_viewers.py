@@ -206,6 +206,11 @@ def test_annotations_and_scene_say_what_the_samples_say(tmp_path: Path) -> None:
     log = [m.message for m in channels["/hri/log"]]
     assert any('"pick up that cup"' in line for line in log)
     assert any(line.startswith("command ") for line in log) and any(line.startswith("question ") for line in log)
+    (services,) = channels["/hri/services"]  # the service-state table: one row per service instance
+    stats = next(s for s in samples if type(s).__name__ == "Stats")
+    assert [(r["service"], r["instance"], r["received"]) for r in services["services"]] == [
+        (stats.service, stats.instance, stats.received)  # type: ignore[attr-defined]
+    ]
     (tf,) = {(m.parent_frame_id, m.child_frame_id) for m in channels["/hri/tf"]}
     assert tf == ("world", "cam0_optical")
 
@@ -353,3 +358,25 @@ def test_hri_replay_republishes_a_recording_made_before_the_viewer_channels_byte
         assert got == recorded  # every sample, in order, byte for byte
     finally:
         client.close()
+
+
+def layout_topics(layout: dict[str, Any]) -> set[str]:
+    panels = layout["configById"]
+    image = panels["Image!hri-camera"]["imageMode"]
+    return (
+        {image["imageTopic"], *image["annotations"], *panels["3D!hri-scene"]["topics"]}
+        | {panels["RosOut!hri-log"]["topicToRender"], panels["RawMessages!hri-command"]["topicPath"]}
+        | {panels["Table!hri-services"]["topicPath"].split(".")[0]}
+    )
+
+
+def test_the_foxglove_layout_names_topics_a_recording_has(tmp_path: Path) -> None:
+    path = tmp_path / "session.mcap"
+    write_session(path, session_samples())
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    recorded = {c.topic for c in summary.channels.values()}
+    layout = json.loads((Path(__file__).parents[1] / "docs" / "foxglove-layout.json").read_text())
+    # the one exception: a gesture event's 3-D arrow exists only when the event's ray has depth (not in this set)
+    assert layout_topics(layout) - recorded == {"/hri/gesture/cam0/event/scene"}

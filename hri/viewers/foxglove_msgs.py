@@ -10,7 +10,8 @@ One sample on key K becomes (the topics a viewer lists; every one has a schema F
   their position and size, pointing rays as arrows and their floor/table hit as a sphere, persons as a sphere
   and their skeleton lifted with the latest depth image;
 - `/<prefix>/tf` (`foxglove.FrameTransform`): `world` (z up) -> the camera's optical frame, with every frame;
-- `/<prefix>/log` (`foxglove.Log`): one line per transcript, gesture event, command and question.
+- `/<prefix>/log` (`foxglove.Log`): one line per transcript, gesture event, command and question;
+- `/<prefix>/services` (JSON `ServicesState`): the latest Stats of every service instance, one table.
 
 Pure: no zenoh, no I/O. foxglove-sdk (the `foxglove` extra) encodes the protobuf messages without the protobuf
 runtime, so the project's protobuf<5 pin (MediaPipe) is untouched.
@@ -42,6 +43,7 @@ from common.schema import (
     Persons,
     Ray,
     Sample,
+    Stats,
     Transcript,
 )
 
@@ -136,7 +138,7 @@ def protobuf_schema(name: str) -> ViewerSchema:
 
 
 @functools.cache
-def json_schema_of(cls: type[Sample]) -> ViewerSchema:
+def json_schema_of(cls: type[msgspec.Struct]) -> ViewerSchema:
     from hri.wiredoc import json_schema
 
     return ViewerSchema(cls.__name__, "jsonschema", json.dumps(json_schema(cls), separators=(",", ":")).encode())
@@ -447,6 +449,29 @@ def body_skeleton(depth: DepthView, body_landmarks: list[list[float]], visibilit
 
 
 # ---------------------------------------------------------------------------
+# Service state: the latest Stats of every service instance in one message
+# ---------------------------------------------------------------------------
+class ServiceState(msgspec.Struct, kw_only=True):
+    """One service instance as its latest Stats describe it (a viewer table row)."""
+
+    service: str
+    instance: str
+    stamp: float  # of its latest Stats
+    uptime: float
+    received: int
+    published: int
+    skipped: int
+    rejected: int  # invalid samples, all reasons
+
+
+class ServicesState(msgspec.Struct, kw_only=True):
+    """Every service instance seen, on `/<prefix>/services` (a viewer's service-state panel)."""
+
+    stamp: float
+    services: list[ServiceState]
+
+
+# ---------------------------------------------------------------------------
 # The converter
 # ---------------------------------------------------------------------------
 class FoxgloveConverter:
@@ -456,7 +481,9 @@ class FoxgloveConverter:
         self.keys = keys
         self.tf_topic = f"/{keys.prefix}/tf"
         self.log_topic = f"/{keys.prefix}/log"
+        self.services_topic = f"/{keys.prefix}/services"
         self.depth: dict[str, DepthView] = {}
+        self.services: dict[tuple[str, str], ServiceState] = {}
 
     def convert(self, key: str, sample: Sample) -> list[ViewerMessage]:
         handler = getattr(self, "_" + type(sample).__name__, None)
@@ -600,6 +627,16 @@ class FoxgloveConverter:
         who = f" [{c.speaker.person}]" if c.speaker and c.speaker.person else ""
         text = f"command {c.intent}{target} ({c.confidence:.2f}){who}: {c.explanation}"
         return [self.as_json(key, c), self.log(c.stamp, c.source, text)]
+
+    def _Stats(self, key: str, st: Stats) -> list[ViewerMessage]:
+        self.services[(st.service, st.instance)] = ServiceState(
+            service=st.service, instance=st.instance, stamp=st.stamp, uptime=st.uptime, received=st.received,
+            published=st.published, skipped=st.skipped, rejected=sum(st.rejected.values()),
+        )  # fmt: skip
+        state = ServicesState(stamp=st.stamp, services=[self.services[k] for k in sorted(self.services)])
+        schema = json_schema_of(ServicesState)
+        services = ViewerMessage(self.services_topic, schema, JSON_ENCODING, msgspec.json.encode(state), _ns(st.stamp))
+        return [self.as_json(key, st), services]
 
     def _Clarification(self, key: str, q: Clarification) -> list[ViewerMessage]:
         text = f"question ({q.reason}): {q.question}"
