@@ -380,3 +380,28 @@ def test_the_foxglove_layout_names_topics_a_recording_has(tmp_path: Path) -> Non
     layout = json.loads((Path(__file__).parents[1] / "docs" / "foxglove-layout.json").read_text())
     # the one exception: a gesture event's 3-D arrow exists only when the event's ray has depth (not in this set)
     assert layout_topics(layout) - recorded == {"/hri/gesture/cam0/event/scene"}
+
+
+def test_a_viewer_behind_keeps_every_event_in_order_and_only_the_latest_of_each_stream() -> None:
+    from hri.viewers.feed import MAX_BACKLOG, Inbox
+
+    samples = {type(s).__name__: s for s in examples()}
+    inbox = Inbox()
+    frame, objects = samples["Frame"], samples["Detections"]
+    outcomes = [
+        inbox.put(("hri/camera/cam0/frame", frame, 1)),
+        inbox.put(("hri/vision/cam0/objects", objects, 2)),
+        inbox.put(("hri/speech/mic0/transcript", samples["Transcript"], 3)),
+        inbox.put(("hri/camera/cam0/frame", frame, 4)),  # replaces the pending frame 1
+        inbox.put(("hri/fusion/command", samples["FusedCommand"], 5)),
+    ]
+    assert outcomes == ["queued", "queued", "queued", "skipped", "queued"]
+    inbox.close()
+    order = []
+    while (item := inbox.get()) is not None:
+        order.append(item[2])
+    assert order == [3, 5, 2, 4]  # the words and the command first, then the streams' latest
+    full = Inbox()
+    for i in range(MAX_BACKLOG):
+        full.put(("hri/speech/mic0/transcript", samples["Transcript"], i))
+    assert full.put(("hri/fusion/command", samples["FusedCommand"], -1)) == "dropped"  # bounded, and says so

@@ -87,11 +87,12 @@ def protobuf_decoder(channel: dict[str, Any]) -> Any:
     return mcap_protobuf_decoder.DecoderFactory().decoder_for("protobuf", schema)
 
 
-async def foxglove_session(url: str, want: dict[str, int], timeout: float) -> dict[str, list[bytes]]:
+async def foxglove_session(
+    url: str, want: dict[str, int], timeout: float, got: dict[str, list[bytes]]
+) -> dict[str, list[bytes]]:
     """Connect with subprotocol foxglove.sdk.v1, subscribe to the wanted topics once advertised, collect their
-    messages until each has its wanted count (or the timeout)."""
+    messages into `got` until each has its wanted count (or the timeout)."""
     topics = set(want)
-    got: dict[str, list[bytes]] = {}
     channels: dict[int, dict[str, Any]] = {}
     subscribed: dict[int, str] = {}
     async with websockets.connect(url, subprotocols=["foxglove.sdk.v1"], max_size=None) as ws:
@@ -131,11 +132,14 @@ def test_a_foxglove_client_gets_the_advertised_channels_and_live_messages(stack:
     port = int(printed(fox, r"hri foxglove: ws://127\.0\.0\.1:(\d+)").group(1))
     image, boxes, log = f"/hri/camera/{CAM}/frame", f"/hri/vision/{CAM}/objects/annotations", "/hri/log"
     said = {}
+    got: dict[str, list[bytes]] = {}
 
     async def run() -> dict[str, list[bytes]]:
-        session = asyncio.create_task(foxglove_session(f"ws://127.0.0.1:{port}", {image: 3, boxes: 3, log: 2}, 90))
-        await asyncio.sleep(4)  # subscribed by now; then a command happens live
-        said["res"] = await asyncio.to_thread(stack.hri, "say", "pick up the red one")
+        want = {image: 3, boxes: 3, log: 2}
+        session = asyncio.create_task(foxglove_session(f"ws://127.0.0.1:{port}", want, 90, got))
+        while not got.get(boxes) and not session.done():  # subscribed and vision's boxes flowing
+            await asyncio.sleep(0.1)
+        said["res"] = await asyncio.to_thread(stack.hri, "say", "pick up the red one")  # then a command, live
         return await session
 
     got = asyncio.run(run())
@@ -155,8 +159,11 @@ def test_a_foxglove_client_gets_the_advertised_channels_and_live_messages(stack:
     labels = {t.text for a in annotations for t in a.texts}
     assert any("red candy" in label for label in labels), labels
     lines = [protobuf_decoder(advertised[log])(m).message for m in got.get(log, [])]
-    counts = {t: len(v) for t, v in got.items()}
-    assert any('"pick up the red one"' in line for line in lines), (lines, counts, fox.output()[-3000:])
+    if not lines:
+        fox.terminate(timeout=10)
+        counts = {t: len(v) for t, v in got.items()}
+        pytest.fail(f"no log lines; got {counts}, advertised {sorted(advertised)}\n{fox.output()[-600:]}")
+    assert any('"pick up the red one"' in line for line in lines), lines
     assert any(line.startswith("command pick_up") and "red candy" in line for line in lines), lines
     fox.terminate(timeout=10)
     assert "samples shown" in fox.output()
@@ -184,7 +191,8 @@ def test_hri_rerun_writes_an_rrd_of_the_live_stack_with_the_expected_entities(
     pytest.importorskip("rerun", reason="rerun-sdk (the rerun extra) is not installed")
     out = tmp_path / "live.rrd"
     rerun = stack.start("rerun", "hri.cli", "rerun", "--save", str(out), "--duration", "12")
-    time.sleep(4)
+    printed(rerun, "logging the live stack")
+    time.sleep(2)  # a few frames and boxes first
     res = stack.hri("say", "pick up the red one")
     assert res.returncode == 0, res.stderr
     deadline = time.monotonic() + 60

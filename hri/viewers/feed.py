@@ -2,14 +2,17 @@
 
 `LiveFeed` subscribes to `<prefix>/**`, validates every sample under the contract (an invalid one is counted,
 logged rate-limited and dropped), polls the services' Stats, and hands (key, sample, receive_ns) to a sink on
-ONE worker thread: zenoh's callbacks only enqueue, so a slow viewer costs the bridge a backlog (dropped and
-counted past `max_backlog`), never the stack. `replay_recording` feeds a recording's samples to the same sink.
+ONE worker thread: zenoh's callbacks only enqueue, so a slow viewer never slows the stack. Streams (frames,
+depth, detections, hands, bodies, faces, persons) keep only their latest sample per key while the viewer is
+behind (replaced ones are counted as skipped); events (words, gestures, commands, questions, stats, audio)
+queue in order and are served first, dropped and counted only past MAX_BACKLOG. `replay_recording` feeds a
+recording's samples to the same sink.
 """
 
 from __future__ import annotations
 
+import collections
 import logging
-import queue
 import threading
 import time
 from dataclasses import dataclass, field
@@ -17,11 +20,13 @@ from typing import Any, Callable
 
 from common.codec import decode
 from common.keys import Keys
-from common.schema import InvalidSample, Sample, Stats
+from common.schema import Bodies, DepthFrame, Detections, Faces, Frame, Hands, InvalidSample, Persons, Sample, Stats
 
 Sink = Callable[[str, Sample, int], None]
 STATS_EVERY_S = 2.0
-MAX_BACKLOG = 256  # samples waiting for the sink; past it new ones are dropped (a viewer must not grow memory)
+MAX_BACKLOG = 1000  # events waiting for the sink; past it new ones are dropped (a viewer must not grow memory)
+STREAMS = (Frame, DepthFrame, Detections, Hands, Bodies, Faces, Persons)  # the latest per key is enough
+Item = tuple[str, Sample, int]
 
 
 @dataclass
@@ -29,7 +34,8 @@ class FeedCounts:
     received: int = 0
     shown: int = 0
     invalid: dict[str, int] = field(default_factory=dict)  # key -> invalid samples
-    dropped: int = 0  # the sink was too slow
+    dropped: int = 0  # events dropped: the sink was too slow
+    skipped: int = 0  # stream samples replaced by a newer one before the sink took them
     failed: int = 0  # the sink raised on a valid sample
 
 
@@ -53,7 +59,7 @@ class LiveFeed:
         self.session, self.keys, self.sink, self.log = session, keys, sink, log
         self.counts = FeedCounts()
         self.bad = RateLimitedLog(log)
-        self.inbox: queue.Queue[tuple[str, Sample, int] | None] = queue.Queue(MAX_BACKLOG)
+        self.inbox = Inbox()
         self.stop = threading.Event()
         skipped = [zenoh.KeyExpr(expr) for expr in skip]
 
@@ -80,11 +86,15 @@ class LiveFeed:
             self.counts.invalid[key] = self.counts.invalid.get(key, 0) + 1
             self.bad.warning("dropped an invalid sample on %s: %s", key, exc.reason)
             return
-        try:
-            self.inbox.put_nowait((key, sample, receive_ns))
-        except queue.Full:
+        self._put((key, sample, receive_ns))
+
+    def _put(self, item: Item) -> None:
+        outcome = self.inbox.put(item)
+        if outcome == "skipped":
+            self.counts.skipped += 1
+        elif outcome == "dropped":
             self.counts.dropped += 1
-            self.bad.warning("the viewer is behind: dropped a sample on %s", key)
+            self.bad.warning("the viewer is behind: dropped a sample on %s", item[0])
 
     def _work(self) -> None:
         while True:
@@ -114,10 +124,7 @@ class LiveFeed:
         except InvalidSample as exc:
             self.bad.warning("dropped an invalid Stats reply on %s: %s", key, exc.reason)
             return
-        try:
-            self.inbox.put_nowait((key, stats, time.time_ns()))
-        except queue.Full:
-            self.counts.dropped += 1
+        self._put((key, stats, time.time_ns()))
 
     def close(self) -> None:
         self.stop.set()
@@ -125,8 +132,47 @@ class LiveFeed:
             self.subscriber.undeclare()
         except Exception:
             pass
-        self.inbox.put(None)
+        self.inbox.close()
         self.worker.join(timeout=5.0)
+
+
+class Inbox:
+    """Events in order (served first, bounded), streams latest-per-key; `get` blocks, None once closed."""
+
+    def __init__(self) -> None:
+        self.events: collections.deque[Item] = collections.deque()
+        self.streams: dict[str, Item] = {}  # insertion order = the order keys became pending
+        self.ready = threading.Condition()
+        self.closed = False
+
+    def put(self, item: Item) -> str:
+        """'queued', 'skipped' (a pending sample of the same stream was replaced) or 'dropped' (events full)."""
+        with self.ready:
+            outcome = "queued"
+            if isinstance(item[1], STREAMS):
+                outcome = "skipped" if self.streams.pop(item[0], None) is not None else "queued"
+                self.streams[item[0]] = item
+            elif len(self.events) >= MAX_BACKLOG:
+                return "dropped"
+            else:
+                self.events.append(item)
+            self.ready.notify()
+            return outcome
+
+    def get(self) -> Item | None:
+        with self.ready:
+            while not (self.events or self.streams or self.closed):
+                self.ready.wait()
+            if self.events:
+                return self.events.popleft()
+            if self.streams:
+                return self.streams.pop(next(iter(self.streams)))
+            return None
+
+    def close(self) -> None:
+        with self.ready:
+            self.closed = True
+            self.ready.notify_all()
 
 
 def replay_recording(path: str, sink: Sink, keys: Keys | None = None) -> int:

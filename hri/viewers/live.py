@@ -99,12 +99,13 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
         return 2
     stop = threading.Event()
     _stop_on_signals(stop)
-    print(f"hri foxglove: ws://{args.host}:{server.port}  (Foxglove: Open connection; Ctrl-C to stop)", flush=True)
     session = open_session(args, log, stop)
     if session is None:
         server.stop()
         return 0
     feed = LiveFeed(session, keys, FoxgloveBridge(keys), log, skip=() if args.audio else (keys.audio("*"),))
+    # printed once subscribed: from here on nothing the stack publishes is missed
+    print(f"hri foxglove: ws://{args.host}:{server.port}  (Foxglove: Open connection; Ctrl-C to stop)", flush=True)
     stop.wait()
     feed.close()
     session.close()
@@ -112,7 +113,8 @@ def cmd_foxglove(args: argparse.Namespace) -> int:
     c = feed.counts
     invalid = sum(c.invalid.values())
     print(
-        f"hri foxglove: {c.shown} samples shown, {invalid} invalid, {c.dropped} dropped (viewer behind)",
+        f"hri foxglove: {c.shown} samples shown, {invalid} invalid; viewer behind: {c.skipped} stream samples "
+        f"skipped, {c.dropped} events dropped",
         file=sys.stderr,
     )
     return 0

@@ -372,10 +372,13 @@ def _run_live(args: argparse.Namespace, sink: RerunSink, stop: threading.Event) 
     if session is None:
         return
     feed = LiveFeed(session, keys, sink, log, skip=(keys.audio("*"),))
+    print(f"hri rerun: logging the live stack ({keys.prefix}/**)", flush=True)  # subscribed: nothing is missed now
     stop.wait(args.duration)
     feed.close()
     session.close()
     c = feed.counts
     print(
-        f"hri rerun: {c.shown} samples logged, {sum(c.invalid.values())} invalid, {c.dropped} dropped", file=sys.stderr
+        f"hri rerun: {c.shown} samples logged, {sum(c.invalid.values())} invalid; viewer behind: {c.skipped} "
+        f"stream samples skipped, {c.dropped} events dropped",
+        file=sys.stderr,
     )
