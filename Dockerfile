@@ -7,7 +7,7 @@
 FROM python:3.11-slim
 
 # Extras of pyproject.toml installed in the image (docker/fetch-wheels.sh reads this line).
-ARG HRI_EXTRAS=gesture,vision,speech,record
+ARG HRI_EXTRAS=gesture,vision,speech,record,ros2
 
 ENV PYTHONUNBUFFERED=1 \
     PYTHONDONTWRITEBYTECODE=1 \
@@ -28,6 +28,8 @@ RUN --mount=type=bind,source=docker/wheels,target=/tmp/wheels \
 COPY common/ common/
 COPY services/ services/
 COPY hri/ hri/
+# the ROS 2 message definitions the ros2 service (compose profile ros2) reads
+COPY ros2/ ros2/
 COPY docker/healthcheck.py docker/
 RUN touch README.md && pip install --no-deps --no-build-isolation --no-index -q . \
     && python -c "import hri.cli, services" \

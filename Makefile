@@ -49,7 +49,7 @@ fix:
 compose:
 	@$(PY) -m hri.compose --write
 
-BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view pointing_3d distributed
+BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view pointing_3d distributed ros2
 
 bench: setup
 	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done

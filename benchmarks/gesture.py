@@ -12,8 +12,9 @@ accuracy on real pointing photos.
 3. `--rays`: angular error of the two body rays (eyes -> fingertip vs forearm elbow -> fingertip) to the target
    pixels of ../shared/data/pointing (README there), on the arm that points.
 
-4. `--photos`: the stops and points that start on every real photo (the 27 hand photos of issue #23 and the 30
-   people photos, as defined in tests/test_gesture_photos.py), per photo and counted.
+4. `--photos`: the stops and points that start on every real photo (the 27 hand photos of issue #23, the 30
+   people photos, as defined in tests/test_gesture_photos.py, and the 7 people_multi photos with the pointer its
+   JSON names), per photo and counted, with the `fist` (grasp) starts beside them (issue #31: resting hands).
 
 Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300] [--rays] [--photos]
 """
@@ -21,6 +22,7 @@ Usage: python benchmarks/gesture.py [--seconds 60] [--frames 300] [--rays] [--ph
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
 import time
@@ -185,11 +187,12 @@ def print_photos() -> None:
     from testkit.gesture_photos import HAND_PHOTOS_27, PEOPLE_EXPECTED, count, evaluate
 
     people = sorted((SHARED / "data" / "people").glob("*.jpg"))
-    sets = {"27 hand photos": HAND_PHOTOS_27}
+    sets: dict[str, list[tuple[str, str, str | None, str | None]]] = {"27 hand photos": list(HAND_PHOTOS_27)}
     for label in PEOPLE_EXPECTED:
         sets[f"people {label}"] = [
             ("people", p.name, PEOPLE_EXPECTED[label], None) for p in people if p.name.startswith(label + "_")
         ]
+    sets["people_multi"] = people_multi_photos()
     for title, photos in sets.items():
         results = evaluate(photos)
         for name, (starts, judged) in results.items():
@@ -197,9 +200,23 @@ def print_photos() -> None:
             print(f"  {'ok   ' if judged['right'] else 'WRONG'} {name[:48]:48s} {starts} {' '.join(flags)}")
         print(
             f"{title}: {count(results, 'right')} of {len(results)} right, {count(results, 'missed_stop')} stops "
-            f"missed, {count(results, 'phantom_point')} phantom points, {count(results, 'false_stop')} false stops"
+            f"missed, {count(results, 'phantom_point')} phantom points, {count(results, 'false_stop')} false stops, "
+            f"{sum(g == 'fist' for starts, _ in results.values() for g, _ in starts)} fist starts"
             f" ({len(photos) - len(results)} photos not found)"
         )
+
+
+def people_multi_photos() -> list[tuple[str, str, str | None, str | None]]:
+    """(where, file, expected, arm) of ../shared/data/people_multi: a point from the arm people_multi.json names."""
+    path = SHARED / "data" / "people_multi" / "people_multi.json"
+    if not path.exists():
+        return []
+    out: list[tuple[str, str, str | None, str | None]] = []
+    for image in json.loads(path.read_text())["images"]:
+        pointing = [p["pointing"] for p in image["people"] if p.get("pointing")]
+        arm = pointing[0]["arm"].split()[0] if pointing else None  # "left (image right)" -> "left"
+        out.append(("people_multi", image["file"], "point" if pointing else None, arm))
+    return out
 
 
 def main() -> None:

@@ -2,7 +2,8 @@
 
 1. Cost: the gesture service's 3-D step per pointing frame (decode the DepthFrame, lift the ray, fit the planes near
    it, meet them: `depth_view` + `FrameRays.arm`) on the real RGB-D frames of ../shared/data/rgbd (YCB-Video
-   640x480, RealSense 1280x720), beside the bare decode (`common.depth.depth_metres`) of the same frame.
+   640x480, RealSense 1280x720), beside the bare decode (`common.depth.depth_metres`) of the same frame; and the
+   step done on every frame where a body is seen (issue #31: decode + lift the 33 landmarks, `lift_pose`).
 2. Hit accuracy on those frames: rays from a virtual eye 0.4 m above the camera to table pixels spread over the
    table; the distance from the hit to the pixel's own back-projected depth (an independent reading).
 3. Grounding: random rooms (2-6 objects 1-3 m from a person at 2.5-3.5 m from the camera, f 600 px, 640x480), the
@@ -18,7 +19,6 @@ import argparse
 import math
 import statistics
 import time
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -36,9 +36,10 @@ from common.schema import (
 )
 from services.fusion.evidence import pointing_from_hands, select_pointing
 from services.fusion.ground import best_pointed, scene_objects
-from services.gesture.space import DepthView, FrameRays, Lifted, depth_view, surface_hit
+from services.gesture.space import DepthView, FrameRays, Lifted, depth_view, lift_pose, surface_hit
+from testkit.shared import shared_dir
 
-SHARED = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "rgbd"
+SHARED = shared_dir() / "data" / "rgbd"  # $HRI_SHARED, else ../shared beside the checkout
 
 
 def real_frames() -> list[tuple[str, np.ndarray, CameraInfo, float, list[tuple[int, int]]]]:
@@ -93,8 +94,14 @@ def cost(repeats: int) -> None:
     for name, units, info, scale, pixels in real_frames():
         msg = depth_frame(units, stamp=1.0, source="bench", seq=0, cam="cam", depth_scale=scale, camera_info=info)
         eye = np.array([0.0, -0.08, 0.45]) if info.width == 640 else np.array([0.0, -0.05, 0.12])  # in view
-        bare, full, cpu = [], [], []
+        bare, full, cpu, body = [], [], [], []
+        skeleton = np.column_stack(  # 33 visible landmarks spread over the image
+            [np.linspace(0.1, 0.9, 33) * info.width, np.linspace(0.2, 0.8, 33) * info.height, np.ones(33)]
+        )
         for r in range(repeats):
+            t0 = time.perf_counter()
+            lift_pose(depth_view(msg), skeleton)
+            body.append((time.perf_counter() - t0) * 1e3)
             t0 = time.perf_counter()
             depth_metres(msg)
             t1 = time.perf_counter()
@@ -110,7 +117,8 @@ def cost(repeats: int) -> None:
         print(
             f"   {name}: decode {statistics.median(bare):.1f} ms; decode + lift + planes + hit "
             f"{statistics.median(full):.1f} ms wall (p90 {sorted(full)[int(0.9 * len(full))]:.1f}), "
-            f"{statistics.median(cpu):.1f} ms CPU (numpy may use both cores)"
+            f"{statistics.median(cpu):.1f} ms CPU (numpy may use both cores); every frame with a body: decode + "
+            f"lift_pose {statistics.median(body):.1f} ms"
         )
 
 

@@ -9,6 +9,8 @@ separated by single spaces.
 
 from __future__ import annotations
 
+from typing import Literal
+
 # What the robot can be asked to do. Order matters where phrases overlap: the
 # parser prefers the longest phrase, so "put down" beats "put".
 INTENT_PHRASES: dict[str, tuple[str, ...]] = {
@@ -22,6 +24,52 @@ INTENT_PHRASES: dict[str, tuple[str, ...]] = {
     "follow": ("follow", "follow me"),
     "greet": ("hello", "hi", "hey", "good morning", "good afternoon", "say hello"),
 }
+
+# -- affordances: what each action can be done to (issue #31), declared once beside the action words ---------------
+# "graspable": a thing a household robot's arm can lift (not a person, an animal, furniture or an appliance, by the
+# detector's class; with depth, nothing measured wider or taller than GRASP_MAX_EXTENT_M); "person": a person (give
+# it to her, follow him); "anything": anything but the commanding person. An intent not listed acts on no object.
+Affordance = Literal["graspable", "person", "anything"]
+INTENT_AFFORDANCES: dict[str, Affordance] = {
+    "pick_up": "graspable",
+    "bring": "graspable",  # "give it to her": the person is the recipient (`affordance`)
+    "put_down": "graspable",
+    "go_to": "anything",
+    "look_at": "anything",  # also "point at"
+    "follow": "person",
+}
+# The detector's classes (COCO) no robot arm lifts: people and animals (living beings are never "picked up"), vehicles,
+# furniture, appliances, fixtures, big sports gear. Everything else is graspable by class, then limited by size.
+NOT_GRASPABLE: frozenset[str] = frozenset(
+    {
+        "person",
+        *("bird", "cat", "dog", "horse", "sheep", "cow", "elephant", "bear", "zebra", "giraffe"),
+        *("bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat"),
+        *("traffic light", "fire hydrant", "stop sign", "parking meter", "bench"),
+        *("chair", "couch", "bed", "dining table", "toilet", "tv", "microwave", "oven", "sink", "refrigerator"),
+        *("surfboard", "skis", "snowboard"),
+    }
+)
+# The largest visible size (width or height, metres; depth's own spread is a surface's, not the object's) of a
+# graspable object: about what one arm with a parallel gripper handles (a laptop 0.35 m, a backpack 0.5 m); a
+# suitcase or a floor lamp measured over it is not picked up.
+GRASP_MAX_EXTENT_M = 0.6
+
+
+def affordance(intent: str | None, said_label: str | None) -> Affordance | None:
+    """What `intent` can be done to when the words name `said_label`: "give it to her" / "bring him" (bring with a
+    person named) hands something to that person; "look at the man" looks at a person. None: no object at all."""
+    if intent is None:
+        return None
+    kind = INTENT_AFFORDANCES.get(intent)
+    if said_label == "person" and kind is not None and intent in ("bring", "look_at"):
+        return "person"
+    return kind
+
+
+def graspable_class(label: str) -> bool:
+    return label not in NOT_GRASPABLE
+
 
 # -- safety: stop words and the words said alone ---------------------------------------------------
 # Any of these anywhere in an utterance stops the robot at once (a false stop is cheap, a missed one is not).

@@ -364,7 +364,14 @@ class Ray3D(Struct, kw_only=True):
         Optional[Point3],
         described(
             "where the ray meets the surface it points at (a plane fitted to the depth: "
-            "floor or table), metres; nil = it meets none in view"
+            "floor or table), metres; nil = it meets none"
+        ),
+    ] = None
+    hit_in_view: Annotated[
+        Optional[bool],
+        described(
+            "v1 extension: true = `hit` is inside the image, where the surface is seen; false = outside the "
+            "image (the floor or table seen in the image, extended); nil = no hit, or a sender from before"
         ),
     ] = None
 

@@ -52,13 +52,14 @@ class Role:
 
 
 def stack_roles() -> dict[str, Role]:
-    """The roles of the stack, derived from common/stack.py: a node publishes exactly its outputs' keys, reads
-    exactly its inputs' keys and answers as the service of its name; a client publishes its outputs' keys (and its
-    fixed keys) and the reader reads everything. Key expressions are under the prefix, one '*' per placeholder."""
+    """The roles of the stack, derived from common/stack.py: a node publishes exactly its outputs' keys (and its
+    fixed keys), reads exactly its inputs' keys and answers as the service of its name; a client publishes its
+    outputs' keys (and its fixed keys) and the reader reads everything. Key expressions are under the prefix,
+    one '*' per placeholder."""
     roles: dict[str, Role] = {}
     for n in stack.NODES:
         roles[n.name] = Role(
-            publish=tuple(dict.fromkeys(stack.topic(t).wildcard() for t in n.outputs)),
+            publish=tuple(dict.fromkeys([*(stack.topic(t).wildcard() for t in n.outputs), *n.fixed_keys])),
             subscribe=tuple(dict.fromkeys(stack.topic(i.topic).wildcard() for i in n.inputs)),
             service=n.name,
         )

@@ -106,6 +106,8 @@ class Node:
     reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding); must be True
     # when an input is an image topic
     container: Container = Container()  # docker-compose.yml: no flags, HRI_<NAME>_ARGS adds some
+    opt_in: bool = False  # off by default: `hri up --<name>` starts it, docker compose under the profile <name>
+    fixed_keys: tuple[str, ...] = ()  # exact keys (below the prefix) it publishes besides its outputs' patterns
 
     @property
     def module(self) -> str:
@@ -203,6 +205,28 @@ NODES: tuple[Node, ...] = (
             Input("persons", "fifo", maxlen=300),  # people in view with stable ids
         ),
         outputs=("command", "clarification"),
+    ),
+    Node(
+        "ros2",
+        "ROS 2 over rmw_zenoh: people (REP-155), objects, commands out; a ROS camera and text in",
+        inputs=(
+            Input("persons", "latest"),  # REP-155 topics are states: the newest per camera is what counts
+            Input("bodies", "latest"),
+            Input("faces", "latest"),
+            Input("objects", "latest"),
+            Input("command", "fifo", maxlen=100),
+            Input("clarification", "fifo", maxlen=100),
+            Input("frame", "latest"),  # for the camera's intrinsics (sensor_msgs/CameraInfo), on change
+        ),
+        outputs=("frame", "depth"),  # a ROS 2 camera as the stack's camera
+        reads_images=True,
+        container=Container(
+            note="ROS 2 (rmw_zenoh) beside the stack: `docker compose --profile ros2 up -d`; ROS nodes with\n"
+            'RMW_IMPLEMENTATION=rmw_zenoh_cpp connect to this router (docs/ros2.md); HRI_ROS2_ARGS="--domain-id 3".',
+        ),
+        opt_in=True,
+        # typed commands from a ROS std_msgs/String topic, as `hri say` sends them (not a speech modality)
+        fixed_keys=("speech/ros/transcript",),
     ),
 )
 CLIENTS: tuple[Client, ...] = (

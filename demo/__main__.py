@@ -25,11 +25,12 @@ from pathlib import Path
 import numpy as np
 import zenoh
 
+from common import stack
 from common.codec import decode
 from common.runner import SamplePublisher
 from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
 from common.stack import module_of
-from hri.launcher import Launcher, ServiceSpec, stack_names
+from hri.launcher import Launcher, ServiceSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "data" / "demo"
@@ -128,8 +129,12 @@ def camera_spec(scene: str) -> ServiceSpec:
 
 
 def demo_services() -> list[ServiceSpec]:
-    """Every node of the stack but the camera, in the stack's order."""
-    return [ServiceSpec(name, [module_of(name), *DEMO_FLAGS.get(name, [])]) for name in stack_names() if name != CAMERA]
+    """Every node of the stack but the camera and the opt-in ones (ros2), in the stack's order."""
+    return [
+        ServiceSpec(n.name, [module_of(n.name), *DEMO_FLAGS.get(n.name, [])])
+        for n in stack.NODES
+        if n.name != CAMERA and not n.opt_in
+    ]
 
 
 def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:

@@ -43,6 +43,7 @@ examples:
   hri up --camera data/images/tabletop --speech-input text   # router + every service, type commands
   hri record -o session.mcap 'hri/**'          # everything to MCAP until Ctrl-C (--count N / --duration S)
   hri replay session.mcap --only 'hri/speech/**' --speed 2   # back onto the bus, original timing x2
+  hri export --rosbag2 session.mcap bag/        # the recording as a ROS 2 bag (ros2 bag play, Foxglove)
   hri view                                     # a web page of cameras, overlays and decisions; prints its URL
 """
 
@@ -56,6 +57,23 @@ def summarise(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [summarise(v) for v in value]
     return value
+
+
+def compact_persons(line: dict[str, Any]) -> dict[str, Any]:
+    """A `Persons` sample on one short line: each person's nil fields left out, the box in whole pixels."""
+    persons = line.get("persons")
+    if not isinstance(persons, list):
+        return line
+    short = [
+        {
+            k: ([round(v) for v in value] if k == "bbox" and isinstance(value, list) else value)
+            for k, value in p.items()
+            if value not in (None, [], False)
+        }
+        for p in persons
+        if isinstance(p, dict)
+    ]
+    return {**line, "persons": short}
 
 
 def _install_stop(stop: threading.Event) -> None:
@@ -143,7 +161,7 @@ def cmd_echo(args: argparse.Namespace) -> int:
                 print(f"hri echo: invalid sample on {key}: {exc}", file=sys.stderr, flush=True)
                 continue
             line = {"key": key, **(body if isinstance(body, dict) else {"value": body})}
-            print(json.dumps(summarise(line), separators=(",", ":")), flush=True)
+            print(json.dumps(summarise(compact_persons(line)), separators=(",", ":")), flush=True)
             printed += 1
     finally:
         sub.undeclare()
@@ -460,6 +478,11 @@ def build_parser() -> argparse.ArgumentParser:
             "log the live stack (or a recording) to Rerun: a served web viewer, a spawned one, or an .rrd",
             rerun_log.RERUN_EXAMPLES,
         )
+    )
+    from hri import rosbag2  # rosbags is imported only when an export runs
+
+    rosbag2.add_export_arguments(
+        command("export", "convert a recording: --rosbag2 writes a ROS 2 bag (MCAP, CDR)", rosbag2.EXPORT_EXAMPLES)
     )
     from hri.view import command as view  # aiohttp and OpenCV are imported only when `hri view` runs
 

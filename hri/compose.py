@@ -107,6 +107,8 @@ def node_flags(node: stack.Node) -> str:
 def node_block(node: stack.Node) -> str:
     lines = [f"  {node.name}:", "    <<: *hri-service"]
     lines += [f"    # {line}" for line in node.container.note.splitlines()]
+    if node.opt_in:  # started only with `docker compose --profile <name> up`
+        lines.append(f'    profiles: ["{node.name}"]')
     lines.append(f"    command: python -m {node.module} {node_flags(node)}")
     if node.container.mounts:  # a list replaces the anchor's, so it repeats the data volume
         lines += ["    volumes:", f"      - {DATA_VOLUME}", *[f"      - {m}" for m in node.container.mounts]]

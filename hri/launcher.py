@@ -34,6 +34,7 @@ examples:
   hri up --no-gesture --vision-backend onnx --model ../shared/models/yolox_nano.onnx   # YOLOX/v5/v8 ONNX, COCO-80
   hri up --fusion-arg=--weights=fixed --no-speech    # any service: --NAME-arg passes it a flag, --no-NAME skips it
   hri up --secure ~/.hri/robot1 ...                  # secured: every service logs in (hri secure init)
+  hri up --ros2 --camera none                        # and a ROS 2 node over rmw_zenoh (docs/ros2.md)
   hri up --only router,camera,gesture --listen tcp/0.0.0.0:7447     # host A: the router and part of the stack
   hri up --only vision,speech,fusion --connect tcp/10.0.0.2:7447    # host B: the rest, against A's router
   hri echo 'hri/fusion/**'                            # in another terminal
@@ -124,7 +125,7 @@ def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
     """The service command lines `hri up`'s flags describe (the router is separate), in the stack's order."""
     specs: list[ServiceSpec] = []
     for node in stack_nodes():
-        if getattr(args, f"no_{node.name}", False):
+        if getattr(args, f"no_{node.name}", False) or (node.opt_in and not getattr(args, node.name, False)):
             continue
         translate = SPECIAL_FLAGS.get(node.name)
         spec = translate(args) if translate else ServiceSpec(node.name, [node.module])
@@ -325,7 +326,12 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
             metavar="ARG",
             help=f"extra argument for the {node.name} service, repeatable (e.g. --{node.name}-arg=--log-level=DEBUG)",
         )
-        p.add_argument(f"--no-{node.name}", action="store_true", help=f"do not start the {node.name} service")
+        if node.opt_in:  # off unless asked for
+            p.add_argument(
+                f"--{node.name}", action="store_true", help=f"also start the {node.name} service: {node.description}"
+            )
+        else:
+            p.add_argument(f"--no-{node.name}", action="store_true", help=f"do not start the {node.name} service")
     p.add_argument(
         "--only",
         type=only_list,

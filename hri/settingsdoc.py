@@ -25,6 +25,7 @@ PAGES = {
     "gesture": "gesture.md",
     "speech": "speech.md",
     "camera": "foundation.md",
+    "ros2": "ros2.md",
     "common": "foundation.md",
 }
 BLOCK = re.compile(r"(<!-- settings: (\w+) -->\n)(.*?)(<!-- /settings -->)", re.S)

@@ -49,6 +49,7 @@ def person(right_arm=None, left_arm=None, vis=1.0, eyes=True) -> np.ndarray:
     p[2], p[5] = (310, 110, vis), (330, 110, vis)  # right eye on the image left
     p[11], p[12] = (360, 180, vis), (280, 180, vis)  # left shoulder on the image right
     p[23], p[24] = (350, 340, vis), (290, 340, vis)
+    p[25], p[26] = (352, 420, vis), (288, 420, vis)  # knees (the legs go on below the frame)
     right_arm = right_arm or ((272, 250), (270, 320), (270, 340))
     left_arm = left_arm or ((368, 250), (370, 320), (370, 340))
     for (e, w, i), arm_ids in ((right_arm, (14, 16, 20)), (left_arm, (13, 15, 19))):

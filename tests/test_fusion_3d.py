@@ -15,7 +15,6 @@ from common.schema import (
     DetectedObject,
     Detections,
     Hand,
-    Hands,
     ImageQuality,
     Ray,
     Ray3D,
@@ -25,92 +24,23 @@ from services.fusion import space
 from services.fusion.evidence import pointing_from_hands, select_pointing
 from services.fusion.ground import best_pointed, pointed_location, scene_objects, score
 from services.fusion.parse import parse
-from testkit.scenarios import BASE_STAMP, KEYS, Scenario, Step, landmarks_at, run_in_process, say
-
-F, CX, CY, W, H = 600.0, 320.0, 240.0, 640, 480
-FRAME = "cam0_optical"
-EYES = np.array([0.45, -0.55, 3.2])  # a person 3.2 m from the camera, facing it, eyes 0.55 m above its axis
-
-
-def project(p) -> np.ndarray:
-    return np.array([p[0] * F / p[2] + CX, p[1] * F / p[2] + CY])
-
-
-def unit(v) -> np.ndarray:
-    v = np.asarray(v, dtype=float)
-    return v / np.linalg.norm(v)
-
-
-def thing(oid: str, label: str, position, size=(0.08, 0.22, 0.08), color=None) -> DetectedObject:
-    """A detected object at `position` (m) as vision would report it with depth: its box is its projection."""
-    c = project(position)
-    w, h = size[0] * F / position[2], size[1] * F / position[2]
-    return DetectedObject(
-        id=oid,
-        label=label,
-        color=color,
-        score=0.9,
-        bbox=[c[0] - w / 2, c[1] - h / 2, w, h],
-        center=[float(c[0]), float(c[1])],
-        position=[float(v) for v in position],
-        extent=list(size),
-        depth_support=0.8,
-    )
-
-
-def flat(o: DetectedObject) -> DetectedObject:
-    """The same detection without depth."""
-    return DetectedObject(id=o.id, label=o.label, color=o.color, score=o.score, bbox=o.bbox, center=o.center)
-
-
-def detections(objects, stamp=BASE_STAMP, depth=True) -> Detections:
-    return Detections(
-        stamp=stamp,
-        source="vision/cam0",
-        seq=1,
-        cam="cam0",
-        width=W,
-        height=H,
-        objects=[o if depth else flat(o) for o in objects],
-        quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.6),
-        frame_id=FRAME if depth else None,
-    )
-
-
-def pointing_hand(target, eyes=EYES, hit=None, with_3d=True) -> Hand:
-    """A hand at arm's length (0.7 m) from the eyes towards `target` (m), its 2-D ray the image of eye -> tip."""
-    d = unit(np.asarray(target) - eyes)
-    tip = eyes + 0.7 * d
-    tip_px, eye_px = project(tip), project(eyes)
-    d2 = unit(tip_px - eye_px)
-    ray3d = (
-        Ray3D(
-            origin=[float(v) for v in eyes],
-            direction=[float(v) for v in d],
-            method="eye_fingertip",
-            frame_id=FRAME,
-            hit=None if hit is None else [float(v) for v in hit],
-        )
-        if with_3d
-        else None
-    )
-    return Hand(
-        hand="right",
-        score=0.95,
-        landmarks=landmarks_at(*tip_px),
-        gesture="point",
-        ray=Ray(
-            origin=[float(v) for v in tip_px],
-            direction=[float(v) for v in d2],
-            confidence=0.9,
-            source="body",
-            ray3d=ray3d,
-        ),
-    )
-
-
-def hands(hand: Hand, stamp=BASE_STAMP) -> Hands:
-    return Hands(stamp=stamp, source="gesture/cam0", seq=1, cam="cam0", width=W, height=H, hands=[hand])
+from testkit.room3d import (
+    CX,
+    CY,
+    EYES,
+    FRAME,
+    F,
+    H,
+    W,
+    detections,
+    hands,
+    pointing_hand,
+    project,
+    step,
+    thing,
+    unit,
+)
+from testkit.scenarios import BASE_STAMP, KEYS, Scenario, Step, run_in_process, say
 
 
 def pointed(objects, hand, depth=True) -> str:
@@ -312,15 +242,6 @@ def test_fit_projection_recovers_the_pinhole_despite_an_odd_object():
 # ---------------------------------------------------------------------------
 # Through the core: a FusedCommand carries the target's position
 # ---------------------------------------------------------------------------
-def step(t: float, make) -> Step:
-    def build(base: float):
-        sample = make(base + t)
-        key = KEYS.objects("cam0") if isinstance(sample, Detections) else KEYS.hands("cam0")
-        return key, sample
-
-    return Step(t, build)
-
-
 def test_a_command_carries_position_extent_and_frame():
     places = [[-0.8, 0.5, 2.4], [0.6, 0.5, 1.2]]
     objects = [thing("b0", "bottle", places[0]), thing("b1", "bottle", places[1])]

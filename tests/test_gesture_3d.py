@@ -14,11 +14,15 @@ from common.schema import CameraInfo, DepthFrame
 from services.gesture.space import (
     DepthView,
     FrameRays,
+    Lifted,
     arm_ray3d,
     depth_view,
     fit_plane,
+    fit_planes,
     hand_ray3d,
     surface_hit,
+    surface_meeting,
+    to_wire,
     torso_point,
 )
 from testkit.shared import shared_path
@@ -200,10 +204,25 @@ def test_frame_rays_give_the_wire_ray_with_its_hit():
     rays = FrameRays(view(person.depth()), person.pose(), None)
     wire = rays.arm("right")
     assert wire.method == "eye_fingertip" and wire.frame_id == "cam_optical" and wire.hit is not None
-    assert abs(wire.hit[1] - CAMERA_HEIGHT) < 0.02
+    assert abs(wire.hit[1] - CAMERA_HEIGHT) < 0.02 and wire.hit_in_view is True
     hanging = rays.arm("left")  # no fingertip in view: the forearm, straight down
     assert hanging.method == "forearm" and angle_deg(hanging.direction, [0, 1, 0]) < 2.0
     assert FrameRays(view(person.depth()), None, None).arm("right") is None
+
+
+def test_a_floor_point_below_the_image_is_given_out_of_view():
+    """Issue #31: the person points at the floor 1.2 m from the camera, nearer than the floor the camera sees (from
+    1.75 m on): the ray meets the seen floor's plane there, outside the image, `hit_in_view` false. Up is the
+    person's torso axis (the torso has depth)."""
+    person = Person(target=(-0.3, CAMERA_HEIGHT, 1.2))
+    assert project(person.target)[1] > H  # below the image
+    wire = FrameRays(view(person.depth()), person.pose(), None).arm("right")
+    assert wire is not None and wire.method == "eye_fingertip" and wire.hit is not None
+    assert wire.hit_in_view is False
+    assert abs(wire.hit[1] - CAMERA_HEIGHT) < 0.02
+    expected = floor_point(np.array(wire.origin), np.array(wire.direction))
+    assert np.linalg.norm(np.array(wire.hit) - expected) < 0.02
+    assert wire.hit[2] < CAMERA_HEIGHT * F / (H - CY)  # nearer than any floor the camera sees
 
 
 def test_no_depth_no_ray_and_no_hit():
@@ -299,3 +318,28 @@ def test_the_table_plane_of_a_real_frame_fits_its_points():
     residual = plane.distance(plane.inliers)
     assert float(np.median(residual)) < 0.01
     assert len(plane.inliers) > 0.3 * len(near)
+
+
+def test_a_ray_leaving_the_image_meets_the_table_out_of_view():
+    """The real RealSense table-top frame (the camera looks down at the board: up is towards the camera, -z). A ray
+    from above the table to a point of the table's plane 0.25 m beyond the image's bottom edge meets the table there,
+    marked out of view; the same ray aimed inside the image meets it where the depth sees it, in view."""
+    view = realsense_view()
+    table = fit_planes(view.cloud())[0]
+    normal = table.normal if table.normal[2] < 0 else -table.normal  # towards the camera
+    up = np.array([0.0, 0.0, -1.0])
+    edge = view.back_project(640, 719, float(view.depth_at(640, 700) or 0.0))
+    edge = edge - (table.normal @ edge + table.offset) * table.normal  # onto the plane
+    down_image = np.array([0.0, 1.0, 0.0]) - (np.array([0.0, 1.0, 0.0]) @ table.normal) * table.normal
+    target = edge + 0.25 * down_image / np.linalg.norm(down_image)
+    assert not (0 <= view.project(target)[1] < view.height)  # really outside the image
+    origin = target + 0.6 * normal - 0.4 * down_image / np.linalg.norm(down_image)
+    direction = (target - origin) / np.linalg.norm(target - origin)
+    meeting = surface_meeting(view, Lifted(origin, direction, "eye_fingertip", 0.3), up=up)
+    assert meeting is not None and not meeting.in_view
+    assert np.linalg.norm(meeting.point - target) < 0.02
+    wire = to_wire(Lifted(origin, direction, "eye_fingertip", 0.3), "rs_optical", meeting)
+    assert wire.hit is not None and wire.hit_in_view is False
+    seen = view.back_project(900, 600, float(view.depth_at(900, 600) or 0.0))  # the board
+    inside = surface_meeting(view, Lifted(origin, (seen - origin) / np.linalg.norm(seen - origin), "forearm", 0.3))
+    assert inside is not None and inside.in_view and np.linalg.norm(inside.point - seen) < 0.02

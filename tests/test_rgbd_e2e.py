@@ -25,7 +25,8 @@ from common.schema import FusedCommand, Hand, Hands, Ray, Ray3D
 from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client
-from testkit.shared import shared_path, yolox_model
+from testkit.rgbd import start
+from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 
@@ -66,17 +67,6 @@ def say(client: Client, text: str) -> None:
         "hri/speech/kbd/transcript",
         make_transcript(text, mic="kbd", end=time.time(), confidence=0.95, source="test/kbd"),
     )
-
-
-def start(group, folder) -> Client:
-    group.router()
-    group.service("vision", "--backend", "onnx", "--model", str(yolox_model()))
-    group.service("fusion")
-    client = Client(group.endpoint)
-    client.wait_alive("vision", timeout=90)
-    client.wait_alive("fusion", timeout=60)
-    group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
-    return client
 
 
 def wait_for_bottles(client: Client) -> list:

@@ -155,7 +155,7 @@ def test_the_demo_starts_the_stack_with_flags_every_service_accepts(monkeypatch)
     with pytest.raises(Started):
         demo.main()
     cameras = [demo.camera_spec(scene) for scene in dict.fromkeys(step.scene for step in demo.SCRIPT)]
-    assert {s.name for s in started} | {"camera"} == set(stack_names())
+    assert {s.name for s in started} | {"camera"} == {n.name for n in stack.NODES if not n.opt_in}
     check_specs(started, "demo")
     for spec in cameras:
         check_specs([spec], "demo camera")
@@ -195,7 +195,7 @@ def up_args(*flags: str) -> argparse.Namespace:
 def test_a_node_declared_once_is_in_compose_hri_up_and_the_demo(stack_with_echo, monkeypatch):
     text = compose_text()
     services = yaml.safe_load(text)["services"]
-    assert list(services) == ["router", "camera", "vision", "gesture", "speech", "fusion", "echo"]
+    assert list(services) == ["router", "camera", "vision", "gesture", "speech", "fusion", "ros2", "echo"]
     echo = services["echo"]
     assert compose_argv(echo["command"]) == ["python", "-m", "services.echo", "--times", "2"]
     assert echo["command"].endswith("${HRI_ECHO_ARGS:---times 2}")  # replaceable like the others'
@@ -205,7 +205,7 @@ def test_a_node_declared_once_is_in_compose_hri_up_and_the_demo(stack_with_echo,
     assert compose_defaults(echo["environment"]["HRI_CONNECT"]) == f"tcp/router:{ROUTER_PORT}"
 
     everything = services_from_args(up_args("--speech-input", "zenoh"))
-    assert [s.name for s in everything] == ["camera", "vision", "gesture", "speech", "fusion", "echo"]
+    assert [s.name for s in everything] == ["camera", "vision", "gesture", "speech", "fusion", "echo"]  # no opt-in
     assert everything[-1] == ServiceSpec("echo", ["services.echo"])
     only = up_args("--only", "router,echo", "--echo-arg=--times=3")
     assert [s.argv for s in select(services_from_args(only), only.only)] == [["services.echo", "--times=3"]]
@@ -213,6 +213,21 @@ def test_a_node_declared_once_is_in_compose_hri_up_and_the_demo(stack_with_echo,
 
     demo = importlib.import_module("demo.__main__")
     assert demo.demo_services()[-1] == ServiceSpec("echo", ["services.echo"])
+
+
+def test_an_opt_in_node_starts_only_when_asked_and_has_a_compose_profile():
+    ros2 = stack.node("ros2")
+    assert ros2.opt_in
+    assert "ros2" not in [s.name for s in services_from_args(up_args("--speech-input", "zenoh"))]
+    asked = services_from_args(up_args("--speech-input", "zenoh", "--ros2", "--ros2-arg=--domain-id=3"))
+    assert asked[-1] == ServiceSpec("ros2", ["services.ros2", "--domain-id=3"])
+    with pytest.raises(SystemExit):
+        up_args("--no-ros2")  # off already: there is nothing to turn off
+    services = yaml.safe_load(compose_text())["services"]
+    assert services["ros2"]["profiles"] == ["ros2"]
+    assert all("profiles" not in services[n.name] for n in stack.NODES if not n.opt_in)
+    demo = importlib.import_module("demo.__main__")
+    assert "ros2" not in [s.name for s in demo.demo_services()]
 
 
 def test_without_the_entry_there_is_no_such_node():

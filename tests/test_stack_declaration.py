@@ -87,7 +87,9 @@ def test_each_node_publishes_exactly_its_outputs_and_reads_exactly_its_inputs():
     sec = secrets_of(users)
     for n in NODES:
         role = ROLES[n.name]
-        assert set(role.publish) == {stack.topic(t).wildcard() for t in n.outputs}, n.name
+        assert set(role.publish) == {stack.topic(t).wildcard() for t in n.outputs} | set(n.fixed_keys), n.name
+        for key in n.fixed_keys:  # exact keys besides its outputs (the ros2 node's typed commands)
+            assert may_publish(sec, n.name, f"hri/{key}", "hri"), (n.name, key)
         assert set(role.subscribe) == {stack.topic(i.topic).wildcard() for i in n.inputs}, n.name
         assert role.service == n.name
         for t in TOPICS:
@@ -175,7 +177,7 @@ def test_only_nodes_that_read_images_take_max_pixels():
     for n in NODES:
         flags = {a.dest for a in service_parser(n.name, "test")._actions}
         assert ("max_pixels" in flags) == n.reads_images, n.name
-    assert {n.name for n in NODES if n.reads_images} == {"vision", "gesture"}
+    assert {n.name for n in NODES if n.reads_images} == {"vision", "gesture", "ros2"}  # ros2: for the intrinsics
 
 
 # -- fusion's modalities ------------------------------------------------------------------------------------------

@@ -21,15 +21,18 @@ from common.schema import (
     FusedCommand,
     GestureEvent,
     Hand,
+    Person,
+    Persons,
     Ray,
+    Speaker,
     Stats,
     Target,
     Weights,
 )
-from hri.cli import make_transcript
+from hri.cli import compact_persons, make_transcript
 from hri.recording import NS, SessionWriter
 from hri.view.core import ViewState
-from hri.view.draw import CANDIDATE, TARGET, render
+from hri.view.draw import CANDIDATE, PERSON, SPEAKER, TARGET, render
 from hri.view.player import Player
 from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter
@@ -37,7 +40,9 @@ from testkit.harness import DATA, ROOT
 
 KEYS = Keys("hri")
 T0 = 1_790_000_000.0
-TABLE = cv2.imread(str(DATA / "demo" / "table.png"))
+_TABLE = cv2.imread(str(DATA / "demo" / "table.png"))
+assert _TABLE is not None
+TABLE: np.ndarray = _TABLE
 JPEG = cv2.imencode(".jpg", TABLE)[1].tobytes()
 H, W = TABLE.shape[:2]
 
@@ -410,3 +415,50 @@ def test_http_api_long_polls_serves_the_jpeg_and_controls_the_player(tmp_path, o
             assert (await http.get("/static/view.js")).status == 200
 
     asyncio.run(go())
+
+
+def test_persons_are_drawn_with_their_ids_and_the_attributed_speaker_is_marked(objects) -> None:
+    """Persons (issue #33) are an overlay layer; the person a command was attributed to is marked as speaking for a
+    few seconds after it, and the mouth-motion `speaking` of the face stage marks a person too."""
+    people = [
+        Person(id="person-1", bbox=[20.0, 40.0, 120.0, 300.0], score=1.0, hands=["right"]),
+        Person(id="person-2", bbox=[400.0, 40.0, 120.0, 300.0], score=1.0),
+    ]
+
+    def persons(stamp: float, speaking: float | None = None) -> bytes:
+        shown = [people[0], msgspec.structs.replace(people[1], speaking=speaking)]
+        return encode(Persons(stamp=stamp, source="gesture/t", seq=1, cam="table", width=W, height=H, persons=shown))
+
+    state = ViewState(KEYS)
+    assert state.ingest(KEYS.persons("table"), persons(T0), now=0)
+    layers = state.overlay("table")
+    assert [(p["id"], p["speaker"]) for p in layers["persons"]] == [("person-1", False), ("person-2", False)]
+    said = msgspec.convert(msgpack.unpackb(command(red(objects), T0 + 1)), FusedCommand)
+    said = msgspec.structs.replace(said, speaker=Speaker(person="person-1", confidence=0.8, method="mouth_motion"))
+    state.ingest(KEYS.command(), encode(said), now=0)
+    state.ingest(KEYS.persons("table"), persons(T0 + 2, speaking=0.9), now=0)
+    assert [p["speaker"] for p in state.overlay("table")["persons"]] == [True, True]
+    state.ingest(KEYS.persons("table"), persons(T0 + 9, speaking=0.1), now=0)
+    assert [p["speaker"] for p in state.overlay("table")["persons"]] == [False, False]  # long after; mouth still
+    entry = [e for e in state.snapshot()["timeline"] if e["kind"] == "command"][0]
+    assert entry["speaker"]["person"] == "person-1"  # the page shows the attribution on the timeline
+    out = render(TABLE, {"persons": [{**people[0].to_dict(), "speaker": True}, {**people[1].to_dict()}]})
+    red_edge = out[40:341, 18:23].astype(int)
+    assert int((np.abs(red_edge - np.array(SPEAKER)).sum(axis=2) < 60).sum()) > 200
+    blue_edge = out[40:341, 398:403].astype(int)
+    assert int((np.abs(blue_edge - np.array(PERSON)).sum(axis=2) < 60).sum()) > 100
+
+
+def test_echo_prints_persons_compactly() -> None:
+    line = {
+        "key": "hri/gesture/cam0/persons",
+        "persons": [
+            Person(id="person-1", bbox=[20.4, 40.6, 120.0, 300.2], score=1.0, hands=["right"]).to_dict(),
+            Person(id="person-2", bbox=[400.0, 40.0, 120.0, 300.0], score=0.9).to_dict(),
+        ],
+    }
+    assert compact_persons(line)["persons"] == [
+        {"id": "person-1", "bbox": [20, 41, 120, 300], "score": 1.0, "hands": ["right"]},
+        {"id": "person-2", "bbox": [400, 40, 120, 300], "score": 0.9},
+    ]
+    assert compact_persons({"key": "k", "hands": []}) == {"key": "k", "hands": []}

@@ -11,12 +11,14 @@ import re
 import socket
 import time
 from pathlib import Path
+from typing import Any
 
 import cv2
 import msgpack
 import numpy as np
 import pytest
 
+from common.schema import Person, Persons
 from testkit.browser import Browser, require_chromium, start_view
 from testkit.harness import DATA, Client, ProcessGroup, requires_services
 
@@ -153,6 +155,53 @@ def test_bad_input_on_any_key_is_ignored_counted_and_the_page_goes_on(live):
     tab.wait_for(f"hriView.framesDrawn > {drawn + 5}", 20, "frames still drawn after bad input")
     assert tab.js("hriView.pageErrors") == 0
     assert live["view"].alive()
+    tab.close()
+    live["browser"].tabs.remove(tab)
+
+
+def test_persons_are_drawn_and_the_speaker_is_marked_on_the_page(live: dict[str, Any]) -> None:
+    """Persons (issue #33) published for the camera: the page draws each person's box with their id, the one whose
+    mouth moves (`speaking`) in the speaker's red, the other in the person blue."""
+    tab = live["browser"].tab(live["url"])
+    tab.wait_for("window.hriView && hriView.connected && hriView.framesDrawn > 0", 60, "camera frames")
+    frame_w = tab.js("document.querySelector('#cam-table canvas').width")
+    frame_h = tab.js("document.querySelector('#cam-table canvas').height")
+    speaker = Person(id="person-1", bbox=[10.0, 10.0, frame_w / 3, frame_h - 20.0], score=1.0, speaking=0.9)
+    other = Person(id="person-2", bbox=[frame_w * 0.6, 10.0, frame_w / 3, frame_h - 20.0], score=1.0, speaking=0.0)
+    for seq in range(3):
+        sample = Persons(
+            stamp=time.time(),
+            source="gesture/t",
+            seq=seq,
+            cam="table",
+            width=frame_w,
+            height=frame_h,
+            persons=[speaker, other],
+        )
+        live["client"].publish("hri/gesture/table/persons", sample)
+        time.sleep(0.1)
+    shown = tab.wait_for(
+        "hriView.state.cameras.table.persons.length === 2 && hriView.state.cameras.table.persons",
+        20,
+        "the persons in the overlay",
+    )
+    assert [(p["id"], p["speaker"]) for p in shown] == [("person-1", True), ("person-2", False)]
+    drawn = tab.js("hriView.framesDrawn")
+    tab.wait_for(f"hriView.framesDrawn > {drawn + 2}", 20, "frames drawn with the persons")
+    rect = tab.js("JSON.parse(JSON.stringify(document.querySelector('#cam-table canvas').getBoundingClientRect()))")
+    png = tab.screenshot({"x": rect["x"], "y": rect["y"], "width": rect["width"], "height": rect["height"]})
+    picture = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert picture is not None
+    shot = picture.astype(int)
+    scale = shot.shape[1] / frame_w
+
+    def edge(person: Person, rgb: tuple[int, int, int]) -> int:
+        x = int(round(person.bbox[0] * scale))
+        strip = shot[:, max(x - 3, 0) : x + 4]
+        return int((np.abs(strip - np.array(rgb[::-1])).sum(axis=2) < 60).sum())
+
+    assert edge(speaker, (255, 60, 60)) > 100 and edge(other, (60, 160, 255)) > 50
+    assert tab.js("hriView.pageErrors") == 0
     tab.close()
     live["browser"].tabs.remove(tab)
 

@@ -29,6 +29,7 @@ from common.schema import (
     GestureEvent,
     Hands,
     InvalidSample,
+    Persons,
     Sample,
     Stats,
     Transcript,
@@ -66,8 +67,13 @@ class CameraState:
     released: int = 0
     detections: Detections | None = None
     hands: Hands | None = None
+    persons: Persons | None = None  # people in view with their ids (issue #33)
     depth: DepthFrame | None = None  # latest; colourized only when the page asks (the depth toggle)
     depth_jpeg: tuple[int, float, bytes] | None = None  # (seq, stamp, JPEG) of the last colourized one
+
+
+# the samples of which a camera keeps the latest, and the CameraState field that holds it
+LATEST_PER_CAMERA: dict[type, str] = {Detections: "detections", Hands: "hands", DepthFrame: "depth", Persons: "persons"}
 
 
 @dataclass
@@ -156,12 +162,8 @@ class ViewState:
             cam.received += 1
             cam.pending = sample
             self._release(cam, now)
-        elif isinstance(sample, Detections):
-            self._camera(sample.cam).detections = sample
-        elif isinstance(sample, Hands):
-            self._camera(sample.cam).hands = sample
-        elif isinstance(sample, DepthFrame):
-            self._camera(sample.cam).depth = sample
+        elif isinstance(sample, (Detections, Hands, DepthFrame, Persons)):  # the latest of each is drawn
+            setattr(self._camera(sample.cam), LATEST_PER_CAMERA[type(sample)], sample)
         elif isinstance(sample, GestureEvent):
             if sample.phase == "start":  # "hold" comes every 100 ms; the start is the event a person sees
                 self._add_entry(
@@ -287,6 +289,7 @@ class ViewState:
                 "quality": det.quality.to_dict() if det else None,
                 "objects_seq": det.seq if det else None,
                 "hands": [h.to_dict() for h in hands.hands] if hands else [],
+                "persons": persons_layer(state.persons if state else None, self.command, self.clarification),
                 "target": None,
                 "candidates": [],
             }
@@ -344,6 +347,27 @@ class ViewState:
                 "ignored": ignored,
                 "ignored_total": sum(self.ignored.values()),
             }
+
+
+SPEAKER_SHOWN_S = 3.0  # source seconds a decided utterance's speaker stays marked after it was said
+SPEAKING = 0.5  # `Person.speaking` at least this: marked as talking now (the face stage's mouth motion)
+
+
+def persons_layer(
+    persons: Persons | None, command: FusedCommand | None, question: Clarification | None
+) -> list[dict[str, Any]]:
+    """The persons of a camera, each marked `speaking` while their mouth moves with speech (`Person.speaking`) or
+    for a few seconds after fusion attributed an utterance to them (`speaker` of the latest command/question)."""
+    if persons is None:
+        return []
+    said = [s for s in (command, question) if s is not None and s.speaker is not None and s.speaker.person]
+    recent = {
+        s.speaker.person for s in said if s.speaker is not None and abs(persons.stamp - s.stamp) <= SPEAKER_SHOWN_S
+    }
+    return [
+        {**p.to_dict(), "speaker": p.id in recent or (p.speaking is not None and p.speaking >= SPEAKING)}
+        for p in persons.persons
+    ]
 
 
 def _plain(sample: Sample) -> dict[str, Any]:

@@ -18,6 +18,8 @@ TARGET = (255, 0, 255)  # the target of the latest command: magenta, a colour sc
 CANDIDATE = (0, 165, 255)  # candidates of a clarification question: orange
 HAND = (255, 255, 0)  # hand skeleton: cyan
 RAY = (0, 255, 255)  # pointing ray: yellow
+PERSON = (255, 160, 60)  # person boxes: light blue
+SPEAKER = (60, 60, 255)  # the person speaking: red
 TEXT_BG = (0, 0, 0)
 
 HAND_CONNECTIONS = (
@@ -102,6 +104,17 @@ def draw_hands(img: np.ndarray, layers: dict[str, Any]) -> None:
             _label(img, f"{hand['hand']} {hand['gesture']}", pts[0][0], pts[0][1] + 20, HAND)
 
 
+def draw_persons(img: np.ndarray, layers: dict[str, Any]) -> None:
+    """Each person's box and id; the speaker's box thicker, in red, labelled as speaking."""
+    for person in layers.get("persons", []):
+        speaking = person.get("speaker")
+        colour = SPEAKER if speaking else PERSON
+        _box(img, person["bbox"], colour, 3 if speaking else 1)
+        hands = ",".join(person.get("hands") or [])
+        text = person["id"] + (" speaking" if speaking else "") + (f" hands {hands}" if hands else "")
+        _label(img, text + object_position(person), person["bbox"][0], person["bbox"][1] + 18, colour)
+
+
 def draw_ray(img: np.ndarray, ray: dict[str, Any], length: float) -> None:
     (ox, oy), (dx, dy) = ray["origin"], ray["direction"]
     cv2.arrowedLine(img, _pt([ox, oy]), _pt([ox + dx * length, oy + dy * length]), RAY, 2, cv2.LINE_AA, tipLength=0.02)
@@ -156,6 +169,7 @@ def colourize_depth(metres: np.ndarray) -> np.ndarray:
 
 # bottom to top: the decision is drawn last so it is never hidden
 LAYERS: tuple[Callable[[np.ndarray, dict[str, Any]], None], ...] = (
+    draw_persons,
     draw_objects,
     draw_hands,
     draw_decision,

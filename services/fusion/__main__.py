@@ -111,6 +111,7 @@ def main(argv: list[str] | None = None) -> None:
     service.subscribe_input("hands", handler(core.on_hands))
     service.subscribe_input("event", handler(core.on_gesture_event))
     service.subscribe_input("bodies", handler(core.on_bodies))  # which way the speaker faces
+    service.subscribe_input("persons", handler(core.on_persons))  # people in view: "bring it to me"
 
     last_clock_report = [0.0]
 

@@ -15,10 +15,14 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from common.schema import Bodies, Detections, GestureEvent, Hands, Location, Transcript
+import msgspec
+
+from common.language import ANY_OBJECT, PLACE_AS_OBJECT
+from common.schema import Bodies, Detections, FusedCommand, GestureEvent, Hands, Location, Persons, Transcript
 from common.settings import setting
 from common.stack import node, publishers_of
-from services.fusion import describe, space
+from services.fusion import describe, people, space
+from services.fusion.afford import Applicable, applicable, refusal, removed_words
 from services.fusion.dialogue import Dialogue, Draft
 from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
@@ -109,6 +113,14 @@ def modality_of(service: str) -> str | None:
     return service if service in MODALITIES else None
 
 
+def unseen_pointing(phrase: ObjectPhrase, winner: Scored) -> bool:
+    """ "That one" / "this" (deixis naming no kind) chose `winner` without pointing at it: no ray was seen, or the
+    ray is near nothing. Then only the absence of other candidates chose it, and the point may have been at something
+    vision does not see."""
+    names_kind = phrase.label not in (None, ANY_OBJECT) or bool(phrase.color) or bool(phrase.spatial)
+    return phrase.deictic and not names_kind and not phrase.relations and (winner.gesture or 0.0) < 0.5
+
+
 class FusionCore:
     def __init__(
         self,
@@ -131,6 +143,10 @@ class FusionCore:
         )
         self.seen_transcripts = SeenOnce(config.horizon)
         self.facing = space.Facing()  # which way the speaker faces: "on my left"
+        # people (issue #33): who said an utterance (the speaker attribution plugs in here; None = unknown) and the
+        # persons in view, for "bring it to me"
+        self.speaker_of: Callable[[PendingTranscript], str | None] = lambda p: None
+        self.persons: list[Persons] = []
 
     # -- inputs ---------------------------------------------------------------
     def _add(self, modality: str, key: str, stamp: float, item: object, wall: float, ident: object = None) -> bool:
@@ -159,6 +175,10 @@ class FusionCore:
 
     def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
         self.facing.add(bodies)
+        return []
+
+    def on_persons(self, key: str, persons: Persons, wall: float) -> list[Output]:
+        self.persons = [s for s in self.persons if s.stamp >= persons.stamp - self.cfg.horizon][-299:] + [persons]
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
@@ -218,6 +238,7 @@ class FusionCore:
             vision_lookback=self.cfg.vision_lookback,
             margin=self.cfg.margin,
             log=self.log,
+            speaker_person=self.speaker_of(p),
         )
 
     # -- decisions ------------------------------------------------------------
@@ -228,12 +249,13 @@ class FusionCore:
             self.count("cancelled_by_stop_gesture")
             self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
             return []
-        ctx = self.context(p, how)
+        ctx = self._with_persons(u, self.context(p, how))
+        recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
         if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
         if u.intent is None:
-            reply = self.dialogue.reply(t, u, ctx)
+            reply = self.dialogue.reply(t, u, self._for_dialogue(ctx))
             if reply is not None:
                 return reply
             # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
@@ -248,7 +270,57 @@ class FusionCore:
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
             self.count("duplicate_of_gesture")
             return []
-        return self.command_for(t, u, ctx)
+        out = self._person_action(t, u, ctx, p) or self.command_for(t, u, ctx)
+        return [self._to_recipient(o, recipient, p, ctx) for o in out] if recipient is not None else out
+
+    def _with_persons(self, u: Utterance, ctx: Context) -> Context:
+        """ "The man on the left" with no person among the detections (the colour backend finds none): the persons
+        in view (`Persons`, within the vision lookback of the utterance) are the candidates, by their ids."""
+        if u.obj.label != "person":
+            return ctx
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        if seen is None or any(o.label == "person" and o.cam == seen.cam for o in ctx.objects):
+            return ctx
+        self.count("persons_as_candidates")
+        return replace(ctx, objects=ctx.objects + [people.as_scene_object(q, seen) for q in seen.persons])
+
+    def _person_action(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> list[Output]:
+        """ "Follow me", "look at him", "watch the person who is talking": the person in `Persons` (by their part in
+        the talk: the speaker, the one other person) is the target; [] when none is named or none resolves."""
+        ref = people.person_referent(t.text) if u.intent in ("follow", "look_at") else None
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback) if ref is not None else None
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if ref is not None and seen else None
+        if person is None or seen is None or ref is None:
+            return []
+        self.count("person_target")
+        target = people.as_scene_object(person, seen)
+        why = f"'{ref.said}' is {person.id}" + (" (the speaker)" if ref.who == "speaker" else " (the other person)")
+        return [
+            self.outputs.command(
+                t,
+                u.intent or "follow",
+                ctx,
+                confidence=ctx.reliabilities["speech"] or 0.0,
+                explanation=why,
+                target=target,
+            )
+        ]
+
+    def _to_recipient(self, out: Output, ref: people.PersonRef, p: PendingTranscript, ctx: Context) -> Output:
+        """A bring/give command goes to the person named ("to me": the speaker): their place is its `location`."""
+        sample = out.sample
+        if not isinstance(sample, FusedCommand) or sample.intent != "bring" or sample.location is not None:
+            return out
+        seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback)
+        person = people.resolve(ref, seen.persons, self.speaker_of(p)) if seen else None
+        if person is None or seen is None:
+            self.count("recipient_unknown")
+            return out
+        why = f"; to {person.id} ('{ref.said}')" + (" at their torso in metres" if person.position else "")
+        located = msgspec.structs.replace(
+            sample, location=people.location_of(person, seen.cam), explanation=sample.explanation + why
+        )
+        return replace(out, sample=located)
 
     def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
         intent = u.intent
@@ -268,40 +340,19 @@ class FusionCore:
         wants_location = (intent == "go_to" and not wants_object and not u.place) or (
             intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj)
         )
+        if intent in TARGET_INTENTS and u.place in PLACE_AS_OBJECT and u.obj.label is None and not u.obj.deictic:
+            # "pick up the table": what is picked up is the thing, not a place
+            u = replace(u, obj=replace(u.obj, label=PLACE_AS_OBJECT[u.place]), place=None)
+        found = applicable(intent, u.obj, ctx.objects, ctx.pointing)
+        ctx = replace(ctx, candidates=found.kept)  # nothing else is ever proposed (services/fusion/afford.py)
         target: Scored | None = None
         runner_up: Scored | None = None
         overruled = None
-        if wants_object and u.obj.noun is not None:  # a word I don't know: only a clear point can say which
-            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
-            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
-                self.count("unknown_noun")
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
-                    )
-                ]
-            target, runner_up = choice.winner, choice.runner_up
-        elif wants_object:
-            choice = self._choose(u.obj, ctx)
-            if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.objects:
-                best = max(ctx.objects, key=lambda o: (o.score, o.cam, o.id))
-                scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
-                expl = (
-                    f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
-                    f"detection {best.id} ({best.name()}, score {best.score:.2f})"
-                )
-                return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
-            if choice.kind not in ("target", "low_confidence"):
-                return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, place=u.place))]
-            target = choice.winner
-            runner_up = choice.runner_up
-            overruled = choice.overruled
-            if choice.kind == "low_confidence":
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, choice, Draft(intent, t.text, target=target.obj if target else None, place=u.place)
-                    )
-                ]
+        if wants_object:
+            picked = self._object(t, u, ctx, found)
+            if isinstance(picked, list):
+                return picked
+            target, runner_up, overruled = picked.winner, picked.runner_up, picked.overruled
         elif intent == "put_down" and u.obj.specific:
             choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
             target = choice.winner if choice.kind == "target" else None
@@ -327,6 +378,7 @@ class FusionCore:
             return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
         if target is not None:
             expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
+            expl += removed_words(found, u.obj, ctx.pointing)
             if u.obj.noun is not None:
                 expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
             if u.obj.unmatched:  # said back, never silently dropped
@@ -354,18 +406,70 @@ class FusionCore:
             )
         ]
 
+    def _object(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Choice | list[Output]:
+        """The object the command acts on (a target Choice), or what to publish instead: a refusal ("I can't pick up
+        a couch."), a question, or the --fallback-most-confident command."""
+        intent = u.intent
+        assert intent is not None
+        no = refusal(intent, u.obj, found)
+        if no is not None:
+            self.count("refused_affordance")
+            return [self.dialogue.refuse(t, u, no, Draft(intent, t.text, place=u.place))]
+        if u.obj.noun is not None:  # a word I don't know: only a clear point can say which
+            choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
+            if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
+                self.count("unknown_noun")
+                return [
+                    self.dialogue.clarify(
+                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
+                    )
+                ]
+            return choice
+        choice = self._choose(u.obj, ctx)
+        if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.pool:
+            best = max(ctx.pool, key=lambda o: (o.score, o.cam, o.id))
+            scored = score(ObjectPhrase(), [best], None, ctx.weights, adaptive=False)[0]
+            expl = (
+                f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
+                f"detection {best.id} ({best.name()}, score {best.score:.2f})"
+            )
+            return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
+        if choice.kind == "target" and choice.winner is not None and unseen_pointing(u.obj, choice.winner):
+            # "that one" said, no point seen (or none near anything) and no kind named: confirm, never guess
+            self.count("deixis_unresolved")
+            choice = replace(choice, kind="low_confidence")
+        if choice.kind == "target":
+            return choice
+        target = choice.winner.obj if choice.kind == "low_confidence" and choice.winner else None
+        return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target, place=u.place))]
+
+    def _for_dialogue(self, ctx: Context) -> Context:
+        """An answer or a correction chooses among what the asked (or corrected) command may act on."""
+        q, last = self.dialogue.question, self.dialogue.last
+        if q is not None:
+            intent, phrase = q.draft.intent, q.phrase
+        elif last is not None:
+            intent, phrase = last.intent, last.phrase
+        else:
+            return ctx
+        return replace(ctx, candidates=applicable(intent, phrase, ctx.objects, ctx.pointing).kept)
+
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
-        return ctx.choose(phrase, ctx.objects, ctx.pointing, ctx.ref)
+        return ctx.choose(phrase, ctx.pool, ctx.pointing, ctx.ref)
 
     def _location(self, u: Utterance, ctx: Context) -> Location | None:
         """Where the command goes: the object named as the destination ("put it on the red box"), else where the
-        ray points; None without either."""
+        ray points; None without either. A place may be anything (a table, a couch) but the person pointing (nor what
+        is on them: the ray starts inside their box)."""
+        places = applicable("go_to", ObjectPhrase(), ctx.objects, ctx.pointing).kept
         if u.dest_obj is not None:
-            choice = self._choose(u.dest_obj, ctx)
+            choice = self._choose(u.dest_obj, replace(ctx, candidates=places))
             if choice.kind == "target" and choice.winner is not None:
                 o = choice.winner.obj
                 return Location(x=float(o.center[0]), y=float(o.center[1]), cam=o.cam)
-        return pointed_location(ctx.pointing, ctx.objects) if ctx.pointing is not None else None
+        if ctx.pointing is None:
+            return None
+        return pointed_location(ctx.pointing, places)
 
     def memory_items(self) -> int:
         """Buffered samples plus bookkeeping (for the benchmark's flat-memory check)."""

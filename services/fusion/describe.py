@@ -132,9 +132,12 @@ def conflict_question(phrase: ObjectPhrase, said: Scored, pointed: Scored) -> st
     )
 
 
-def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool) -> str:
+def not_found_question(
+    phrase: ObjectPhrase, visible: list[SceneObject], vision_missing: bool, nothing_to: str | None = None
+) -> str:
     """What I could not find, what I can see instead, and the question. An unknown noun is said as such:
-    "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?"."""
+    "I don't know what a pitcher is. I can see a blue cup and a bowl. Which one do you mean?". `nothing_to`: the
+    verb of an action none of the objects in view can take ("pick up": only people and a couch are in view)."""
     unknown = phrase.unknown_nouns
     if unknown:
         lead = " ".join(f"I don't know what {a(n)} is." for n in unknown)
@@ -148,6 +151,8 @@ def not_found_question(phrase: ObjectPhrase, visible: list[SceneObject], vision_
             if phrase.noun
             else f"I can't see anything right now (no camera input), so I can't find {what}. Can you show me?"
         )
+    if not visible and nothing_to:  # things in view, none the action applies to (people, furniture …)
+        return f"{lead} I see nothing here I can {nothing_to}. Can you show me?"
     if not visible:
         return f"{lead} I don't see any objects. Can you show me?"
     if phrase.relations and not unknown and phrase.label:
@@ -171,6 +176,35 @@ def confirm_question(text: str, candidate: Scored | None) -> str:
     return f'I\'m not sure I heard you. Did you say: "{text}"?'
 
 
+POINTED = 0.5  # the gesture evidence from which pointing is a reason for the choice (as `choose`'s "pointed")
+
+
+def pointing_words(c: Scored) -> str:
+    """How pointing scored `c`, by its rule and the figures that decided: 'under the fingertip', 'touched',
+    '0.12 m from the 3-D ray (4 deg)', '5 deg off the image ray' ("" without pointing)."""
+    if c.gesture is None:
+        return ""
+    if c.rule in ("touch", "under the fingertip"):
+        return "touched by the fingertip" if c.rule == "touch" else "under the fingertip"
+    if c.angle is None:
+        return "not on the pointing ray"
+    if c.off_m is not None:
+        return f"{c.off_m:.2f} m from the 3-D pointing ray ({c.angle:.0f} deg)"
+    return f"{c.angle:.0f} deg off the image pointing ray"
+
+
+def decided_by(c: Scored, phrase: ObjectPhrase) -> str:
+    """The rule that chose `c`: the words, pointing (and how), or both."""
+    words = phrase.specific and c.match >= 0.5
+    pointed = c.gesture is not None and c.gesture >= POINTED
+    how = f"pointing ({c.rule})" if pointed and c.rule else "pointing"
+    if words and pointed:
+        return f"the words and {how}"
+    if pointed:
+        return how
+    return "the words" if words else "the only candidate"
+
+
 def explain_target(
     choice_winner: Scored,
     runner_up: Scored | None,
@@ -178,24 +212,27 @@ def explain_target(
     phrase: ObjectPhrase,
     overruled: str | None,
 ) -> str:
+    """Why the target won: the rule that decided and its figures (the fit to the words; how the pointing ray met it,
+    when pointing counted for it; the runner-up). A figure that argues against the choice — the angle to a target
+    that pointing did not single out — is never given as a reason."""
     o = choice_winner.obj
     reasons = []
     if phrase.specific:
         said = phrase.describe()
         fit = "fits" if choice_winner.match >= 0.5 else "does not fit"
         reasons.append(f"it {fit} '{said}' (speech {choice_winner.speech:.2f}, vision trust {choice_winner.trust:.2f})")
-    if choice_winner.gesture is not None:
-        angle = (
-            f"{choice_winner.angle:.0f} deg off the pointing ray"
-            if choice_winner.angle is not None
-            else "not on the pointing ray"
-        )
-        reasons.append(f"{angle} (gesture {choice_winner.gesture:.2f})")
+    if choice_winner.gesture is not None and choice_winner.gesture >= POINTED:
+        reasons.append(f"{pointing_words(choice_winner)} (gesture {choice_winner.gesture:.2f})")
     if not reasons:
         reasons.append("it is the only object in view")
-    text = f"{o.id} ({o.name()}, {region(o)}) won with {choice_winner.total:.2f}: " + "; ".join(reasons)
+    text = (
+        f"{o.id} ({o.name()}, {region(o)}) won with {choice_winner.total:.2f} by {decided_by(choice_winner, phrase)}: "
+        + "; ".join(reasons)
+    )
     if runner_up is not None:
+        where = pointing_words(runner_up) if choice_winner.gesture is not None and runner_up.gesture else ""
         text += f"; runner-up {runner_up.obj.id} ({runner_up.obj.name()}) {runner_up.total:.2f}"
+        text += f", {where}" if where else ""
     if overruled == "speech":
         text += (
             f". Speech and pointing disagreed; pointing won (gesture weight {weights['gesture']:.2f} vs "
@@ -207,6 +244,8 @@ def explain_target(
             f". Speech and pointing disagreed; speech won (speech weight {weights['speech']:.2f} vs "
             f"gesture {weights['gesture']:.2f})"
         )
+    elif choice_winner.gesture is not None and choice_winner.gesture < POINTED:
+        text += "; pointing did not choose it (it is not near the ray)"
     return text
 
 

@@ -18,6 +18,7 @@ from typing import Callable
 from common.language import ANY_OBJECT, label_matches
 from common.schema import ClarificationReason, Location, Motion, Transcript
 from services.fusion import describe
+from services.fusion.afford import VERBS
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance
@@ -124,12 +125,19 @@ class Dialogue:
             question = describe.confirm_question(t.text, None if heard else choice.winner)
             candidates = [c.obj for c in choice.candidates]
         else:
-            visible = sorted(ctx.objects, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
-            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing)
+            visible = sorted(ctx.pool, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
+            nothing_to = VERBS.get(draft.intent, "do that to") if ctx.objects and not ctx.pool else None
+            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing, nothing_to)
             candidates = visible
         return self._ask(
             t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates, question
         )
+
+    def refuse(self, t: Transcript, u: Utterance, answer: str, draft: Draft) -> Output:
+        """ "I can't pick up a couch.": the words name only what the action cannot apply to (services/fusion/afford.py).
+        On the wire a `not_found` Clarification without candidates (v1: no new reason value, docs/fusion.md); it stays
+        open like one, so "the cup then" still picks the cup up."""
+        return self._ask(t, "not_found", draft, u.obj, [], [], answer)
 
     def clarify_place(self, t: Transcript, u: Utterance, draft: Draft) -> Output:
         question = (
@@ -210,7 +218,7 @@ class Dialogue:
                     )
                 ]
             return [self._reask(t, q, q.candidates, ctx.objects)]
-        pool = q.candidates if q.candidates and q.reason != "not_found" else ctx.objects or q.candidates
+        pool = q.candidates if q.candidates and q.reason != "not_found" else ctx.pool or q.candidates
         choice = ctx.choose(u.obj, pool, ctx.pointing, None, check_evidence=False)
         if choice.kind == "target" and choice.winner is not None:
             q.draft.target = choice.winner.obj
@@ -232,7 +240,7 @@ class Dialogue:
         pool = q.candidates
         if len(pool) < 2 and excluded is not None:  # a yes/no question about one object: the others of its kind
             kind = q.phrase.label if q.phrase.label not in (None, ANY_OBJECT) else excluded.label
-            pool = [o for o in ctx.objects if label_matches(kind, o.label)]
+            pool = [o for o in ctx.pool if label_matches(kind, o.label)]
         remaining = [o for o in pool if excluded is None or o.key != excluded.key]
         if u.obj.specific:
             fit = [
@@ -258,7 +266,7 @@ class Dialogue:
         self.count("corrected_by_speech")
         kind = last.phrase.label if last.phrase.label not in (None, ANY_OBJECT) else last.target.label
         phrase = u.obj if u.obj.label not in (None, ANY_OBJECT) else replace(u.obj, label=kind, deictic=False)
-        pool = [o for o in ctx.objects if o.key != last.target.key and label_matches(phrase.label, o.label)]
+        pool = [o for o in ctx.pool if o.key != last.target.key and label_matches(phrase.label, o.label)]
         draft = Draft(last.intent, f"{last.text} / {t.text}", place=last.place)
         choice = ctx.choose(phrase, pool, None, ctx.ref, check_evidence=False)
         if choice.kind == "target" and choice.winner is not None:

@@ -69,6 +69,7 @@ class PointingObs:
     height: int
     hand_box: tuple[float, float, float, float] | None = None  # x0, y0, x1, y1 of the hand's landmarks
     ray3d: space.Ray3 | None = None  # the same ray in metres, when the gesture service had depth
+    person: str | None = None  # whose hand (`Hand.person`, `GestureEvent.person`), None = not known
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,7 @@ class Pointing:
     height: int
     hand_box: tuple[float, float, float, float] | None = None  # the pointing hand itself: never its target
     ray3d: space.Ray3 | None = None  # the cluster's 3-D rays averaged (services/fusion/space.py)
+    person: str | None = None  # whose pointing, None = not known
 
     @property
     def reliability(self) -> float:
@@ -112,6 +114,7 @@ def pointing_from_hands(hands: Hands) -> list[PointingObs]:
                 hands.height,
                 (min(xs), min(ys), max(xs), max(ys)),
                 ray3d=space.from_wire(h.ray.ray3d),
+                person=h.person,
             )
         )
     return out
@@ -131,6 +134,7 @@ def pointing_from_event(ev: GestureEvent) -> list[PointingObs]:
             ev.width,
             ev.height,
             ray3d=space.from_wire(ev.ray.ray3d),
+            person=ev.person,
         )
     ]
 
@@ -149,7 +153,10 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
         (
             o
             for o in observations
-            if o.cam == nearest.cam and o.hand == nearest.hand and abs(o.stamp - nearest.stamp) <= POINTING_CLUSTER_S
+            if o.cam == nearest.cam
+            and o.hand == nearest.hand
+            and o.person == nearest.person
+            and abs(o.stamp - nearest.stamp) <= POINTING_CLUSTER_S
         ),
         key=lambda o: (o.stamp, o.origin, o.direction),
     )
@@ -186,6 +193,7 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
         height=nearest.height,
         hand_box=hand_box,
         ray3d=space.mean_ray([(o.ray3d, o.confidence) for o in cluster]),
+        person=nearest.person,
     )
 
 

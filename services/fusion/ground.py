@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 
@@ -33,7 +33,6 @@ from services.fusion.parse import ObjectPhrase, Relation
 from services.fusion.relations import BETWEEN_MAX_ANCHORS, between_matrix, fit_matrix
 from services.fusion.touch import fingertip, touched
 
-POINTING_SIGMA_DEG = 8.0  # angular noise of a pointing ray from hand landmarks
 SPATIAL_SCALE = 0.08  # fraction of the image size over which a spatial word's preference halves (roughly)
 RECENCY_S = 2.0
 DEFAULT_MARGIN = 0.1
@@ -128,6 +127,8 @@ class Scored:
     gesture: float | None
     angle: float | None  # degrees off the ray
     total: float
+    rule: str | None = None  # how pointing scored it (`Deictic.rule`): touch, under the fingertip, along the ray
+    off_m: float | None = None  # metres from the 3-D ray, when compared in metres
 
     @property
     def evidence(self) -> float:
@@ -183,30 +184,43 @@ def in_3d(p: Pointing, o: SceneObject) -> bool:
     return p.ray3d is not None and o.position is not None and space.same_frame(p.ray3d, o.frame_id)
 
 
-def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
-    """(G, angle in degrees). Objects in another camera, behind the hand, or on the pointing hand itself (a
-    skin-coloured blob of the finger lies right on the ray) score 0."""
-    if o.cam != p.cam:
-        return 0.0, None
-    if p.hand_box is not None:
-        x0, y0, x1, y1 = p.hand_box
-        if x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1:
-            return 0.0, None
+class Deictic(NamedTuple):
+    """What pointing says about one object."""
+
+    gesture: float  # G in [0, 1]
+    angle: float | None  # degrees off the ray (None: another camera, or on the pointing hand)
+    rule: str | None = None  # "touch", "under the fingertip", "along the 3-D ray", "along the image ray"
+    off_m: float | None = None  # metres from the 3-D ray's line, when compared in metres
+
+
+def ray_score(p: Pointing, o: SceneObject) -> Deictic:
+    """G by the ray alone. Objects in another camera, behind the hand, or on the pointing hand itself (a
+    skin-coloured blob of the finger lies right on the ray) score 0. In metres (`space.pointing_score`): the
+    distance from the ray against a tolerance that grows with the distance; in pixels: the angle."""
+    if o.cam != p.cam or on_the_hand(p, o):
+        return Deictic(0.0, None)
     if p.ray3d is not None and in_3d(p, o):  # (in_3d checks the ray too; said here for the type checker)
-        return space.pointing_score(p.ray3d, o.position, o.extent, p.spread_deg)
+        g3, angle3, off = space.pointing_score(p.ray3d, o.position, o.extent, p.spread_deg)
+        return Deictic(g3, angle3, "along the 3-D ray", off)
     vx, vy = o.center[0] - p.origin[0], o.center[1] - p.origin[1]
     dist = math.hypot(vx, vy)
     radius = 0.5 * math.hypot(o.bbox[2], o.bbox[3]) * 0.5  # half of the half-diagonal: the object's core
     if dist <= 1e-6:
-        return 1.0, 0.0
+        return Deictic(1.0, 0.0, "along the image ray")
     cos = (vx * p.direction[0] + vy * p.direction[1]) / dist
     angle = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
     if cos <= 0:
-        return 0.0, angle
+        return Deictic(0.0, angle, "along the image ray")
     covered = math.degrees(math.atan2(radius, dist))
-    sigma = max(POINTING_SIGMA_DEG, p.spread_deg)
+    sigma = max(space.POINTING_NOISE_DEG, p.spread_deg)
     effective = max(0.0, angle - covered)
-    return math.exp(-0.5 * (effective / sigma) ** 2), angle
+    return Deictic(math.exp(-0.5 * (effective / sigma) ** 2), angle, "along the image ray")
+
+
+def pointing_score(p: Pointing, o: SceneObject) -> tuple[float, float | None]:
+    """(G, angle in degrees) by the ray alone (`ray_score`)."""
+    d = ray_score(p, o)
+    return d.gesture, d.angle
 
 
 def ray_gap(p: Pointing, o: SceneObject) -> float | None:
@@ -240,7 +254,7 @@ def under_fingertip(p: Pointing, o: SceneObject) -> bool:
     return gap <= reach
 
 
-def _on_the_hand(p: Pointing, o: SceneObject) -> bool:
+def on_the_hand(p: Pointing, o: SceneObject) -> bool:
     """The object's centre lies on the pointing hand (a skin-coloured blob of the finger): never its target."""
     if p.hand_box is None:
         return False
@@ -255,25 +269,36 @@ def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, s
     tip = fingertip(p.origin, p.direction, p.hand_box)
     # Objects in metres are judged by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may
     # lie far behind it.
-    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not _on_the_hand(p, o) and not in_3d(p, o)]
+    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not on_the_hand(p, o) and not in_3d(p, o)]
     hit, _ = touched(tip, [o.bbox for o in mine])
     return {mine[i].key for i in hit}
 
 
-def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], tuple[float, float | None]]:
-    """(G, angle) per object: `pointing_score`; then an object the fingertip touches gets G = 1 (even when its
-    centre lies behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what
-    lies further along the ray."""
-    out = {o.key: pointing_score(p, o) for o in objects}
+def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], Deictic]:
+    """`Deictic` per object: `ray_score`; then an object the fingertip touches gets G = 1 (even when its centre lies
+    behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what lies further
+    along the ray. People never win by touch or by being under the fingertip: the pointing person's own box holds
+    the fingertip (issue #31); another person is scored by the ray alone."""
+    out = {o.key: ray_score(p, o) for o in objects}
     near = touched_objects(p, objects)
+    rule = "touch"
     if not near:
-        near = {o.key for o in objects if out[o.key][1] is not None and out[o.key][0] > 0 and under_fingertip(p, o)}
-    if near:
-        out = {
-            k: ((1.0, a if a is not None else 0.0) if k in near else (g * FARTHER_ALONG, a))
-            for k, (g, a) in out.items()
+        rule = "under the fingertip"
+        near = {
+            o.key
+            for o in objects
+            if o.label != "person" and out[o.key].angle is not None and out[o.key].gesture > 0 and under_fingertip(p, o)
         }
-    return out
+    if not near:
+        return out
+    return {
+        k: (
+            Deictic(1.0, d.angle if d.angle is not None else 0.0, rule, d.off_m)
+            if k in near
+            else d._replace(gesture=d.gesture * FARTHER_ALONG)
+        )
+        for k, d in out.items()
+    }
 
 
 RELATION_FLOOR = 0.05  # below this fit nobody is in that relation to the anchor: the words are not matched
@@ -422,9 +447,10 @@ def score(
         else:
             trust = 1.0
         s = 0.5 + (m - 0.5) * trust
-        g, angle = deictic[o.key] if use_gesture else (None, None)
+        d = deictic[o.key] if use_gesture else Deictic(0.0, None)
+        g = d.gesture if use_gesture else None
         total = (ws * s + wg * (g or 0.0)) / (ws + wg)
-        scored.append(Scored(o, m, trust, s, g, angle, total))
+        scored.append(Scored(o, m, trust, s, g, d.angle, total, d.rule, d.off_m))
     scored.sort(key=lambda c: (-round(c.total, 9), c.obj.cam, c.obj.id))
     return scored
 

@@ -17,7 +17,11 @@ from typing import Sequence
 
 from common.schema import Location, Ray3D
 
-SIGMA_DEG = 8.0  # angular noise of a 3-D pointing ray (as in 2-D: the eye-fingertip line is the better cue)
+# The angular noise of a pointing ray as fusion gets it, in 2-D and 3-D alike: THE one definition (ground.py reads it).
+# People aim to within about 3 deg (Bangerter & Oppenheimer 2006, "Accuracy in detecting referents of pointing
+# gestures unaccompanied by language", Gesture 6(1)); the rest is the ray's estimate from landmarks (and depth),
+# whose error on real photos is larger still (docs/gesture.md). 8 deg is a standard deviation, not a cut-off.
+POINTING_NOISE_DEG = 8.0
 DEFAULT_RADIUS = 0.03  # m: an object's core radius when its extent is unknown
 DEPTH_SCALE = 0.05  # m: how much nearer an object must be for "the nearest" to prefer it clearly (about e^-1)
 # Distance from the ray's origin to the pointing fingertip (m), per method: an object within TOUCH of the ray's
@@ -30,6 +34,9 @@ FINGERTIP_REACH = {
     "index_finger": 0.1,
 }
 TOUCH = 0.1  # m beyond the object's radius, along and across the ray
+# Near the hand the tolerance does not shrink below this (m): where the fingertip and the eye are measured is itself
+# uncertain by centimetres, as for touch.
+NEAR_TOLERANCE_M = TOUCH
 
 
 @dataclass(frozen=True)
@@ -115,20 +122,26 @@ def radius(extent) -> float:
     return max(0.25 * math.hypot(extent[0], extent[1]), 0.01)
 
 
-def pointing_score(ray: Ray3, position, extent, sigma_deg: float = SIGMA_DEG) -> tuple[float, float]:
-    """(G, angle in degrees) of an object at `position` (m): the angle between the ray and the direction from the
-    ray's origin to the object, less the angle the object's core covers; 0 behind the origin."""
-    v = _sub(position, ray.origin)
-    dist = _norm(v)
+def tolerance(along: float, sigma_deg: float = POINTING_NOISE_DEG) -> float:
+    """How far (m) from the ray's line an object `along` m away may lie and still be "pointed at" by one standard
+    deviation: max(r0, d tan(N)), N = the pointing noise (at least POINTING_NOISE_DEG), r0 = NEAR_TOLERANCE_M.
+    Pointing is coarse far away: 1 m off the ray at 7 m is as good as 0.14 m off at 1 m."""
+    return max(NEAR_TOLERANCE_M, along * math.tan(math.radians(max(sigma_deg, POINTING_NOISE_DEG))))
+
+
+def pointing_score(ray: Ray3, position, extent, sigma_deg: float = POINTING_NOISE_DEG) -> tuple[float, float, float]:
+    """(G, angle in degrees, distance from the ray in m) of an object at `position` (m): its 3-D distance from the
+    ray's line, less its core radius, against the `tolerance` at its distance along the ray:
+    G = exp(-1/2 (off / tolerance)^2); 0 behind the origin."""
+    along, across = along_across(ray, position)
+    dist = _norm(_sub(position, ray.origin))
     if dist < 1e-6:
-        return 1.0, 0.0
-    cos = _dot(v, ray.direction) / dist
-    angle = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
-    if cos <= 0:
-        return 0.0, angle
-    covered = math.degrees(math.atan2(radius(extent), dist))
-    effective = max(0.0, angle - covered)
-    return math.exp(-0.5 * (effective / max(sigma_deg, SIGMA_DEG)) ** 2), angle
+        return 1.0, 0.0, 0.0
+    angle = math.degrees(math.acos(max(-1.0, min(1.0, along / dist))))
+    if along <= 0:
+        return 0.0, angle, across
+    off = max(0.0, across - radius(extent))
+    return math.exp(-0.5 * (off / tolerance(along, sigma_deg)) ** 2), angle, across
 
 
 def along_across(ray: Ray3, point) -> tuple[float, float]:
@@ -309,7 +322,12 @@ def holds(position, extent, point, margin: float = 0.05) -> bool:
 
 
 def there(
-    ray: Ray3, objects, cam: str, fallback_px: tuple[float, float], on_ray: float = 0.7, sigma_deg: float = SIGMA_DEG
+    ray: Ray3,
+    objects,
+    cam: str,
+    fallback_px: tuple[float, float],
+    on_ray: float = 0.7,
+    sigma_deg: float = POINTING_NOISE_DEG,
 ) -> Location:
     """ "There" when the ray met a surface: the object the ray points at (G >= `on_ray`, in metres) if the ray
     reaches it before the surface and the surface's spot is not on that object (a table holds the spot: the spot
@@ -318,7 +336,7 @@ def there(
     for o in objects:
         if o.position is None or not same_frame(ray, o.frame_id):
             continue
-        g, _ = pointing_score(ray, o.position, o.extent, sigma_deg)
+        g, _, _ = pointing_score(ray, o.position, o.extent, sigma_deg)
         if g >= best_g and before_hit(ray, o.position, o.extent) and not holds(o.position, o.extent, ray.hit):
             best, best_g = o, g
     if best is not None:

@@ -17,9 +17,10 @@ from services.fusion.evidence import (
     speech_reliability,
     vision_reliability,
 )
-from services.fusion.ground import Choice, SceneObject, choose, scene_objects, score
+from services.fusion.ground import Choice, SceneObject, Scored, choose, scene_objects, score
 from services.fusion.join import WAITED_MODALITIES, Ready, Streams
 from services.fusion.parse import ObjectPhrase, Utterance, word_key
+from services.fusion.people import competing, speakers_items
 
 
 @dataclass
@@ -52,6 +53,15 @@ class Context:
     how: Ready  # why the window was closed
     adaptive: bool  # --weights adaptive
     margin: float  # the lead a winner needs
+    competing: tuple[Pointing, ...] = ()  # speaker unknown, several people point: each one's (fusion/people.py)
+    # What the command may act on (services/fusion/afford.py): None = every object in view. `objects` stays the
+    # whole scene (a relation's anchor, the prompt's objects in view).
+    candidates: list[SceneObject] | None = None
+
+    @property
+    def pool(self) -> list[SceneObject]:
+        """The objects the command may act on."""
+        return self.objects if self.candidates is None else self.candidates
 
     def choose(
         self,
@@ -61,7 +71,17 @@ class Context:
         ref: float | None,
         check_evidence: bool = True,
     ) -> Choice:
-        """Score `objects` against the words (and `pointing`) with this window's weights, and decide."""
+        """Score `objects` against the words (and `pointing`) with this window's weights, and decide. With the
+        window's pointing and several people pointing (speaker unknown), each one's is grounded: when they pick
+        different objects, which one is a question (`ambiguous` between them)."""
+        if pointing is not None and pointing is self.pointing and self.competing:
+            picks: dict[tuple[str, str], Scored] = {}
+            for theirs in self.competing:
+                choice = self.choose(phrase, objects, theirs, ref, check_evidence)
+                if choice.kind == "target" and choice.winner is not None:
+                    picks.setdefault(choice.winner.obj.key, choice.winner)
+            if len(picks) > 1:
+                return Choice("ambiguous", None, tuple(picks.values()))
         scored = score(phrase, objects, pointing, self.weights, adaptive=self.adaptive, ref=ref, scene=self.objects)
         return choose(phrase, scored, margin=self.margin, check_evidence=check_evidence)
 
@@ -86,9 +106,11 @@ def gather(
     vision_lookback: float,
     margin: float,
     log: logging.Logger,
+    speaker_person: str | None = None,
 ) -> Context:
     """The window's evidence: per camera the detections nearest the reference time (looking back
-    `vision_lookback` before the window), the pointing nearest it, each modality's reliability and weight."""
+    `vision_lookback` before the window), the pointing nearest it, each modality's reliability and weight.
+    `speaker_person`: who said it (None = unknown): another person's hands are no evidence for it."""
     t, u = p.transcript, p.utterance
     ref = ref_time(t, u)
     detections = []
@@ -98,7 +120,7 @@ def gather(
     for key in sorted(by_key):
         detections.append(min(by_key[key], key=lambda d: (abs(d.stamp - ref), d.stamp)))
     obs = []
-    for _, item in streams.between("gesture", p.lo, p.hi):
+    for _, item in speakers_items(streams.between("gesture", p.lo, p.hi), speaker_person):
         obs.extend(pointing_from_hands(item) if isinstance(item, Hands) else pointing_from_event(item))
     pointing = select_pointing(obs, ref)
     rel = {
@@ -136,4 +158,5 @@ def gather(
         how,
         adaptive=weights_mode == "adaptive",
         margin=margin,
+        competing=competing(obs, ref) if speaker_person is None else (),
     )

@@ -5,13 +5,17 @@ from __future__ import annotations
 import argparse
 import collections
 import time
+from typing import cast
+
+import numpy as np
 
 from common.image import frame_handler
 from common.runner import Service, main_exit, service_parser
-from common.schema import Bodies, Body, Frame, GestureEvent, Hand, Hands, Ray
+from common.schema import Bodies, Body, Frame, GestureEvent, GestureName, Hand, Handedness, Hands, Ray
 from common.settings import add_option
 from common.stack import node
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
+from services.gesture.people_stage import CameraPeople, PeopleOfFrame, event_person, hand_person, other_arms
 from services.gesture.space import FrameRays
 from services.gesture.temporal import GestureTracker
 
@@ -49,6 +53,30 @@ def to_body(landmarks, arms, rays3d: FrameRays | None = None) -> Body:
         left_ray=rays.get("left"),
         right_ray=rays.get("right"),
     )
+
+
+def people_bodies(
+    frame: Frame, skeleton: np.ndarray | None, arms: list, rays3d: FrameRays | None, seen: PeopleOfFrame | None
+) -> list[Body]:
+    """The full-frame skeleton with the tracker's arms, plus (on the person stage's frames) every other person's."""
+    main = [] if skeleton is None else [to_body(skeleton, arms, rays3d)]
+    if seen is None:
+        return main
+    for body in main:
+        body.person = seen.main_person
+    others = (
+        [(p.id, p.body) for p in seen.persons if p.id != seen.main_person and p.body is not None] if seen.ran else []
+    )
+    for pid, b in others:  # their own arms, this frame's; no 3-D rays (FrameRays lifts the full-frame skeleton)
+        main.append(to_body(b, other_arms(b, frame.width, frame.height)))
+        main[-1].person = pid
+    return main
+
+
+def close_all(graphs: list[HandLandmarker | PoseLandmarker], people: CameraPeople) -> None:
+    for graph in graphs:
+        graph.close()
+    people.close()
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -97,6 +125,14 @@ def build_parser() -> argparse.ArgumentParser:
         "body ray: eyes -> fingertip (forearm when the eyes are out of view) or forearm (elbow -> fingertip)",
         choices=("eyes", "forearm"),
     )
+    add_option(
+        parser,
+        "--persons-every",
+        2,
+        "run the person stage (faces, a body per person, stable person ids: Persons) on every Nth frame; 0 = off",
+        at_least=0,
+        metavar="N",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -117,7 +153,8 @@ def main(argv: list[str] | None = None) -> None:
     trackers: dict[str, GestureTracker] = {}
     last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
     depths: dict[str, collections.deque] = {}  # cam -> the last DEPTH_KEPT DepthFrames
-    service.on_close(lambda: [lm.close() for lm in [*landmarkers.values(), *posers.values()]])
+    people = CameraPeople(args.persons_every)  # issue #33: Persons, a body per person, whose hand is whose
+    service.on_close(lambda: close_all([*landmarkers.values(), *posers.values()], people))
     if not service.connect():
         main_exit(0)
 
@@ -138,22 +175,27 @@ def main(argv: list[str] | None = None) -> None:
         observations = landmarkers[frame.cam].detect(img)
         skeleton = posers[frame.cam].detect(img) if args.body else None
         tracker = trackers[frame.cam]
-        tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height))
         rays3d = frame_rays(frame, skeleton, posers[frame.cam].world if args.body and skeleton is not None else None)
+        joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
+        tracked, events = tracker.update(frame.stamp, observations, skeleton, (frame.width, frame.height), joints3d)
         hand_rays3d = {
             o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
             for o, t in zip(observations, tracked)
             if rays3d is not None and t.ray is not None
         }
+        seen = people.update(frame, img, skeleton, observations, rays3d, fresh=frame.cam not in last_frame)
+        if seen is not None and seen.ran:  # the stage ran on this frame: its Persons
+            service.publish_output("persons", people.sample(frame, seen, service.source), cam=frame.cam)
         hands = [
             Hand(
-                hand=o.hand,
+                hand=cast(Handedness, o.hand),
                 score=round(o.score, 4),
                 landmarks=[[round(x, 2), round(y, 2)] for x, y in o.landmarks.tolist()],
-                gesture=t.gesture,
+                gesture=cast(GestureName | None, t.gesture),
                 ray=to_ray(t.ray, hand_rays3d.get(o.hand)),
+                person=hand_person(seen, k),
             )
-            for o, t in zip(observations, tracked)
+            for k, (o, t) in enumerate(zip(observations, tracked))
         ]
         service.publish_output(
             "hands",
@@ -178,11 +220,11 @@ def main(argv: list[str] | None = None) -> None:
                     cam=frame.cam,
                     width=frame.width,
                     height=frame.height,
-                    bodies=[] if skeleton is None else [to_body(skeleton, tracker.last_arms, rays3d)],
+                    bodies=people_bodies(frame, skeleton, tracker.last_arms, rays3d, seen),
                 ),
                 cam=frame.cam,
             )
-        publish_events(frame, events, rays3d, hand_rays3d)
+        publish_events(frame, events, rays3d, hand_rays3d, seen)
         if rays3d is not None and rays3d.error:
             service.counters.reject("bad_value", f"depth of {frame.cam} seq {frame.seq}: {rays3d.error}")
         # stamped after the work: a slow frame on a busy machine must not look like a camera gone quiet
@@ -197,13 +239,17 @@ def main(argv: list[str] | None = None) -> None:
             if frame.cam in depths:
                 service.counters.add("depth_unmatched")  # a camera with depth, but not of this capture (yet)
             return None
-        return FrameRays(depth, skeleton, world)  # decoded only if someone points
+        return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
     def on_depth(d) -> None:
         depths.setdefault(d.sample.cam, collections.deque(maxlen=DEPTH_KEPT)).append(d.sample)
 
     def publish_events(
-        frame: Frame, events: list, rays3d: FrameRays | None = None, hand_rays3d: dict | None = None
+        frame: Frame,
+        events: list,
+        rays3d: FrameRays | None = None,
+        hand_rays3d: dict | None = None,
+        seen: PeopleOfFrame | None = None,
     ) -> None:
         for ev in events:
             ray3d = None
@@ -224,6 +270,7 @@ def main(argv: list[str] | None = None) -> None:
                     score=ev.score,
                     hand=ev.hand,
                     ray=to_ray(ev.ray, ray3d),
+                    person=event_person(seen, ev.hand, ev.ray),
                 ),
                 lossless=True,
                 realtime=ev.gesture == "open_palm",

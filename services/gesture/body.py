@@ -11,6 +11,16 @@ eye, fingertip and target are on one line in 3-D, so their images are on one lin
 along the forearm (elbow → index fingertip). On the shared real pointing photos the eye line is the more accurate
 (docs/gesture.md, `python benchmarks/gesture.py --rays`).
 
+**With depth** (`joints3d`: the landmarks lifted to metres, `services/gesture/space.py` `lift_pose`) the same two
+angles are taken in 3-D: an arm aimed at the camera is short and crooked in the image but straight and away from
+the torso in 3-D. A segment whose lifted length is not an arm's (`UPPER_ARM_M`, `FOREARM_M`: a window that saw the
+wall behind the wrist) is not trusted: the image decides.
+
+**A hand held at the body is shown to nobody** (issue #31, `held_at_body`): hands at the chest or in the lap with
+the elbow folded (< `FOLDED_DEG`, judged in 3-D, or in the image when both arm segments are plainly long there:
+a foreshortened arm's image angle means nothing), and a wrist at a knee or on a thigh (seated, a hand on the
+knee, the lap, or hanging along the leg) are neither a point nor a grasp; a pointing arm is neither.
+
 Pose landmarks are the person's own left/right (11/13/15/19 left shoulder/elbow/wrist/index), not mirrored.
 """
 
@@ -28,12 +38,23 @@ MIDDLE_MCP = 9  # hand landmark
 MIN_VISIBILITY = 0.5
 EXTENDED_DEG = 150.0  # elbow at least this straight to start pointing...
 RELEASE_DEG = 135.0  # ...and to keep pointing
+# In 3-D the lifted points lie on the arm's front surface, a few cm off the joint centres: over a 25-30 cm segment
+# 2-3 cm bend a straight arm's measured elbow by 5-10 deg, so the 3-D thresholds are 10 deg lower.
+EXTENDED_3D_DEG, RELEASE_3D_DEG = 140.0, 125.0
 AWAY_DEG = 35.0  # arm (shoulder -> wrist) away from the torso line (shoulder -> hip) to start...
 RELEASE_AWAY_DEG = 25.0  # ...and to keep
 TORSO_PER_SHOULDERS = 1.4  # torso length / shoulder width, when the hips are out of frame
 FINGERS_UP_DEG = 60.0  # a raised palm: wrist -> middle knuckle within this of image-up
 RAISED_ABOVE_SHOULDER = 0.3  # a raised hand (no hand seen): wrist this many body scales above its shoulder...
 FOREARM_UP_DEG = 45.0  # ...and the forearm (elbow -> wrist) within this of image-up
+THIGHS = ((23, 25), (24, 26))  # pose landmarks (hip, knee) of each leg
+FOLDED_DEG = 110.0  # elbow angle below this: the hand is held at the body (every real point: >= 126 deg)
+PLAIN_SEGMENT = 0.5  # x body scale: an arm segment at least this long in the image is not foreshortened
+ON_KNEE = 0.6  # x shoulder width: a wrist this near a knee rests on it (seated: 0.43-0.45; points: >= 1.6)
+ON_THIGH = 0.35  # x shoulder width: a wrist this near the hip -> knee segment lies on the thigh or the lap
+ON_LEG_M = 0.12  # m: the same in 3-D (a hand is ~0.1 m thick, the lifted points are on the surfaces)
+UPPER_ARM_M = (0.12, 0.5)  # plausible lifted lengths, m (adults and children, with depth noise)
+FOREARM_M = (0.1, 0.45)
 
 
 @dataclass(frozen=True)
@@ -84,9 +105,16 @@ def eyes_in_view(p: np.ndarray, width: int, height: int) -> np.ndarray | None:
 
 
 def arm(
-    landmarks: np.ndarray | list, side: str, width: int, height: int, was_pointing: bool = False, ray_from: str = "eyes"
+    landmarks: np.ndarray | list,
+    side: str,
+    width: int,
+    height: int,
+    was_pointing: bool = False,
+    ray_from: str = "eyes",
+    joints3d: np.ndarray | None = None,
 ) -> Arm:
-    """One arm of a 33x3 [x px, y px, visibility] skeleton. `was_pointing`: the hysteresis state of this arm."""
+    """One arm of a 33x3 [x px, y px, visibility] skeleton. `was_pointing`: the hysteresis state of this arm.
+    `joints3d`: the same landmarks in metres (33x3, NaN where unknown): the angles are then judged in 3-D."""
     p = np.asarray(landmarks, dtype=float).reshape(33, 3)
     s, e, w, i, _ = ARMS[side]
     vis = float(min(p[s, 2], p[e, 2], p[w, 2]))
@@ -94,16 +122,116 @@ def arm(
     forearm = float(np.linalg.norm(p[w, :2] - p[e, :2]))
     if vis < MIN_VISIBILITY:
         return Arm(side, False, vis, None, None, wrist, forearm, None, None, 0.0)
-    elbow = _angle(p[s, :2], p[e, :2], p[w, :2])
-    shoulder, hip, _ = torso(p, side)
-    away = _angle(hip, shoulder, p[w, :2])
-    min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_DEG, AWAY_DEG)
-    pointing = elbow >= min_deg and away >= min_away
+    elbow, away, in3d = arm_angles(p, side, joints3d)
+    if in3d:
+        min_deg, min_away = (RELEASE_3D_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_3D_DEG, AWAY_DEG)
+    else:
+        min_deg, min_away = (RELEASE_DEG, RELEASE_AWAY_DEG) if was_pointing else (EXTENDED_DEG, AWAY_DEG)
+    pointing = elbow >= min_deg and away >= min_away and held_at_body(p, side, joints3d) is None
     ray, source = arm_ray(p, side, width, height, ray_from) if pointing else (None, None)
     pointing = pointing and ray is not None
-    extension = max(0.0, min(1.0, (elbow - RELEASE_DEG) / (180.0 - RELEASE_DEG)))
+    release = RELEASE_3D_DEG if in3d else RELEASE_DEG
+    extension = max(0.0, min(1.0, (elbow - release) / (180.0 - release)))
     confidence = round(vis * (0.5 + 0.5 * extension), 4) if pointing else 0.0
     return Arm(side, pointing, vis, elbow, away, wrist, forearm, ray, source if pointing else None, confidence)
+
+
+def arm3d(p: np.ndarray, side: str, joints3d: np.ndarray | None) -> np.ndarray | None:
+    """Shoulder, elbow, wrist (3x3, m) of one arm when all three were lifted and both segments have an arm's length."""
+    if joints3d is None:
+        return None
+    s, e, w, _, _ = ARMS[side]
+    j = np.asarray(joints3d, dtype=float).reshape(33, 3)[[s, e, w]]
+    if not np.isfinite(j).all():
+        return None
+    upper, fore = float(np.linalg.norm(j[1] - j[0])), float(np.linalg.norm(j[2] - j[1]))
+    if not (UPPER_ARM_M[0] <= upper <= UPPER_ARM_M[1] and FOREARM_M[0] <= fore <= FOREARM_M[1]):
+        return None  # a window saw the wall behind the wrist, or the chair under the elbow
+    return j
+
+
+def arm_angles(p: np.ndarray, side: str, joints3d: np.ndarray | None = None) -> tuple[float, float, bool]:
+    """(elbow angle, angle between shoulder -> wrist and shoulder -> hip, in 3-D?), degrees: in 3-D when the arm
+    and that side's hip were lifted, else in the image (the hip estimated below the shoulder when out of sight)."""
+    s, e, w, _, hip = ARMS[side]
+    j = arm3d(p, side, joints3d)
+    if j is not None:
+        hip3 = np.asarray(joints3d, dtype=float).reshape(33, 3)[hip]
+        if p[hip, 2] >= MIN_VISIBILITY and np.isfinite(hip3).all():
+            return _angle(j[0], j[1], j[2]), _angle(hip3, j[0], j[2]), True
+    shoulder, hip2, _ = torso(p, side)
+    return _angle(p[s, :2], p[e, :2], p[w, :2]), _angle(hip2, shoulder, p[w, :2]), False
+
+
+def body_scale(p: np.ndarray) -> float:
+    """The person's size in px: the shoulder width, or the torso length / 1.4 when that is larger (a person turned
+    sideways has narrow shoulders in the image, not a short torso)."""
+    shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2]))
+    torsos = [
+        float(np.linalg.norm(p[hip, :2] - p[s, :2]))
+        for s, hip in ((11, 23), (12, 24))
+        if min(p[s, 2], p[hip, 2]) >= MIN_VISIBILITY
+    ]
+    return max([shoulders, *(t / TORSO_PER_SHOULDERS for t in torsos)]) or 1.0
+
+
+def folded(p: np.ndarray, side: str, joints3d: np.ndarray | None = None) -> bool:
+    """Is the elbow bent more than `FOLDED_DEG` (hands at the chest, in the lap with bent arms)? In 3-D when the arm
+    was lifted; else in the image only when both segments are plainly long there (`PLAIN_SEGMENT` x the body's
+    size): a foreshortened arm's image angle says nothing about its real one."""
+    s, e, w, _, _ = ARMS[side]
+    j = arm3d(p, side, joints3d)
+    if j is not None:
+        return _angle(j[0], j[1], j[2]) < FOLDED_DEG
+    plain = PLAIN_SEGMENT * body_scale(p)
+    segments = (float(np.linalg.norm(p[e, :2] - p[s, :2])), float(np.linalg.norm(p[w, :2] - p[e, :2])))
+    return min(segments) >= plain and _angle(p[s, :2], p[e, :2], p[w, :2]) < FOLDED_DEG
+
+
+def _segment_distance(x: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    t = float(np.clip((x - a) @ ab / (float(ab @ ab) or 1.0), 0.0, 1.0))
+    return float(np.linalg.norm(x - (a + t * ab)))
+
+
+def on_leg(p: np.ndarray, side: str, joints3d: np.ndarray | None = None) -> bool:
+    """Does this wrist rest at a knee or on a thigh (either leg: a hand may lie on the other knee)? In 3-D (within
+    `ON_LEG_M`) when the wrist and the leg were lifted, else in the image (`ON_KNEE`, `ON_THIGH` shoulder widths)."""
+    w = ARMS[side][2]
+    j = None if joints3d is None else np.asarray(joints3d, dtype=float).reshape(33, 3)
+    shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2])) or 1.0
+    for hip, knee in THIGHS:
+        if min(p[hip, 2], p[knee, 2]) < MIN_VISIBILITY:
+            continue
+        if j is not None and np.isfinite(j[[w, hip, knee]]).all():
+            if _segment_distance(j[w], j[hip], j[knee]) <= ON_LEG_M:
+                return True
+            continue
+        if float(np.linalg.norm(p[w, :2] - p[knee, :2])) <= ON_KNEE * shoulders:
+            return True
+        if _segment_distance(p[w, :2], p[hip, :2], p[knee, :2]) <= ON_THIGH * shoulders:
+            return True
+    return False
+
+
+def held_at_body(landmarks: np.ndarray | list, side: str, joints3d: np.ndarray | None = None) -> str | None:
+    """Why this arm's hand is held at the body rather than shown, or None: "folded" (the elbow bent: hands at the
+    chest or in the lap), "on_leg" (the wrist at a knee or on a thigh). Needs the shoulder, elbow and wrist seen."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    s, e, w, _, _ = ARMS[side]
+    if min(p[s, 2], p[e, 2], p[w, 2]) < MIN_VISIBILITY:
+        return None
+    if folded(p, side, joints3d):
+        return "folded"
+    return "on_leg" if on_leg(p, side, joints3d) else None
+
+
+def lowered(landmarks: np.ndarray | list, side: str, wrist: np.ndarray | tuple) -> bool:
+    """Is this wrist (px) below the middle of the torso (halfway between shoulder and hip)? A shown hand (a raised
+    palm, a fist held up as a grasp sign) is above it; a hand on a hip, a leg, an armrest or hanging is below."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    shoulder, hip, _ = torso(p, side)
+    return bool(wrist[1] >= (shoulder[1] + hip[1]) / 2)
 
 
 def arm_ray(
@@ -128,13 +256,11 @@ def raised_palm(landmarks: np.ndarray | list, side: str, hand: np.ndarray | list
     the torso and the fingers up (wrist -> middle knuckle within 60° of image-up)."""
     p = np.asarray(landmarks, dtype=float).reshape(33, 3)
     q = np.asarray(hand, dtype=float).reshape(21, 2)
-    shoulder, hip, _ = torso(p, side)
-    mid_y = (shoulder[1] + hip[1]) / 2
     up = _unit(q[MIDDLE_MCP] - q[0])
     if up is None:
         return False
     fingers_up = math.degrees(math.acos(max(-1.0, min(1.0, -up[1])))) <= FINGERS_UP_DEG
-    return bool(q[0, 1] < mid_y and fingers_up)
+    return bool(not lowered(p, side, q[0]) and fingers_up)
 
 
 def arm_judged(landmarks: np.ndarray | list, side: str) -> bool:

@@ -103,3 +103,48 @@ class PoseLandmarker:
 
     def close(self) -> None:
         self._pose.close()
+
+
+class FaceDetector:
+    """MediaPipe face detection (the full-range model in the wheel): face boxes of every person in a frame."""
+
+    def __init__(self, min_detection: float = 0.5):
+        try:
+            from mediapipe.python.solutions import face_detection as mp_face
+        except ImportError as exc:
+            raise LandmarkError(f"mediapipe cannot be imported ({exc}); run `make setup`") from None
+        self._faces = mp_face.FaceDetection(model_selection=1, min_detection_confidence=min_detection)
+
+    def detect(self, bgr: np.ndarray) -> list[tuple[tuple[float, float, float, float], float]]:
+        """[((x, y, w, h) px, score)], left to right."""
+        h, w = bgr.shape[:2]
+        result = self._faces.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        out = []
+        for d in result.detections or []:
+            b = d.location_data.relative_bounding_box
+            out.append(((b.xmin * w, b.ymin * h, b.width * w, b.height * h), float(d.score[0])))
+        return sorted(out, key=lambda f: f[0][0])
+
+    def close(self) -> None:
+        self._faces.close()
+
+
+class RegionPose:
+    """MediaPipe Pose on one region of a frame at a time (each person's region: services/gesture/persons.py).
+    Single images, no tracking between calls: the regions of different people take turns on one graph."""
+
+    def __init__(self, min_detection: float = 0.5):
+        self._pose = PoseLandmarker(video=False, min_detection=min_detection)
+
+    def detect(self, bgr: np.ndarray, region: tuple[int, int, int, int]) -> np.ndarray | None:
+        """33x3 [x px, y px, visibility] in the frame's pixels, or None; `region` = (x0, y0, x1, y1) px."""
+        x0, y0, x1, y1 = region
+        found = self._pose.detect(np.ascontiguousarray(bgr[y0:y1, x0:x1]))
+        if found is None:
+            return None
+        found[:, 0] += x0
+        found[:, 1] += y0
+        return found
+
+    def close(self) -> None:
+        self._pose.close()

@@ -14,6 +14,10 @@ The 3-D ray, best method first (`Ray3D.method`; docs/gesture.md):
 - `index_finger`: the hand alone (no body stage): index knuckle -> fingertip.
 A lifted segment must have an arm's length (`SEGMENTS`): a fingertip whose window sees the wall behind it gives a
 segment metres long, and the next method is tried instead.
+
+`lift_pose` lifts the whole skeleton (NaN where there is no depth) for the arm rules of body.py, which judge an arm
+in 3-D when it has depth. `surface_meeting` gives the ray's meeting point with the floor or table even when it lies
+outside the image (`Meeting.in_view` false): the up-facing plane seen in the image, extended.
 """
 
 from __future__ import annotations
@@ -53,6 +57,11 @@ MIN_PLANE_POINTS = 150
 MAX_PLANES = 3  # the first supported plane along the ray among the largest few (a box top before the table)
 SUPPORT_RADIUS = 0.06  # m: a hit needs plane points this close to it (the plane is seen there)
 MIN_SUPPORT = 5
+# Out of view: a floor or table top faces up: its normal within this of "up", which is the seen person's torso axis
+# (hips -> shoulders, lifted) or else the camera's -y (an upright camera pitched less than ~60 deg); a wall's normal
+# is ~90 deg from up.
+UP_FACING_DEG = 60.0
+CAMERA_UP = np.array([0.0, -1.0, 0.0])
 
 
 def inlier_tolerance(z: np.ndarray) -> np.ndarray:
@@ -204,6 +213,19 @@ def torso_point(view: DepthView, pose: np.ndarray) -> np.ndarray | None:
     return view.back_project(float(centre[0]), float(centre[1]), float(np.median(valid)))
 
 
+def lift_pose(view: DepthView, pose: np.ndarray) -> np.ndarray:
+    """The 33 pose landmarks in metres (33x3), each at the median depth of its window; NaN where the landmark is
+    not visible, outside the image or without depth. The points are on the body's surface (its front)."""
+    p = np.asarray(pose, dtype=float).reshape(33, 3)
+    out = np.full((33, 3), np.nan)
+    for k in range(33):
+        if p[k, 2] >= MIN_VISIBILITY:
+            lifted = view.lift(float(p[k, 0]), float(p[k, 1]))
+            if lifted is not None:
+                out[k] = lifted
+    return out
+
+
 def world_ray3d(view: DepthView, pose: np.ndarray, side: str, world: np.ndarray) -> Lifted | None:
     """MediaPipe's world skeleton (metres, origin between the hips, axes along the camera's) moved so that its
     torso centre sits at the torso's measured position; eyes -> index when those are visible, else shoulder ->
@@ -281,41 +303,116 @@ def fit_plane(points: np.ndarray, iterations: int = RANSAC_ITERATIONS, seed: int
     return Plane(normal, offset, points[best])
 
 
+@dataclass(frozen=True)
+class Meeting:
+    """Where a ray meets the surface it points at."""
+
+    point: np.ndarray
+    in_view: bool  # False: outside the image (or behind the camera): the plane seen in the image, extended
+
+
 def surface_hit(view: DepthView, ray: Lifted, cloud: np.ndarray | None = None) -> np.ndarray | None:
-    """Where `ray` meets the surface it points at: planes are fitted (largest first, up to `MAX_PLANES`) to the
+    """The ray's meeting point with the surface it points at, where that surface is seen (`surface_meeting`, in
+    view only); None otherwise."""
+    meeting = surface_meeting(view, ray, cloud)
+    return meeting.point if meeting is not None and meeting.in_view else None
+
+
+def surface_meeting(
+    view: DepthView, ray: Lifted, cloud: np.ndarray | None = None, up: np.ndarray | None = None
+) -> Meeting | None:
+    """Where `ray` meets the surface it points at. Planes are fitted (largest first, up to `MAX_PLANES`) to the
     depth points in a cone around the ray beyond the hand, and the first one along the ray that is seen where the
-    ray meets it wins. None when the ray meets no plane in view (it points at the sky, or depth is missing)."""
+    ray meets it wins (in view). When none is, the ray may leave the image: its meeting, outside the image, with
+    the largest up-facing plane (`up_facing`: the floor or the table; `up` default the camera's -y) of the frame or,
+    failing that, of the cone (out of view). A small box top is not extended beyond the image. None when the ray
+    meets nothing (the sky, or no depth)."""
     pts = view.cloud() if cloud is None else cloud
     rel = pts - ray.origin
     along = rel @ ray.direction
     across = np.linalg.norm(rel - np.outer(along, ray.direction), axis=1)
     beyond = ray.reach + 0.05  # not the pointing arm itself
     near = (along > beyond) & (across <= CONE_BASE + along * math.tan(math.radians(CONE_DEG)))
-    remaining = pts[near]
-    hits = []
-    for k in range(MAX_PLANES):
+    planes = fit_planes(pts[near])
+    seen = [(t, hit) for t, hit, plane in _meetings(ray, planes, beyond) if _supported(plane, hit)]
+    if seen:
+        return Meeting(min(seen, key=lambda h: h[0])[1], True)
+    facing = CAMERA_UP if up is None else up
+    for candidates in (fit_planes(pts), planes):  # the frame's planes (best for extending far), else the cone's
+        largest = max((p for p in candidates if up_facing(p, facing)), key=lambda p: len(p.inliers), default=None)
+        outside = [
+            hit for _, hit, _ in _meetings(ray, [largest] if largest else [], beyond) if not _in_image(view, hit)
+        ]
+        if outside:
+            return Meeting(outside[0], False)
+    return None
+
+
+def fit_planes(points: np.ndarray, count: int = MAX_PLANES) -> list[Plane]:
+    """Up to `count` planes, largest first, each fitted to the points the previous ones left."""
+    planes: list[Plane] = []
+    remaining = points
+    for k in range(count):
         plane = fit_plane(remaining, seed=k)
         if plane is None:
             break
+        planes.append(plane)
+        remaining = remaining[plane.distance(remaining) > inlier_tolerance(remaining[:, 2])]
+    return planes
+
+
+def _meetings(ray: Lifted, planes: list[Plane], beyond: float) -> list[tuple[float, np.ndarray, Plane]]:
+    """(distance along the ray, point, plane) where the ray meets each plane beyond the hand."""
+    out = []
+    for plane in planes:
         denom = float(plane.normal @ ray.direction)
         if abs(denom) > 1e-3:
             t = -(float(plane.normal @ ray.origin) + plane.offset) / denom
-            hit = ray.origin + t * ray.direction
-            if t > beyond and int((np.linalg.norm(plane.inliers - hit, axis=1) <= SUPPORT_RADIUS).sum()) >= MIN_SUPPORT:
-                hits.append((t, hit))
-        remaining = remaining[plane.distance(remaining) > inlier_tolerance(remaining[:, 2])]
-    return min(hits, key=lambda h: h[0])[1] if hits else None
+            if t > beyond:
+                out.append((t, ray.origin + t * ray.direction, plane))
+    return out
 
 
-def to_wire(ray: Lifted, frame_id: str, hit: np.ndarray | None) -> Ray3D:
+def _supported(plane: Plane, hit: np.ndarray) -> bool:
+    return int((np.linalg.norm(plane.inliers - hit, axis=1) <= SUPPORT_RADIUS).sum()) >= MIN_SUPPORT
+
+
+def up_facing(plane: Plane, up: np.ndarray = CAMERA_UP) -> bool:
+    """A floor or a table top: the plane's normal (either sign) within `UP_FACING_DEG` of `up` (unit)."""
+    return abs(float(plane.normal @ up)) >= math.cos(math.radians(UP_FACING_DEG))
+
+
+def body_up(joints3d: np.ndarray | None) -> np.ndarray | None:
+    """The person's up in the camera frame: mid-hips -> mid-shoulders of a lifted skeleton (upright, standing or
+    seated), or None when those four have no depth."""
+    if joints3d is None:
+        return None
+    j = np.asarray(joints3d, dtype=float).reshape(33, 3)
+    if not np.isfinite(j[list(TORSO)]).all():
+        return None
+    axis = j[[11, 12]].mean(axis=0) - j[[23, 24]].mean(axis=0)
+    norm = float(np.linalg.norm(axis))
+    return axis / norm if norm > 0.2 else None  # shorter than a torso: the depth saw something else
+
+
+def _in_image(view: DepthView, p: np.ndarray) -> bool:
+    if p[2] <= 1e-6:
+        return False  # behind the camera
+    u, v = view.project(p)
+    return 0 <= u < view.width and 0 <= v < view.height
+
+
+def to_wire(ray: Lifted, frame_id: str, hit: Meeting | np.ndarray | None) -> Ray3D:
     direction = [float(c) for c in ray.direction]
     norm = math.sqrt(sum(c * c for c in direction))
+    meeting = Meeting(hit, True) if isinstance(hit, np.ndarray) else hit
     return Ray3D(
         origin=[round(float(c), 4) for c in ray.origin],
         direction=[c / norm for c in direction],
         method=ray.method,
         frame_id=frame_id,
-        hit=None if hit is None else [round(float(c), 4) for c in hit],
+        hit=None if meeting is None else [round(float(c), 4) for c in meeting.point],
+        hit_in_view=None if meeting is None else meeting.in_view,
     )
 
 
@@ -337,7 +434,7 @@ def side_of_hand(pose: np.ndarray | None, hand: np.ndarray) -> str | None:
 
 class FrameRays:
     """The 3-D rays of one frame, computed on demand and once each: the shell asks for the hands' and arms' rays.
-    A DepthFrame is decoded only when a ray is asked for (most frames have nobody pointing); a frame that cannot be
+    A DepthFrame is decoded only when a ray or the lifted joints are asked for (a body is seen); a frame that cannot be
     decoded gives no rays and leaves its reason in `error`."""
 
     def __init__(self, depth: DepthView | DepthFrame, pose: np.ndarray | None, world: np.ndarray | None):
@@ -347,6 +444,14 @@ class FrameRays:
         self.error: str | None = None
         self._cloud: np.ndarray | None = None
         self._done: dict = {}
+
+    def joints(self) -> np.ndarray | None:
+        """The skeleton lifted to metres (`lift_pose`; NaN where no depth), for judging arms in 3-D; None without a
+        skeleton or a decodable depth."""
+        if "joints" not in self._done:
+            view = self.view
+            self._done["joints"] = None if view is None or self.pose is None else lift_pose(view, self.pose)
+        return self._done["joints"]
 
     @property
     def view(self) -> DepthView | None:
@@ -366,7 +471,8 @@ class FrameRays:
             else:
                 if self._cloud is None:
                     self._cloud = view.cloud()
-                self._done[key] = to_wire(ray, view.frame_id, surface_hit(view, ray, self._cloud))
+                up = body_up(self.joints())
+                self._done[key] = to_wire(ray, view.frame_id, surface_meeting(view, ray, self._cloud, up))
         return self._done[key]
 
     def arm(self, side: str, hand: np.ndarray | None = None) -> Ray3D | None:

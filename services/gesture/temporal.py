@@ -25,11 +25,23 @@ from typing import cast
 
 import numpy as np
 
-from services.gesture.body import MIN_VISIBILITY, TORSO_PER_SHOULDERS, Arm, arm, arm_judged, raised_hand, raised_palm
+from services.gesture.body import (
+    MIN_VISIBILITY,
+    Arm,
+    arm,
+    arm_judged,
+    body_scale as _body_scale,
+    held_at_body,
+    lowered,
+    raised_hand,
+    raised_palm,
+)
 from services.gesture.rules import classify, finger_states, palm_size, pointing_ray
 
 HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
 CLOSE_UP_PALM_PER_BODY = 0.75  # palm / body_scale at least this: a close-up hand, the skeleton is no reference
+TOGETHER_PALMS = 1.5  # two wrists this near (x the larger palm) are hands held together: clasped, holding a thing
+SAME_HAND_PALMS = 0.25  # mean landmark distance below this (x palm): one hand found twice, not two hands
 
 
 @dataclass
@@ -68,14 +80,7 @@ class Cue:
 def body_scale(body: np.ndarray) -> float:
     """The person's size in px for comparing a hand with: the shoulder width, or the torso length / 1.4 when
     that is larger (a person turned sideways has narrow shoulders in the image, not a short torso)."""
-    p = np.asarray(body, dtype=float).reshape(33, 3)
-    shoulders = float(np.linalg.norm(p[11, :2] - p[12, :2]))
-    torsos = [
-        float(np.linalg.norm(p[hip, :2] - p[s, :2]))
-        for s, hip in ((11, 23), (12, 24))
-        if min(p[s, 2], p[hip, 2]) >= MIN_VISIBILITY
-    ]
-    return max([shoulders, *(t / TORSO_PER_SHOULDERS for t in torsos)]) or 1.0
+    return _body_scale(np.asarray(body, dtype=float).reshape(33, 3))
 
 
 def close_up(palm: float, body: np.ndarray | None) -> bool:
@@ -101,11 +106,38 @@ def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float 
     return "extended" not in finger_states(landmarks)[1:]
 
 
+def hands_together(observations: list[Observation], palms: list[float]) -> set[int]:
+    """Indices of hands held together with another (wrists within `TOGETHER_PALMS` palm sizes: clasped at the chest
+    or in the lap, holding one thing): neither a point nor a grasp. One hand found twice is not two hands."""
+    out = set()
+    for a in range(len(observations)):
+        for b in range(a + 1, len(observations)):
+            palm = max(palms[a], palms[b], 1.0)
+            la, lb = observations[a].landmarks, observations[b].landmarks
+            if float(np.mean(np.linalg.norm(la - lb, axis=1))) < SAME_HAND_PALMS * palm:
+                continue
+            if float(np.linalg.norm(la[0] - lb[0])) <= TOGETHER_PALMS * palm:
+                out |= {a, b}
+    return out
+
+
+def shown(raw: str | None, body: np.ndarray | None, side: str, wrist: np.ndarray, joints3d: np.ndarray | None) -> bool:
+    """Is this point or fist shown to someone, not a hand held at the body? A point needs an arm that is neither
+    folded nor resting on a leg (`held_at_body`); a grasp sign (fist) also a hand held up, above the middle of the
+    torso, like a stop. Other classes, or a body that cannot judge the arm, are not questioned here."""
+    if raw not in ("point", "fist") or body is None or not arm_judged(body, side):
+        return True
+    if held_at_body(body, side, joints3d) is not None:
+        return False
+    return raw == "point" or not lowered(body, side, wrist)
+
+
 def fuse_arms(
     observations: list[Observation],
     arms: list[Arm],
     body: np.ndarray | None,
     hand_ray_min_palm: float = HAND_RAY_MIN_PALM,
+    joints3d: np.ndarray | None = None,
 ) -> list[Cue]:
     """Hands and arms of one frame -> cues. A hand whose wrist is at the arm's wrist is that arm's hand. Its class
     decides (a fist on an extended arm is not pointing; an open palm never becomes a point); the arm adds only
@@ -115,76 +147,85 @@ def fuse_arms(
     is not seen at all and that is raised above the shoulder, forearm up (`raised_hand`), is a stop: safety first,
     at room distance the hand itself is a few pixels. A close-up hand in view also turns pose-only cues off
     (MediaPipe Pose then often guesses a skeleton around the hand). The more reliable ray wins: the finger's when
-    the palm is at least `hand_ray_min_palm` px, else the arm's."""
+    the palm is at least `hand_ray_min_palm` px, else the arm's. Hands held at the body (issue #31: together,
+    folded at the chest, on a knee, a fist hanging or on an armrest) are neither a point nor a grasp (`shown`)."""
     free = [a for a in arms if a.visibility >= MIN_VISIBILITY]  # an arm pose cannot see has no wrist to match
     palms = [palm_size(obs.landmarks) for obs in observations]
-    any_close_up = any(close_up(palm, body) for palm in palms)
+    together = hands_together(observations, palms)
     cues = []
     for k, obs in enumerate(observations):
-        palm = palms[k]
-        raw = hand_class = classify(obs.landmarks)
-        near = [
-            a
-            for a in free
-            if float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))) <= max(1.5 * palm, 0.5 * a.forearm)
-        ]
-        match = min(near, key=lambda a: float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0]))), default=None)
-        if match is None or close_up(palm, body):
-            if match is not None:
-                free.remove(match)  # its hand is in view: no second, pose-only cue for the same arm
-            ray = pointing_ray(obs.landmarks) if raw == "point" else None
-            side = obs.hand if match is None else match.side
-            cues.append(Cue(side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, "hand", observation=k))
-            continue
-        free.remove(match)
-        if raw == "open_palm":
-            # (an arm is judged only on a body: `body is not None` is said for the type checker)
-            if body is not None and arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
-                raw = None  # resting on a hip, a leg or a table; never a point
-        elif raw is None and match.pointing and body_may_point(obs.landmarks, palm, hand_ray_min_palm):
-            raw = "point"
-        ray, source, conf = None, "hand", 1.0
-        if raw == "point":
-            if hand_class == "point" and (palm >= hand_ray_min_palm or match.ray is None):
-                ray = pointing_ray(obs.landmarks)
-            else:
-                ray, source, conf = match.ray, "body", match.confidence
-        cues.append(Cue(match.side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, source, conf, k, match))
+        near = [a for a in free if _wrist_gap(a, obs) <= max(1.5 * palms[k], 0.5 * a.forearm)]
+        match = min(near, key=lambda a: _wrist_gap(a, obs), default=None)
+        if match is not None:
+            free.remove(match)  # its hand is in view: no second, pose-only cue for the same arm
+        hand = _HandSeen(k, obs, palms[k], k in together)
+        if match is None or close_up(palms[k], body):
+            cues.append(_lone_hand_cue(hand, match))
+        else:
+            cues.append(_arm_hand_cue(hand, match, body, hand_ray_min_palm, joints3d))
+    if not any(close_up(palm, body) for palm in palms):
+        cues += _arm_only_cues(free, body)
+    return cues
+
+
+@dataclass(frozen=True)
+class _HandSeen:
+    index: int  # of the observation
+    obs: Observation
+    palm: float
+    together: bool  # held together with another hand
+
+
+def _wrist_gap(a: Arm, obs: Observation) -> float:
+    return float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0])))
+
+
+def _lone_hand_cue(hand: _HandSeen, match: Arm | None) -> Cue:
+    """A hand with no arm, or a close-up one (the skeleton is no reference): the hand stage decides alone."""
+    raw = classify(hand.obs.landmarks)
+    if hand.together and raw in ("point", "fist"):
+        raw = None
+    ray = pointing_ray(hand.obs.landmarks) if raw == "point" else None
+    side = hand.obs.hand if match is None else match.side
+    return Cue(side, hand.obs.score, hand.obs.landmarks[0].copy(), hand.palm, raw, ray, "hand", observation=hand.index)
+
+
+def _arm_hand_cue(
+    hand: _HandSeen, match: Arm, body: np.ndarray | None, hand_ray_min_palm: float, joints3d: np.ndarray | None
+) -> Cue:
+    """A hand on its arm: the hand's class decides; the arm makes a point of a hand it cannot read, tells a raised
+    palm from a resting one, and tells a hand shown from one held at the body."""
+    obs, palm = hand.obs, hand.palm
+    raw = hand_class = classify(obs.landmarks)
+    if (hand.together and raw in ("point", "fist")) or not shown(raw, body, match.side, obs.landmarks[0], joints3d):
+        raw = hand_class = None  # held at the body; and then no arm makes it a point either
+    elif raw == "open_palm":
+        # (an arm is judged only on a body: `body is not None` is said for the type checker)
+        if body is not None and arm_judged(body, match.side) and not raised_palm(body, match.side, obs.landmarks):
+            raw = None  # resting on a hip, a leg or a table; never a point
+    elif raw is None and match.pointing and body_may_point(obs.landmarks, palm, hand_ray_min_palm):
+        raw = "point"
+    ray, source, conf = None, "hand", 1.0
+    if raw == "point":
+        if hand_class == "point" and (palm >= hand_ray_min_palm or match.ray is None):
+            ray = pointing_ray(obs.landmarks)
+        else:
+            ray, source, conf = match.ray, "body", match.confidence
+    return Cue(match.side, obs.score, obs.landmarks[0].copy(), palm, raw, ray, source, conf, hand.index, match)
+
+
+def _arm_only_cues(free: list[Arm], body: np.ndarray | None) -> list[Cue]:
+    """Arms whose hand is not seen: a pointing arm points; a hand raised at room distance, too small to be seen,
+    is a stop."""
+    cues = []
     for a in free:
-        if any_close_up:
-            continue
+        size = max(0.5 * a.forearm, 1.0)
         if a.pointing:
             cues.append(
-                Cue(
-                    a.side,
-                    a.visibility,
-                    np.array(a.wrist),
-                    max(0.5 * a.forearm, 1.0),
-                    "point",
-                    a.ray,
-                    "body",
-                    a.confidence,
-                    None,
-                    a,
-                )
+                Cue(a.side, a.visibility, np.array(a.wrist), size, "point", a.ray, "body", a.confidence, None, a)
             )
-        elif body is not None and raised_hand(
-            body, a.side, body_scale(body)
-        ):  # a hand raised at room distance, too small to be seen
-            cues.append(
-                Cue(
-                    a.side,
-                    a.visibility,
-                    np.array(a.wrist),
-                    max(0.5 * a.forearm, 1.0),
-                    "open_palm",
-                    None,
-                    "body",
-                    1.0,
-                    None,
-                    a,
-                )
-            )
+        elif body is not None and raised_hand(body, a.side, body_scale(body)):
+            cues.append(Cue(a.side, a.visibility, np.array(a.wrist), size, "open_palm", None, "body", 1.0, None, a))
     return cues
 
 
@@ -254,11 +295,14 @@ class GestureTracker:
         observations: list[Observation],
         body: np.ndarray | None = None,
         size: tuple[int, int] = (0, 0),
+        joints3d: np.ndarray | None = None,
     ) -> tuple[list[TrackedHand], list[Event]]:
         """One frame: the hands seen and, if the body stage runs, the person's 33x3 pose landmarks (None: no
-        body seen) in an image of `size` (width, height). Hand and arm of one side become one cue (fuse_arms)."""
-        arms = self._judge_arms(body, size)
-        cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm)
+        body seen) in an image of `size` (width, height); `joints3d`, with depth, the same landmarks in metres
+        (33x3, NaN where unknown: space.lift_pose), so that arms are judged in 3-D. Hand and arm of one side
+        become one cue (fuse_arms)."""
+        arms = self._judge_arms(body, size, joints3d)
+        cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm, joints3d)
         self.last_arms = [(a, None) for a in arms]
         events: list[Event] = []
         assigned = self._associate(cues)
@@ -292,12 +336,14 @@ class GestureTracker:
         self.tracks = [t for t in self.tracks if stamp - t.last_seen <= self.forget_after or t.active]
         return cast("list[TrackedHand]", tracked), events  # every observation made a cue (fuse_arms): no None
 
-    def _judge_arms(self, body: np.ndarray | None, size: tuple[int, int]) -> list[Arm]:
+    def _judge_arms(
+        self, body: np.ndarray | None, size: tuple[int, int], joints3d: np.ndarray | None = None
+    ) -> list[Arm]:
         if body is None:
             self._arm_pointing = {}
             return []
         arms = [
-            arm(body, side, size[0], size[1], self._arm_pointing.get(side, False), self.ray_from)
+            arm(body, side, size[0], size[1], self._arm_pointing.get(side, False), self.ray_from, joints3d)
             for side in ("left", "right")
         ]
         self._arm_pointing = {a.side: a.pointing for a in arms}

@@ -4,7 +4,7 @@
 
 const COLOURS = {
   box: "rgb(0,220,80)", target: "rgb(255,0,255)", candidate: "rgb(255,165,0)",
-  hand: "rgb(0,255,255)", ray: "rgb(255,255,0)",
+  hand: "rgb(0,255,255)", ray: "rgb(255,255,0)", person: "rgb(60,160,255)", speaker: "rgb(255,60,60)",
 };
 const HAND_CONNECTIONS = [[0, 1], [1, 2], [2, 3], [3, 4], [0, 5], [5, 6], [6, 7], [7, 8], [5, 9], [9, 10],
   [10, 11], [11, 12], [9, 13], [13, 14], [14, 15], [15, 16], [13, 17], [17, 18], [18, 19], [19, 20], [0, 17]];
@@ -87,6 +87,23 @@ function drawHands(ctx, layers) {
 
 // Body skeletons and arm rays come here once the gesture service publishes them (a new layer).
 
+function drawPersons(ctx, layers) {
+  // each person's box and id; the speaker's thicker, in red, labelled as speaking (same as draw.py)
+  for (const p of layers.persons || []) {
+    const colour = p.speaker ? COLOURS.speaker : COLOURS.person;
+    drawBox(ctx, p.bbox, colour, p.speaker ? 3 : 1);
+    const hands = (p.hands || []).join(",");
+    drawLabel(ctx, `${p.id}${p.speaker ? " speaking" : ""}${hands ? ` hands ${hands}` : ""}${objectPosition(p)}`,
+      p.bbox[0], p.bbox[1] + 18, colour);
+  }
+}
+
+function speakerText(s) {
+  // who said it, as fusion attributed it (issue #33): "by person-2 (mouth_motion 0.87)" / "speaker unknown"
+  if (!s) return "";
+  return s.person ? ` · by ${s.person} (${s.method} ${num(s.confidence)})` : " · speaker unknown";
+}
+
 function drawDecision(ctx, layers) {
   for (const c of layers.candidates || []) {
     drawBox(ctx, c.bbox, COLOURS.candidate, 3, [8, 4]);
@@ -108,7 +125,7 @@ function drawDecision(ctx, layers) {
   }
 }
 
-const LAYERS = [drawObjects, drawHands, drawDecision];
+const LAYERS = [drawPersons, drawObjects, drawHands, drawDecision];
 const DEPTH_ALPHA = 0.6;
 
 function drawCamera(name) {
@@ -243,7 +260,7 @@ function entryNode(e) {
     const what = t ? ` → ${objectName(t)} ${t.id}${objectPosition(t)}`
       : (e.place ? ` → ${e.place}${objectPosition(loc)}` : "");
     const summary = el("summary", {}, time, el("span", { class: "kind" }, "command"),
-      `${e.intent}${what} `, el("small", {}, `confidence ${num(e.confidence)}`));
+      `${e.intent}${what} `, el("small", {}, `confidence ${num(e.confidence)}${speakerText(e.speaker)}`));
     const missing = Object.entries(e.inputs || {}).filter(([, s]) => s === null).map(([m]) => m);
     li.append(el("details", {}, summary,
       el("p", { class: "explanation" }, e.explanation),
@@ -255,7 +272,7 @@ function entryNode(e) {
   } else if (e.kind === "clarification") {
     const names = (e.candidates || []).map((c) => `${objectName(c)} ${c.id}`).join(", ");
     li.append(el("details", {}, el("summary", {}, time, el("span", { class: "kind" }, "question"),
-      `${e.question} `, el("small", {}, e.reason)),
+      `${e.question} `, el("small", {}, `${e.reason}${speakerText(e.speaker)}`)),
       el("p", {}, `candidates: ${names || "none"}`), e.text ? el("p", {}, `said: “${e.text}”`) : ""));
   } else {
     li.append(time, el("span", { class: "kind" }, e.kind));

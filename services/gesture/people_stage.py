@@ -1,0 +1,178 @@
+"""The person stage of one camera (issue #33), the gesture shell's helper: MediaPipe face detection and pose per
+person region feeding the pure tracker (services/gesture/persons.py), turned into the wire's `Person` list, each
+hand's and skeleton's person id, and a body for every person.
+
+It runs on every `every`-th frame of a camera (`--persons-every`: pose per extra person costs a full pose run,
+~35 ms on this machine); on the frames between, hands are given to the persons of the last run (their boxes and
+wrists are at most `every - 1` frames old).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import cast
+
+import numpy as np
+
+from common.schema import Frame, Handedness, Person, Persons
+from services.gesture.body import Arm, arm
+from services.gesture.landmarks import FaceDetector, RegionPose
+from services.gesture.persons import Box, PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
+from services.gesture.space import FrameRays, torso_point
+from services.gesture.temporal import Observation, Ray as TrackedRay
+
+
+@dataclass
+class PeopleOfFrame:
+    """What the stage says about one frame."""
+
+    ran: bool  # the stage ran on this frame (publish Persons); else the last run's persons are reused
+    persons: list[PersonTrack]
+    hand_owners: list[str | None]  # per hand observation
+    hand_sides: list[str]  # per hand observation: "left" / "right"
+    main_person: str | None  # the person of the full-frame skeleton (the gesture tracker's arms)
+    positions: dict[str, list[float]] = field(default_factory=dict)  # id -> torso centre, metres (with depth)
+    frame_id: str | None = None
+
+
+def hand_person(seen: PeopleOfFrame | None, k: int) -> str | None:
+    """The person of the frame's k-th hand observation (None: no stage, or nobody's)."""
+    return seen.hand_owners[k] if seen is not None else None
+
+
+def event_person(seen: PeopleOfFrame | None, hand: str, ray: TrackedRay | None) -> str | None:
+    """The person of a gesture event: for an arm seen by pose alone (a `body` ray), the full-frame skeleton's
+    person; else the person of this frame's hand of that side."""
+    if seen is None:
+        return None
+    if ray is not None and ray.source == "body":
+        return seen.main_person
+    return next((owner for side, owner in zip(seen.hand_sides, seen.hand_owners) if side == hand), None)
+
+
+class PeopleStage:
+    """One camera's person stage: its face detector, its pose-per-region graph and its person tracker."""
+
+    def __init__(self, every: int = 2, keep_s: float = 1.0):
+        self.every = every
+        self.faces = FaceDetector()
+        self.regions = RegionPose()
+        self.tracker = PersonTracker(keep_s=keep_s)
+        self.frames = 0
+        self.last: list[PersonTrack] = []
+        self.main: str | None = None
+
+    def update(
+        self,
+        stamp: float,
+        img: np.ndarray,
+        skeleton: np.ndarray | None,
+        hands: list[Observation],
+        rays3d: FrameRays | None = None,
+        faces: list[tuple[Box, str | None]] | None = None,
+    ) -> PeopleOfFrame:
+        """`faces`: the face stage's faces of this frame (box, `Face.id`) when it runs; else the stage finds the
+        faces itself (MediaPipe face detection, boxes without ids)."""
+        ran = self.frames % self.every == 0
+        self.frames += 1
+        if ran:
+            h, w = img.shape[:2]
+            previous = [b for _, b in self.tracker.bodies()]
+            if faces is None:
+                faces = [(box, None) for box, _ in self.faces.detect(img)]
+            seen = Seen(w, h, faces, skeleton, previous)
+            found = observe_people(seen, lambda r: self.regions.detect(img, crop_int(r)))
+            self.last = self.tracker.update(stamp, found)
+            # the full-frame skeleton's person: the tracker's arms (pointing, raised palms) are theirs
+            self.main = next((p.id for p in self.last if skeleton is not None and p.body is skeleton), None)
+        owners = assign_hands([(o.hand, o.landmarks) for o in hands], self.last)
+        out = PeopleOfFrame(ran, self.last, owners, [o.hand for o in hands], self.main)
+        view = rays3d.view if rays3d is not None and ran else None
+        if view is not None:
+            out.frame_id = view.frame_id
+            for p in self.last:
+                point = torso_point(view, p.body) if p.body is not None else None
+                if point is not None:
+                    out.positions[p.id] = [round(float(v), 3) for v in point]
+        return out
+
+    def wire(self, people: PeopleOfFrame) -> list[Person]:
+        """The persons of a frame as the wire's `Person`s (`face` stays nil until a face tracker names faces)."""
+        hands: dict[str, list[Handedness]] = {}
+        for side, owner in zip(people.hand_sides, people.hand_owners):
+            if owner is not None:
+                hands.setdefault(owner, []).append(cast(Handedness, side))
+        return [
+            Person(
+                id=p.id,
+                bbox=[round(v, 1) for v in p.box],
+                score=round(p.score, 3),
+                face=p.face_id,
+                has_body=p.body is not None,
+                hands=sorted(hands.get(p.id, [])),
+                position=people.positions.get(p.id),
+                frame_id=people.frame_id if p.id in people.positions else None,
+            )
+            for p in people.persons
+        ]
+
+    def face_owners(self) -> dict[str, str]:
+        """Face id -> person id of the persons seen last (`Face.person` for the face stage's samples)."""
+        return {p.face_id: p.id for p in self.last if p.face_id is not None and p.seen_now}
+
+    def close(self) -> None:
+        self.faces.close()
+        self.regions.close()
+
+
+def other_arms(landmarks: np.ndarray, width: int, height: int) -> list[tuple[Arm, TrackedRay | None]]:
+    """The arms of a person other than the gesture tracker's, judged on this frame alone (no hysteresis, no
+    steadying), in the shape of `GestureTracker.last_arms` (the shell's `to_body` makes the wire `Body`)."""
+    out: list[tuple[Arm, TrackedRay | None]] = []
+    for side in ("left", "right"):
+        a = arm(landmarks, side, width, height)
+        ray = TrackedRay(a.ray[0], a.ray[1], a.confidence, "body") if a.pointing and a.ray is not None else None
+        out.append((a, ray))
+    return out
+
+
+class CameraPeople:
+    """The person stage of every camera (`every` 0: off). A camera whose stream restarts (`fresh`: new, or gone
+    quiet and back) gets a new stage: new ids."""
+
+    def __init__(self, every: int):
+        self.every = every
+        self.stages: dict[str, PeopleStage] = {}
+
+    def update(
+        self,
+        frame: Frame,
+        img: np.ndarray,
+        skeleton: np.ndarray | None,
+        hands: list[Observation],
+        rays3d: FrameRays | None,
+        fresh: bool,
+    ) -> PeopleOfFrame | None:
+        if not self.every:
+            return None
+        if fresh or frame.cam not in self.stages:
+            if frame.cam in self.stages:
+                self.stages[frame.cam].close()
+            self.stages[frame.cam] = PeopleStage(every=self.every)
+        return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d)
+
+    def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
+        """The `Persons` of a frame the stage ran on."""
+        return Persons(
+            stamp=frame.stamp,
+            source=source,
+            seq=frame.seq,
+            cam=frame.cam,
+            width=frame.width,
+            height=frame.height,
+            persons=self.stages[frame.cam].wire(seen),
+        )
+
+    def close(self) -> None:
+        for stage in self.stages.values():
+            stage.close()
