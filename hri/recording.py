@@ -31,6 +31,7 @@ import os
 import queue
 import signal
 import socket
+import struct
 import sys
 import threading
 import time
@@ -285,7 +286,8 @@ class SessionReader:
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
         mcap = _mcap()
-        self._errors = (mcap.exceptions.McapError, EOFError, ValueError, OSError)
+        # struct.error: a record cut short inside its length-prefixed fields (a SIGKILLed recorder)
+        self._errors = (mcap.exceptions.McapError, EOFError, ValueError, OSError, struct.error)
         try:
             self._stream = open(self.path, "rb")
         except OSError as exc:
