@@ -13,9 +13,17 @@ import threading
 from typing import Any
 
 from common.keys import Keys
-from common.schema import Sample
+from common.schema import Clarification, FusedCommand, Sample
 from common.settings import add_option
-from hri.viewers.foxglove_msgs import VIEWER_METADATA, FoxgloveConverter, ViewerMessage, available
+from hri.viewers.foxglove_msgs import (
+    VIEWER_METADATA,
+    FoxgloveConverter,
+    ServicesState,
+    ViewerMessage,
+    available,
+    json_schema_of,
+    protobuf_schema,
+)
 
 FOXGLOVE_EXAMPLES = """\
 examples:
@@ -29,6 +37,21 @@ A recording needs no server: open the .mcap of `hri record` in Foxglove directly
 FIRST_MESSAGE_DELAY_S = 0.3
 
 
+def fixed_channels(keys: Keys, converter: FoxgloveConverter) -> list[ViewerMessage]:
+    """Placeholders (never logged) of the channels whose topics do not depend on a camera or microphone name."""
+
+    def empty(topic: str, schema: Any, encoding: str) -> ViewerMessage:
+        return ViewerMessage(topic, schema, encoding, b"", 0)
+
+    return [
+        empty(converter.log_topic, protobuf_schema("Log"), "protobuf"),
+        empty(converter.tf_topic, protobuf_schema("FrameTransform"), "protobuf"),
+        empty(converter.services_topic, json_schema_of(ServicesState), "json"),
+        empty("/" + keys.command(), json_schema_of(FusedCommand), "json"),
+        empty("/" + keys.clarification(), json_schema_of(Clarification), "json"),
+    ]
+
+
 class FoxgloveBridge:
     """Sink of a LiveFeed: converts each sample and logs it on its (lazily created) foxglove channel."""
 
@@ -40,6 +63,8 @@ class FoxgloveBridge:
         self.context = context
         self.channels: dict[tuple[str, str], Any] = {}
         self.lock = threading.Lock()  # the feed's worker and the stats poller both log
+        for m in fixed_channels(keys, self.converter):
+            self.channel(m)  # advertised from the start: a client is subscribed before the first line or command
 
     def channel(self, m: ViewerMessage) -> tuple[Any, bool]:
         """The channel of a message's topic and schema, and whether it was created just now."""
