@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 
 from common.codec import decode, encode
 from common.keys import Keys
-from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray
+from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray, Sample, Transcript
 from hri.cli import make_transcript
 from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
 from testkit.harness import Client
@@ -56,7 +56,7 @@ def pointing(stamp: float, cam: str = "cam0") -> GestureEvent:
     )
 
 
-def said(text: str, stamp: float) -> object:
+def said(text: str, stamp: float) -> Transcript:
     return make_transcript(text, mic="kbd", end=stamp, confidence=0.95, source="test/speech")
 
 
@@ -248,7 +248,7 @@ def test_record_then_replay_round_trip(group, tmp_path):
     try:
         token = client.session.liveliness().declare_token("hri/alive/test/recording")  # not data: not recorded
         now = time.time()
-        sent = [
+        sent: list[tuple[str, Sample]] = [
             (KEYS.transcript("kbd"), said("pick up the red cup", now)),
             (KEYS.objects("cam0"), detections(now + 0.01)),
             (KEYS.gesture_event("cam0"), pointing(now + 0.02)),
@@ -308,8 +308,8 @@ def test_record_then_replay_round_trip(group, tmp_path):
         # A replay that skipped any one wait (GAP = 0.5 s) still fails.
         recorded_offsets = [(t - log_times[0]) / NS for t in log_times]
         arrival_offsets = [g[2] - got[0][2] for g in got]
-        for recorded, arrived in zip(recorded_offsets, arrival_offsets):
-            assert arrived >= recorded - JITTER_S, (recorded_offsets, arrival_offsets)
+        for recorded_at, arrived_at in zip(recorded_offsets, arrival_offsets):
+            assert arrived_at >= recorded_at - JITTER_S, (recorded_offsets, arrival_offsets)
         assert arrival_offsets[-1] <= recorded_offsets[-1] + 2.0, (recorded_offsets, arrival_offsets)
 
         # -- --only: speech alone, four times faster

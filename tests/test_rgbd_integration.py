@@ -126,7 +126,9 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     assert code == 0, recorder.output()
     with open(path, "rb") as f:
         reader = make_reader(f)
-        raw = [c for c in reader.get_summary().channels.values() if "hri.viewer" not in c.metadata]  # not the viewers'
+        summary = reader.get_summary()
+        assert summary is not None
+        raw = [c for c in summary.channels.values() if "hri.viewer" not in c.metadata]  # not the viewer channels
         schemas = {c.topic: c.metadata["schema"] for c in raw}
         recorded = [(ch.topic, m.data) for _, ch, m in reader.iter_messages() if "hri.viewer" not in ch.metadata]
     assert schemas == {"hri/camera/cam0/depth": "DepthFrame", "hri/camera/cam0/frame": "Frame"}
@@ -142,7 +144,8 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     assert all(f.seq in stamp_of and f.stamp == stamp_of[f.seq] for f in frames), ([f.seq for f in frames], seqs)
     photos = sorted(folder.glob("*-depth.png"))
     for d in depths:
-        assert np.array_equal(depth_units(d), cv2.imread(str(photos[d.seq]), cv2.IMREAD_UNCHANGED))  # lossless
+        photo = cv2.imread(str(photos[d.seq]), cv2.IMREAD_UNCHANGED)
+        assert photo is not None and np.array_equal(depth_units(d), photo)  # lossless
         assert d.camera_info.fx == 1066.778 and d.depth_scale == 0.0001
 
     # replayed into a fresh vision: the positions come back
