@@ -258,14 +258,15 @@ class RerunMapper:
         yield "log/commands", self.rr.TextLog(f"question ({q.reason}): {q.question}", level="WARN"), False
 
 
-def blueprint(cams: list[str]) -> Any:
+def blueprint(cams: list[str], without_intrinsics: set[str]) -> Any:
     """The layout: each camera's image with its overlays (left, large); the 3-D scene, the text logs and the
-    latencies (right); side panels collapsed."""
+    latencies (right); side panels collapsed. An image without intrinsics cannot be placed in 3-D: left out."""
     import rerun.blueprint as rrb
 
     images = [rrb.Spatial2DView(origin=f"world/{cam}/image", name=cam) for cam in cams]
+    scene = ["+ /world/**"] + [f"- /world/{cam}/image/**" for cam in sorted(without_intrinsics)]
     right = rrb.Vertical(
-        rrb.Spatial3DView(origin="world", name="scene (metres)"),
+        rrb.Spatial3DView(origin="world", name="scene (metres)", contents=scene),
         rrb.TextLogView(origin="log", name="speech, gestures, commands"),
         rrb.TimeSeriesView(origin="latency", name="latency (ms)"),
     )
@@ -281,13 +282,16 @@ class RerunSink:
         self.recording = recording
         self.lock = threading.Lock()
         self.cams: list[str] = []
+        self.without_intrinsics: set[str] = set()
 
     def __call__(self, key: str, sample: Sample, receive_ns: int) -> None:
         rr = self.mapper.rr
         with self.lock:
             if isinstance(sample, Frame) and sample.cam not in self.cams:
                 self.cams.append(sample.cam)
-                rr.send_blueprint(blueprint(self.cams), recording=self.recording)
+                if sample.camera_info is None:
+                    self.without_intrinsics.add(sample.cam)
+                rr.send_blueprint(blueprint(self.cams, self.without_intrinsics), recording=self.recording)
             items = self.mapper.items(key, sample, receive_ns)
             rr.set_time("stamp", timestamp=sample.stamp, recording=self.recording)
             for path, archetype, static in items:
