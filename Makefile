@@ -12,7 +12,8 @@ setup:
 demo: setup
 	@$(PY) -m demo $(DEMO_ARGS)
 
-# lint, format and types are checked first: a finding fails the run before the (slow) tests start
+# lint (complexity <= 12 and at most 8 arguments included, [tool.ruff.lint] in pyproject.toml), format and types
+# are checked first: a finding fails the run before the (slow) tests start
 test:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _lint
@@ -27,7 +28,8 @@ lint:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _lint
 
-# mypy over common/ and the services' cores (the scope is [tool.mypy] in pyproject.toml)
+# mypy over every package, the services' shells, hri/, testkit/, demo/, benchmarks/ and tests/ included (the scope is
+# [tool.mypy] in pyproject.toml)
 typecheck:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _typecheck
@@ -49,7 +51,7 @@ fix:
 compose:
 	@$(PY) -m hri.compose --write
 
-BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view pointing_3d distributed ros2
+BENCHMARKS := transport vision gesture speech fusion fusion_eval record_replay view pointing_3d distributed ros2 stack
 
 bench: setup
 	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done

@@ -22,12 +22,13 @@ import time
 import tracemalloc
 
 from common.codec import encode
-from common.schema import FusedCommand
+from common.schema import FusedCommand, Transcript
 from services.fusion.core import Config, FusionCore
 from services.fusion.ground import choose, score
 from services.fusion.join import Ready
 from services.fusion.parse import parse
-from testkit.scenarios import BASE_STAMP, Obj, gesture, hands, say, see
+from services.fusion.window import PendingTranscript
+from testkit.scenarios import BASE_STAMP, Obj, deliver, gesture, hands, say, see
 
 COLORS = ("red", "blue", "green", "yellow", "orange", "purple")
 
@@ -72,20 +73,21 @@ def decision_latency(n: int, reps: int, text: str = PLAIN) -> tuple[list[float],
             core.on_liveliness(m, "bench", True)
         wall = 1000.0
         for t in (-0.5, 0.5, 1.0):
-            core.on_detections(*see(t, objs).build(base), wall)
+            deliver(core, *see(t, objs).build(base), wall)
         for i in range(20):
-            core.on_hands(*hands(-0.5 + i * 0.1, point_at=(500.0, 120.0)).build(base), wall)
-        core.on_transcript(*say(0.0, 1.4, text).build(base), wall)
+            deliver(core, *hands(-0.5 + i * 0.1, point_at=(500.0, 120.0)).build(base), wall)
+        deliver(core, *say(0.0, 1.4, text).build(base), wall)
         core.tick(wall)
         closing = see(2.0, objs).build(base)  # the last needed input: vision passes the window end
         closing_hands = hands(2.0).build(base)
-        core.on_hands(*closing_hands, wall)
+        deliver(core, *closing_hands, wall)
         t0 = time.perf_counter()
-        core.on_detections(*closing, wall)
+        deliver(core, *closing, wall)
         outs = core.tick(wall)
         payload = encode(outs[0].sample)
         core_times.append(time.perf_counter() - t0)
-        assert isinstance(outs[0].sample, FusedCommand) and outs[0].sample.target.id == "target", outs[0].sample
+        fused = outs[0].sample
+        assert isinstance(fused, FusedCommand) and fused.target is not None and fused.target.id == "target", fused
         assert payload
         # bare: the same grounding on the same objects and ray, nothing else
         p = core.context(core_pending_stub(base, text), Ready("watermarks"))
@@ -97,10 +99,9 @@ def decision_latency(n: int, reps: int, text: str = PLAIN) -> tuple[list[float],
     return bare, core_times
 
 
-def core_pending_stub(base: float, text: str = PLAIN):
-    from services.fusion.window import PendingTranscript
-
+def core_pending_stub(base: float, text: str = PLAIN) -> PendingTranscript:
     key, t = say(0.0, 1.4, text).build(base)
+    assert isinstance(t, Transcript)
     return PendingTranscript(key, t, parse(t.text), 0.0, t.start - 1.0, t.end + 0.3)
 
 
@@ -112,13 +113,13 @@ def memory_stream(seconds: int) -> list[tuple[int, int, float]]:
     for s in range(seconds):
         base = BASE_STAMP + s
         for k in range(10):
-            core.on_detections(*see(k * 0.1, objs).build(base), 1000.0 + s)
+            deliver(core, *see(k * 0.1, objs).build(base), 1000.0 + s)
         for k in range(30):
-            core.on_hands(*hands(k / 30, point_at=(500.0, 120.0) if k % 2 else None).build(base), 1000.0 + s)
+            deliver(core, *hands(k / 30, point_at=(500.0, 120.0) if k % 2 else None).build(base), 1000.0 + s)
         if s % 5 == 0:
-            core.on_transcript(*say(0.1, 0.8, "pick up that red cup").build(base), 1000.0 + s)
+            deliver(core, *say(0.1, 0.8, "pick up that red cup").build(base), 1000.0 + s)
         if s % 17 == 0:
-            core.on_gesture_event(*gesture(0.5, "open_palm").build(base), 1000.0 + s)
+            deliver(core, *gesture(0.5, "open_palm").build(base), 1000.0 + s)
         core.tick(1000.0 + s + 1)
         if s % max(1, seconds // 10) == 0 or s == seconds - 1:
             current, _ = tracemalloc.get_traced_memory()

@@ -36,6 +36,7 @@ from services.gesture.body import arm, arm_ray
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.temporal import GestureTracker, angle_between
 from testkit.harness import DATA, ROOT
+from testkit.images import read_image
 from testkit.lag import frame_lag, print_throughput
 
 SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
@@ -62,7 +63,7 @@ def frames() -> list:
         *sorted((DATA / "images" / "hands").glob("*.jpg")),
     ]
     paths += sorted((SHARED / "data" / "people").glob("*.jpg"))[:12]
-    return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
+    return [cv2.resize(read_image(str(p)), (640, 480)) for p in paths]
 
 
 def _loop(n: int, step) -> float:
@@ -142,7 +143,7 @@ def ray_errors() -> dict[str, dict[str, float | None]]:
     out = {}
     try:
         for name, (side, targets) in POINTING_TARGETS.items():
-            img = cv2.imread(str(SHARED / "data" / "pointing" / name))
+            img = read_image(str(SHARED / "data" / "pointing" / name))
             if img is None:
                 continue
             skeleton = poser.detect(img)
@@ -176,7 +177,7 @@ def print_rays() -> None:
         both = [r for r in errors.values() if r["eyes"] is not None and r["forearm"] is not None]
         if both:
             for how in ("eyes", "forearm"):
-                vals = [r[how] for r in both]
+                vals = [v for r in both if (v := r[how]) is not None]
                 print(
                     f"  {how:8s} mean {statistics.mean(vals):5.1f}  median {statistics.median(vals):5.1f}  "
                     f"over {len(vals)} photos"

@@ -37,6 +37,7 @@ from common.schema import (
 from services.fusion.evidence import pointing_from_hands, select_pointing
 from services.fusion.ground import best_pointed, scene_objects
 from services.gesture.space import DepthView, FrameRays, Lifted, depth_view, lift_pose, surface_hit
+from testkit.images import read_image
 from testkit.shared import shared_dir
 
 SHARED = shared_dir() / "data" / "rgbd"  # $HRI_SHARED, else ../shared beside the checkout
@@ -53,7 +54,7 @@ def real_frames() -> list[tuple[str, np.ndarray, CameraInfo, float, list[tuple[i
         out.append(
             (
                 "YCB-Video 640x480",
-                cv2.imread(str(ycb), cv2.IMREAD_UNCHANGED),
+                read_image(str(ycb), cv2.IMREAD_UNCHANGED),
                 info,
                 1e-4,
                 [(600, 440), (60, 420), (560, 330), (120, 300), (400, 400), (500, 460), (20, 470)],
@@ -76,10 +77,17 @@ def real_frames() -> list[tuple[str, np.ndarray, CameraInfo, float, list[tuple[i
     return out
 
 
+def known_depth(view: DepthView, px: tuple[int, int]) -> float:
+    """The depth at a pixel the benchmark chose where the camera has depth."""
+    z = view.depth_at(*px)
+    assert z is not None, f"no depth at {px}"
+    return z
+
+
 def pose_towards(view: DepthView, eye: np.ndarray, target_px: tuple[int, int]) -> np.ndarray:
     """A 33x3 skeleton whose eyes and index fingertip, lifted with this depth, line up towards `target_px`: the eyes
     and fingertip pixels are painted into the depth at their 3-D distance (the cost of lifting is the same)."""
-    target = view.back_project(*target_px, view.depth_at(*target_px))
+    target = view.back_project(*target_px, known_depth(view, target_px))
     tip = eye + 0.4 * (target - eye)  # these cameras are 0.5-1 m from the table: a short "arm"
     pose = np.zeros((33, 3))
     for i, p in ((2, eye), (5, eye), (20, tip)):
@@ -129,7 +137,7 @@ def accuracy() -> None:
         eye = np.array([0.1, -0.4, 0.1])
         errors = []
         for px in pixels:
-            measured = view.back_project(*px, view.depth_at(*px))
+            measured = view.back_project(*px, known_depth(view, px))
             d = (measured - eye) / np.linalg.norm(measured - eye)
             hit = surface_hit(view, Lifted(eye, d, "eye_fingertip", 0.3))
             errors.append(float("nan") if hit is None else float(np.linalg.norm(hit - measured)) * 100)
@@ -205,9 +213,10 @@ def grounding(rooms: int, noise_deg: float, seed: int = 0) -> None:
                 ),
             ),
         )
-        p = select_pointing(
+        pointing = select_pointing(
             pointing_from_hands(Hands(stamp=1.0, source="b", seq=0, cam="cam0", width=W, height=H, hands=[hand])), 1.0
         )
+        assert pointing is not None
         picks = {}
         for mode in ("2-D", "3-D"):
             objs = (
@@ -228,7 +237,9 @@ def grounding(rooms: int, noise_deg: float, seed: int = 0) -> None:
                 quality=ImageQuality(brightness=0.5, contrast=0.5, sharpness=0.5),
                 frame_id="cam" if mode == "3-D" else None,
             )
-            picks[mode] = best_pointed(p, scene_objects([det])).obj.id
+            best = best_pointed(pointing, scene_objects([det]))
+            assert best is not None
+            picks[mode] = best.obj.id
             right[mode] += picks[mode] == objects[k].id
         disagree += picks["2-D"] != picks["3-D"]
         done += 1

@@ -113,7 +113,7 @@ def wait_line(proc, text: str, timeout: float = 30.0) -> None:
 
 def wait_matched(s: zenoh.Session, key: str) -> None:
     pub = s.declare_publisher(key)
-    while not pub.matching_status.matching:
+    while not pub.matching_status.matching:  # type: ignore[attr-defined]  # zenoh's stub types matching_status as bool; it is a MatchingStatus
         time.sleep(0.02)
     pub.undeclare()
 

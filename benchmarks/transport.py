@@ -39,6 +39,7 @@ from common.codec import ENCODING, decode, encode
 from common.runner import SamplePublisher
 from common.transport import open_client
 from testkit.harness import ProcessGroup
+from testkit.images import read_image
 from testkit.payloads import realistic_samples
 
 
@@ -110,7 +111,7 @@ def depth_samples() -> dict:
     if not path.is_file():
         print(f"(no {path}: the depth rows are skipped; set HRI_SHARED)")
         return {}
-    depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    depth = read_image(str(path), cv2.IMREAD_UNCHANGED)
     info = CameraInfo(
         width=640,
         height=480,

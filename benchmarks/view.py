@@ -23,6 +23,7 @@ from services.vision.core import VisionPipeline
 from services.vision.segment import ColorSegmenter
 from testkit.browser import CHROMIUM, Browser
 from testkit.harness import DATA, ROOT, Client, Proc, ProcessGroup
+from testkit.images import read_image
 
 BARE_SUBSCRIBER = """
 import sys, threading, zenoh
@@ -52,7 +53,7 @@ def main() -> int:
         print("benchmarks/view.py: chromium is not installed (scripts/setup.sh --test installs it); skipped")
         return 0
 
-    image = cv2.resize(cv2.imread(str(DATA / "demo" / "table.png")), (640, 480))
+    image = cv2.resize(read_image(str(DATA / "demo" / "table.png")), (640, 480))
     jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
     objects, quality = VisionPipeline(ColorSegmenter(labels={"*": "candy"})).process("bench", image)
 

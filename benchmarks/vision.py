@@ -55,12 +55,13 @@ from services.vision.depth import DepthImage
 from services.vision.segment import ColorSegmenter
 from services.vision.yolo import YoloDetector
 from testkit.harness import DATA, ROOT, Client, ProcessGroup
+from testkit.images import read_image
 from testkit.lag import frame_lag, print_lag_slices, print_throughput
 
 
 def frames_640() -> list[np.ndarray]:
     paths = sorted((DATA / "images" / "tabletop").iterdir()) + sorted((DATA / "demo").glob("*.png"))
-    return [cv2.resize(cv2.imread(str(p)), (640, 480)) for p in paths]
+    return [cv2.resize(read_image(str(p)), (640, 480)) for p in paths]
 
 
 def hue_lut() -> np.ndarray:
@@ -82,7 +83,7 @@ def bare_segmentation(bgr: np.ndarray, kernel: np.ndarray, lut: np.ndarray) -> l
         m = cv2.morphologyEx(m, cv2.MORPH_OPEN, kernel)
         m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, kernel)
         n, _, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
-        boxes += [tuple(int(v) for v in stats[i, :4]) for i in range(1, n) if stats[i, 4] > 460]
+        boxes += [(int(x), int(y), int(w), int(h)) for x, y, w, h, area in stats[1:n] if area > 460]
     return boxes
 
 
@@ -126,7 +127,7 @@ def onnx_frames() -> list[np.ndarray]:
         "tabletop/smarties.png",
         "tabletop/stuff.jpg",
     ]
-    return [cv2.resize(cv2.imread(str(DATA / "images" / n)), (640, 480)) for n in names]
+    return [cv2.resize(read_image(str(DATA / "images" / n)), (640, 480)) for n in names]
 
 
 class BareYolox:
@@ -191,7 +192,7 @@ def rgbd_frames() -> list[tuple[np.ndarray, np.ndarray]] | None:
     """The YCB-Video colour/depth pairs (640x480, 0.1 mm units), or None when ../shared is absent."""
     folder = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared") / "data" / "rgbd" / "ycb_video"
     pairs = [
-        (cv2.imread(str(c)), cv2.imread(str(c).replace("-color", "-depth"), cv2.IMREAD_UNCHANGED))
+        (read_image(str(c)), read_image(str(c).replace("-color", "-depth"), cv2.IMREAD_UNCHANGED))
         for c in sorted(folder.glob("*-color.png"))
     ]
     return pairs or None

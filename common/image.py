@@ -8,7 +8,7 @@ rejected in microseconds instead of stalling a service for seconds.
 from __future__ import annotations
 
 import struct
-from typing import Any, Callable
+from typing import Any, Callable, TypedDict
 
 import numpy as np
 
@@ -98,6 +98,25 @@ def decode_image(data: bytes, encoding: str, width: int, height: int) -> np.ndar
 def frame_image(frame: Frame) -> np.ndarray:
     """The BGR image carried by a Frame (raises UndecodableFrame)."""
     return decode_image(frame.data, frame.encoding, frame.width, frame.height)
+
+
+class FrameFields(TypedDict):
+    """The fields a sample made from one frame copies from it (Detections, Hands, Bodies, Faces, Persons ...)."""
+
+    stamp: float
+    source: str
+    seq: int
+    cam: str
+    width: int
+    height: int
+
+
+def frame_fields(frame: Frame, source: str) -> FrameFields:
+    """What a result about `frame` shares with it: its stamp (when the frame was captured, so that fusion joins
+    on it), seq, camera and size; `source` is the publishing service's."""
+    return FrameFields(
+        stamp=frame.stamp, source=source, seq=frame.seq, cam=frame.cam, width=frame.width, height=frame.height
+    )
 
 
 def frame_handler(service: Any, handle: Callable[[Frame, np.ndarray], None]) -> Callable[[Any], None]:

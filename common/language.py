@@ -119,7 +119,7 @@ ANSWER_PHRASES: dict[str, tuple[str, ...]] = {
     "deny": ("no", "nope", "wrong", "not that", "not that one", "cancel", "never mind"),
 }
 
-# Colour words. Each key is a colour term fusion matches by similarity (services/fusion/colour.py); the first
+# Colour words. Each key is a colour term fusion matches by similarity (services/fusion/color.py); the first
 # eleven are the basic colour names (Berlin & Kay) vision publishes in `color` and `colors` (docs/vision.md).
 BASIC_COLORS: tuple[str, ...] = (
     "red",
@@ -190,11 +190,11 @@ COLOR_PROTOTYPES: dict[str, tuple[tuple[float, float, float], ...]] = {
     "lime": ((78, -38, 68),),
     "magenta": ((47, 71, -27),),
     "lilac": ((70, 22, -26),),
-    "dark": ((15, 0, 0),),  # matched on lightness only (common.colour.LIGHTNESS_ONLY)
+    "dark": ((15, 0, 0),),  # matched on lightness only (common.color.LIGHTNESS_ONLY)
     "light": ((90, 0, 0),),
 }
 # Lightness modifiers: "light blue", "pale green", "dark red", "deep purple" are terms of their own, made
-# from the base term's prototypes (common.colour.modified).
+# from the base term's prototypes (common.color.modified).
 COLOR_MODIFIERS: dict[str, tuple[str, ...]] = {"light": ("light", "pale"), "dark": ("dark", "deep")}
 MODIFIABLE_COLORS: tuple[str, ...] = (
     "red",

@@ -31,6 +31,8 @@ import zenoh
 
 import common.stack as stack
 from common.codec import ENCODING, decode, encode
+from common.counters import CounterName
+from common.cpu import change_priority, limit_opencv_threads
 from common.image import DEFAULT_MAX_PIXELS, check_frame_header
 from common.keys import Keys, check_chunk
 from common.schema import Frame, InvalidSample, Sample, Stats
@@ -76,6 +78,25 @@ def service_parser(name: str | stack.Node, description: str, epilog: str = "") -
         DEFAULT_RESET_RUN,
         "follow a stream that went back in time after N consistent samples",
         at_least=1,
+        metavar="N",
+    )
+    add_option(
+        parser,
+        "--nice",
+        node.nice,
+        "change this process's CPU priority by N (os.nice): > 0 yields (the frame services, which skip frames), "
+        "< 0 asks for more (speech, where the system allows it: root or CAP_SYS_NICE; else it runs at 0)",
+        at_least=-20,
+        at_most=19,
+        metavar="N",
+    )
+    add_option(
+        parser,
+        "--cv-threads",
+        1,
+        "OpenCV's thread pool (decoding, resizing): 1, as the services run side by side on the machine's cores; "
+        "0 leaves OpenCV's own choice (every core)",
+        at_least=0,
         metavar="N",
     )
     if node.reads_images:
@@ -148,7 +169,7 @@ class Counters:
         self.rejected: collections.Counter[str] = collections.Counter()
         self.other: collections.Counter[str] = collections.Counter()
 
-    def add(self, name: str, n: int = 1) -> None:
+    def add(self, name: CounterName, n: int = 1) -> None:
         with self._lock:
             if name in ("received", "published", "skipped"):
                 setattr(self, name, getattr(self, name) + n)
@@ -265,6 +286,7 @@ class Service:
         self.node = name if isinstance(name, stack.Node) else stack.node(name)
         name = self.node.name
         resolve(args)
+        limit_opencv_threads(getattr(args, "cv_threads", 0))
         self.recovering = recovering
         args.user = args.user or name  # on a secured robot each service logs in as itself (common/security.py)
         self.name = check_chunk(name, "service name")
@@ -273,6 +295,9 @@ class Service:
         self.args = args
         self.keys = Keys(args.prefix)
         self.log = log or setup_logging(f"hri.{name}", getattr(args, "log_level", None))
+        refused = change_priority(getattr(args, "nice", 0))
+        if refused:
+            self.log.info("%s", refused)
         self.counters = Counters(self.log)
         self.stop_event = threading.Event()
         self.session: zenoh.Session | None = None
@@ -594,3 +619,41 @@ def _quietly(fn: Callable[[], Any]) -> None:
 def main_exit(code: int) -> None:
     logging.shutdown()
     sys.exit(code)
+
+
+class StartupError(Exception):
+    """A service cannot start as configured (a missing model, an unreadable file): logged, exit code 2."""
+
+
+class App:
+    """The one shape of a service: its pure core and settings (built in `__init__` from the parsed arguments),
+    what it needs before the session opens (`open`), what it subscribes (`wire`, with the handlers that call the
+    core and publish), and, for a source such as the camera, a `loop` run on the worker thread instead of
+    handlers. `serve` drives it; `__main__.py` only parses the arguments and calls `serve`."""
+
+    node: str = ""  # the node of common/stack.py this app runs
+    recovering = False  # see Service(recovering=...)
+
+    def open(self, service: Service) -> None:
+        """Load what the app needs (models, sources, files) before connecting; StartupError if it cannot."""
+
+    def wire(self, service: Service) -> None:
+        """Subscribe the app's inputs (`service.subscribe_input`) once the session is open."""
+
+    loop: Callable[[threading.Event], None] | None = None
+    tick: Callable[[], None] | None = None
+    tick_interval = 0.05
+
+
+def serve(app: App, args: argparse.Namespace) -> None:
+    """Run `app` as a process: open it, connect, wire its inputs, run until stopped; exits with the code."""
+    service = Service(app.node, args, recovering=app.recovering)
+    try:
+        app.open(service)
+    except StartupError as exc:
+        service.log.error("%s", exc)
+        main_exit(2)
+    if not service.connect():
+        main_exit(0)
+    app.wire(service)
+    main_exit(service.run(loop=app.loop, tick=app.tick, tick_interval=app.tick_interval))

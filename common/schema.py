@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import re
 from functools import lru_cache
-from typing import Annotated, Any, ClassVar, Literal, Optional, get_args
+from typing import Annotated, Any, ClassVar, Final, Literal, Optional, get_args
 
 import msgspec
 from msgspec import Meta
@@ -38,10 +38,19 @@ DepthCompression = Literal["none", "png"]
 MotionDirection = Literal["forward", "back", "left", "right", "around"]
 # v1 extension (people, issue #33): how an utterance's speaker was found (REP-155's person <-> voice link).
 SpeakerMethod = Literal["mouth_motion", "only_face", "unknown"]
+# The modalities fusion weighs (Weights' fields, the keys of FusedCommand.inputs), each named after the service
+# that feeds it (common/stack.py; tests/test_stack_declaration.py checks they are among fusion's input services).
+# Code names them by these constants, so a misspelt one fails the type check.
+Modality = Literal["speech", "vision", "gesture"]
+SPEECH: Final = "speech"
+VISION: Final = "vision"
+GESTURE: Final = "gesture"
+MODALITY_NAMES: tuple[Modality, ...] = (SPEECH, VISION, GESTURE)
 GESTURES: tuple[str, ...] = get_args(GestureName)
 GESTURE_PHASES: tuple[str, ...] = get_args(GesturePhase)
 CLARIFICATION_REASONS: tuple[str, ...] = get_args(ClarificationReason)
-INTENTS = (
+# What a FusedCommand asks the robot to do: the values its `intent` documents (the field stays a string on the wire)
+Intent = Literal[
     "pick_up",
     "bring",
     "put_down",
@@ -53,7 +62,17 @@ INTENTS = (
     "greet",
     "move",
     "turn",  # v1 extension: with FusedCommand.motion
-)
+]
+INTENTS: tuple[Intent, ...] = get_args(Intent)
+
+
+def as_intent(word: str) -> Intent:
+    """`word` as an Intent; ValueError for one that is not (a language table out of step with the contract)."""
+    for intent in INTENTS:
+        if intent == word:
+            return intent
+    raise ValueError(f"{word!r} is not an intent of the contract ({', '.join(INTENTS)})")
+
 
 # Number and string types of the contract. Every float is finite: a plain `float` would let NaN through,
 # so even "any float" is bounded by the largest finite double.

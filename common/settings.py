@@ -140,7 +140,7 @@ class Setting:
             raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def setting(
+def setting(  # noqa: PLR0913 - a declaration: each bound is an optional keyword, as in dataclasses.field
     default: T,
     description: str,
     *,
@@ -228,7 +228,7 @@ def _named(fn: Callable[[str], Any], name: str) -> Callable[[str], Any]:
     return parse
 
 
-def add_option(
+def add_option(  # noqa: PLR0913 - a declaration: the same optional keywords as setting()
     parser: argparse.ArgumentParser | argparse._ArgumentGroup,
     flag: str,
     default: Any,

@@ -97,6 +97,14 @@ class Container:
     mounts: tuple[str, ...] = ()  # volumes besides HRI_DATA at /data, compose syntax
 
 
+# Niceness of the services that read frames: weight 110 against 1024 for a nice-0 process (Linux CFS), so a
+# speech decode or a fusion decision gets the cores at once; the frame services take what is left and skip.
+FRAME_NICE = 10
+# Speech asks for more than a nice-0 process (weight 3121 vs 1024) where the system allows it (root or
+# CAP_SYS_NICE; else it runs at 0): a decode is short (under a CPU-second) and every word waits for it.
+SPEECH_NICE = -5
+
+
 @dataclass(frozen=True)
 class Node:
     name: str
@@ -106,6 +114,9 @@ class Node:
     reads_images: bool = False  # takes --max-pixels (rejects oversized frames before decoding); must be True
     # when an input is an image topic
     container: Container = Container()  # docker-compose.yml: no flags, HRI_<NAME>_ARGS adds some
+    # default --nice: its CPU priority (> 0 lower, < 0 higher where allowed). Frame services skip stale frames
+    # when they fall behind; speech and fusion cannot skip, so on a small machine frame work yields (issue #34)
+    nice: int = 0
     opt_in: bool = False  # off by default: `hri up --<name>` starts it, docker compose under the profile <name>
     fixed_keys: tuple[str, ...] = ()  # exact keys (below the prefix) it publishes besides its outputs' patterns
 
@@ -165,6 +176,7 @@ NODES: tuple[Node, ...] = (
         ),
         outputs=("objects",),
         reads_images=True,
+        nice=FRAME_NICE,
         container=Container(
             "--backend color --labels /data/demo/labels.json",
             note='Colour segmentation, objects named "candy" as in the demo scene. '
@@ -179,12 +191,14 @@ NODES: tuple[Node, ...] = (
         inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=4)),
         outputs=("hands", "bodies", "event", "faces", "persons"),
         reads_images=True,
+        nice=FRAME_NICE,
     ),
     Node(
         "speech",
         "voice activity -> Whisper -> transcripts with times and confidence",
         inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
         outputs=("transcript",),
+        nice=SPEECH_NICE,
         container=Container(
             "--input zenoh",
             note="Default: AudioChunks over zenoh from a microphone elsewhere (a container has no sound card).\n"

@@ -12,15 +12,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Final
 
 DEFAULT_MAX_SKEW_S = 5.0  # NTP-synced machines differ by milliseconds; 5 s leaves room for a sloppy clock
 DEFAULT_RESET_RUN = 5  # 1/6 s of a 30 fps camera; a stray old sample or two never resets a timeline
 DEFAULT_MAX_GAP_S = 10.0  # samples of one new timeline are close together
 
-FUTURE = "future_stamp"
-OUT_OF_ORDER = "out_of_order"
-ACCEPTED = "accepted"
-RESET = "timeline_reset"
+FUTURE: Final = "future_stamp"
+OUT_OF_ORDER: Final = "out_of_order"
+ACCEPTED: Final = "accepted"
+RESET: Final = "timeline_reset"
 
 
 @dataclass

@@ -30,7 +30,7 @@ from common.codec import decode
 from common.runner import SamplePublisher
 from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
 from common.stack import module_of
-from hri.launcher import Launcher, ServiceSpec
+from hri.launcher import Child, Launcher, ServiceSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "data" / "demo"
@@ -215,6 +215,120 @@ def _drain(q: queue.Queue) -> None:
         q.get_nowait()
 
 
+Result = FusedCommand | Clarification
+
+
+class Watch:
+    """What the demo hears back from the stack: fusion's results, vision's latest objects, whether a hand is seen."""
+
+    def __init__(self) -> None:
+        self.results: queue.Queue[tuple[str, Result]] = queue.Queue()
+        self.latest_detections: dict[str, Detections] = {}
+        self.hands_seen = threading.Event()
+
+    def subscribe(self, session: zenoh.Session) -> list[zenoh.Subscriber]:
+        return [
+            session.declare_subscriber("hri/fusion/**", self._on_result),
+            session.declare_subscriber(f"hri/vision/{CAM}/objects", self._on_detections),
+            session.declare_subscriber(f"hri/gesture/{CAM}/hands", self._on_hands),
+        ]
+
+    def _on_result(self, s: zenoh.Sample) -> None:
+        key = str(s.key_expr)
+        schema: type[Result] = FusedCommand if key.endswith("/command") else Clarification
+        self.results.put((key, decode(s.payload.to_bytes(), schema)))
+
+    def _on_detections(self, s: zenoh.Sample) -> None:
+        det = decode(s.payload.to_bytes(), Detections)
+        self.latest_detections[det.source] = det
+
+    def _on_hands(self, s: zenoh.Sample) -> None:
+        if decode(s.payload.to_bytes(), Hands).hands:
+            self.hands_seen.set()
+
+    def clear(self) -> None:
+        self.latest_detections.clear()
+        self.hands_seen.clear()
+        _drain(self.results)  # a gesture-only result may come while the new scene settles: keep only those
+
+    def wait_for_objects(self, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while not self.latest_detections and time.monotonic() < deadline:
+            time.sleep(0.05)
+
+    def next_result(self, timeout: float) -> Result | None:
+        try:
+            return self.results.get(timeout=timeout)[1]
+        except queue.Empty:
+            return None
+
+
+@dataclass
+class Player:
+    """Plays the script against a running stack: one camera per scene, the spoken sentences into the microphone."""
+
+    launcher: Launcher
+    watch: Watch
+    mic: SamplePublisher
+    audio: dict[str, Path]
+    timeout: float
+    camera: Child | None = None
+    shown: str | None = None
+
+    def show(self, step: Step) -> None:
+        """The step's scene in front of the camera (a new camera service when the scene changes)."""
+        if step.scene == self.shown:
+            return
+        if self.camera is not None:
+            self.camera.stop()
+            self.launcher.children.remove(self.camera)
+        self.watch.clear()
+        self.camera = self.launcher.start_service(camera_spec(step.scene))
+        self.shown = step.scene
+        self.watch.wait_for_objects(30)
+        if step.hand_in_view and not self.watch.hands_seen.wait(15):
+            print("  (the gesture service has not reported the hand yet)")
+        time.sleep(1.0)  # a second of frames: tracks settle, a held gesture starts
+
+    def play(self, n: int, step: Step) -> bool:
+        """One step: show, say, print what comes back; True when it is what the step expects."""
+        self.show(step)
+        said = f'says "{step.say}"' if step.say else "says nothing"
+        print(f"▶ step {n}/{len(SCRIPT)}: camera shows {step.scene}, the person {said}")
+        print(f"  expected: {step.check}", flush=True)
+        if step.say:
+            _drain(self.watch.results)
+            play_wav(self.mic, self.audio[step.say], source=f"demo/{os.getpid()}")
+        sample = self.watch.next_result(self.timeout)
+        if sample is not None:
+            print(describe(sample))
+        detections = next(iter(self.watch.latest_detections.values()), None)
+        problem = check(step, sample, detections)
+        if problem:
+            print(f"  ✘ {problem}")
+        print(flush=True)
+        return problem is None
+
+
+def run_script(launcher: Launcher, endpoint: str, audio: dict[str, Path], timeout: float) -> int:
+    """Starts the stack (its router on `endpoint`), plays every step; the number of steps that failed."""
+    services = demo_services()
+    print(f"starting router ({endpoint}), {', '.join(s.name for s in services)} ...", flush=True)
+    launcher.start(services, live_timeout=120)
+    session = launcher.session
+    assert session is not None
+    print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {endpoint}\n")
+    watch = Watch()
+    subs = watch.subscribe(session)
+    mic = SamplePublisher(session, f"hri/audio/{MIC}/pcm", lossless=True)
+    player = Player(launcher, watch, mic, audio, timeout)
+    failures = sum(not player.play(n, step) for n, step in enumerate(SCRIPT, 1))
+    mic.undeclare()
+    for sub in subs:
+        sub.undeclare()
+    return failures
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--timeout", type=float, default=20.0, help="seconds to wait for each step's result")
@@ -229,84 +343,15 @@ def main() -> int:
     )
     audio = {s.say: speech_audio(s.say, voice) for s in SCRIPT if s.say}
 
-    endpoint = free_endpoint()
     logs: list[str] = []
     out = print if args.verbose else logs.append
+    endpoint = free_endpoint()
     launcher = Launcher(endpoint, "hri", start_router=True, out=out)
-    results: queue.Queue[tuple[str, object]] = queue.Queue()
-    latest_detections: dict[str, Detections] = {}
-    hands_seen = threading.Event()
-    failures = 0
     try:
-        services = demo_services()
-        print(f"starting router ({endpoint}), {', '.join(s.name for s in services)} ...", flush=True)
-        launcher.start(services, live_timeout=120)
-        session = launcher.session
-        assert session is not None
-        print(f"all services live. In another terminal: .venv/bin/hri echo 'hri/**' --connect {endpoint}\n")
-
-        def on_result(s: zenoh.Sample) -> None:
-            key = str(s.key_expr)
-            schema = FusedCommand if key.endswith("/command") else Clarification
-            results.put((key, decode(s.payload.to_bytes(), schema)))
-
-        def on_detections(s: zenoh.Sample) -> None:
-            det = decode(s.payload.to_bytes(), Detections)
-            latest_detections[det.source] = det
-
-        def on_hands(s: zenoh.Sample) -> None:
-            if decode(s.payload.to_bytes(), Hands).hands:
-                hands_seen.set()
-
-        subs = [
-            session.declare_subscriber("hri/fusion/**", on_result),
-            session.declare_subscriber(f"hri/vision/{CAM}/objects", on_detections),
-            session.declare_subscriber(f"hri/gesture/{CAM}/hands", on_hands),
-        ]
-        mic = SamplePublisher(session, f"hri/audio/{MIC}/pcm", lossless=True)
-
-        camera = None
-        shown = None
-        for n, step in enumerate(SCRIPT, 1):
-            if step.scene != shown:
-                if camera is not None:
-                    camera.stop()
-                    launcher.children.remove(camera)
-                latest_detections.clear()
-                hands_seen.clear()
-                _drain(results)  # a gesture-only result may come while the new scene settles: keep only those
-                camera = launcher.start_service(camera_spec(step.scene))
-                shown = step.scene
-                deadline = time.monotonic() + 30
-                while not latest_detections and time.monotonic() < deadline:
-                    time.sleep(0.05)
-                if step.hand_in_view and not hands_seen.wait(15):
-                    print("  (the gesture service has not reported the hand yet)")
-                time.sleep(1.0)  # a second of frames: tracks settle, a held gesture starts
-            said = f'says "{step.say}"' if step.say else "says nothing"
-            print(f"▶ step {n}/{len(SCRIPT)}: camera shows {step.scene}, the person {said}")
-            print(f"  expected: {step.check}", flush=True)
-            if step.say:
-                _drain(results)
-                play_wav(mic, audio[step.say], source=f"demo/{os.getpid()}")
-            try:
-                _, sample = results.get(timeout=args.timeout)
-            except queue.Empty:
-                sample = None
-            if sample is not None:
-                print(describe(sample))
-            detections = next(iter(latest_detections.values()), None)
-            problem = check(step, sample, detections)
-            if problem:
-                failures += 1
-                print(f"  ✘ {problem}")
-            print(flush=True)
-        mic.undeclare()
-        for sub in subs:
-            sub.undeclare()
+        failures = run_script(launcher, endpoint, audio, args.timeout)
     except (RuntimeError, KeyboardInterrupt) as exc:
         print(f"demo stopped: {exc}")
-        failures += 1
+        failures = 1
         if not args.verbose:
             print("\n".join(logs[-60:]))
     finally:

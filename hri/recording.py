@@ -37,7 +37,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Callable, Iterable, Iterator
+from typing import IO, Any, BinaryIO, Callable, Iterable, Iterator
 
 from common.codec import ENCODING, decode
 from common.keys import Keys
@@ -553,9 +553,108 @@ def _check_keyexprs(exprs: Iterable[str], what: str) -> list[Any] | None:
     return out
 
 
-def cmd_record(args: argparse.Namespace) -> int:
-    import zenoh
+def _open_output(args: argparse.Namespace) -> tuple[Path, BinaryIO] | None:
+    """The output file, opened; None (with the reason printed) when it exists without --force or cannot be written."""
+    out = Path(args.output or time.strftime("hri-%Y%m%d-%H%M%S.mcap"))
+    if out.exists() and not args.force:
+        print(f"hri record: {out} already exists; pass --force to overwrite it or choose another -o", file=sys.stderr)
+        return None
+    try:
+        return out, open(out, "wb")
+    except OSError as exc:
+        print(f"hri record: cannot write {out}: {exc.strerror or exc}", file=sys.stderr)
+        return None
 
+
+class _Inbox:
+    """Zenoh callbacks only enqueue; the main thread decodes stamps and writes, so a slow disk shows up as backlog
+    (and, past --max-backlog-mb, as counted drops) instead of stalling the session."""
+
+    def __init__(self, writer: SessionWriter, max_backlog_bytes: int) -> None:
+        self.writer = writer
+        self.max_backlog = max_backlog_bytes
+        self.queue: queue.SimpleQueue[tuple[str, bytes, int, str]] = queue.SimpleQueue()
+        self.backlog_bytes = 0
+        self.dropped = 0
+        self.lock = threading.Lock()
+
+    def on_sample(self, sample: Any) -> None:
+        import zenoh
+
+        if sample.kind != zenoh.SampleKind.PUT:
+            return  # deletions (and liveliness going away) are not data
+        payload = sample.payload.to_bytes()
+        with self.lock:
+            if self.backlog_bytes + len(payload) > self.max_backlog:
+                self.dropped += 1
+                return
+            self.backlog_bytes += len(payload)
+        self.queue.put((str(sample.key_expr), payload, time.time_ns(), str(sample.encoding)))
+
+    def write_next(self, timeout: float | None) -> bool:
+        """Writes the next received sample (waiting up to `timeout`; None: not at all); False when none came."""
+        try:
+            item = self.queue.get(timeout=timeout) if timeout is not None else self.queue.get_nowait()
+        except queue.Empty:
+            return False
+        key, payload, receive_ns, encoding = item
+        with self.lock:
+            self.backlog_bytes -= len(payload)
+        self.writer.add(key, payload, receive_ns, encoding)
+        return True
+
+    def extra(self) -> str:
+        with self.lock:
+            b, d = self.backlog_bytes, self.dropped
+        return (
+            f", {len(self.writer.tally)} keys"
+            + (f", backlog {human_bytes(b)}" if b > 1_000_000 else "")
+            + (f", {d} DROPPED (disk too slow)" if d else "")
+        )
+
+
+@dataclass
+class _Recording:
+    inbox: _Inbox
+    args: argparse.Namespace
+    stop: threading.Event
+    progress: Progress
+    started: float
+
+
+def _record_until_done(rec: _Recording, subscribers: list[Any]) -> None:
+    """Writes what arrives until --count, --duration or a signal; then what already arrived, up to --count."""
+    inbox, args, stop, progress, started = rec.inbox, rec.args, rec.stop, rec.progress, rec.started
+    writer = inbox.writer
+    deadline = started + args.duration if args.duration else None
+    while not stop.is_set():
+        if args.count is not None and writer.samples >= args.count:
+            break
+        wait = 0.2 if deadline is None else min(0.2, deadline - time.monotonic())
+        if wait <= 0:
+            break
+        inbox.write_next(wait)
+        if progress.due():
+            progress.show(
+                rate_line("recording", writer.samples, writer.bytes, time.monotonic() - started, inbox.extra())
+            )
+    for sub in subscribers:
+        sub.undeclare()
+    while (args.count is None or writer.samples < args.count) and inbox.write_next(None):
+        pass
+
+
+def _recording_metadata(exprs: list[str], keys: Keys) -> dict[str, str]:
+    return {
+        "keyexpr": " ".join(exprs),
+        "prefix": keys.prefix,
+        "host": socket.gethostname(),
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "tool": "hri record",
+    }
+
+
+def cmd_record(args: argparse.Namespace) -> int:
     from common.runner import setup_logging
     from common.transport import open_session, resolve
 
@@ -564,96 +663,26 @@ def cmd_record(args: argparse.Namespace) -> int:
     exprs = args.keyexpr or [f"{keys.prefix}/**"]
     if _check_keyexprs(exprs, "record") is None:
         return 2
-    out = Path(args.output or time.strftime("hri-%Y%m%d-%H%M%S.mcap"))
-    if out.exists() and not args.force:
-        print(f"hri record: {out} already exists; pass --force to overwrite it or choose another -o", file=sys.stderr)
+    opened = _open_output(args)
+    if opened is None:
         return 2
-    try:
-        stream = open(out, "wb")
-    except OSError as exc:
-        print(f"hri record: cannot write {out}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+    out, stream = opened
     log = setup_logging("hri.record", args.log_level)
     stop = threading.Event()
     _stop_on_signals(stop)
     writer = SessionWriter(
-        stream,
-        keys,
-        compression=args.compression,
-        viewers=args.viewers,
-        metadata={
-            "keyexpr": " ".join(exprs),
-            "prefix": keys.prefix,
-            "host": socket.gethostname(),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-            "tool": "hri record",
-        },
+        stream, keys, compression=args.compression, viewers=args.viewers, metadata=_recording_metadata(exprs, keys)
     )
-
-    # Zenoh callbacks only enqueue; the main thread decodes stamps and writes, so a slow disk
-    # shows up as backlog (and, past --max-backlog-mb, as counted drops) instead of stalling the session.
-    inbox: queue.SimpleQueue[tuple[str, bytes, int, str]] = queue.SimpleQueue()
-    backlog = {"bytes": 0, "dropped": 0}
-    backlog_lock = threading.Lock()
-    max_backlog = int(args.max_backlog_mb * 1e6)
-
-    def on_sample(sample: zenoh.Sample) -> None:
-        if sample.kind != zenoh.SampleKind.PUT:
-            return  # deletions (and liveliness going away) are not data
-        payload = sample.payload.to_bytes()
-        with backlog_lock:
-            if backlog["bytes"] + len(payload) > max_backlog:
-                backlog["dropped"] += 1
-                return
-            backlog["bytes"] += len(payload)
-        inbox.put((str(sample.key_expr), payload, time.time_ns(), str(sample.encoding)))
-
+    inbox = _Inbox(writer, int(args.max_backlog_mb * 1e6))
     session = open_session(args, log, stop)
-    subscribers = []
-    if session is not None:
-        subscribers = [session.declare_subscriber(expr, on_sample) for expr in exprs]
-        log.info("recording %s to %s (Ctrl-C to finish)", " ".join(repr(e) for e in exprs), out)
     progress = Progress()
     started = time.monotonic()
-    deadline = started + args.duration if args.duration else None
     error = 0
-
-    def extra() -> str:
-        with backlog_lock:
-            b, d = backlog["bytes"], backlog["dropped"]
-        return (
-            f", {len(writer.tally)} keys"
-            + (f", backlog {human_bytes(b)}" if b > 1_000_000 else "")
-            + (f", {d} DROPPED (disk too slow)" if d else "")
-        )
-
-    def write_one(item: tuple[str, bytes, int, str]) -> None:
-        key, payload, receive_ns, encoding = item
-        with backlog_lock:
-            backlog["bytes"] -= len(payload)
-        writer.add(key, payload, receive_ns, encoding)
-
     try:
-        while session is not None and not stop.is_set():
-            if args.count is not None and writer.samples >= args.count:
-                break
-            wait = 0.2 if deadline is None else min(0.2, deadline - time.monotonic())
-            if wait <= 0:
-                break
-            try:
-                write_one(inbox.get(timeout=wait))
-            except queue.Empty:
-                pass
-            if progress.due():
-                progress.show(rate_line("recording", writer.samples, writer.bytes, time.monotonic() - started, extra()))
-        for sub in subscribers:
-            sub.undeclare()
-        # what already arrived is written, up to --count
-        while args.count is None or writer.samples < args.count:
-            try:
-                write_one(inbox.get_nowait())
-            except queue.Empty:
-                break
+        if session is not None:
+            subscribers = [session.declare_subscriber(expr, inbox.on_sample) for expr in exprs]
+            log.info("recording %s to %s (Ctrl-C to finish)", " ".join(repr(e) for e in exprs), out)
+            _record_until_done(_Recording(inbox, args, stop, progress, started), subscribers)
     except OSError as exc:
         log.error("writing %s failed: %s; the file is incomplete", out, exc.strerror or exc)
         error = 1
@@ -667,10 +696,95 @@ def cmd_record(args: argparse.Namespace) -> int:
         if session is not None:
             session.close()
     elapsed = time.monotonic() - started
-    progress.end(rate_line("recorded", writer.samples, writer.bytes, elapsed, extra()) + f" -> {out}")
+    progress.end(rate_line("recorded", writer.samples, writer.bytes, elapsed, inbox.extra()) + f" -> {out}")
     if writer.tally:
         print(key_table(writer.tally), file=sys.stderr, flush=True)
     return error
+
+
+def _open_reader(args: argparse.Namespace) -> tuple[SessionReader, list[Any]] | None:
+    only = _check_keyexprs(args.only or [], "replay")
+    if only is None:
+        return None
+    try:
+        return SessionReader(args.file), only
+    except RecordingError as exc:
+        print(f"hri replay: {exc}", file=sys.stderr)
+        return None
+
+
+def _selected_keys(reader: SessionReader, args: argparse.Namespace, keep: Callable[[str], bool], log: Any) -> dict:
+    """The recorded keys to replay, with their sample counts; warns of what cannot be replayed."""
+    info = reader.info
+    for key, enc in reader.skipped_encodings.items():
+        log.warning("skipping %s: message encoding %r is not msgpack", key, enc)
+    if not info.complete:
+        log.warning(
+            "%s has no summary (the recorder did not finish it); replaying the %d readable samples",
+            args.file,
+            info.samples,
+        )
+    selected = {k: n for k, n in info.keys.items() if keep(k)}
+    if not selected:
+        what = f" matching {' '.join(args.only)}" if args.only else ""
+        print(
+            f"hri replay: nothing to replay{what} in {args.file} (keys: {', '.join(sorted(info.keys)) or 'none'})",
+            file=sys.stderr,
+        )
+    return selected
+
+
+@dataclass
+class _Replay:
+    """One replay's state: what it sends, how far it got (for the progress line and the summary)."""
+
+    reader: SessionReader
+    publishers: dict[str, Any]
+    keep: Callable[[str], bool]
+    args: argparse.Namespace
+    total: int
+    stop: threading.Event
+    log: Any
+    progress: Progress = field(default_factory=Progress)
+    started: float = field(default_factory=time.monotonic)
+    sent: int = 0
+    sent_bytes: int = 0
+    loops: int = 0
+
+    def run(self) -> None:
+        clock = ReplayClock(self.args.speed)
+        while not self.stop.is_set():
+            self.loops += 1
+            clock.restart()
+            self._one_pass(clock)
+            if not self.args.loop:
+                break
+
+    def _one_pass(self, clock: ReplayClock) -> None:
+        first_ns = None
+        for i, msg in enumerate(self.reader.messages(self.keep), 1):
+            delay = clock.wait_for(msg.log_ns)
+            if delay > 0 and self.stop.wait(delay):
+                break
+            if self.stop.is_set():
+                break
+            self.publishers[msg.key].put(msg.payload)
+            self.sent += 1
+            self.sent_bytes += len(msg.payload)
+            first_ns = msg.log_ns if first_ns is None else first_ns
+            if self.progress.due():
+                where = f", {(msg.log_ns - first_ns) / NS:.1f}/{self.reader.info.span_s:.1f} s recorded time"
+                loop = f", loop {self.loops}" if self.args.loop else ""
+                elapsed = time.monotonic() - self.started
+                self.progress.show(
+                    rate_line("replaying", self.sent, self.sent_bytes, elapsed, f" [{i}/{self.total}{where}{loop}]")
+                )
+        if self.reader.damaged:
+            self.log.warning("stopped reading at damaged data in %s: %s", self.args.file, self.reader.damaged)
+
+
+def _speed_text(speed: float) -> str:
+    return "full speed" if speed == 0 else f"x{speed:g}"
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
@@ -680,35 +794,18 @@ def cmd_replay(args: argparse.Namespace) -> int:
     from common.transport import open_session, resolve
 
     resolve(args)
-    only = _check_keyexprs(args.only or [], "replay")
-    if only is None:
+    opened = _open_reader(args)
+    if opened is None:
         return 2
-    try:
-        reader = SessionReader(args.file)
-    except RecordingError as exc:
-        print(f"hri replay: {exc}", file=sys.stderr)
-        return 2
+    reader, only = opened
     log = setup_logging("hri.replay", args.log_level)
 
     def keep(key: str) -> bool:
         return not only or any(zenoh.KeyExpr(key).intersects(o) for o in only)
 
     info = reader.info
-    selected = {k: n for k, n in info.keys.items() if keep(k)}
-    for key, enc in reader.skipped_encodings.items():
-        log.warning("skipping %s: message encoding %r is not msgpack", key, enc)
-    if not info.complete:
-        log.warning(
-            "%s has no summary (the recorder did not finish it); replaying the %d readable samples",
-            args.file,
-            info.samples,
-        )
+    selected = _selected_keys(reader, args, keep, log)
     if not selected:
-        what = f" matching {' '.join(args.only)}" if args.only else ""
-        print(
-            f"hri replay: nothing to replay{what} in {args.file} (keys: {', '.join(sorted(info.keys)) or 'none'})",
-            file=sys.stderr,
-        )
         reader.close()
         return 1
     total = sum(selected.values())
@@ -718,9 +815,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         len(selected),
         info.span_s,
         args.file,
-        "full speed" if args.speed == 0 else f"x{args.speed:g}",
+        _speed_text(args.speed),
     )
-
     stop = threading.Event()
     _stop_on_signals(stop)
     session = open_session(args, log, stop)
@@ -737,38 +833,10 @@ def cmd_replay(args: argparse.Namespace) -> int:
         for key in sorted(selected)
     }
     _wait_for_subscribers(publishers, args.wait_subscribers, stop, log)
-
-    clock = ReplayClock(args.speed)
-    progress = Progress()
-    started = time.monotonic()
-    sent, sent_bytes, loops, error = 0, 0, 0, 0
+    replay = _Replay(reader, publishers, keep, args, total, stop, log)
+    error = 0
     try:
-        while not stop.is_set():
-            loops += 1
-            clock.restart()
-            first_ns = None
-            for i, msg in enumerate(reader.messages(keep), 1):
-                delay = clock.wait_for(msg.log_ns)
-                if delay > 0 and stop.wait(delay):
-                    break
-                if stop.is_set():
-                    break
-                publishers[msg.key].put(msg.payload)
-                sent += 1
-                sent_bytes += len(msg.payload)
-                first_ns = msg.log_ns if first_ns is None else first_ns
-                if progress.due():
-                    where = f", {(msg.log_ns - first_ns) / NS:.1f}/{info.span_s:.1f} s recorded time"
-                    loop = f", loop {loops}" if args.loop else ""
-                    progress.show(
-                        rate_line(
-                            "replaying", sent, sent_bytes, time.monotonic() - started, f" [{i}/{total}{where}{loop}]"
-                        )
-                    )
-            if reader.damaged:
-                log.warning("stopped reading at damaged data in %s: %s", args.file, reader.damaged)
-            if not args.loop:
-                break
+        replay.run()
     except zenoh.ZError as exc:
         log.error("publishing failed: %s", exc)
         error = 1
@@ -778,16 +846,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
             pub.undeclare()
         session.close()
         reader.close()
-    elapsed = time.monotonic() - started
-    progress.end(
+    elapsed = time.monotonic() - replay.started
+    replay.progress.end(
         rate_line(
             "replayed",
-            sent,
-            sent_bytes,
+            replay.sent,
+            replay.sent_bytes,
             elapsed,
             f" on {len(selected)} keys (recording spans {info.span_s:.1f} s, "
-            f"{'full speed' if args.speed == 0 else f'x{args.speed:g}'}"
-            f"{f', {loops} loops' if args.loop else ''})",
+            f"{_speed_text(args.speed)}"
+            f"{f', {replay.loops} loops' if args.loop else ''})",
         )
     )
     return error

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import math
 
-from common.schema import Weights
+from common.schema import Transcript, Weights
 from services.fusion.evidence import PointingObs
 from services.fusion.join import Ready
-from services.fusion.parse import parse
+from services.fusion.parse import Utterance, parse
 from services.fusion.window import Context
 from testkit.scenarios import BASE_STAMP, say
 
@@ -40,7 +40,8 @@ def window(objects, speech: float = 0.9) -> Context:
     )
 
 
-def utterance(start: float, text: str):
+def utterance(start: float, text: str) -> tuple[Transcript, Utterance]:
     """(Transcript, parse) of `text` said from `start` for one second after BASE_STAMP."""
     _, t = say(start, start + 1.0, text).build(BASE_STAMP)
+    assert isinstance(t, Transcript)
     return t, parse(t.text)

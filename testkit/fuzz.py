@@ -56,51 +56,65 @@ class Fuzzer:
         return self._pack({**self.map, **changes})
 
     def one(self) -> tuple[str, bytes]:
-        rng, m = self.rng, self.map
-        kind = rng.choice(KINDS if not isinstance(self.valid, Frame) else KINDS + FRAME_KINDS)
-        field = rng.choice(self.fields)
-        now = time.time()
-        if kind == "random_bytes":
-            return kind, rng.randbytes(rng.randint(0, 2000))
-        if kind == "truncated":
-            return kind, self.encoded[: rng.randint(0, len(self.encoded) - 1)]
-        if kind == "not_a_map":
-            return kind, self._pack(rng.choice([[1, 2, 3], 42, "frame", None, b"\0" * 10, 1.5, True]))
-        if kind == "missing_field":
-            return kind, self._pack({k: v for k, v in m.items() if k != field})
-        if kind == "wrong_type":
-            return kind, self._with(**{field: rng.choice(["x", [], {}, True, None, b"\1", {"a": 1}])})
-        if kind == "not_finite":
-            return kind, self._with(stamp=rng.choice([float("nan"), float("inf"), float("-inf")]))
-        if kind == "huge_int":
-            return kind, self._with(**{rng.choice(["stamp", field]): rng.choice([U64_MAX, I64_MIN, 2**63])})
-        if kind == "deep_nesting":
-            return kind, (
-                b"\x91" * 100_000 + b"\x01"
-                if rng.random() < 0.5
-                else self._with(**{field: nested(rng.randint(100, 400))})
-            )
-        if kind == "far_future":
-            return kind, self._with(stamp=rng.choice([1.8e19, now + 3600.0, now + 86400.0 * 365, float(U64_MAX)]))
-        if kind == "far_past":
-            return kind, self._with(stamp=rng.choice([0.0, -1e9, now - 1e6 * rng.random(), 1e-300]))
-        # frames only
-        if kind == "bgr8_wrong_size":
-            return kind, self._with(encoding="bgr8", data=b"\0" * rng.randint(0, 5000))
-        if kind == "undecodable_jpeg":
-            return kind, self._with(stamp=now, encoding="jpeg", data=undecodable_jpeg(m["data"]))
-        if kind == "header_lies":
-            return kind, self._with(stamp=now, width=m["width"] + rng.randint(1, 50))
-        if kind == "image_bomb":
-            big = rng.random() < 0.5  # declared as what it is (over the pixel cap) or as a small frame
-            return kind, self._with(
-                stamp=now,
-                encoding="png",
-                data=self.bomb,
-                width=15000 if big else m["width"],
-                height=15000 if big else m["height"],
-            )
-        raise AssertionError(kind)
+        """One malformed payload: (its kind, its bytes)."""
+        kind = self.rng.choice(KINDS if not isinstance(self.valid, Frame) else KINDS + FRAME_KINDS)
+        field = self.rng.choice(self.fields)
+        return kind, getattr(self, f"_{kind}")(field, time.time())
+
+    # one method per kind of malformation: (a field of the sample to spoil, now) -> payload
+    def _random_bytes(self, field: str, now: float) -> bytes:
+        return self.rng.randbytes(self.rng.randint(0, 2000))
+
+    def _truncated(self, field: str, now: float) -> bytes:
+        return self.encoded[: self.rng.randint(0, len(self.encoded) - 1)]
+
+    def _not_a_map(self, field: str, now: float) -> bytes:
+        return self._pack(self.rng.choice([[1, 2, 3], 42, "frame", None, b"\0" * 10, 1.5, True]))
+
+    def _missing_field(self, field: str, now: float) -> bytes:
+        return self._pack({k: v for k, v in self.map.items() if k != field})
+
+    def _wrong_type(self, field: str, now: float) -> bytes:
+        return self._with(**{field: self.rng.choice(["x", [], {}, True, None, b"\1", {"a": 1}])})
+
+    def _not_finite(self, field: str, now: float) -> bytes:
+        return self._with(stamp=self.rng.choice([float("nan"), float("inf"), float("-inf")]))
+
+    def _huge_int(self, field: str, now: float) -> bytes:
+        rng = self.rng
+        return self._with(**{rng.choice(["stamp", field]): rng.choice([U64_MAX, I64_MIN, 2**63])})
+
+    def _deep_nesting(self, field: str, now: float) -> bytes:
+        rng = self.rng
+        return (
+            b"\x91" * 100_000 + b"\x01" if rng.random() < 0.5 else self._with(**{field: nested(rng.randint(100, 400))})
+        )
+
+    def _far_future(self, field: str, now: float) -> bytes:
+        return self._with(stamp=self.rng.choice([1.8e19, now + 3600.0, now + 86400.0 * 365, float(U64_MAX)]))
+
+    def _far_past(self, field: str, now: float) -> bytes:
+        return self._with(stamp=self.rng.choice([0.0, -1e9, now - 1e6 * self.rng.random(), 1e-300]))
+
+    # frames only
+    def _bgr8_wrong_size(self, field: str, now: float) -> bytes:
+        return self._with(encoding="bgr8", data=b"\0" * self.rng.randint(0, 5000))
+
+    def _undecodable_jpeg(self, field: str, now: float) -> bytes:
+        return self._with(stamp=now, encoding="jpeg", data=undecodable_jpeg(self.map["data"]))
+
+    def _header_lies(self, field: str, now: float) -> bytes:
+        return self._with(stamp=now, width=self.map["width"] + self.rng.randint(1, 50))
+
+    def _image_bomb(self, field: str, now: float) -> bytes:
+        big = self.rng.random() < 0.5  # declared as what it is (over the pixel cap) or as a small frame
+        return self._with(
+            stamp=now,
+            encoding="png",
+            data=self.bomb,
+            width=15000 if big else self.map["width"],
+            height=15000 if big else self.map["height"],
+        )
 
     def payloads(self, n: int) -> Iterator[tuple[str, bytes]]:
         for _ in range(n):

@@ -7,12 +7,12 @@ is judged against the expected one. The 27-photo set (issue #23) is defined here
 from __future__ import annotations
 
 from pathlib import Path
-
-import cv2
+from typing import Any
 
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.temporal import GestureTracker
 from testkit.harness import DATA
+from testkit.images import read_image
 from testkit.shared import shared_dir
 
 OPENCV_DOC = Path("/usr/share/doc/opencv-doc/opencv4/html")
@@ -70,7 +70,7 @@ def photo_path(where: str, name: str) -> Path:
 
 def starts_on_photo(path: Path, frames: int = FRAMES) -> list[tuple[str, str]]:
     """(gesture, hand) of every gesture that starts while the photo is shown `frames` times, as the service does."""
-    img = cv2.imread(str(path))
+    img = read_image(str(path))
     if img is None:
         raise FileNotFoundError(f"cannot read {path}")
     hands, pose, tracker = HandLandmarker("lite", video=True), PoseLandmarker(video=True), GestureTracker()
@@ -98,7 +98,7 @@ def judge(starts: list[tuple[str, str]], expected: str | None, side: str | None)
     }
 
 
-def evaluate(photos) -> dict[str, list]:
+def evaluate(photos: Any) -> dict[str, tuple[list[tuple[str, str]], dict[str, bool]]]:
     """name -> (starts, judgement) over photos whose file exists."""
     results = {}
     for where, name, expected, side in photos:

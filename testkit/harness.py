@@ -199,7 +199,7 @@ class Client:
         pubs = [self.session.declare_publisher(k) for k in keys]
         deadline = time.monotonic() + timeout
         try:
-            while not all(p.matching_status.matching for p in pubs):
+            while not all(p.matching_status.matching for p in pubs):  # type: ignore[attr-defined]  # zenoh's stub types matching_status as bool; it is a MatchingStatus
                 if time.monotonic() > deadline:
                     raise TimeoutError(f"no subscriber matched {keys} within {timeout} s")
                 time.sleep(0.05)

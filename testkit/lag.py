@@ -10,10 +10,11 @@ from typing import Callable
 
 import cv2
 import numpy as np
+import zenoh
 
 from common.codec import decode
 from common.runner import SamplePublisher
-from common.schema import Frame
+from common.schema import Frame, Sample
 from testkit.harness import Client, ProcessGroup
 
 
@@ -21,7 +22,7 @@ def frame_lag(
     service: str,
     service_args: list[str],
     out_key: str,
-    schema: type,
+    schema: type[Sample],
     frames: list[np.ndarray],
     seconds: float,
     fps: float = 30.0,
@@ -35,7 +36,7 @@ def frame_lag(
     lags: list[tuple[float, float]] = []  # (seconds since start, lag)
     start = time.time()
 
-    def on_output(sample) -> None:
+    def on_output(sample: zenoh.Sample) -> None:
         out = decode(sample.payload.to_bytes(), schema)
         now = time.time()
         lags.append((now - start, now - out.stamp))
@@ -109,7 +110,7 @@ def frame_benchmark_main(
     doc: str,
     service: str,
     out_key: str,
-    schema: type,
+    schema: type[Sample],
     frames: Callable[[], list],
     throughput: Callable[[list, int], None],
 ) -> None:

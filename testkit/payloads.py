@@ -9,11 +9,12 @@ import msgspec
 from common.schema import Sample
 from testkit.examples import examples
 from testkit.harness import DATA
+from testkit.images import read_image
 
 
 def realistic_samples() -> dict[str, Sample]:
     by_name = {type(s).__name__: s for s in examples()}
-    img = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
+    img = cv2.resize(read_image(str(DATA / "images" / "tabletop" / "smarties.png")), (640, 480))
     frame = by_name["Frame"]
     frame.encoding, frame.width, frame.height = "jpeg", 640, 480
     if frame.camera_info is not None:  # the example's intrinsics are for its own tiny size: these fit 640x480

@@ -23,6 +23,7 @@ def main() -> None:
 
     def on_sample(s) -> None:
         schema = keys.schema_for(str(s.key_expr))
+        assert schema is not None, f"{s.key_expr} is not a key of the wire contract"
         sample = decode(s.payload.to_bytes(), schema)
         with lock:
             print(

@@ -82,7 +82,7 @@ def pink_noise(seconds: float, seed: int = 0) -> np.ndarray:
     return np.pad(noise, (0, max(0, n - len(noise))))[:n]
 
 
-def synthesize(
+def synthesize(  # noqa: PLR0913 - the voice's details, each with a default; callers name the few they change
     text: str,
     wav_path: str | Path,
     voice: str = "en-us",

@@ -1,6 +1,7 @@
 """Malformed samples on a service's input keys are counted in its stats, and the service keeps working."""
 
 import time
+from typing import Any, Callable
 
 import cv2
 import msgpack
@@ -10,6 +11,7 @@ from common.codec import encode
 from common.schema import Frame
 from hri.cli import make_transcript
 from testkit.harness import DATA, Client, requires_services
+from testkit.images import read_image
 
 pytestmark = pytest.mark.integration
 
@@ -17,7 +19,7 @@ PHOTO = DATA / "images" / "tabletop" / "smarties.png"
 
 
 def real_frame(seq: int, stamp: float) -> Frame:
-    img = cv2.imread(str(PHOTO))
+    img = read_image(str(PHOTO))
     data = cv2.imencode(".jpg", img)[1].tobytes()
     return Frame(
         stamp=stamp,
@@ -47,7 +49,7 @@ def bad_payloads(valid: bytes, schema_cap: int) -> dict[str, bytes]:
 
 
 # (service, its argv, input key, a valid input, the key where its output shows it still works)
-CASES = [
+CASES: list[tuple[str, list[str], str, Callable[[float], Any], str]] = [
     ("vision", [], "hri/camera/cam0/frame", lambda t: real_frame(1, t), "hri/vision/cam0/objects"),
     ("gesture", [], "hri/camera/cam0/frame", lambda t: real_frame(1, t), "hri/gesture/cam0/hands"),
     (

@@ -8,6 +8,7 @@ import pytest
 
 from common.image import frame_image
 from testkit.harness import DATA, ROOT, Client
+from testkit.images import read_image
 
 pytestmark = pytest.mark.integration
 TABLETOP = DATA / "images" / "tabletop"
@@ -87,3 +88,37 @@ def test_a_source_that_cannot_be_opened_is_a_clear_error(source, message):
     )
     assert res.returncode == 2
     assert message in res.stderr
+
+
+def test_size_fits_a_video_and_a_folder_inside_the_given_size_keeping_the_aspect(group) -> None:
+    """--size (issue #34) on the shipped photos (mixed sizes) and on a real clip when ../shared has it: every frame
+    fits inside 320x240 with its own aspect kept (within a pixel) and shows the same picture, scaled."""
+    import cv2
+
+    from testkit.shared import shared_dir
+
+    sources = [TABLETOP]
+    clip = shared_dir() / "data" / "talking" / "real_single_vr1_cfr25.mp4"  # 700x700
+    if clip.exists():
+        sources.append(clip)
+    group.router()
+    client = Client(group.endpoint)
+    try:
+        for i, source in enumerate(sources):
+            frames = client.collect(f"hri/camera/s{i}/frame")
+            group.service(
+                "camera", "--source", str(source), "--cam", f"s{i}", "--fps", "20", "--loop", "--size", "320x240"
+            )
+            for _, frame in frames.wait(4, timeout=30):
+                img = frame_image(frame)
+                assert (frame.width, frame.height) == (img.shape[1], img.shape[0])
+                assert frame.width <= 320 and frame.height <= 240 and (frame.width == 320 or frame.height == 240)
+                if source == TABLETOP:
+                    photo = read_image(sorted(TABLETOP.iterdir())[frame.seq % len(list(TABLETOP.iterdir()))])
+                    assert abs(photo.shape[1] / photo.shape[0] - frame.width / frame.height) < 1.5 / frame.height
+                    scaled = cv2.resize(photo, (frame.width, frame.height), interpolation=cv2.INTER_AREA)
+                    assert np.abs(img.astype(int) - scaled.astype(int)).mean() < 6  # JPEG noise only
+                else:
+                    assert (frame.width, frame.height) == (240, 240)
+    finally:
+        client.close()

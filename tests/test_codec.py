@@ -115,7 +115,7 @@ INVALID = [
 @pytest.mark.parametrize(
     "index,path,value,reason",
     INVALID,
-    ids=[f"{type(examples()[i]).__name__}.{'.'.join(map(str, p))}" for i, p, _, _ in INVALID],
+    ids=[f"{type(examples()[i]).__name__}.{'.'.join(str(step) for step in p)}" for i, p, _, _ in INVALID],  # type: ignore[attr-defined]  # rows are (int, list, value, str)
 )
 def test_invalid_values_are_rejected_with_a_reason(index, path, value, reason):
     sample = examples()[index]

@@ -71,11 +71,47 @@ def test_one_slow_sample_does_not_move_it_and_a_step_shows_within_the_window():
     assert clocks.offset("s") == pytest.approx(0.48)
 
 
+def feed_transcripts(clocks: ClockOffsets, source: str, skew: float, rng: random.Random, t0: float = 1.0e9) -> None:
+    """20 utterances from a speech source whose clock runs `skew` ahead: each stamped at its end, published after
+    recognition (0.25-1.9 s: the delays measured under load in issue #34), 1-5 ms to the router, as much to us."""
+    for i in range(20):
+        end = t0 + 6.0 * i
+        published = end + rng.uniform(0.25, 1.9)
+        at_router = published + rng.uniform(0.001, 0.005)
+        clocks.add(source, end + skew, at_router, at_router + rng.uniform(0.001, 0.005), late_by_design=True)
+
+
+def test_speech_recognition_delay_is_reported_as_delay_not_as_a_clock_behind():
+    clocks = ClockOffsets()
+    rng = random.Random(3)
+    feed(clocks, "gesture/a", 0.0, 200, rng)
+    feed_transcripts(clocks, "speech/a", 0.0, rng)
+    assert "speech/a" not in clocks.offsets() and clocks.offset("speech/a") is None
+    delay = clocks.delay("speech/a")
+    assert delay is not None and 0.25 <= delay <= 0.45, delay  # the fastest of 20 recognitions, not a skew
+    assert clocks.delays() == {"speech/a": delay}  # a source on time has no delay entry
+    assert -0.04 <= clocks.offsets()["gesture/a"] <= 0.0
+
+
+def test_a_late_by_design_source_whose_clock_runs_ahead_is_still_an_offset():
+    clocks = ClockOffsets()
+    feed_transcripts(clocks, "speech/a", 0.8, random.Random(4))  # 0.8 s ahead outweighs its fastest 0.25 s delay
+    offset = clocks.offset("speech/a")
+    assert offset is not None and 0.8 - 0.45 <= offset <= 0.8 - 0.25, offset  # less the fastest delay of 20
+    assert clocks.delay("speech/a") is None
+    verdict = clock_verdict(offset, 0.15, 0.5)
+    assert verdict == "ahead"
+
+
 def test_a_source_that_left_is_forgotten():
     clocks = ClockOffsets()
     clocks.add("vision/a", 10.3, 10.0, 10.0)
     clocks.forget("vision/a")
     assert clocks.offset("vision/a") is None and clocks.offsets() == {}
+    clocks.add("speech/a", 10.0, 10.5, 10.5, late_by_design=True)
+    clocks.forget("speech/a")
+    clocks.add("speech/a", 20.3, 20.0, 20.0)  # a new instance under the same name, not late: an offset again
+    assert clocks.delays() == {} and clocks.offset("speech/a") == pytest.approx(0.3)
 
 
 def test_a_silent_source_expires_so_one_shot_sources_do_not_pile_up():

@@ -81,6 +81,7 @@ def load_docker_script(name: str):
     spec = importlib.util.spec_from_file_location(
         f"hri_docker_{name.replace('-', '_')}", ROOT / "docker" / f"{name}.py"
     )
+    assert spec is not None and spec.loader is not None, name
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

@@ -14,6 +14,7 @@ from common.schema import (
     Body,
     DetectedObject,
     Detections,
+    FusedCommand,
     Hand,
     ImageQuality,
     Ray,
@@ -40,12 +41,15 @@ from testkit.room3d import (
     thing,
     unit,
 )
-from testkit.scenarios import BASE_STAMP, KEYS, Scenario, Step, run_in_process, say
+from testkit.scenarios import BASE_STAMP, KEYS, Scenario, Step, deliver, run_in_process, say
 
 
 def pointed(objects, hand, depth=True) -> str:
     p = select_pointing(pointing_from_hands(hands(hand)), BASE_STAMP)
-    return best_pointed(p, scene_objects([detections(objects, depth=depth)])).obj.id
+    assert p is not None, "the hand does not point"
+    best = best_pointed(p, scene_objects([detections(objects, depth=depth)]))
+    assert best is not None, "nothing is pointed at"
+    return best.obj.id
 
 
 # ---------------------------------------------------------------------------
@@ -274,6 +278,11 @@ def body(facing: bool | None) -> Body:
     return Body(landmarks=p, visibility=[0.99] * 33)
 
 
+def body_step(person: Body | None, t: float) -> Step:
+    """The Bodies of `person` at `t` seconds after the base stamp."""
+    return Step(t, lambda base: (KEYS.bodies("cam0"), bodies(person, base + t)))
+
+
 def bodies(b: Body | None, stamp: float) -> Bodies:
     return Bodies(
         stamp=stamp, source="gesture/cam0", seq=1, cam="cam0", width=W, height=H, bodies=[] if b is None else [b]
@@ -317,10 +326,7 @@ def run_with_body(text: str, person: Body | None) -> str:
 
     steps = [step(t / 10, see) for t in range(-10, 20, 2)]
     if person is not None:
-        steps += [
-            Step(t / 10, lambda base, t=t: (KEYS.bodies("cam0"), bodies(person, base + t / 10)))
-            for t in range(-10, 20, 2)
-        ]
+        steps += [body_step(person, t / 10) for t in range(-10, 20, 2)]
     steps.append(say(0.0, 0.8, text))
     from services.fusion.core import Config, FusionCore
 
@@ -329,12 +335,12 @@ def run_with_body(text: str, person: Body | None) -> str:
         core.on_liveliness(modality, "test", True)
     out = []
     for s in sorted(steps, key=lambda s: s.t):
-        key, sample = s.build(BASE_STAMP)
-        feed = {Detections: core.on_detections, Bodies: core.on_bodies}.get(type(sample), core.on_transcript)
-        out += [o.sample for o in feed(key, sample, 1000.0)] + [o.sample for o in core.tick(1000.0)]
+        out += [o.sample for o in deliver(core, *s.build(BASE_STAMP), 1000.0)] + [o.sample for o in core.tick(1000.0)]
     out += [o.sample for o in core.tick(2000.0)]
-    assert len(out) == 1 and out[0].target is not None, out
-    return out[0].target.id
+    assert len(out) == 1, out
+    command = out[0]
+    assert isinstance(command, FusedCommand) and command.target is not None, out
+    return command.target.id
 
 
 @pytest.mark.parametrize(

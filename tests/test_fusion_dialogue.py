@@ -7,7 +7,8 @@ from __future__ import annotations
 import logging
 
 from common.schema import Clarification, FusedCommand
-from services.fusion.dialogue import Dialogue, Draft
+from services.fusion.decision import Draft
+from services.fusion.dialogue import Dialogue
 from services.fusion.ground import Choice
 from services.fusion.outputs import Outputs
 from services.fusion.window import Context
@@ -24,6 +25,7 @@ def asked_which_cup(counts: list[str]) -> tuple[Dialogue, Context, Clarification
     assert choice.kind == "ambiguous"
     out = dialogue.clarify(t, u, ctx, choice, Draft("pick_up", t.text))
     assert dialogue.question is not None and dialogue.question.clarification_id == out.sample.id
+    assert isinstance(out.sample, Clarification)
     return dialogue, ctx, out.sample
 
 

@@ -2,8 +2,18 @@
 
 from __future__ import annotations
 
+import math
+
+import cv2
+import pytest
+
+from common.schema import GestureEvent, Handedness
 from services.fusion.core import Config, FusionCore
-from services.fusion.gestures import OPEN_PALM_FRAMES, Gestures
+from services.fusion.gestures import OPEN_PALM_FRAMES, WAVE_HOLD_S, Gestures
+from services.gesture.landmarks import HandLandmarker
+from services.gesture.temporal import GestureTracker
+from testkit.harness import DATA
+from testkit.images import read_image
 from testkit.scenarios import BASE_STAMP, gesture, hands
 
 
@@ -30,7 +40,101 @@ def test_an_open_palm_during_an_utterance_is_seen_from_the_event_or_from_enough_
     assert gestures.on_event(key, ev).intent == "stop"
     assert gestures.stop_shown(BASE_STAMP, BASE_STAMP + 2.0, [])
     assert not gestures.stop_shown(BASE_STAMP + 3.0, BASE_STAMP + 5.0, [])
-    key, ev = gesture(1.0, "wave", "start").build(BASE_STAMP)
+    key, ev = gesture(1.0, "wave", "start", duration=WAVE_HOLD_S).build(BASE_STAMP)
     assert gestures.on_event(key, ev).intent == "come_here" and gestures.waved(BASE_STAMP, BASE_STAMP + 2.0)
-    key, weak = gesture(4.0, "wave", "start", score=0.3).build(BASE_STAMP)
+    key, weak = gesture(4.0, "wave", "start", score=0.3, duration=WAVE_HOLD_S).build(BASE_STAMP)
     assert gestures.on_event(key, weak) is None
+
+
+def _wave(t0: float, seconds: float, hand: Handedness = "right", end: bool = True) -> list[tuple[str, GestureEvent]]:
+    """A wave as the gesture service reports it: `start` at its first frame, `hold` every 0.1 s, `end`."""
+    steps = [gesture(t0, "wave", "start", duration=0.0, hand=hand)]
+    steps += [
+        gesture(t0 + 0.1 * i, "wave", "hold", duration=0.1 * i, hand=hand) for i in range(1, int(seconds * 10) + 1)
+    ]
+    if end:
+        steps.append(gesture(t0 + seconds, "wave", "end", duration=seconds, hand=hand))
+    return [(key, ev) for key, ev in (s.build(BASE_STAMP) for s in steps) if isinstance(ev, GestureEvent)]
+
+
+def _commands(
+    gestures: Gestures, events: list[tuple[str, GestureEvent]], facing: bool | None = None
+) -> list[tuple[str, object]]:
+    out: list[tuple[str, object]] = []
+    for key, ev in events:
+        command = gestures.on_event(key, ev, facing=facing)
+        if command is not None:
+            out.append((command.intent, ev.stamp - BASE_STAMP))
+    return out
+
+
+def test_a_wave_calls_the_robot_only_when_held_and_not_turned_away() -> None:
+    """Issue #34: hands moving at a table while people talk make brief waves; a wave meant for the robot goes on."""
+    brief = _wave(0.0, 0.6) + _wave(3.0, 0.9, hand="left") + _wave(6.0, 0.5)
+    assert _commands(Gestures(0.5, 1.5, 30.0), brief) == []
+    held = _wave(0.0, 2.0)
+    commands = _commands(Gestures(0.5, 1.5, 30.0), held)
+    assert commands == [("come_here", pytest.approx(WAVE_HOLD_S))]  # once, when the hold is reached
+    assert _commands(Gestures(0.5, 1.5, 30.0), held, facing=True) == commands  # facing the camera: the same
+    assert _commands(Gestures(0.5, 1.5, 30.0), held, facing=False) == []  # back to the robot: not for it
+    # a second held wave after the first ended is a new call
+    again = _commands(Gestures(0.5, 1.5, 30.0), held + _wave(5.0, 1.5))
+    assert [intent for intent, _ in again] == ["come_here", "come_here"]
+
+
+def test_a_stop_is_never_held_back() -> None:
+    gestures = Gestures(0.5, 1.5, 30.0)
+    key, palm = gesture(1.0, "open_palm", "start", duration=0.1).build(BASE_STAMP)
+    assert isinstance(palm, GestureEvent)
+    command = gestures.on_event(key, palm, facing=False)
+    assert command is not None and command.intent == "stop" and command.realtime
+
+
+def _real_palm_events(waving_s: float, still_s: float, fps: float = 30.0) -> list[GestureEvent]:
+    """The real open palm of data/demo/stop.png slid side to side (±100 px, 1.5 Hz: a wave) for `waving_s`, then
+    held still for `still_s`, through MediaPipe and the gesture service's tracker, as the GestureEvents it sends."""
+    img = read_image(DATA / "demo" / "stop.png")
+    margin = 120
+    landmarker = HandLandmarker("lite", max_hands=2, video=True)
+    tracker = GestureTracker()
+    out: list[GestureEvent] = []
+    try:
+        for i in range(int((waving_s + still_s) * fps)):
+            t = i / fps
+            swing = 100 * math.sin(2 * math.pi * 1.5 * t) if t < waving_s else 0.0
+            dx = int(round(margin + swing))
+            canvas = cv2.copyMakeBorder(img, 0, 0, dx, 2 * margin - dx, cv2.BORDER_REPLICATE)
+            for e in tracker.update(BASE_STAMP + t, landmarker.detect(canvas))[1]:
+                h, w = canvas.shape[:2]
+                out.append(
+                    GestureEvent(
+                        stamp=e.end,
+                        source="gesture/test",
+                        cam="cam0",
+                        width=w,
+                        height=h,
+                        gesture=e.gesture,  # type: ignore[arg-type]  # the tracker's names are the wire's
+                        phase=e.phase,  # type: ignore[arg-type]
+                        start=e.start,
+                        end=e.end,
+                        score=e.score,
+                        hand=e.hand,  # type: ignore[arg-type]
+                    )
+                )
+    finally:
+        landmarker.close()
+    return out
+
+
+def test_a_real_palm_waved_briefly_gives_no_command_and_waved_on_calls_the_robot() -> None:
+    """Real hand frames (MediaPipe on a real palm photo, moved as a hand moves): a wave of a second, as hands make
+    while talking, is recognised as a wave by the gesture service but calls nobody; waved for 3 s it calls the
+    robot, once."""
+    brief = _real_palm_events(1.0, 1.0)
+    assert any(e.gesture == "wave" for e in brief)  # the gesture service does see a wave
+    gestures = Gestures(0.5, 1.5, 30.0)
+    assert [c for e in brief if (c := gestures.on_event("k", e)) and c.intent == "come_here"] == []
+    held = _real_palm_events(3.0, 0.5)
+    gestures = Gestures(0.5, 1.5, 30.0)
+    calls = [c for e in held if (c := gestures.on_event("k", e)) and c.intent == "come_here"]
+    assert len(calls) == 1, calls

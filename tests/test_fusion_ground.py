@@ -3,6 +3,8 @@ pointed location."""
 
 from __future__ import annotations
 
+import pytest
+
 from common.schema import Weights
 from services.fusion.evidence import select_pointing
 from services.fusion.ground import choose, pointing_score, ray_point, score
@@ -114,3 +116,45 @@ def test_the_pointing_hand_is_never_its_own_target():
     assert choose(phrase, ranked).kind == "target"
     without_box = Pointing(**{**pointing.__dict__, "hand_box": None})
     assert choose(phrase, score(phrase, scene_objects([det]), without_box, weights, ref=10.0)).kind == "ambiguous"
+
+
+def test_the_vectorised_ray_step_gives_what_the_one_object_functions_give() -> None:
+    """deictic_scores runs numpy over the image-plane objects (issue #34: 1000 objects); every object's G, angle
+    and under-the-fingertip verdict must be those of pointing_score / under_fingertip, on scenes where the ray
+    passes through boxes, grazes them, starts inside one, points away, and with and without a hand box."""
+    import dataclasses
+    import random
+
+    from services.fusion.ground import ray_score, ray_scores, under_fingertip
+
+    rng = random.Random(7)
+    objs = [
+        Obj(
+            f"o{i}",
+            "cup",
+            "red",
+            (rng.uniform(0, 640), rng.uniform(0, 480)),
+            (rng.uniform(2, 120), rng.uniform(2, 120)),
+            0.9,
+        )
+        for i in range(400)
+    ]
+    objects = scene_of(objs)
+    checked_under = 0
+    for trial in range(12):
+        target = objects[trial]
+        base = _pointing_at(target.center, origin=(rng.uniform(0, 640), rng.uniform(0, 480)))
+        assert base is not None
+        hand_box = (base.origin[0] - 30, base.origin[1] - 30, base.origin[0] + 30, base.origin[1] + 30)
+        for p in (base, dataclasses.replace(base, hand_box=hand_box), dataclasses.replace(base, direction=(1.0, 0.0))):
+            got, under = ray_scores(p, objects)
+            for o in objects:
+                one = ray_score(p, o)
+                assert got[o.key].gesture == pytest.approx(one.gesture, abs=1e-12)
+                assert (got[o.key].angle is None) == (one.angle is None) and got[o.key].rule == one.rule
+                if one.angle is not None:
+                    assert got[o.key].angle == pytest.approx(one.angle, abs=1e-9)
+                expected = one.angle is not None and one.gesture > 0 and under_fingertip(p, o)
+                assert (o.key in under) == expected, (o, p)
+                checked_under += expected
+    assert checked_under > 20  # the scenes do put objects under the fingertip

@@ -37,6 +37,7 @@ def test_named_places_are_published_in_the_command():
 
 def test_one_builder_for_commands_and_questions():
     from common.schema import Clarification, Location
+    from services.fusion.decision import Act
     from services.fusion.ground import MAX_CANDIDATES
     from services.fusion.outputs import Outputs
     from testkit.scenarios import scene_of
@@ -46,13 +47,13 @@ def test_one_builder_for_commands_and_questions():
     t, _ = utterance(0.0, "put it there")
     ctx = window(scene_of(CANDIES))
     out = build.command(
-        t, "put_down", ctx, confidence=1.7, explanation="why", location=Location(x=12.0, y=34.0, cam="cam0")
+        t, Act("put_down", confidence=1.7, explanation="why", location=Location(x=12.0, y=34.0, cam="cam0")), ctx
     )
     cmd = out.sample
     assert cmd.id == stable_id("cmd", t.source, t.stamp, t.mic) and cmd.confidence == 1.0 and not out.realtime
     assert cmd.location == Location(x=12.0, y=34.0, cam="cam0") and cmd.weights == ctx.weights
     assert "Location: pixel (12, 34) in camera cam0" in cmd.prompt and "Missing inputs: gesture" in cmd.prompt
-    spoken_stop = build.command(t, "stop", None, confidence=0.8, explanation="stop", realtime=True)
+    spoken_stop = build.command(t, Act("stop", confidence=0.8, explanation="stop", realtime=True), None)
     assert spoken_stop.realtime and spoken_stop.sample.weights.speech == 1.0
     assert spoken_stop.sample.inputs == {"speech": t.stamp, "vision": None, "gesture": None}
     question = build.clarification(t, "ambiguous", "Which one?", ctx.objects).sample

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from common.schema import Clarification, Detections, FusedCommand
 from hri.cli import make_transcript
 from testkit.harness import Client, ProcessGroup, requires_services
+from testkit.images import read_image
 from testkit.scenarios.indoor import SCENES, evaluate, judge, load_lines, report, vision_pipeline
 from testkit.shared import shared_path, yolox_model
 
@@ -90,7 +92,7 @@ def test_relation_words_on_real_photos(folder, photo, text, expect):
     assert ok, got
 
 
-_SEEN: dict[str, object] = {}
+_SEEN: dict[str, Any] = {}
 
 
 def _seen(folder: Path, photo: str):
@@ -127,7 +129,7 @@ def test_the_indoor_scenes_over_zenoh(in_process, folder, tmp_path):
         seen = client.collect("hri/vision/*/objects")
         for photo in dict.fromkeys(line.photo for line in lines):
             upright = tmp_path / (Path(photo).stem + ".png")
-            cv2.imwrite(str(upright), cv2.imread(str(folder / photo)))
+            cv2.imwrite(str(upright), read_image(str(folder / photo)))
             if camera is not None:
                 camera.terminate()
                 seen.drain(1.0)

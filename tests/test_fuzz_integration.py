@@ -24,10 +24,12 @@ from common.schema import (
     Hands,
     ImageQuality,
     Ray,
+    Sample,
 )
 from hri.cli import make_transcript
 from testkit.fuzz import Fuzzer, image_bomb
 from testkit.harness import DATA, Client
+from testkit.images import read_image
 
 pytestmark = pytest.mark.integration
 
@@ -39,7 +41,7 @@ MAX_GROWTH_MB = 150  # peak RSS over the RSS after warm-up: bounded, not growing
 
 
 def jpeg_frame(seq: int, stamp: float) -> Frame:
-    img = cv2.imread(str(PHOTO))
+    img = read_image(str(PHOTO))
     return Frame(
         stamp=stamp,
         source="test/cam",
@@ -52,7 +54,7 @@ def jpeg_frame(seq: int, stamp: float) -> Frame:
     )
 
 
-def valid_inputs(now: float) -> dict[str, object]:
+def valid_inputs(now: float) -> dict[str, Sample]:
     obj = DetectedObject(id="o1", label="candy", color="red", score=0.9, bbox=[10, 10, 20, 20], center=[20, 20])
     ray = Ray(origin=[100.0, 100.0], direction=[1.0, 0.0], confidence=0.9)
     hand = Hand(hand="right", score=0.9, landmarks=[[float(i), float(i)] for i in range(21)], gesture="point", ray=ray)
@@ -143,6 +145,30 @@ def say_and_time(client: Client, transcripts, samples) -> float:
     return time.monotonic() - t0
 
 
+def flood(client: Client) -> tuple[collections.Counter[str], collections.Counter[str], float]:
+    """SAMPLES malformed samples spread over every input key, plus one oversized payload per key: (how many of
+    each kind were thrown, how many each service should receive, seconds it took)."""
+    bomb = image_bomb()
+    valid = valid_inputs(time.time())
+    fuzzers = {key: Fuzzer(sample, seed=i, bomb=bomb) for i, (key, sample) in enumerate(valid.items())}
+    thrown: collections.Counter[str] = collections.Counter()
+    per_key = SAMPLES // len(fuzzers)
+    t0 = time.monotonic()
+    for key, fuzzer in fuzzers.items():
+        payloads = list(fuzzer.payloads(per_key))
+        if key != "hri/camera/cam0/frame":  # a 64 MiB frame only slows loopback; test_codec covers that cap
+            payloads.append(("oversized", fuzzer.oversized()))
+        for kind, payload in payloads:
+            client.put_raw(key, payload)
+            thrown[kind] += 1
+    throw_s = time.monotonic() - t0
+    expected: collections.Counter[str] = collections.Counter()
+    for key in fuzzers:
+        for name in CONSUMERS[key]:
+            expected[name] += per_key + (key != "hri/camera/cam0/frame")
+    return thrown, expected, throw_s
+
+
 def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
     from testkit.synth import read_wav_int16, synthesize
 
@@ -172,25 +198,7 @@ def test_ten_thousand_malformed_samples_blind_no_service(group, tmp_path):
         baseline = {name: rss_mb(procs[name].pid)[0] for name in SERVICES}
         received0 = {name: client.stats(name)["received"] for name in SERVICES}
 
-        # the flood: SAMPLES spread over every input key, plus one oversized payload per key
-        bomb = image_bomb()
-        valid = valid_inputs(time.time())
-        fuzzers = {key: Fuzzer(sample, seed=i, bomb=bomb) for i, (key, sample) in enumerate(valid.items())}
-        thrown: collections.Counter[str] = collections.Counter()
-        per_key = SAMPLES // len(fuzzers)
-        t0 = time.monotonic()
-        for key, fuzzer in fuzzers.items():
-            payloads = list(fuzzer.payloads(per_key))
-            if key != "hri/camera/cam0/frame":  # a 64 MiB frame only slows loopback; test_codec covers that cap
-                payloads.append(("oversized", fuzzer.oversized()))
-            for kind, payload in payloads:
-                client.put_raw(key, payload)
-                thrown[kind] += 1
-        throw_s = time.monotonic() - t0
-        expected = collections.Counter()
-        for key in fuzzers:
-            for name in CONSUMERS[key]:
-                expected[name] += per_key + (key != "hri/camera/cam0/frame")
+        thrown, expected, throw_s = flood(client)
         for name in SERVICES:  # raises if a service does not get its share in time
             wait_received(client, name, received0[name] + expected[name], timeout=180)
         time.sleep(0.5)  # let the worker threads finish what passed validation

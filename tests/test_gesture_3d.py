@@ -25,6 +25,7 @@ from services.gesture.space import (
     to_wire,
     torso_point,
 )
+from testkit.images import read_image
 from testkit.shared import shared_path
 
 W, H, F, CX, CY = 640, 480, 600.0, 320.0, 240.0
@@ -273,7 +274,7 @@ YCB_K = (1066.778, 1067.487, 312.9869, 241.3109)
 
 
 def ycb_view(name: str) -> DepthView:
-    depth = cv2.imread(str(shared_path(f"data/rgbd/ycb_video/{name}-depth.png")), cv2.IMREAD_UNCHANGED)
+    depth = read_image(str(shared_path(f"data/rgbd/ycb_video/{name}-depth.png")), cv2.IMREAD_UNCHANGED)
     return DepthView(depth.astype(np.float32) * 1e-4, *YCB_K, "ycb_optical")
 
 

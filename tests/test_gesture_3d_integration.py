@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from testkit.harness import Client, requires_services
+from testkit.images import read_image
 from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
@@ -45,9 +46,9 @@ def synthetic_depth(bgr: np.ndarray) -> np.ndarray:
     foot = feet[np.argmax(feet[:, 1]), :2]
     person_z = float(z[int(min(foot[1], h - 1)), int(foot[0])])
     hull = cv2.convexHull(seen.astype(np.int32))
-    mask = np.zeros((h, w), np.uint8)
-    cv2.fillConvexPoly(mask, hull, 1)
-    mask = cv2.dilate(mask, np.ones((31, 31), np.uint8))
+    hull_mask = np.zeros((h, w), np.uint8)
+    cv2.fillConvexPoly(hull_mask, hull, 1)
+    mask = cv2.dilate(hull_mask, np.ones((31, 31), np.uint8))
     z[mask > 0] = person_z
     return np.round(z * 1000).astype(np.uint16)
 
@@ -55,7 +56,7 @@ def synthetic_depth(bgr: np.ndarray) -> np.ndarray:
 @requires_services("gesture")
 def test_a_pointing_person_gets_a_3d_ray_that_meets_the_floor(group, tmp_path):
     photo = shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")
-    bgr = cv2.imread(str(photo))
+    bgr = read_image(str(photo))
     h, w = bgr.shape[:2]
     folder = tmp_path / "rgbd"
     folder.mkdir()
@@ -112,7 +113,7 @@ def test_a_pointing_person_gets_a_3d_ray_that_meets_the_floor(group, tmp_path):
 def test_a_broken_depth_frame_is_counted_and_the_2d_rays_still_go_out(group):
     from common.schema import CameraInfo, DepthFrame, Frame
 
-    bgr = cv2.imread(str(shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")))
+    bgr = read_image(str(shared_path("data/pointing/room_woman_0126_t3_right_arm_to_image_left.png")))
     h, w = bgr.shape[:2]
     png = cv2.imencode(".png", bgr)[1].tobytes()
     info = CameraInfo(width=w, height=h, k=[F, 0, w / 2, 0, F, h / 2, 0, 0, 1], frame_id=FRAME)

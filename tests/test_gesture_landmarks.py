@@ -13,6 +13,7 @@ from services.gesture.landmarks import HandLandmarker, LandmarkError
 from services.gesture.rules import classify, pointing_ray
 from services.gesture.temporal import GestureTracker
 from testkit.harness import DATA
+from testkit.images import read_image
 from testkit.record_landmarks import SOURCES, record
 
 RECORDED = json.loads((Path(__file__).parent / "data" / "landmarks" / "real_hands.json").read_text())
@@ -29,7 +30,7 @@ def test_recorded_arrays_are_mediapipes_output_on_the_real_photos():
 
 @pytest.mark.parametrize("scene,expected", [("stop.png", "open_palm"), ("pointing.png", "point")])
 def test_full_model_in_video_mode_keeps_the_gesture_over_repeated_frames(scene, expected):
-    img = cv2.imread(str(DATA / "demo" / scene))
+    img = read_image(str(DATA / "demo" / scene))
     landmarker = HandLandmarker("full", max_hands=2, video=True)
     try:
         classes = [[classify(h.landmarks) for h in landmarker.detect(img)] for _ in range(6)]
@@ -45,7 +46,7 @@ def test_an_unknown_model_is_a_clear_error():
 
 def moving_palm_events(amplitude_px: float, frames: int = 60, fps: float = 30.0, hz: float = 1.5) -> list:
     """The real open palm of stop.png slid side to side across a wider frame, through MediaPipe and the tracker."""
-    img = cv2.imread(str(DATA / "demo" / "stop.png"))
+    img = read_image(str(DATA / "demo" / "stop.png"))
     margin = 120
     landmarker = HandLandmarker("lite", max_hands=2, video=True)
     tracker = GestureTracker()
@@ -97,7 +98,7 @@ def still_landmarker():
     ],
 )
 def test_real_photos_turned_and_mirrored_keep_their_gesture_and_ray(still_landmarker, photo, expected, turn):
-    img = cv2.imread(str(photo))
+    img = read_image(str(photo))
     turn_image, turn_vector = TURNS[turn]
     (upright,), (turned,) = still_landmarker.detect(img), still_landmarker.detect(turn_image(img))
     assert classify(turned.landmarks) == expected

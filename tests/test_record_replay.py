@@ -198,7 +198,7 @@ def wait_matched(client: Client, keys: list[str], timeout: float = 15.0) -> None
     pubs = [client.session.declare_publisher(k) for k in keys]
     deadline = time.monotonic() + timeout
     try:
-        while not all(p.matching_status.matching for p in pubs):
+        while not all(p.matching_status.matching for p in pubs):  # type: ignore[attr-defined]  # zenoh's stub types matching_status as bool; it is a MatchingStatus
             assert time.monotonic() < deadline, f"no subscriber matched {keys} within {timeout} s"
             time.sleep(0.05)
     finally:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import time
+from typing import Any
 
 import cv2
 import numpy as np
@@ -25,12 +26,13 @@ from common.schema import FusedCommand, Hand, Hands, Ray, Ray3D
 from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client
+from testkit.images import read_image
 from testkit.rgbd import start
 from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
 
-K = {
+K: dict[str, Any] = {
     "width": 640,
     "height": 480,
     "fx": 1066.778,
@@ -47,8 +49,8 @@ NEARER = 0.35  # m
 
 def two_bottles(folder) -> tuple[np.ndarray, np.ndarray]:
     src = shared_path("data/rgbd/ycb_video")
-    colour = cv2.imread(str(src / "000002-color.png"))
-    depth = cv2.imread(str(src / "000002-depth.png"), cv2.IMREAD_UNCHANGED)
+    colour = read_image(src / "000002-color.png")
+    depth = read_image(src / "000002-depth.png", cv2.IMREAD_UNCHANGED)
     x, y, w, h = BOTTLE
     dx, dy = COPY_AT
     z = depth[y : y + h, x : x + w].astype(float) * K["depth_scale"]

@@ -15,6 +15,7 @@ from common.depth import depth_units
 from common.schema import CameraInfo, DepthFrame, Detections, Frame
 from services.vision.depth import object_depth
 from testkit.harness import Client
+from testkit.images import read_image
 from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
@@ -45,13 +46,15 @@ def ycb_folder(tmp_path, intrinsics: dict | None = None):
 def check_positions(det: Detections, depth_png, info: CameraInfo) -> int:
     """Every position lies inside its box when projected with K and equals the in-process computation on the
     same depth file (the wire kept depth and K intact and the right depth was matched); returns how many."""
-    units = cv2.imread(str(depth_png), cv2.IMREAD_UNCHANGED)
+    units = read_image(str(depth_png), cv2.IMREAD_UNCHANGED)
     n = 0
     for o in det.objects:
-        expected = object_depth(units, info, tuple(o.bbox), depth_scale=0.0001)
+        x0, y0, bw0, bh0 = o.bbox
+        expected = object_depth(units, info, (x0, y0, bw0, bh0), depth_scale=0.0001)
         if expected is None:
             assert o.position is None
             continue
+        assert o.position is not None and o.depth_support is not None and o.extent is not None
         n += 1
         x, y, z = o.position
         u, v = info.fx * x / z + info.cx, info.fy * y / z + info.cy
@@ -144,8 +147,7 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     assert all(f.seq in stamp_of and f.stamp == stamp_of[f.seq] for f in frames), ([f.seq for f in frames], seqs)
     photos = sorted(folder.glob("*-depth.png"))
     for d in depths:
-        photo = cv2.imread(str(photos[d.seq]), cv2.IMREAD_UNCHANGED)
-        assert photo is not None and np.array_equal(depth_units(d), photo)  # lossless
+        assert np.array_equal(depth_units(d), read_image(str(photos[d.seq]), cv2.IMREAD_UNCHANGED))  # lossless
         assert d.camera_info.fx == 1066.778 and d.depth_scale == 0.0001
 
     # replayed into a fresh vision: the positions come back

@@ -19,7 +19,9 @@ pytestmark = pytest.mark.integration
 def panel_shot(tab) -> np.ndarray:
     rect = tab.js("JSON.parse(JSON.stringify(document.querySelector('#cam-cam0 canvas').getBoundingClientRect()))")
     png = tab.screenshot({"x": rect["x"], "y": rect["y"], "width": rect["width"], "height": rect["height"]})
-    return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR).astype(int)
+    shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert shot is not None, "the screenshot is not a PNG"
+    return shot.astype(int)
 
 
 def test_depth_toggle_overlays_the_depth_and_objects_carry_positions(tmp_path):

@@ -15,7 +15,7 @@ import zenoh
 import common.stack as stack
 from common.keys import KEY_TABLE, Keys, key_table
 from common.runner import Service, UndeclaredTopic, service_parser
-from common.schema import Detections, Frame
+from common.schema import MODALITY_NAMES, Detections, Frame
 from common.security import (
     DEFAULT_USERS,
     ROLES,
@@ -185,6 +185,7 @@ def test_only_nodes_that_read_images_take_max_pixels():
 
 def test_fusion_modalities_are_the_publishers_of_its_inputs():
     assert MODALITIES == ("speech", "vision", "gesture")
+    assert set(MODALITY_NAMES) <= set(MODALITIES)  # the contract's weighed modalities are services that feed fusion
     assert WAITED_MODALITIES == ("vision", "gesture")  # bodies and transcripts are not waited for
     assert [modality_of(s) for s in ("speech", "vision", "gesture", "camera", "fusion")] == [
         "speech",

@@ -1,6 +1,7 @@
 """The stamp rules (common/stamps.py), the encoded-header check (common/image.py) and the rate-limited log."""
 
 import logging
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -11,6 +12,7 @@ from common.runner import RateLimitedLog
 from common.schema import Frame, InvalidSample
 from common.stamps import ACCEPTED, FUTURE, OUT_OF_ORDER, RESET, StampGuard
 from testkit.harness import DATA
+from testkit.images import read_image
 
 NOW = 1_700_000_000.0
 
@@ -63,10 +65,10 @@ def test_tolerance_accepts_reordering_within_it():
     assert guard.check("k", NOW - 31, None) == OUT_OF_ORDER
 
 
-PHOTO = cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png"))
+PHOTO = read_image(str(DATA / "images" / "tabletop" / "smarties.png"))
 
 
-def frame(encoding: str, data: bytes, width: int, height: int) -> Frame:
+def frame(encoding: Literal["jpeg", "png", "bgr8"], data: bytes, width: int, height: int) -> Frame:
     return Frame(stamp=NOW, source="t/t", seq=0, cam="c", width=width, height=height, encoding=encoding, data=data)
 
 

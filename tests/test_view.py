@@ -21,6 +21,7 @@ from common.schema import (
     FusedCommand,
     GestureEvent,
     Hand,
+    ImageEncoding,
     Person,
     Persons,
     Ray,
@@ -55,7 +56,7 @@ def objects():
     return found, quality
 
 
-def frame(seq: int, stamp: float, data: bytes = JPEG, encoding: str = "jpeg") -> bytes:
+def frame(seq: int, stamp: float, data: bytes = JPEG, encoding: ImageEncoding = "jpeg") -> bytes:
     return encode(
         Frame(stamp=stamp, source="camera/t", seq=seq, cam="table", width=W, height=H, encoding=encoding, data=data)
     )

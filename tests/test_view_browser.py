@@ -21,6 +21,7 @@ import pytest
 from common.schema import Person, Persons
 from testkit.browser import Browser, require_chromium, start_view
 from testkit.harness import DATA, Client, ProcessGroup, requires_services
+from testkit.images import read_image
 
 pytestmark = [pytest.mark.integration, requires_services("camera", "vision", "fusion")]
 
@@ -73,6 +74,7 @@ def live(tmp_path_factory):
 def target_pixels(png: bytes, rect: dict, frame_w: int, bbox: list[float]) -> tuple[int, float]:
     """(highlight-coloured pixels inside the target's box, grey-level spread of the whole panel)."""
     shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+    assert shot is not None, "the screenshot is not a PNG"
     scale = shot.shape[1] / frame_w
     x, y, w, h = (int(round(v * scale)) for v in bbox)
     box = shot[max(y - 2, 0) : y + h + 3, max(x - 2, 0) : x + w + 3].astype(int)
@@ -272,8 +274,8 @@ def test_snapshot_of_the_live_bus_writes_the_annotated_camera_frame(live, tmp_pa
         "view", "--snapshot", str(out), "--cam", "table", "--wait", "1", "--timeout", "30", timeout=60
     )
     assert res.returncode == 0, res.stderr
-    img = cv2.imread(str(out))
-    table = cv2.imread(str(TABLE))
+    img = read_image(str(out))
+    table = read_image(str(TABLE))
     assert img.shape == table.shape and img.std() > 20
 
     def box_green(image):  # draw.py BOX; the photo's green candies come close, so count only what was drawn

@@ -1,4 +1,4 @@
-"""Vision's colour model (services/vision/color.py, core.object_colour, common/colour.py) on real pixels: candies,
+"""Vision's colour model (services/vision/color.py, core.object_colour, common/color.py) on real pixels: candies,
 fruit and a football photo shipped in data/images (OpenCV's and scikit-image's samples, data/ATTRIBUTION.md).
 Synthetic patches only for the model's edges (the issue's measured pixel values, highlights, a colour cast)."""
 
@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from common.colour import delta_e94, term_fit
-from services.fusion.colour import PLAUSIBLE
+from common.color import delta_e94, term_fit
+from services.fusion.color import PLAUSIBLE
 from services.vision.color import SRGB_TO_LINEAR, illuminant_gains, linear_to_srgb8, measure_lab
 from services.vision.core import VisionPipeline, object_colour
 from services.vision.segment import ColorSegmenter

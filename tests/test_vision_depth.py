@@ -16,6 +16,7 @@ from common.depth import UndecodableDepth, depth_frame, depth_metres, depth_unit
 from common.schema import CameraInfo, DetectedObject, InvalidSample
 from services.camera.rgbd import mirror_camera_info
 from services.vision.depth import DepthImage, DepthMatcher, foreground, object_depth, with_depth
+from testkit.images import read_image
 from testkit.shared import shared_path
 
 # YCB-Video (PoseCNN tools/demo.py): fx, fy, cx, cy; 1 depth unit = 0.1 mm
@@ -44,8 +45,8 @@ BOXES_000002 = BOXES["000002"]
 
 def ycb(name: str) -> tuple[np.ndarray, np.ndarray]:
     folder = shared_path("data/rgbd/ycb_video")
-    colour = cv2.imread(str(folder / f"{name}-color.png"), cv2.IMREAD_COLOR)
-    depth = cv2.imread(str(folder / f"{name}-depth.png"), cv2.IMREAD_UNCHANGED)
+    colour = read_image(str(folder / f"{name}-color.png"), cv2.IMREAD_COLOR)
+    depth = read_image(str(folder / f"{name}-depth.png"), cv2.IMREAD_UNCHANGED)
     assert depth.dtype == np.uint16 and depth.shape == colour.shape[:2]
     return colour, depth
 

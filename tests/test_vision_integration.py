@@ -6,6 +6,7 @@ import sys
 import pytest
 
 from testkit.harness import DATA, ROOT, Client
+from testkit.images import read_image
 
 pytestmark = pytest.mark.integration
 
@@ -89,7 +90,7 @@ def _frame(img, seq: int, stamp: float, encoding: str = "jpeg", data: bytes | No
         cam=cam,
         width=img.shape[1],
         height=img.shape[0],
-        encoding=encoding,
+        encoding=encoding,  # type: ignore[arg-type]  # the test sends every encoding, valid or not
         data=data,
     )
 
@@ -99,7 +100,7 @@ def test_undecodable_frames_are_counted_and_the_service_goes_on(group):
 
     import cv2
 
-    img = cv2.imread(str(DATA / "demo" / "table.png"))
+    img = read_image(str(DATA / "demo" / "table.png"))
     group.router()
     proc = group.service("vision")
     client = Client(group.endpoint)
@@ -131,7 +132,7 @@ def test_a_burst_of_frames_is_skipped_to_the_latest_not_queued(group):
 
     import cv2
 
-    big = cv2.resize(cv2.imread(str(DATA / "images" / "tabletop" / "smarties.png")), (1280, 1104))
+    big = cv2.resize(read_image(str(DATA / "images" / "tabletop" / "smarties.png")), (1280, 1104))
     group.router()
     group.service("vision")
     client = Client(group.endpoint)
@@ -173,9 +174,7 @@ def test_a_bad_labels_file_is_a_clear_error_and_exit_code_2(tmp_path):
 def test_onnx_backend_without_a_model_runs_the_color_backend(group):
     import time
 
-    import cv2
-
-    img = cv2.imread(str(DATA / "demo" / "table.png"))
+    img = read_image(str(DATA / "demo" / "table.png"))
     group.router()
     proc = group.service("vision", "--backend", "onnx")
     client = Client(group.endpoint)

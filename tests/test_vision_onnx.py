@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from services.vision.color import color_name
-from services.vision.core import VisionPipeline, object_color
+from services.vision.core import VisionPipeline, object_colour
 from services.vision.track import iou
 from services.vision.yolo import (
     Letterbox,
@@ -221,7 +221,7 @@ def test_object_color_on_a_small_object_in_a_box_of_table():
     box = (55.0, 55.0, 88.0, 88.0)  # a loose box: more table than candy
     x, y, w, h = (int(v) for v in box)
     assert color_name(cv2.cvtColor(img[y : y + h, x : x + w], cv2.COLOR_BGR2HSV))[0] == "green"
-    assert object_color(img, box) == "red"
+    assert object_colour(img, box)[1][0][0] == "red"
 
 
 def test_hri_up_passes_the_model_labels_and_extra_flags_to_vision():

@@ -243,7 +243,7 @@ class ViewState:
         with self.lock:
             state = self.cameras.get(cam)
             depth = state.depth if state else None
-            if depth is None:
+            if state is None or depth is None:
                 return None
             if state.depth_jpeg is not None and state.depth_jpeg[:2] == (depth.seq, depth.stamp):
                 return state.depth_jpeg

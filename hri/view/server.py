@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from common.keys import Keys
-from hri.view.core import ViewState
+from hri.view.core import ShownFrame, ViewState
 from hri.view.draw import render
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -75,6 +75,33 @@ def _int(request: Any, name: str, default: int = 0) -> int:
         return default
 
 
+async def _next_frame(state: ViewState, changes: Changes, cam: str, after: int) -> ShownFrame | None:
+    """The camera's shown frame once it is not frame `after` (long poll); None when none came in time."""
+    deadline = time.monotonic() + LONG_POLL_S
+    while True:
+        shown = state.frame(cam)
+        if shown is not None and shown.n != after:
+            return shown
+        if time.monotonic() >= deadline or changes.closed:
+            return None
+        await changes.wait(deadline - time.monotonic())
+
+
+def _apply_player_action(player: Any, body: dict[str, Any]) -> None:
+    """play / pause / seek a recording's player (ValueError, KeyError or TypeError for a bad request)."""
+    action = body["action"]
+    if action == "play":
+        if player.offset_s >= player.duration_s:
+            player.seek(0.0)
+        player.playing = True
+    elif action == "pause":
+        player.playing = False
+    elif action == "seek":
+        player.seek(float(body["position"]))
+    else:
+        raise ValueError(action)
+
+
 def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
     """The aiohttp application over a state; `mode` says live or recording (shown by the page)."""
     from aiohttp import web
@@ -101,24 +128,19 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
 
     async def api_frame(request: web.Request) -> web.Response:
         changes: Changes = request.app["changes"]
-        cam, after = request.match_info["cam"], _int(request, "after", -1)
-        deadline = time.monotonic() + LONG_POLL_S
-        while True:
-            shown = state.frame(cam)
-            if shown is not None and shown.n != after:
-                return web.Response(
-                    body=shown.jpeg,
-                    content_type="image/jpeg",
-                    headers={
-                        "Cache-Control": "no-store",
-                        "X-Frame-N": str(shown.n),
-                        "X-Seq": str(shown.seq),
-                        "X-Stamp": repr(shown.stamp),
-                    },
-                )
-            if time.monotonic() >= deadline or changes.closed:
-                return web.Response(status=204, headers={"Cache-Control": "no-store"})
-            await changes.wait(deadline - time.monotonic())
+        shown = await _next_frame(state, changes, request.match_info["cam"], _int(request, "after", -1))
+        if shown is None:
+            return web.Response(status=204, headers={"Cache-Control": "no-store"})
+        return web.Response(
+            body=shown.jpeg,
+            content_type="image/jpeg",
+            headers={
+                "Cache-Control": "no-store",
+                "X-Frame-N": str(shown.n),
+                "X-Seq": str(shown.seq),
+                "X-Stamp": repr(shown.stamp),
+            },
+        )
 
     async def api_depth(request: web.Request) -> web.Response:
         """The camera's latest depth frame as a colourized JPEG (the page's depth toggle); 204 without depth."""
@@ -137,18 +159,8 @@ def make_app(state: ViewState, mode: dict[str, Any], player: Any = None) -> Any:
             return web.json_response({"error": "not a recording: start `hri view FILE.mcap`"}, status=409)
         try:
             body = await request.json()
-            action = body["action"]
             with state.lock:
-                if action == "play":
-                    if player.offset_s >= player.duration_s:
-                        player.seek(0.0)
-                    player.playing = True
-                elif action == "pause":
-                    player.playing = False
-                elif action == "seek":
-                    player.seek(float(body["position"]))
-                else:
-                    raise ValueError(action)
+                _apply_player_action(player, body)
         except (ValueError, KeyError, TypeError) as exc:
             return web.json_response(
                 {"error": f"bad player request ({exc}); send {{'action': 'play'|'pause'|'seek', 'position': seconds}}"},
@@ -274,7 +286,9 @@ async def serve(args: argparse.Namespace, state: ViewState, mode: dict[str, Any]
         )
         await runner.cleanup()
         return 2
-    port = site._server.sockets[0].getsockname()[1]  # the real port when --port 0
+    server = site._server
+    assert isinstance(server, asyncio.Server)  # a TCPSite's server once started
+    port = server.sockets[0].getsockname()[1]  # the real port when --port 0
     host = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
     print(f"hri view: http://{host}:{port}/  ({mode['label']}; Ctrl-C to stop)", flush=True)
     stop = asyncio.Event()
@@ -305,6 +319,7 @@ def annotated(state: ViewState, cam: str | None) -> tuple[str, np.ndarray] | Non
         if not cams:
             return None
         shown = state.cameras[cams[0]].shown
+        assert shown is not None  # chosen above
         layers = state.overlay(cams[0])
     image = cv2.imdecode(np.frombuffer(shown.jpeg, np.uint8), cv2.IMREAD_COLOR)
     if image is None:

@@ -7,16 +7,17 @@ from __future__ import annotations
 import argparse
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
 from common.depth import depth_frame
-from common.runner import Service, main_exit, service_parser
+from common.runner import App, Service, StartupError, serve, service_parser
 from common.schema import Frame
 from common.settings import add_option
 from services.camera.opener import open_source
-from services.camera.rgbd import Capture, check_intrinsics, mirror_capture, read_intrinsics
-from services.camera.source import SourceError, encode_image
+from services.camera.rgbd import Capture, Intrinsics, check_intrinsics, mirror_capture, read_intrinsics
+from services.camera.source import SourceError, encode_image, fit_within, parse_size
 
 EPILOG = """\
 examples:
@@ -77,111 +78,186 @@ def build_parser() -> argparse.ArgumentParser:
         "frame_id gets '_mirrored': positions are then in the mirrored frame (x negated)",
     )
     add_option(parser, "--rs-size", "640x480", "RealSense resolution WIDTHxHEIGHT", metavar="WxH")
+    add_option(
+        parser,
+        "--size",
+        None,
+        "video, image or folder: frames scaled to fit inside WIDTHxHEIGHT, aspect kept (e.g. 640x480: a 1080p "
+        "clip costs every service a quarter of the pixels); not for depth sources (--rs-size for RealSense)",
+        kind=str,
+        metavar="WxH",
+        default_text="the source's own",
+    )
     return parser
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+def resize_colour_only(capture: Capture, size: tuple[int, int], has_intrinsics: bool, service: Service) -> None:
+    """--size: the colour image fitted inside `size`; a capture with depth or intrinsics is left as it is (its
+    pixels are tied to them), said once."""
+    if capture.depth is None and capture.camera_info is None and not has_intrinsics:
+        capture.color = fit_within(capture.color, size)
+    else:
+        service.counters.ratelog.warn(
+            "size_ignored", "--size is ignored for a source with depth or intrinsics (RealSense: --rs-size)"
+        )
+
+
+def sizes(parser: argparse.ArgumentParser, args: argparse.Namespace) -> tuple[tuple[int, int], tuple[int, int] | None]:
+    """(--rs-size, --size or None), or the parser's error."""
     try:
-        rs_size = tuple(int(v) for v in args.rs_size.lower().split("x"))
-        assert len(rs_size) == 2 and min(rs_size) > 0
-    except (ValueError, AssertionError):
+        rs_size = parse_size(args.rs_size)
+    except ValueError:
         parser.error("--rs-size must be WIDTHxHEIGHT, e.g. 640x480")
-
-    service = Service("camera", args)
     try:
-        intrinsics = read_intrinsics(args.intrinsics) if args.intrinsics else None
-        source = open_source(args.source, rs_size, args.fps, intrinsics)
-    except SourceError as exc:
-        service.log.error("%s", exc)
-        main_exit(2)
-    service.on_close(source.close)
-    fps = args.fps or source.native_fps or (10.0 if source.finite else None)
-    key = service.output_key("frame", cam=args.cam)
-    depth_key = service.output_key("depth", cam=args.cam)
-    checked: set[tuple[int, int]] = set()
+        return rs_size, (parse_size(args.size) if args.size else None)
+    except ValueError:
+        parser.error("--size must be WIDTHxHEIGHT, e.g. 640x480")
 
-    def prepare(item) -> Capture:
-        """The source's image or capture with the intrinsics that belong to it, mirrored if asked."""
+
+class Preparer:
+    """The source's image or capture made ready to publish: fitted to --size, with the intrinsics that belong to
+    it (checked once per resolution), mirrored if asked."""
+
+    def __init__(
+        self,
+        args: argparse.Namespace,
+        intrinsics: Intrinsics | None,
+        fit_size: tuple[int, int] | None,
+        description: str,
+        service: Service,
+    ):
+        self.args, self.intrinsics, self.fit_size = args, intrinsics, fit_size
+        self.description, self.service = description, service
+        self.checked: set[tuple[int, int]] = set()
+
+    def __call__(self, item: Any) -> Capture:
         capture = item if isinstance(item, Capture) else Capture(item)
+        intrinsics = self.intrinsics
+        if self.fit_size is not None:
+            resize_colour_only(capture, self.fit_size, intrinsics is not None, self.service)
         if intrinsics is not None:
             capture.camera_info = intrinsics.camera_info
             if capture.depth is not None and capture.depth.dtype == np.uint16 and intrinsics.depth_scale:
                 capture.depth_scale = intrinsics.depth_scale
         if capture.camera_info is not None:
             size = capture.color.shape[1], capture.color.shape[0]
-            if size not in checked:  # once per resolution: a wrong K is refused with the first frame
-                check_intrinsics(capture.camera_info, *size, args.intrinsics or source.description)
-                checked.add(size)
-        return mirror_capture(capture) if args.mirror else capture
+            if size not in self.checked:  # once per resolution: a wrong K is refused with the first frame
+                check_intrinsics(capture.camera_info, *size, self.args.intrinsics or self.description)
+                self.checked.add(size)
+        return mirror_capture(capture) if self.args.mirror else capture
 
-    service.log.info("publishing %s on %s at %s", source.description, key, f"{fps:g} fps" if fps else "device rate")
 
-    def loop(stop: threading.Event) -> None:
-        seq, period = 0, (1.0 / fps if fps else 0.0)
-        next_at = time.monotonic()
+class CameraApp(App):
+    """A source (device, file, folder, RealSense) -> Frame (+ DepthFrame from an RGB-D source) at a steady rate."""
+
+    node = "camera"
+
+    def __init__(self, args: argparse.Namespace, rs_size: tuple[int, int], fit_size: tuple[int, int] | None) -> None:
+        self.args = args
+        self.rs_size = rs_size
+        self.fit_size = fit_size
+        self.intrinsics: Intrinsics | None = None
+
+    def open(self, service: Service) -> None:
+        args = self.args
+        try:
+            self.intrinsics = read_intrinsics(args.intrinsics) if args.intrinsics else None
+            self.source = open_source(args.source, self.rs_size, args.fps, self.intrinsics)
+        except SourceError as exc:
+            raise StartupError(str(exc)) from None
+        service.on_close(self.source.close)
+        self.service = service
+        self.prepare = Preparer(args, self.intrinsics, self.fit_size, self.source.description, service)
+        self.fps = args.fps or self.source.native_fps or (10.0 if self.source.finite else None)
+        self.key = service.output_key("frame", cam=args.cam)
+        self.depth_key = service.output_key("depth", cam=args.cam)
+        rate = f"{self.fps:g} fps" if self.fps else "device rate"
+        service.log.info("publishing %s on %s at %s", self.source.description, self.key, rate)
+
+    def publish(self, capture: Capture, seq: int) -> None:
+        """One capture: its depth first (whoever matches depth to colour has it when the colour frame arrives)."""
+        args, service = self.args, self.service
+        stamp = time.time()  # capture time: the moment the frame is in hand
+        img = capture.color
+        h, w = img.shape[:2]
+        if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:
+            depth = depth_frame(
+                capture.depth,
+                stamp=stamp,
+                source=service.source,
+                seq=seq,
+                cam=args.cam,
+                depth_scale=capture.depth_scale,
+                camera_info=capture.camera_info,
+                compression=args.depth_compression,
+            )
+            service.publish(self.depth_key, depth, lossless=False)
+        frame = Frame(
+            stamp=stamp,
+            source=service.source,
+            seq=seq,
+            cam=args.cam,
+            width=w,
+            height=h,
+            encoding=args.encoding,
+            data=encode_image(img, args.encoding, args.quality),
+            camera_info=capture.camera_info,
+        )
+        service.publish(self.key, frame, lossless=False)
+
+    def loop(self, stop: threading.Event) -> None:
+        try:
+            self._frames(stop)
+        except SourceError as exc:
+            self.service.fail(2, str(exc))
+
+    def _frames(self, stop: threading.Event) -> None:
+        """Publishes the source's frames at the rate asked, over again with --loop, until --count or stopped."""
+        args = self.args
+        pacer = Pacer(1.0 / self.fps if self.fps else 0.0)
+        seq = 0
         while not stop.is_set():
             produced = False
-            for item in source.frames():
-                capture = prepare(item)
+            for item in self.source.frames():
+                capture = self.prepare(item)
                 produced = True
-                if period:
-                    delay = next_at - time.monotonic()
-                    if delay > 0 and stop.wait(delay):
-                        return
-                    next_at = max(next_at + period, time.monotonic() - period)
-                stamp = time.time()  # capture time: the moment the frame is in hand
-                img = capture.color
-                h, w = img.shape[:2]
-                if capture.depth is not None and capture.camera_info is not None and capture.depth_scale:
-                    # depth first: whoever matches depth to colour has it when the colour frame arrives
-                    service.publish(
-                        depth_key,
-                        depth_frame(
-                            capture.depth,
-                            stamp=stamp,
-                            source=service.source,
-                            seq=seq,
-                            cam=args.cam,
-                            depth_scale=capture.depth_scale,
-                            camera_info=capture.camera_info,
-                            compression=args.depth_compression,
-                        ),
-                        lossless=False,
-                    )
-                service.publish(
-                    key,
-                    Frame(
-                        stamp=stamp,
-                        source=service.source,
-                        seq=seq,
-                        cam=args.cam,
-                        width=w,
-                        height=h,
-                        encoding=args.encoding,
-                        data=encode_image(img, args.encoding, args.quality),
-                        camera_info=capture.camera_info,
-                    ),
-                    lossless=False,
-                )
+                if not pacer.wait(stop):
+                    return
+                self.publish(capture, seq)
                 seq += 1
                 if stop.is_set() or (args.count is not None and seq >= args.count):
                     stop.set()
                     return
             if not args.loop or not produced:
-                service.log.info("source ended after %d frames", seq)
+                self.service.log.info("source ended after %d frames", seq)
                 stop.set()
                 return
-            source.rewind()
+            self.source.rewind()
 
-    def guarded_loop(stop: threading.Event) -> None:
-        try:
-            loop(stop)
-        except SourceError as exc:
-            service.fail(2, str(exc))
 
-    main_exit(service.run(loop=guarded_loop))
+class Pacer:
+    """Waits for the next frame's time at a steady period (0: no wait); a late frame does not make the next early."""
+
+    def __init__(self, period: float) -> None:
+        self.period = period
+        self.next_at = time.monotonic()
+
+    def wait(self, stop: threading.Event) -> bool:
+        """False when stopped while waiting."""
+        if not self.period:
+            return True
+        delay = self.next_at - time.monotonic()
+        if delay > 0 and stop.wait(delay):
+            return False
+        self.next_at = max(self.next_at + self.period, time.monotonic() - self.period)
+        return True
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    rs_size, fit_size = sizes(parser, args)
+    serve(CameraApp(args, rs_size, fit_size), args)
 
 
 if __name__ == "__main__":

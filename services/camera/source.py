@@ -70,6 +70,26 @@ class CaptureSource(Source):
         self.cap.release()
 
 
+def parse_size(text: str) -> tuple[int, int]:
+    """'640x480' -> (640, 480); ValueError for anything else."""
+    parts = text.lower().split("x")
+    size = tuple(int(v) for v in parts)
+    if len(size) != 2 or min(size) <= 0:
+        raise ValueError(f"{text!r} is not WIDTHxHEIGHT")
+    return size[0], size[1]
+
+
+def fit_within(img: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """The image scaled to fit inside `size` (width, height), its aspect kept (no stretched faces, nothing cut
+    off); unchanged when it already has that width or height and fits. Area averaging down, linear up."""
+    h, w = img.shape[:2]
+    scale = min(size[0] / w, size[1] / h)
+    out_w, out_h = max(1, int(round(w * scale))), max(1, int(round(h * scale)))
+    if (out_w, out_h) == (w, h):
+        return img
+    return cv2.resize(img, (out_w, out_h), interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+
+
 def encode_image(img: np.ndarray, encoding: str, jpeg_quality: int = 90) -> bytes:
     """BGR image -> bytes for a Frame's `data`."""
     if encoding == "bgr8":

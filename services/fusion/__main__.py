@@ -5,10 +5,11 @@ from __future__ import annotations
 import argparse
 import queue
 import time
+from typing import Any, Callable
 
 import zenoh
 
-from common.runner import Delivery, RateLimitedLog, Service, main_exit, service_parser
+from common.runner import App, Delivery, RateLimitedLog, Service, serve, service_parser
 from common.schema import Clarification, FusedCommand
 from common.settings import add_settings, from_args
 from services.fusion.core import Config, FusionCore
@@ -29,8 +30,10 @@ after the transcript arrived; a clarification stays open {DEFAULTS.dialogue_time
 while its service's liveliness token exists or it sent a sample in the last {DEFAULTS.live_recent_s:g} s.
 
 clocks: each source's clock offset against this machine's is estimated from the router's Zenoh timestamps
-(`hri stats fusion`: other["clock_offset_ms:SOURCE"]); a warning is logged (at most every 30 s per source)
-when a source runs more than half the window after its end ahead, or half the window before its start behind.
+(`hri stats fusion`: other["clock_offset_ms:SOURCE"]; a source of transcripts, late by design, shows its
+recognition delay as other["delay_ms:SOURCE"] instead unless its clock runs ahead); a warning is logged (at
+most every 30 s per source) when a source runs more than half the window after its end ahead, or half the window
+before its start behind.
 """
 
 
@@ -48,116 +51,154 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> None:
-    args = build_parser().parse_args(argv)
+class ClockReport:
+    """Fusion's clock estimates (ClockOffsets) as `Stats.other` gauges, once a second, and the warning."""
 
-    service = Service("fusion", args, recovering=True)
-    config = from_args(Config, args)
-    core = FusionCore(config, service.source, count=service.counters.add, log=service.log)
-    if not service.connect():
-        main_exit(0)
-    keys = service.keys
-    assert service.session is not None
-    command_key, clarification_key = service.output_key("command"), service.output_key("clarification")
+    def __init__(self, service: Service, config: Config):
+        self.estimates = ClockOffsets()
+        self.service = service
+        self.log = RateLimitedLog(service.log, interval=30.0)
+        self.ahead_tol = CLOCK_WARN_SHARE * config.window_after
+        self.behind_tol = CLOCK_WARN_SHARE * config.window_before
+        self.last_report = 0.0
 
-    def emit(outputs: list[Output]) -> None:
-        for out in outputs:
-            sample = out.sample
-            if isinstance(sample, FusedCommand):
-                # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
-                service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
-                service.log.info(
-                    "command %s %s%s: %s",
-                    sample.id,
-                    sample.intent,
-                    f" -> {sample.target.id}" if sample.target else "",
-                    sample.explanation,
-                )
-            elif isinstance(sample, Clarification):
-                service.publish(clarification_key, sample, lossless=True, recovering=True)
-                service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
+    def forget(self, source: str) -> None:
+        self.estimates.forget(source)
+        self._clear(source)
 
-    # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
-    liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
+    def _clear(self, source: str) -> None:
+        self.service.counters.set(f"clock_offset_ms:{source}", None)
+        self.service.counters.set(f"delay_ms:{source}", None)
 
-    def on_token(sample: zenoh.Sample) -> None:
-        parsed = keys.parse_alive(str(sample.key_expr))
+    def report(self, now: float) -> None:
+        if now - self.last_report < 1.0:
+            return
+        self.last_report = now
+        counters = self.service.counters
+        for source in self.estimates.expire(now):
+            self._clear(source)
+        for source, delay in self.estimates.delays().items():
+            counters.set(f"clock_offset_ms:{source}", None)
+            counters.set(f"delay_ms:{source}", round(delay * 1000))
+        for source, offset in self.estimates.offsets().items():
+            counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
+            counters.set(f"delay_ms:{source}", None)
+            self._warn(source, offset)
+
+    def _warn(self, source: str, offset: float) -> None:
+        verdict = clock_verdict(offset, self.ahead_tol, self.behind_tol)
+        if verdict is not None:
+            self.log.warn(
+                f"clock:{source}",
+                f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
+                f"this machine's clock (tolerated: {self.ahead_tol * 1000:.0f} ms ahead, "
+                f"{self.behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
+                f"at the wrong moment. Keep the hosts in step with chrony or PTP "
+                f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
+            )
+
+
+def publish_outputs(service: Service, outputs: list[Output], command_key: str, clarification_key: str) -> None:
+    for out in outputs:
+        sample = out.sample
+        if isinstance(sample, FusedCommand):
+            # stops go out at REAL_TIME priority, express; everything is BLOCK (never dropped)
+            service.publish(command_key, sample, lossless=True, realtime=out.realtime, recovering=True)
+            service.log.info(
+                "command %s %s%s: %s",
+                sample.id,
+                sample.intent,
+                f" -> {sample.target.id}" if sample.target else "",
+                sample.explanation,
+            )
+        elif isinstance(sample, Clarification):
+            service.publish(clarification_key, sample, lossless=True, recovering=True)
+            service.log.info("clarification %s (%s): %s", sample.id, sample.reason, sample.question)
+
+
+Feed = Callable[[str, Any, float], list[Output]]
+
+
+class FusionApp(App):
+    """Transcripts, objects, hands, gesture events and bodies -> FusionCore -> FusedCommand / Clarification."""
+
+    node = "fusion"
+    recovering = True  # commands survive a dropped link (common/transport.py)
+    tick_interval = 0.02
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.config = from_args(Config, args)
+        # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
+        self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
+
+    def open(self, service: Service) -> None:
+        self.service = service
+        self.core = FusionCore(self.config, service.source, count=service.counters.add, log=service.log)
+        self.clocks = ClockReport(service, self.config)
+        self.command_key = service.output_key("command")
+        self.clarification_key = service.output_key("clarification")
+        self.tick = self.tick_once
+
+    def wire(self, service: Service) -> None:
+        assert service.session is not None  # wired once connected
+        token_sub = service.session.liveliness().declare_subscriber(
+            service.keys.alive("*", "*"), self.on_token, history=True
+        )
+        service.on_close(token_sub.undeclare)
+        core = self.core
+        service.subscribe_input("transcript", self.handler(core.on_transcript, delayed=True))
+        service.subscribe_input("objects", self.handler(core.on_detections))
+        service.subscribe_input("hands", self.handler(core.on_hands))
+        service.subscribe_input("event", self.handler(core.on_gesture_event))
+        service.subscribe_input("bodies", self.handler(core.on_bodies))  # which way the speaker faces
+        service.subscribe_input("persons", self.handler(core.on_persons))  # people in view: "bring it to me"
+        config = self.config
+        service.log.info(
+            "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
+            config.window_before,
+            config.window_after,
+            config.max_wait,
+            config.weights,
+            ", fallback to the most confident detection" if config.fallback_most_confident else "",
+        )
+
+    def on_token(self, sample: zenoh.Sample) -> None:
+        parsed = self.service.keys.parse_alive(str(sample.key_expr))
         if parsed:
-            liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
+            self.liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
 
-    clocks = ClockOffsets()
-    clock_log = RateLimitedLog(service.log, interval=30.0)
-    ahead_tol, behind_tol = CLOCK_WARN_SHARE * config.window_after, CLOCK_WARN_SHARE * config.window_before
-
-    token_sub = service.session.liveliness().declare_subscriber(keys.alive("*", "*"), on_token, history=True)
-    service.on_close(token_sub.undeclare)
-
-    # A transcript is stamped at the utterance's end and published after recognition (0.3-1.2 s later): that
-    # delay reads as a clock behind, so a source of transcripts is only ever warned about for running ahead.
-    delayed_sources: set[str] = set()
-
-    def handler(feed, delayed: bool = False):
+    def handler(self, feed: Feed, delayed: bool = False) -> Callable[[Delivery], None]:
         def handle(d: Delivery) -> None:
-            if delayed:
-                delayed_sources.add(d.sample.source)
-            service.log.debug("in %s %.3f", d.key, d.sample.stamp)
-            clocks.add(d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at)
-            emit(feed(d.key, d.sample, d.received_at))
+            self.service.log.debug("in %s %.3f", d.key, d.sample.stamp)
+            # a transcript is stamped at the utterance's end and published after recognition (0.2-2 s later): late
+            # by design, so that delay is reported as such (delay_ms:SOURCE), never read as the clock running behind
+            self.clocks.estimates.add(
+                d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed
+            )
+            self.emit(feed(d.key, d.sample, d.received_at))
 
         return handle
 
-    service.subscribe_input("transcript", handler(core.on_transcript, delayed=True))
-    service.subscribe_input("objects", handler(core.on_detections))
-    service.subscribe_input("hands", handler(core.on_hands))
-    service.subscribe_input("event", handler(core.on_gesture_event))
-    service.subscribe_input("bodies", handler(core.on_bodies))  # which way the speaker faces
-    service.subscribe_input("persons", handler(core.on_persons))  # people in view: "bring it to me"
+    def emit(self, outputs: list[Output]) -> None:
+        publish_outputs(self.service, outputs, self.command_key, self.clarification_key)
 
-    last_clock_report = [0.0]
-
-    def report_clocks(now: float) -> None:
-        if now - last_clock_report[0] < 1.0:
-            return
-        last_clock_report[0] = now
-        for source in clocks.expire(now):
-            service.counters.set(f"clock_offset_ms:{source}", None)
-            delayed_sources.discard(source)
-        for source, offset in clocks.offsets().items():
-            service.counters.set(f"clock_offset_ms:{source}", round(offset * 1000))
-            verdict = clock_verdict(offset, ahead_tol, behind_tol)
-            if verdict == "ahead" or (verdict == "behind" and source not in delayed_sources):
-                clock_log.warn(
-                    f"clock:{source}",
-                    f"{source}'s stamps run {abs(offset) * 1000:.0f} ms {verdict} of "
-                    f"this machine's clock (tolerated: {ahead_tol * 1000:.0f} ms ahead, "
-                    f"{behind_tol * 1000:.0f} ms behind): its words, points and detections are joined "
-                    f"at the wrong moment. Keep the hosts in step with chrony or PTP "
-                    f"(docs/foundation.md); `hri stats fusion` shows every source's offset",
-                )
-
-    def tick() -> None:
+    def tick_once(self) -> None:
         while True:
             try:
-                service_name, instance, present = liveliness_events.get_nowait()
+                service_name, instance, present = self.liveliness_events.get_nowait()
             except queue.Empty:
                 break
-            core.on_liveliness(service_name, instance, present)
+            self.core.on_liveliness(service_name, instance, present)
             if not present:  # a restarted instance starts a new estimate
-                clocks.forget(f"{service_name}/{instance}")
-                service.counters.set(f"clock_offset_ms:{service_name}/{instance}", None)
+                self.clocks.forget(f"{service_name}/{instance}")
         now = time.time()
-        report_clocks(now)
-        emit(core.tick(now))
+        self.clocks.report(now)
+        self.emit(self.core.tick(now))
 
-    service.log.info(
-        "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
-        config.window_before,
-        config.window_after,
-        config.max_wait,
-        config.weights,
-        ", fallback to the most confident detection" if config.fallback_most_confident else "",
-    )
-    main_exit(service.run(tick=tick, tick_interval=0.02))
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    serve(FusionApp(args), args)
 
 
 if __name__ == "__main__":

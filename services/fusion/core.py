@@ -17,13 +17,28 @@ from typing import Callable
 
 import msgspec
 
+from common.counters import GESTURE_COMMAND_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, PLACE_AS_OBJECT
-from common.schema import Bodies, Detections, FusedCommand, GestureEvent, Hands, Location, Persons, Transcript
+from common.schema import (
+    GESTURE,
+    SPEECH,
+    VISION,
+    Bodies,
+    Detections,
+    FusedCommand,
+    GestureEvent,
+    Hands,
+    Intent,
+    Location,
+    Persons,
+    Transcript,
+)
 from common.settings import setting
 from common.stack import node, publishers_of
 from services.fusion import describe, people, space
 from services.fusion.afford import Applicable, applicable, refusal, removed_words
-from services.fusion.dialogue import Dialogue, Draft
+from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore, Refuse
+from services.fusion.dialogue import Dialogue
 from services.fusion.gestures import Gestures
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
 from services.fusion.join import Join, Ready, SeenOnce
@@ -31,7 +46,7 @@ from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance, parse, stop_near_miss
 from services.fusion.window import Context, PendingTranscript, gather
 
-TARGET_INTENTS = ("pick_up", "bring")  # must name an object
+TARGET_INTENTS: tuple[Intent, ...] = ("pick_up", "bring")  # must name an object
 
 
 @dataclass
@@ -113,6 +128,20 @@ def modality_of(service: str) -> str | None:
     return service if service in MODALITIES else None
 
 
+def wanted(intent: Intent, u: Utterance) -> tuple[bool, bool]:
+    """(the command needs an object, the command needs a location): from the intent and what was said."""
+    named = u.obj.specific or u.obj.noun is not None
+    wants_object = (
+        intent in TARGET_INTENTS
+        or (intent in ("look_at", "follow") and (named or u.obj.deictic))
+        or (intent == "go_to" and named)
+    )
+    wants_location = (intent == "go_to" and not wants_object and not u.place) or (
+        intent in ("put_down", "look_at") and not wants_object and bool(u.deictic_place or u.dest_obj)
+    )
+    return wants_object, wants_location
+
+
 def unseen_pointing(phrase: ObjectPhrase, winner: Scored) -> bool:
     """ "That one" / "this" (deixis naming no kind) chose `winner` without pointing at it: no ray was seen, or the
     ray is near nothing. Then only the absence of other candidates chose it, and the point may have been at something
@@ -121,12 +150,25 @@ def unseen_pointing(phrase: ObjectPhrase, winner: Scored) -> bool:
     return phrase.deictic and not names_kind and not phrase.relations and (winner.gesture or 0.0) < 0.5
 
 
+@dataclass(frozen=True)
+class Decided:
+    """A decision with what it was made from: the utterance as understood then (re-parsed with the labels in view,
+    sides in the camera's words), the window (its candidates: what the action may apply to) and what the
+    affordances removed (said back in the explanation)."""
+
+    utterance: Utterance
+    decision: Decision
+    ctx: Context
+    found: Applicable | None = None
+    to_recipient: bool = False  # a new command: "bring it to me" sends it to the person named
+
+
 class FusionCore:
     def __init__(
         self,
         config: Config,
         source: str,
-        count: Callable[[str], None] = lambda name: None,
+        count: Callable[[FusionCounter], None] = lambda name: None,
         log: logging.Logger | None = None,
     ):
         self.cfg = config
@@ -166,11 +208,11 @@ class FusionCore:
         return True
 
     def on_detections(self, key: str, det: Detections, wall: float) -> list[Output]:
-        self._add("vision", key, det.stamp, det, wall)
+        self._add(VISION, key, det.stamp, det, wall)
         return []
 
     def on_hands(self, key: str, hands: Hands, wall: float) -> list[Output]:
-        self._add("gesture", key, hands.stamp, hands, wall)
+        self._add(GESTURE, key, hands.stamp, hands, wall)
         return []
 
     def on_bodies(self, key: str, bodies: Bodies, wall: float) -> list[Output]:
@@ -182,18 +224,18 @@ class FusionCore:
         return []
 
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
-        if not self._add("gesture", key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
+        if not self._add(GESTURE, key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
             return []
-        command = self.gestures.on_event(key, ev)
+        command = self.gestures.on_event(key, ev, facing=self.facing.at(ev.stamp))
         if command is None:
             return []
         if command.intent == "stop":
             self.dialogue.close()
-        self.count(f"gesture_{command.intent}")
+        self.count(GESTURE_COMMAND_COUNTER[command.intent])
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
 
     def on_transcript(self, key: str, t: Transcript, wall: float) -> list[Output]:
-        self.join.liveness.arrived("speech", wall)
+        self.join.liveness.arrived(SPEECH, wall)
         if not t.final:
             self.count("partial_ignored")
             return []
@@ -211,7 +253,8 @@ class FusionCore:
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
             if near:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
-            return [self.outputs.command(t, "stop", None, confidence=t.confidence, explanation=why, realtime=True)]
+            stop = Act("stop", confidence=t.confidence, explanation=why, realtime=True)
+            return [self.outputs.command(t, stop, None)]
         self.join.open(
             PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before, t.end + self.cfg.window_after)
         )
@@ -243,35 +286,46 @@ class FusionCore:
 
     # -- decisions ------------------------------------------------------------
     def decide(self, p: PendingTranscript, how: Ready) -> list[Output]:
-        t, u = p.transcript, p.utterance
-        hand_frames = (item for _, item in self.join.streams.between("gesture", t.start, p.hi))
+        """The window of an utterance is due: decide what to do (one Decision), then render it."""
+        t = p.transcript
+        hand_frames = (item for _, item in self.join.streams.between(GESTURE, t.start, p.hi))
         if self.gestures.stop_shown(t.start, p.hi, hand_frames):
-            self.count("cancelled_by_stop_gesture")
-            self.log.info("'%s' dropped: an open palm (stop) was shown while it was said", t.text)
-            return []
-        ctx = self._with_persons(u, self.context(p, how))
+            why = f"'{t.text}' dropped: an open palm (stop) was shown while it was said"
+            return self.ignore(Ignore("cancelled_by_stop_gesture", why))
+        ctx = self._with_persons(p.utterance, self.context(p, how))
         recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
+        replied, decided = self.decide_utterance(p, ctx)
+        if replied is not None:
+            return replied
+        assert decided is not None
+        out = self.render(t, decided)
+        if recipient is not None and decided.to_recipient:
+            return [self._to_recipient(o, recipient, p, ctx) for o in out]
+        return out
+
+    def decide_utterance(self, p: PendingTranscript, ctx: Context) -> tuple[list[Output] | None, Decided | None]:
+        """What to do with an utterance whose window is due: (the dialogue's own reply to an answer, None) or
+        (None, the decision about the utterance as understood in this window)."""
+        t, u = p.transcript, p.utterance
         if u.unknown and ctx.objects:  # a user's own label in view ("the widget") is a noun too
             u = parse(t.text, labels=tuple(sorted({o.label for o in ctx.objects})))
         self.dialogue.expire(t.start)
         if u.intent is None:
             reply = self.dialogue.reply(t, u, self._for_dialogue(ctx))
             if reply is not None:
-                return reply
+                return reply, None
             # "the bottle behind the cup" names a thing: look at it. "The red one" names no kind: a late answer.
             if u.obj.names_kind and u.answer is None and not u.other:
                 self.count("bare_reference")
                 self.dialogue.supersede()
-                return self.command_for(t, replace(u, intent="look_at"), ctx)
-            self.count("ignored_no_intent")
-            self.log.info("'%s' is not a command I know; ignored", t.text)
-            return []
+                return None, self.command(t, replace(u, intent="look_at"), ctx)
+            return None, Decided(u, Ignore("ignored_no_intent", f"'{t.text}' is not a command I know; ignored"), ctx)
         self.dialogue.supersede()
         if u.intent == "come_here" and self.gestures.waved(p.lo, p.hi):
-            self.count("duplicate_of_gesture")
-            return []
-        out = self._person_action(t, u, ctx, p) or self.command_for(t, u, ctx)
-        return [self._to_recipient(o, recipient, p, ctx) for o in out] if recipient is not None else out
+            return None, Decided(u, Ignore("duplicate_of_gesture"), ctx)
+        person = self._person_decision(t, u, ctx, p)
+        decided = Decided(u, person, ctx) if person is not None else self.command(t, u, ctx)
+        return None, replace(decided, to_recipient=True)
 
     def _with_persons(self, u: Utterance, ctx: Context) -> Context:
         """ "The man on the left" with no person among the detections (the colour backend finds none): the persons
@@ -284,27 +338,22 @@ class FusionCore:
         self.count("persons_as_candidates")
         return replace(ctx, objects=ctx.objects + [people.as_scene_object(q, seen) for q in seen.persons])
 
-    def _person_action(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> list[Output]:
+    def _person_decision(self, t: Transcript, u: Utterance, ctx: Context, p: PendingTranscript) -> Act | None:
         """ "Follow me", "look at him", "watch the person who is talking": the person in `Persons` (by their part in
-        the talk: the speaker, the one other person) is the target; [] when none is named or none resolves."""
+        the talk: the speaker, the one other person) is the target; None when none is named or none resolves."""
         ref = people.person_referent(t.text) if u.intent in ("follow", "look_at") else None
         seen = people.latest_persons(self.persons, ctx.ref, self.cfg.vision_lookback) if ref is not None else None
         person = people.resolve(ref, seen.persons, self.speaker_of(p)) if ref is not None and seen else None
         if person is None or seen is None or ref is None:
-            return []
+            return None
         self.count("person_target")
-        target = people.as_scene_object(person, seen)
         why = f"'{ref.said}' is {person.id}" + (" (the speaker)" if ref.who == "speaker" else " (the other person)")
-        return [
-            self.outputs.command(
-                t,
-                u.intent or "follow",
-                ctx,
-                confidence=ctx.reliabilities["speech"] or 0.0,
-                explanation=why,
-                target=target,
-            )
-        ]
+        return Act(
+            u.intent or "follow",
+            confidence=ctx.reliabilities[SPEECH] or 0.0,
+            explanation=why,
+            target=people.as_scene_object(person, seen),
+        )
 
     def _to_recipient(self, out: Output, ref: people.PersonRef, p: PendingTranscript, ctx: Context) -> Output:
         """A bring/give command goes to the person named ("to me": the speaker): their place is its `location`."""
@@ -322,49 +371,37 @@ class FusionCore:
         )
         return replace(out, sample=located)
 
-    def command_for(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output]:
+    def command(self, t: Transcript, u: Utterance, ctx: Context) -> Decided:
+        """A command utterance: its words about sides turned into the camera's, a place that is a thing said as
+        the thing, the window narrowed to what the action may apply to (services/fusion/afford.py); then decided."""
+        u = self._in_camera_words(t, u, ctx)
         intent = u.intent
         assert intent is not None
-        spatial, why = self.facing.camera_words(u.obj.spatial, t.text, ctx.ref)
-        if why:  # "on my left": the speaker's side, turned into the camera's
-            u = replace(u, obj=replace(u.obj, spatial=spatial))
-            self.count("speaker_side")
-            self.log.info("'%s': %s", t.text, why)
-        speech_rel = ctx.reliabilities["speech"] or 0.0
-        named = u.obj.specific or u.obj.noun is not None
-        wants_object = (
-            intent in TARGET_INTENTS
-            or (intent in ("look_at", "follow") and (named or u.obj.deictic))
-            or (intent == "go_to" and named)
-        )
-        wants_location = (intent == "go_to" and not wants_object and not u.place) or (
-            intent in ("put_down", "look_at") and not wants_object and (u.deictic_place or u.dest_obj)
-        )
         if intent in TARGET_INTENTS and u.place in PLACE_AS_OBJECT and u.obj.label is None and not u.obj.deictic:
             # "pick up the table": what is picked up is the thing, not a place
             u = replace(u, obj=replace(u.obj, label=PLACE_AS_OBJECT[u.place]), place=None)
         found = applicable(intent, u.obj, ctx.objects, ctx.pointing)
         ctx = replace(ctx, candidates=found.kept)  # nothing else is ever proposed (services/fusion/afford.py)
-        target: Scored | None = None
-        runner_up: Scored | None = None
-        overruled = None
-        if wants_object:
-            picked = self._object(t, u, ctx, found)
-            if isinstance(picked, list):
-                return picked
-            target, runner_up, overruled = picked.winner, picked.runner_up, picked.overruled
-        elif intent == "put_down" and u.obj.specific:
-            choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
-            target = choice.winner if choice.kind == "target" else None
+        return Decided(u, self.decide_command(t, u, ctx, found), ctx, found)
+
+    def decide_command(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Decision:
+        """A command utterance, grounded in its window: act, refuse, ask which / where / whether heard right."""
+        intent = u.intent
+        assert intent is not None
+        wants_object, wants_location = wanted(intent, u)
+        grounded = self._ground(t, u, ctx, wants_object, found)
+        if not isinstance(grounded, Grounded):
+            return grounded
+        target = grounded.target
         location = None
         if wants_location:
             location = self._location(u, ctx)
             if location is None:
-                return [self.dialogue.clarify_place(t, u, Draft(intent, t.text, target=target.obj if target else None))]
+                return Ask(Draft(intent, t.text, target=target.obj if target else None), where=True)
         gesture_carried = (
             target is not None and (target.gesture or 0.0) >= 0.5 and ctx.weights.gesture >= ctx.weights.speech
         )
-        if speech_rel < self.cfg.low_speech_confidence and not gesture_carried:
+        if (ctx.reliabilities[SPEECH] or 0.0) < self.cfg.low_speech_confidence and not gesture_carried:
             draft = Draft(
                 intent,
                 t.text,
@@ -374,57 +411,57 @@ class FusionCore:
                 motion=u.motion,
                 motion_said=u.motion_said,
             )
-            choice = Choice("low_confidence", target, (target,) if target else ())
-            return [self.dialogue.clarify(t, u, ctx, choice, draft, heard=True)]
+            return Ask(draft, Choice("low_confidence", target, (target,) if target else ()), heard=True)
         if target is not None:
-            expl = describe.explain_target(target, runner_up, ctx.weights.to_dict(), u.obj, overruled)
-            expl += removed_words(found, u.obj, ctx.pointing)
-            if u.obj.noun is not None:
-                expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
-            if u.obj.unmatched:  # said back, never silently dropped
-                expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
-            self.dialogue.acted(t, intent, t.text, target.obj, u.obj, u.place)
-            return [self.outputs.target_command(t, intent, target, location, ctx, expl, place=u.place)]
-        expl = (
-            f"'{t.text}' -> {intent}"
-            + (f" to the {u.place}" if u.place else "")
-            + (f"; location from the pointing ray at ({location.x:.0f}, {location.y:.0f})" if location else "")
-            + (f": {describe.motion_words(u.motion)}" if u.motion else "")
+            return ActOnTarget(intent, grounded, location, u.place)
+        return Act(
+            intent,
+            confidence=ctx.reliabilities[SPEECH] or 0.0,
+            explanation=describe.explain_command(t.text, intent, u, location),
+            location=location,
+            gesture="point" if location and ctx.pointing else None,
+            place=u.place,
+            motion=u.motion,
+            motion_said=u.motion_said,
         )
-        return [
-            self.outputs.command(
-                t,
-                intent,
-                ctx,
-                confidence=speech_rel,
-                explanation=expl,
-                location=location,
-                gesture="point" if location and ctx.pointing else None,
-                place=u.place,
-                motion=u.motion,
-                motion_said=u.motion_said,
-            )
-        ]
 
-    def _object(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Choice | list[Output]:
-        """The object the command acts on (a target Choice), or what to publish instead: a refusal ("I can't pick up
-        a couch."), a question, or the --fallback-most-confident command."""
+    def _in_camera_words(self, t: Transcript, u: Utterance, ctx: Context) -> Utterance:
+        spatial, why = self.facing.camera_words(u.obj.spatial, t.text, ctx.ref)
+        if not why:
+            return u
+        # "on my left": the speaker's side, turned into the camera's
+        self.count("speaker_side")
+        self.log.info("'%s': %s", t.text, why)
+        return replace(u, obj=replace(u.obj, spatial=spatial))
+
+    def _ground(
+        self, t: Transcript, u: Utterance, ctx: Context, wants_object: bool, found: Applicable
+    ) -> Grounded | Decision:
+        """The object the command is about: Grounded (possibly none), or the decision to refuse, ask or fall back."""
+        intent = u.intent
+        assert intent is not None
+        if wants_object:
+            return self._object(t, u, ctx, found)
+        if intent == "put_down" and u.obj.specific:
+            choice = self._choose(u.obj, ctx)  # the object may well be in the gripper, out of view: optional
+            return Grounded(choice.winner if choice.kind == "target" else None)
+        return Grounded()
+
+    def _object(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Grounded | Decision:
+        """The object the command acts on, or instead: a refusal ("I can't pick up a couch."), a question, or the
+        --fallback-most-confident command."""
         intent = u.intent
         assert intent is not None
         no = refusal(intent, u.obj, found)
         if no is not None:
             self.count("refused_affordance")
-            return [self.dialogue.refuse(t, u, no, Draft(intent, t.text, place=u.place))]
+            return Refuse(no, Draft(intent, t.text, place=u.place))
         if u.obj.noun is not None:  # a word I don't know: only a clear point can say which
             choice = self._choose(replace(u.obj, noun=None, color=None, label=None, spatial=(), deictic=True), ctx)
             if not (choice.kind == "target" and choice.winner is not None and (choice.winner.gesture or 0.0) >= 0.5):
                 self.count("unknown_noun")
-                return [
-                    self.dialogue.clarify(
-                        t, u, ctx, Choice("not_found", None, ()), Draft(intent, t.text, place=u.place)
-                    )
-                ]
-            return choice
+                return Ask(Draft(intent, t.text, place=u.place), Choice("not_found", None, ()))
+            return Grounded(choice.winner, choice.runner_up, choice.overruled)
         choice = self._choose(u.obj, ctx)
         if choice.kind == "not_found" and self.cfg.fallback_most_confident and ctx.pool:
             best = max(ctx.pool, key=lambda o: (o.score, o.cam, o.id))
@@ -433,15 +470,56 @@ class FusionCore:
                 f"nothing fits '{u.obj.describe()}'; --fallback-most-confident picked the most confident "
                 f"detection {best.id} ({best.name()}, score {best.score:.2f})"
             )
-            return [self.outputs.target_command(t, intent, scored, None, ctx, expl, place=u.place)]
+            return ActOnTarget(intent, Grounded(scored), None, u.place, explanation=expl, remember=False)
         if choice.kind == "target" and choice.winner is not None and unseen_pointing(u.obj, choice.winner):
             # "that one" said, no point seen (or none near anything) and no kind named: confirm, never guess
             self.count("deixis_unresolved")
             choice = replace(choice, kind="low_confidence")
         if choice.kind == "target":
-            return choice
+            return Grounded(choice.winner, choice.runner_up, choice.overruled)
         target = choice.winner.obj if choice.kind == "low_confidence" and choice.winner else None
-        return [self.dialogue.clarify(t, u, ctx, choice, Draft(intent, t.text, target=target, place=u.place))]
+        return Ask(Draft(intent, t.text, target=target, place=u.place), choice)
+
+    # -- rendering --------------------------------------------------------------
+    def ignore(self, decision: Ignore) -> list[Output]:
+        self.count(decision.reason)
+        if decision.why:
+            self.log.info("%s", decision.why)
+        return []
+
+    def render(self, t: Transcript, decided: Decided) -> list[Output]:
+        """A decision into what is published (and what the dialogue remembers)."""
+        u, ctx, decision = decided.utterance, decided.ctx, decided.decision
+        if isinstance(decision, Ignore):
+            return self.ignore(decision)
+        if isinstance(decision, Refuse):
+            return [self.dialogue.refuse(t, u, decision.answer, decision.draft)]
+        if isinstance(decision, Ask):
+            if decision.where:
+                return [self.dialogue.clarify_place(t, u, decision.draft)]
+            assert decision.choice is not None
+            return [self.dialogue.clarify(t, u, ctx, decision.choice, decision.draft, heard=decision.heard)]
+        if isinstance(decision, Act):
+            return [self.outputs.command(t, decision, ctx)]
+        target = decision.grounded.target
+        assert target is not None
+        expl = decision.explanation
+        if expl is None:
+            expl = self._explain_target(u, ctx, decision.grounded, decided.found)
+        if decision.remember:
+            self.dialogue.acted(t, decision.intent, t.text, target.obj, u.obj, decision.place)
+        return [self.outputs.target_command(t, decision, ctx, expl)]
+
+    def _explain_target(self, u: Utterance, ctx: Context, g: Grounded, found: Applicable | None) -> str:
+        assert g.target is not None
+        expl = describe.explain_target(g.target, g.runner_up, ctx.weights.to_dict(), u.obj, g.overruled)
+        if found is not None:
+            expl += removed_words(found, u.obj, ctx.pointing)
+        if u.obj.noun is not None:
+            expl += f" ('{u.obj.noun}' is not a word I know; the pointing decided)"
+        if u.obj.unmatched:  # said back, never silently dropped
+            expl += f" ('{' '.join(u.obj.unmatched)}' is not something I can check by sight)"
+        return expl
 
     def _for_dialogue(self, ctx: Context) -> Context:
         """An answer or a correction chooses among what the asked (or corrected) command may act on."""

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Sequence
+
 from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
-from common.schema import Location, Motion
+from common.schema import GESTURE, SPEECH, Location, Motion
 from services.fusion import space
+from services.fusion.decision import Act
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, Scored
-from services.fusion.parse import ObjectPhrase
+from services.fusion.parse import ObjectPhrase, Utterance
 from services.fusion.relations import fit_matrix
 
 PROMPT_MAX_OBJECTS = 25  # a scene with 1000 detections must not make a 1000-line prompt
@@ -233,20 +237,30 @@ def explain_target(
         where = pointing_words(runner_up) if choice_winner.gesture is not None and runner_up.gesture else ""
         text += f"; runner-up {runner_up.obj.id} ({runner_up.obj.name()}) {runner_up.total:.2f}"
         text += f", {where}" if where else ""
-    if overruled == "speech":
+    if overruled == SPEECH:
         text += (
-            f". Speech and pointing disagreed; pointing won (gesture weight {weights['gesture']:.2f} vs "
-            f"speech {weights['speech']:.2f}, and vision trusts its labels for the said object only "
+            f". Speech and pointing disagreed; pointing won (gesture weight {weights[GESTURE]:.2f} vs "
+            f"speech {weights[SPEECH]:.2f}, and vision trusts its labels for the said object only "
             f"{choice_winner.trust:.2f})"
         )
-    elif overruled == "gesture":
+    elif overruled == GESTURE:
         text += (
-            f". Speech and pointing disagreed; speech won (speech weight {weights['speech']:.2f} vs "
-            f"gesture {weights['gesture']:.2f})"
+            f". Speech and pointing disagreed; speech won (speech weight {weights[SPEECH]:.2f} vs "
+            f"gesture {weights[GESTURE]:.2f})"
         )
     elif choice_winner.gesture is not None and choice_winner.gesture < POINTED:
         text += "; pointing did not choose it (it is not near the ray)"
     return text
+
+
+def explain_command(text: str, intent: str, u: Utterance, location: Location | None) -> str:
+    """Why a command without a target: what was heard, where it goes and how it moves."""
+    return (
+        f"'{text}' -> {intent}"
+        + (f" to the {u.place}" if u.place else "")
+        + (f"; location from the pointing ray at ({location.x:.0f}, {location.y:.0f})" if location else "")
+        + (f": {motion_words(u.motion)}" if u.motion else "")
+    )
 
 
 def motion_words(m: Motion) -> str:
@@ -257,25 +271,24 @@ def motion_words(m: Motion) -> str:
     return f"move {m.direction} {amount}"
 
 
-def planner_prompt(
-    *,
-    text: str | None,
-    intent: str,
-    target: SceneObject | None,
-    location: Location | None,
-    place: str | None,
-    pointing: Pointing | None,
-    gesture: str | None,
-    objects: list[SceneObject],
-    missing: list[str],
-    explanation: str,
-    motion: Motion | None = None,
-    motion_said: str = "",
-) -> str:
+@dataclass(frozen=True)
+class PromptScene:
+    """What the planner is told was perceived: the pointing, a gesture alone (its words), the objects in view
+    and the inputs that were missing."""
+
+    pointing: Pointing | None = None
+    gesture: str | None = None
+    objects: Sequence[SceneObject] = ()
+    missing: Sequence[str] = ()
+
+
+def planner_prompt(act: Act, text: str | None, scene: PromptScene) -> str:
     """Everything a planner needs, in plain text, from the same data the decision used."""
+    intent, target, location, place, motion = act.intent, act.target, act.location, act.place, act.motion
+    pointing, gesture, objects, missing = scene.pointing, scene.gesture, scene.objects, scene.missing
     lines = [f"Command: {intent}" + (f' (heard: "{text}")' if text else "")]
     if motion is not None:
-        said = f', said as "{motion_said}"' if motion_said else ""
+        said = f', said as "{act.motion_said}"' if act.motion_said else ""
         lines.append(
             f"Motion: {motion_words(motion)} (robot frame: forward = the way it faces, "
             f"left/right = its own left/right{said})"
@@ -320,5 +333,5 @@ def planner_prompt(
         lines.append("Objects in view: none reported")
     if missing:
         lines.append("Missing inputs: " + ", ".join(missing))
-    lines.append(f"Why: {explanation}")
+    lines.append(f"Why: {act.explanation}")
     return "\n".join(lines)

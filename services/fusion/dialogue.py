@@ -15,10 +15,12 @@ import logging
 from dataclasses import dataclass, replace
 from typing import Callable
 
+from common.counters import CLARIFICATION_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, label_matches
-from common.schema import ClarificationReason, Location, Motion, Transcript
+from common.schema import SPEECH, VISION, ClarificationReason, Intent, Transcript
 from services.fusion import describe
 from services.fusion.afford import VERBS
+from services.fusion.decision import Act, Draft
 from services.fusion.ground import MAX_CANDIDATES, Choice, SceneObject, Scored, best_pointed, score
 from services.fusion.outputs import Output, Outputs
 from services.fusion.parse import ObjectPhrase, Utterance
@@ -26,23 +28,10 @@ from services.fusion.window import Context
 
 
 @dataclass
-class Draft:
-    """A command that is ready except for the person's answer."""
-
-    intent: str
-    text: str
-    target: SceneObject | None = None
-    location: Location | None = None
-    place: str | None = None
-    motion: Motion | None = None
-    motion_said: str = ""
-
-
-@dataclass
 class LastCommand:
     """The latest command that acted on an object: "no, the other one" corrects it."""
 
-    intent: str
+    intent: Intent
     text: str
     target: SceneObject
     phrase: ObjectPhrase
@@ -68,7 +57,7 @@ class Dialogue:
         self,
         outputs: Outputs,
         timeout: float,
-        count: Callable[[str], None],
+        count: Callable[[FusionCounter], None],
         log: logging.Logger,
         doubt: float = 0.0,
     ):
@@ -101,7 +90,7 @@ class Dialogue:
             self.last = None
 
     def acted(
-        self, t: Transcript, intent: str, text: str, target: SceneObject, phrase: ObjectPhrase, place: str | None
+        self, t: Transcript, intent: Intent, text: str, target: SceneObject, phrase: ObjectPhrase, place: str | None
     ) -> None:
         """A command acted on `target`: "no, the other one" may follow."""
         self.last = LastCommand(intent, text, target, phrase, place, t.end + self.timeout)
@@ -127,7 +116,7 @@ class Dialogue:
         else:
             visible = sorted(ctx.pool, key=lambda o: (-o.score, o.cam, o.id))[:MAX_CANDIDATES]
             nothing_to = VERBS.get(draft.intent, "do that to") if ctx.objects and not ctx.pool else None
-            question = describe.not_found_question(u.obj, visible, "vision" in ctx.missing, nothing_to)
+            question = describe.not_found_question(u.obj, visible, VISION in ctx.missing, nothing_to)
             candidates = visible
         return self._ask(
             t, choice.kind, draft, u.obj, [] if choice.kind == "not_found" else candidates, candidates, question
@@ -159,7 +148,7 @@ class Dialogue:
     ) -> Output:
         out = self.outputs.clarification(t, reason, question, shown)
         self.question = Question(out.sample.id, reason, draft, phrase, candidates, t.end + self.timeout, question)
-        self.count(f"clarification_{reason}")
+        self.count(CLARIFICATION_COUNTER[reason])
         return out
 
     def _reask(
@@ -204,7 +193,7 @@ class Dialogue:
             return []
         if not u.obj.specific and not pointing_answer:
             if u.answer == "confirm" and (q.reason == "low_confidence" or len(q.candidates) <= 1):
-                heard = ctx.reliabilities["speech"]
+                heard = ctx.reliabilities[SPEECH]
                 if heard is not None and heard < self.doubt:
                     self.count("dialogue_doubted_confirm")
                     self.log.info("'%s' (speech %.2f) is too doubtful to confirm %s", t.text, heard, q.clarification_id)
@@ -293,11 +282,9 @@ class Dialogue:
         self.question = None
         if draft.target is not None:
             self.acted(t, draft.intent, draft.text, draft.target, phrase or ObjectPhrase(), draft.place)
-        conf = confidence if confidence is not None else (ctx.reliabilities["speech"] or 0.0)
-        return self.outputs.command(
-            t,
+        conf = confidence if confidence is not None else (ctx.reliabilities[SPEECH] or 0.0)
+        act = Act(
             draft.intent,
-            ctx,
             confidence=conf,
             explanation=why,
             text=f"{draft.text} / {t.text}",
@@ -308,3 +295,4 @@ class Dialogue:
             motion=draft.motion,
             motion_said=draft.motion_said,
         )
+        return self.outputs.command(t, act, ctx)

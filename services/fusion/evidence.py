@@ -12,12 +12,23 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from common.schema import Detections, GestureEvent, Hands, ImageQuality, Transcript, Weights
+from common.schema import (
+    GESTURE,
+    SPEECH,
+    VISION,
+    Detections,
+    GestureEvent,
+    Hands,
+    ImageQuality,
+    Modality,
+    Transcript,
+    Weights,
+)
 from services.fusion import space
 from services.fusion.parse import Utterance, word_key
 
 # Fixed weights used by `--weights fixed`: the comparison baseline that ignores evidence quality.
-FIXED_WEIGHTS = {"speech": 0.4, "vision": 0.2, "gesture": 0.4}
+FIXED_WEIGHTS: dict[Modality, float] = {SPEECH: 0.4, VISION: 0.2, GESTURE: 0.4}
 STABILITY_SPREAD_DEG = 15.0  # ray direction spread at which stability reaches 0
 SINGLE_SAMPLE_STABILITY = 0.6  # one observation says nothing about stability: neither trust nor distrust
 POINTING_CLUSTER_S = 0.5  # observations this close to the chosen one form the pointing gesture
@@ -197,10 +208,10 @@ def select_pointing(observations: list[PointingObs], ref: float) -> Pointing | N
     )
 
 
-def modality_weights(mode: str, reliabilities: dict[str, float | None]) -> Weights:
+def modality_weights(mode: str, reliabilities: dict[Modality, float | None]) -> Weights:
     """Normalised weights over the modalities present (None = missing, weight 0)."""
     raw = {}
-    for m in ("speech", "vision", "gesture"):
+    for m in (SPEECH, VISION, GESTURE):
         rel = reliabilities.get(m)
         if rel is None:
             raw[m] = 0.0

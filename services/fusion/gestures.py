@@ -1,6 +1,10 @@
 """Gestures without speech: an open palm means stop, a wave come here, once per episode (the events of one hand
 and gesture close together); and the memory of the stops and waves shown, which decides what an utterance said
-meanwhile means (an open palm cancels it; a spoken "come here" during a wave is not said twice)."""
+meanwhile means (an open palm cancels it; a spoken "come here" during a wave is not said twice).
+
+A wave only calls the robot when it is deliberate (issue #34: hands moving at a table while people talk gave
+`come_here` nobody asked for): waved without a break for `WAVE_HOLD_S`, by a person not seen turned away from the
+camera. A stop is never held back: stopping must not wait, and a wrong stop costs a restart, not a collision."""
 
 from __future__ import annotations
 
@@ -8,17 +12,38 @@ import collections
 from dataclasses import dataclass
 from typing import Any, Iterable
 
+from common.counters import GestureIntent
 from common.schema import GestureEvent, Hands
 
 OPEN_PALM_FRAMES = 3  # hand frames showing an open palm during an utterance cancel it (one frame may be noise)
 MEMORY = 64  # stops / waves / episodes remembered
+# A wave is recognised from 2 side-to-side reversals within 1.5 s (services/gesture/temporal.py), which hands that
+# gesture while talking also make; a wave that goes on for a second more is meant. Seconds from the first wave
+# frame (the event's `start`) to the latest (`end`).
+WAVE_HOLD_S = 1.0
+HOLD_S = {"open_palm": 0.0, "wave": WAVE_HOLD_S}  # the gestures that are commands alone, and their hold
+
+
+@dataclass
+class Episode:
+    last: float  # the latest stamp of the episode's events
+    ended: bool  # its last event was an `end`
+    given: bool  # its command went out
 
 
 @dataclass(frozen=True)
 class GestureCommand:
-    intent: str  # "stop" or "come_here"
+    intent: GestureIntent
     realtime: bool  # a stop goes out at once, at REAL_TIME priority
     why: str
+
+
+def deliberate(ev: GestureEvent, facing: bool | None) -> bool:
+    """Is this gesture meant for the robot? Held for its HOLD_S, and (but for a stop) by a person who is not seen
+    turned away from the camera."""
+    if ev.end - ev.start < HOLD_S[ev.gesture] - 1e-9:
+        return False
+    return ev.gesture == "open_palm" or facing is not False
 
 
 class Gestures:
@@ -28,18 +53,25 @@ class Gestures:
         self.horizon = horizon
         self.stops: collections.deque[float] = collections.deque(maxlen=MEMORY)
         self.waves: collections.deque[float] = collections.deque(maxlen=MEMORY)
-        self.episodes: dict[tuple, tuple[float, bool]] = {}  # (key, hand, gesture) -> (last stamp, ended)
+        self.episodes: dict[tuple, Episode] = {}  # (key, hand, gesture) -> the episode going on
 
-    def on_event(self, key: str, ev: GestureEvent) -> GestureCommand | None:
-        """The command a (buffered, not duplicate) gesture event gives: the first of its episode only."""
-        if ev.gesture not in ("open_palm", "wave") or ev.score < self.min_score:
+    def on_event(self, key: str, ev: GestureEvent, facing: bool | None = None) -> GestureCommand | None:
+        """The command a (buffered, not duplicate) gesture event gives: once per episode, at its first event that
+        is deliberate (`deliberate`). `facing`: does the person face the camera (None: not seen)."""
+        if ev.gesture not in HOLD_S or ev.score < self.min_score:
             return None
         episode = (key, ev.hand, ev.gesture)
         last = self.episodes.get(episode)
-        new = last is None or last[1] or ev.start > last[0] + self.episode_gap or ev.stamp < last[0] - self.horizon
-        self.episodes[episode] = (max(ev.stamp, ev.end, last[0] if last and not new else 0.0), ev.phase == "end")
+        new = (
+            last is None or last.ended or ev.start > last.last + self.episode_gap or ev.stamp < last.last - self.horizon
+        )
+        given = last is not None and not new and last.given
+        give = not given and deliberate(ev, facing)
+        self.episodes[episode] = Episode(
+            max(ev.stamp, ev.end, last.last if last and not new else 0.0), ev.phase == "end", given or give
+        )
         self._prune_episodes(ev.stamp)
-        if not new:
+        if not give:
             return None
         if ev.gesture == "open_palm":
             self.stops.append(ev.start)
@@ -47,11 +79,16 @@ class Gestures:
                 "stop", True, f"open palm shown by the {ev.hand} hand (score {ev.score:.2f}): stop at once"
             )
         self.waves.append(ev.start)
-        return GestureCommand("come_here", False, f"{ev.hand} hand waving (score {ev.score:.2f}): come here")
+        return GestureCommand(
+            "come_here",
+            False,
+            f"{ev.hand} hand waving for {ev.end - ev.start:.1f} s (score {ev.score:.2f}"
+            f"{', facing the camera' if facing else ''}): come here",
+        )
 
     def _prune_episodes(self, stamp: float) -> None:
         if len(self.episodes) > MEMORY:
-            for k in [k for k, (s, _) in self.episodes.items() if s < stamp - self.horizon]:
+            for k in [k for k, e in self.episodes.items() if e.last < stamp - self.horizon]:
                 del self.episodes[k]
 
     def stop_shown(self, lo: float, hi: float, gesture_items: Iterable[Any]) -> bool:

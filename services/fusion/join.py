@@ -272,8 +272,11 @@ class ClockOffsets:
     all sources of `ref - wall` (router vs this machine). One slow sample cannot move it; a clock that steps
     shows within `window` samples. Without router timestamps `ref` is `wall` and the second term is 0.
 
-    What it cannot separate: a source's fastest pipeline delay (inference time of a detection, recognition time
-    of a transcript, whose stamp is the utterance end) reads as its clock being that much *behind*.
+    What it cannot separate: a source's fastest pipeline delay (the inference time of a detection) reads as its
+    clock being that much *behind*. A source whose samples are late by design (`late_by_design`: a transcript is
+    stamped at the utterance end and published after recognition, 0.2-2 s later) is not given a clock offset from
+    that delay: `offsets()` holds it only when its stamps run *ahead* (no delay can do that), and `delays()` holds
+    its fastest stamp-to-arrival time otherwise (its processing delay, plus any clock lag too small to tell).
     """
 
     def __init__(self, window: int = 64, idle_s: float = 60.0):
@@ -282,9 +285,12 @@ class ClockOffsets:
         self._source: dict[str, collections.deque[float]] = {}
         self._last: dict[str, float] = {}
         self._router: collections.deque[float] = collections.deque(maxlen=window)
+        self._late: set[str] = set()
 
-    def add(self, source: str, stamp: float, ref: float | None, wall: float) -> None:
+    def add(self, source: str, stamp: float, ref: float | None, wall: float, late_by_design: bool = False) -> None:
         ref = wall if ref is None else ref
+        if late_by_design:
+            self._late.add(source)
         self._source.setdefault(source, collections.deque(maxlen=self.window)).append(stamp - ref)
         self._last[source] = wall
         self._router.append(ref - wall)
@@ -300,18 +306,31 @@ class ClockOffsets:
         """The router's clock minus this machine's (0 while nothing arrived)."""
         return max(self._router, default=0.0)
 
+    def _estimates(self) -> dict[str, float]:
+        """Per source: max(stamp - ref) + the router's offset (a clock offset less the fastest delay)."""
+        router = self.router_offset()
+        return {s: max(d) + router for s, d in self._source.items() if d}
+
     def offset(self, source: str) -> float | None:
-        """Source clock minus this machine's clock, in seconds (None: nothing from it yet)."""
-        diffs = self._source.get(source)
-        return None if not diffs else max(diffs) + self.router_offset()
+        """Source clock minus this machine's clock, in seconds (None: nothing from it yet, or a source late by
+        design whose stamps do not run ahead: see `delay`)."""
+        return self.offsets().get(source)
 
     def offsets(self) -> dict[str, float]:
-        return {s: max(d) + self.router_offset() for s, d in self._source.items() if d}
+        return {s: v for s, v in self._estimates().items() if s not in self._late or v > 0}
+
+    def delay(self, source: str) -> float | None:
+        """Seconds from stamp to arrival at the fastest, for a source late by design (None otherwise)."""
+        return self.delays().get(source)
+
+    def delays(self) -> dict[str, float]:
+        return {s: -v for s, v in self._estimates().items() if s in self._late and v <= 0}
 
     def forget(self, source: str) -> None:
         """A source that left (its liveliness token went away): a new instance starts a new estimate."""
         self._source.pop(source, None)
         self._last.pop(source, None)
+        self._late.discard(source)
 
 
 def clock_verdict(offset: float, ahead_tolerance: float, behind_tolerance: float) -> str | None:

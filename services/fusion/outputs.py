@@ -6,18 +6,22 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass
 
+from common.counters import GestureIntent
 from common.schema import (
+    GESTURE,
+    SPEECH,
+    VISION,
     Clarification,
     ClarificationReason,
     FusedCommand,
     GestureEvent,
-    Location,
-    Motion,
     Transcript,
     Weights,
 )
 from services.fusion import describe
-from services.fusion.ground import MAX_CANDIDATES, SceneObject, Scored
+from services.fusion.decision import Act, ActOnTarget
+from services.fusion.describe import PromptScene
+from services.fusion.ground import MAX_CANDIDATES, SceneObject
 from services.fusion.window import Context
 
 
@@ -41,98 +45,50 @@ class Outputs:
     def __init__(self, source: str):
         self.source = source
 
-    def command(
-        self,
-        t: Transcript,
-        intent: str,
-        ctx: Context | None,
-        *,
-        confidence: float,
-        explanation: str,
-        text: str | None = None,
-        target: SceneObject | None = None,
-        location: Location | None = None,
-        gesture: str | None = None,
-        place: str | None = None,
-        motion: Motion | None = None,
-        motion_said: str = "",
-        realtime: bool = False,
-    ) -> Output:
+    def command(self, t: Transcript, act: Act, ctx: Context | None) -> Output:
         """A command on an utterance, with the window's weights, inputs and scene (`ctx`); without a window
         (a spoken stop, decided on arrival) speech alone."""
-        text = text if text is not None else t.text
-        prompt = describe.planner_prompt(
-            text=text,
-            intent=intent,
-            target=target,
-            location=location,
-            place=place,
-            pointing=ctx.pointing if ctx else None,
-            gesture=None,
-            objects=ctx.objects if ctx else [],
-            missing=ctx.missing if ctx else [],
-            explanation=explanation,
-            motion=motion,
-            motion_said=motion_said,
-        )
+        text = act.text if act.text is not None else t.text
+        scene = PromptScene(ctx.pointing, None, ctx.objects, ctx.missing) if ctx else PromptScene()
         cmd = FusedCommand(
             stamp=t.stamp,
             source=self.source,
             id=stable_id("cmd", t.source, t.stamp, t.mic),
-            intent=intent,
+            intent=act.intent,
             text=text,
-            target=target.to_target() if target else None,
-            location=location,
-            place=place,
-            gesture=gesture,
-            confidence=unit(confidence),
+            target=act.target.to_target() if act.target else None,
+            location=act.location,
+            place=act.place,
+            gesture=act.gesture,
+            confidence=unit(act.confidence),
             weights=ctx.weights if ctx else Weights(speech=1.0, vision=0.0, gesture=0.0),
-            inputs=ctx.inputs if ctx else {"speech": t.stamp, "vision": None, "gesture": None},
-            explanation=explanation,
-            prompt=prompt,
-            motion=motion,
+            inputs=ctx.inputs if ctx else {SPEECH: t.stamp, VISION: None, GESTURE: None},
+            explanation=act.explanation,
+            prompt=describe.planner_prompt(act, text, scene),
+            motion=act.motion,
         )
-        return Output(cmd, realtime=realtime)
+        return Output(cmd, realtime=act.realtime)
 
-    def target_command(
-        self,
-        t: Transcript,
-        intent: str,
-        target: Scored,
-        location: Location | None,
-        ctx: Context,
-        explanation: str,
-        place: str | None = None,
-    ) -> Output:
+    def target_command(self, t: Transcript, act: ActOnTarget, ctx: Context, explanation: str) -> Output:
         """A command on the object grounding chose; the explanation says what was missing from the window."""
+        target = act.grounded.target
+        assert target is not None  # an ActOnTarget has one
         if ctx.missing:
             explanation += "; missing: " + ", ".join(ctx.missing) + f" (window closed by {ctx.how})"
-        return self.command(
-            t,
-            intent,
-            ctx,
+        command = Act(
+            act.intent,
             confidence=target.total,
             explanation=explanation,
             target=target.obj,
-            location=location,
+            location=act.location,
             gesture="point" if target.gesture is not None else None,
-            place=place,
+            place=act.place,
         )
+        return self.command(t, command, ctx)
 
-    def gesture_command(self, ev: GestureEvent, intent: str, why: str, realtime: bool) -> Output:
+    def gesture_command(self, ev: GestureEvent, intent: GestureIntent, why: str, realtime: bool) -> Output:
         """A command from a gesture alone (stop, come here)."""
-        prompt = describe.planner_prompt(
-            text=None,
-            intent=intent,
-            target=None,
-            location=None,
-            place=None,
-            pointing=None,
-            gesture=f"{ev.gesture} ({ev.hand} hand)",
-            objects=[],
-            missing=[],
-            explanation=why,
-        )
+        act = Act(intent, confidence=ev.score, explanation=why)
         cmd = FusedCommand(
             stamp=ev.stamp,
             source=self.source,
@@ -144,9 +100,9 @@ class Outputs:
             gesture=ev.gesture,
             confidence=round(ev.score, 4),
             weights=Weights(speech=0.0, vision=0.0, gesture=1.0),
-            inputs={"speech": None, "vision": None, "gesture": ev.stamp},
+            inputs={SPEECH: None, VISION: None, GESTURE: ev.stamp},
             explanation=why,
-            prompt=prompt,
+            prompt=describe.planner_prompt(act, None, PromptScene(gesture=f"{ev.gesture} ({ev.hand} hand)")),
         )
         return Output(cmd, realtime=realtime)
 

@@ -21,10 +21,10 @@ from __future__ import annotations
 import difflib
 import re
 from dataclasses import dataclass, field, replace
-from typing import cast
+from typing import Literal, cast
 
 from common import language as L
-from common.schema import Motion, MotionDirection
+from common.schema import Intent, Motion, MotionDirection, as_intent
 
 # Stop words win wherever they appear: a false stop is cheap, a missed one is not (stop_requested).
 SAFETY_STOP_WORDS = L.STOP_WORDS
@@ -199,7 +199,7 @@ class ObjectPhrase:
 class Utterance:
     text: str
     tokens: tuple[str, ...]
-    intent: str | None = None
+    intent: Intent | None = None
     answer: str | None = None  # confirm / deny
     obj: ObjectPhrase = field(default_factory=ObjectPhrase)
     place: str | None = None  # a named place (table, kitchen …)
@@ -509,59 +509,74 @@ def _number(tags: list[Tag], k: int, tokens: tuple[str, ...]) -> tuple[float | N
     return value, j
 
 
-def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> tuple[str, Motion, str] | None:
+@dataclass
+class _MotionSaid:
+    """What the words after a motion verb said so far (the last one said wins)."""
+
+    kind: Literal["move", "turn"]
+    direction: str | None = None
+    distance: float | None = None
+    angle: float | None = None
+    amount: str = ""  # the amount as said
+
+    def quantity(self, quantity: str, value: float) -> None:
+        if quantity == "angle":
+            self.angle, self.kind = value, "turn"
+        else:
+            self.distance = value
+
+
+def _motion(tags: list[Tag], tokens: tuple[str, ...], verb: Tag) -> tuple[Intent, Motion, str] | None:
     """Direction and amount after a motion verb; the last one said wins ("forward, no, back"). Returns the
     intent ("move" or "turn"), the motion and its amount as said."""
-    kind = "turn" if verb.kind == "motion" and verb.value == "turn" else "move"
-    direction: str | None = None
+    said = _MotionSaid("turn" if verb.kind == "motion" and verb.value == "turn" else "move")
     if verb.kind == "motion" and verb.words == ("back", "up"):
-        direction = "back"
-    distance = angle = None
-    amount = ""
+        said.direction = "back"
     after = [t for t in tags if t.index > verb.index]
     k = 0
     while k < len(after):
-        t = after[k]
-        if t.kind in ("direction", "spatial") and t.value in L.DIRECTION_PHRASES:
-            direction = t.value
-        elif t.kind == "direction":
-            direction = t.value
-        elif t.kind == "amount":
-            distance, angle = (
-                (None, L.VAGUE_AMOUNTS[t.value][1]) if kind == "turn" else (L.VAGUE_AMOUNTS[t.value][0], None)
-            )
-            amount = t.value
-        elif _is_number(t):
-            value, j = _number(after, k, tokens)
-            unit = after[j] if j < len(after) and after[j].kind == "unit" else None
-            if value is not None:
-                quantity, scale = (
-                    L.UNIT_SCALE[unit.value] if unit else (("angle", 1.0) if kind == "turn" else ("distance", 1.0))
-                )
-                if quantity == "angle":
-                    angle, kind = value * scale, "turn"
-                else:
-                    distance = value * scale
-                last = after[j] if unit else after[j - 1]
-                amount = " ".join(tokens[t.index : last.index + len(last.words)])  # as said: "one and a half meters"
-                k = j + (1 if unit else 0)
-                continue
-        elif t.kind == "unit":  # "a meter", "a step": the article is the number
-            quantity, scale = L.UNIT_SCALE[t.value]
-            if quantity == "angle":
-                angle, kind = scale, "turn"
-            else:
-                distance = scale
-            amount = " ".join(t.words)
-        k += 1
-    if kind == "turn":
+        k = _read_motion_word(after, k, tokens, said)
+    return _motion_of(said)
+
+
+def _read_motion_word(after: list[Tag], k: int, tokens: tuple[str, ...], said: _MotionSaid) -> int:
+    """Reads the tag at `k` (with the unit after a number) into `said`; the index of the next tag to read."""
+    t = after[k]
+    if t.kind == "direction" or (t.kind == "spatial" and t.value in L.DIRECTION_PHRASES):
+        said.direction = t.value
+    elif t.kind == "amount":
+        vague = L.VAGUE_AMOUNTS[t.value]
+        said.distance, said.angle = (None, vague[1]) if said.kind == "turn" else (vague[0], None)
+        said.amount = t.value
+    elif _is_number(t):
+        value, j = _number(after, k, tokens)
+        unit = after[j] if j < len(after) and after[j].kind == "unit" else None
+        if value is not None:
+            default = ("angle", 1.0) if said.kind == "turn" else ("distance", 1.0)
+            quantity, scale = L.UNIT_SCALE[unit.value] if unit else default
+            said.quantity(quantity, value * scale)
+            last = after[j] if unit else after[j - 1]
+            said.amount = " ".join(tokens[t.index : last.index + len(last.words)])  # as said: "one and a half meters"
+            return j + (1 if unit else 0)
+    elif t.kind == "unit":  # "a meter", "a step": the article is the number
+        quantity, scale = L.UNIT_SCALE[t.value]
+        said.quantity(quantity, scale)
+        said.amount = " ".join(t.words)
+    return k + 1
+
+
+def _motion_of(said: _MotionSaid) -> tuple[Intent, Motion, str] | None:
+    direction, amount = said.direction, said.amount
+    if said.kind == "turn":
         if direction == "back":
             direction = "around"
+        angle = said.angle
         if angle is None:
             angle = L.TURN_AROUND_DEG if direction == "around" else L.TURN_DEFAULT_DEG
         if direction is None and abs(angle - 180.0) < 1e-6:
             direction = "around"
         return "turn", Motion(direction=_wire_direction(direction), angle=round(angle, 3)), amount
+    distance = said.distance
     if direction is None and distance is None:
         return None
     if direction == "around":  # "go around" is a turn, not a distance
@@ -663,7 +678,7 @@ def parse(text: str, labels: tuple[str, ...] = ()) -> Utterance:
             before = []
     intents = [t for t in tags if t.kind == "intent"]
     chosen = next((t for t in intents if t.value != "greet"), intents[0] if intents else None)
-    intent = chosen.value if chosen else None
+    intent: Intent | None = as_intent(chosen.value) if chosen else None
     stop = stop_requested(heard_tags, tokens)
     if stop is not None:
         intent, chosen = "stop", stop

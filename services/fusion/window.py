@@ -7,7 +7,7 @@ import logging
 from dataclasses import dataclass
 
 from common.language import DEICTIC_OBJECT_WORDS, DEICTIC_PLACE_WORDS
-from common.schema import Detections, Hands, Transcript, Weights
+from common.schema import GESTURE, SPEECH, VISION, Detections, Hands, Modality, Transcript, Weights
 from services.fusion.evidence import (
     Pointing,
     modality_weights,
@@ -46,7 +46,7 @@ class Context:
     detections: list[Detections]
     pointing: Pointing | None
     weights: Weights
-    reliabilities: dict[str, float | None]
+    reliabilities: dict[Modality, float | None]
     inputs: dict[str, float | None]
     missing: list[str]
     ref: float
@@ -115,24 +115,24 @@ def gather(
     ref = ref_time(t, u)
     detections = []
     by_key: dict[str, list[Detections]] = {}
-    for key, det in streams.between("vision", p.lo - vision_lookback, p.hi):
+    for key, det in streams.between(VISION, p.lo - vision_lookback, p.hi):
         by_key.setdefault(key, []).append(det)
     for key in sorted(by_key):
         detections.append(min(by_key[key], key=lambda d: (abs(d.stamp - ref), d.stamp)))
     obs = []
-    for _, item in speakers_items(streams.between("gesture", p.lo, p.hi), speaker_person):
+    for _, item in speakers_items(streams.between(GESTURE, p.lo, p.hi), speaker_person):
         obs.extend(pointing_from_hands(item) if isinstance(item, Hands) else pointing_from_event(item))
     pointing = select_pointing(obs, ref)
-    rel = {
-        "speech": speech_reliability(t, u),
-        "vision": vision_reliability(detections) if detections else None,
-        "gesture": pointing.reliability if pointing else None,
+    rel: dict[Modality, float | None] = {
+        SPEECH: speech_reliability(t, u),
+        VISION: vision_reliability(detections) if detections else None,
+        GESTURE: pointing.reliability if pointing else None,
     }
     weights = modality_weights(weights_mode, rel)
     inputs = {
-        "speech": t.stamp,
-        "vision": max((d.stamp for d in detections), default=None),
-        "gesture": pointing.stamp if pointing else None,
+        SPEECH: t.stamp,
+        VISION: max((d.stamp for d in detections), default=None),
+        GESTURE: pointing.stamp if pointing else None,
     }
     missing = [m for m in WAITED_MODALITIES if inputs[m] is None]
     if log.isEnabledFor(logging.DEBUG):

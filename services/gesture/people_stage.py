@@ -14,6 +14,7 @@ from typing import cast
 
 import numpy as np
 
+from common.image import frame_fields
 from common.schema import Frame, Handedness, Person, Persons
 from services.gesture.body import Arm, arm
 from services.gesture.landmarks import FaceDetector, RegionPose
@@ -163,15 +164,7 @@ class CameraPeople:
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
         """The `Persons` of a frame the stage ran on."""
-        return Persons(
-            stamp=frame.stamp,
-            source=source,
-            seq=frame.seq,
-            cam=frame.cam,
-            width=frame.width,
-            height=frame.height,
-            persons=self.stages[frame.cam].wire(seen),
-        )
+        return Persons(**frame_fields(frame, source), persons=self.stages[frame.cam].wire(seen))
 
     def close(self) -> None:
         for stage in self.stages.values():

@@ -21,7 +21,7 @@ import zenoh
 from zenoh import ext
 
 from common.image import jpeg_size, png_size
-from common.runner import Delivery, Service, main_exit, service_parser
+from common.runner import App, Delivery, Service, serve, service_parser
 from common.schema import Frame, InvalidSample
 from common.settings import add_settings, from_args
 from services.ros2 import core
@@ -211,62 +211,71 @@ class RosInputs:
         self.busy = bool(message.data)
 
 
-def main(argv: list[str] | None = None) -> None:
-    args = build_parser().parse_args(argv)
-    config = from_args(Ros2Config, args)
-    service = Service("ros2", args, recovering=True)  # timestamping: latched topics use AdvancedPublishers
-    if not service.connect():
-        main_exit(0)
-    assert service.session is not None
-    node = RosNode(service.session, config)
-    service.on_close(node.close)
-    inputs = RosInputs(service, node, config)
-    latch = core.Latch()
+class Ros2App(App):
+    """The stack's persons, bodies, faces, objects, commands, questions and camera intrinsics -> ROS 2 messages
+    (services/ros2/core.py); a ROS camera and text topic -> Frame / DepthFrame / Transcript (RosInputs)."""
 
-    tracked = core.Tracked()
+    node = "ros2"
+    recovering = True  # timestamping: latched topics use AdvancedPublishers
 
-    def retire_the_gone(cam: str, outs: list[Outgoing]) -> None:
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.config = from_args(Ros2Config, args)
+        self.latch = core.Latch()
+        self.tracked = core.Tracked()
+
+    def wire(self, service: Service) -> None:
+        assert service.session is not None  # wired once connected
+        config, latch = self.config, self.latch
+        self.service = service
+        self.ros = RosNode(service.session, config)
+        service.on_close(self.ros.close)
+        self.inputs = RosInputs(service, self.ros, config)
+        service.subscribe_input("persons", self.publishing(lambda s: core.persons_messages(s, config, latch)))
+        service.subscribe_input("bodies", self.publishing(lambda s: core.bodies_messages(s, config)))
+        service.subscribe_input("faces", self.publishing(lambda s: core.faces_messages(s, config)))
+        service.subscribe_input("objects", self.publishing(lambda s: core.detections_messages(s, config)))
+        service.subscribe_input("command", self.on_command)
+        service.subscribe_input("clarification", self.publishing(lambda s: core.clarification_messages(s, config)))
+        service.subscribe_input("frame", self.publishing(lambda s: core.camera_info_messages(s, config, latch)))
+        self.inputs.subscribe_all()
+        service.log.info(
+            "ROS 2 node %s%s on domain %d (rmw_zenoh)",
+            config.namespace.rstrip("/") + "/",
+            config.node_name,
+            config.domain_id,
+        )
+
+    def retire_the_gone(self, cam: str, outs: list[Outgoing]) -> None:
         """Per-id topics of people no camera tracks any more go, and their latched values are forgotten."""
-        for kind, ids in core.tracked_ids(outs, config).items():
-            tracked.update(kind, cam, ids)
-            gone = tracked.gone(kind, node.topics(), config)
+        for kind, ids in core.tracked_ids(outs, self.config).items():
+            self.tracked.update(kind, cam, ids)
+            gone = self.tracked.gone(kind, self.ros.topics(), self.config)
             if gone:
-                node.retire(gone)
+                self.ros.retire(gone)
                 for topic in gone:
-                    latch.forget(topic)
-                service.counters.add("ros_topics_retired", len(gone))
+                    self.latch.forget(topic)
+                self.service.counters.add("ros_topics_retired", len(gone))
 
-    def publishing(convert: Callable[[Any], list[Outgoing]]) -> Callable[[Delivery], None]:
+    def publishing(self, convert: Callable[[Any], list[Outgoing]]) -> Callable[[Delivery], None]:
         def handle(delivery: Delivery) -> None:
             outs = convert(delivery.sample)
-            node.publish(outs)
-            service.counters.add("ros_published", len(outs))
-            retire_the_gone(getattr(delivery.sample, "cam", ""), outs)
+            self.ros.publish(outs)
+            self.service.counters.add("ros_published", len(outs))
+            self.retire_the_gone(getattr(delivery.sample, "cam", ""), outs)
 
         return handle
 
-    def on_command(delivery: Delivery) -> None:
-        if not core.passes_while_busy(delivery.sample, inputs.busy):
-            service.counters.add("held_while_busy")
-            service.log.info("robot busy: %s %s not forwarded", delivery.sample.intent, delivery.sample.id)
+    def on_command(self, delivery: Delivery) -> None:
+        if not core.passes_while_busy(delivery.sample, self.inputs.busy):
+            self.service.counters.add("held_while_busy")
+            self.service.log.info("robot busy: %s %s not forwarded", delivery.sample.intent, delivery.sample.id)
             return
-        publishing(lambda cmd: core.fused_command_messages(cmd, config))(delivery)
+        self.publishing(lambda cmd: core.fused_command_messages(cmd, self.config))(delivery)
 
-    service.subscribe_input("persons", publishing(lambda s: core.persons_messages(s, config, latch)))
-    service.subscribe_input("bodies", publishing(lambda s: core.bodies_messages(s, config)))
-    service.subscribe_input("faces", publishing(lambda s: core.faces_messages(s, config)))
-    service.subscribe_input("objects", publishing(lambda s: core.detections_messages(s, config)))
-    service.subscribe_input("command", on_command)
-    service.subscribe_input("clarification", publishing(lambda s: core.clarification_messages(s, config)))
-    service.subscribe_input("frame", publishing(lambda s: core.camera_info_messages(s, config, latch)))
-    inputs.subscribe_all()
-    service.log.info(
-        "ROS 2 node %s%s on domain %d (rmw_zenoh)",
-        config.namespace.rstrip("/") + "/",
-        config.node_name,
-        config.domain_id,
-    )
-    main_exit(service.run())
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    serve(Ros2App(args), args)
 
 
 if __name__ == "__main__":

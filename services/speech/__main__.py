@@ -2,21 +2,25 @@
 
 from __future__ import annotations
 
+import argparse
 import queue
 import sys
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 
-from common.runner import Delivery, Service, main_exit, service_parser
+from common.counters import SpeechCounter
+from common.runner import App, Delivery, Service, StartupError, serve, service_parser
 from common.schema import AudioChunk, make_transcript
 from common.settings import add_option
 from common.transport import live_tokens
-from services.speech.audio import RATE, AudioError, pcm_to_mono, read_wav, wav_files
+from services.speech.audio import RATE, AudioError, WavAudio, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
-from services.speech.pipeline import Heard, MicStream
+from services.speech.pipeline import Heard, MicStream, Recogniser
 from services.speech.recognizers import BackendError, PocketsphinxRecognizer
 from services.speech.vad import VadConfig, make_segmenter
 from services.speech.whisper import MAX_COMMAND_COPIES, MODEL_ENV, PROMPTS, WhisperRecognizer, WhisperSettings
@@ -185,6 +189,103 @@ def build_parser():
     return parser
 
 
+# what the recogniser says of an utterance it does not publish (or publishes changed): logged, and counted
+EXPLAINED_COUNTERS: tuple[SpeechCounter, ...] = (
+    "not_a_command",
+    "low_confidence",
+    "too_short",
+    "utterance_cut",
+    "clock_resync",
+    "format_changed",
+    "no_speech",
+    "no_words",
+    "repeats_removed",
+)
+
+Publish = Callable[[list[Heard]], None]
+
+
+class SpeechApp(App):
+    """Audio (a microphone, WAV files or AudioChunks over Zenoh) -> VAD -> recogniser -> Transcript; or typed
+    lines (--backend text)."""
+
+    node = "speech"
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.vad = VadConfig(min_silence=args.min_silence, post_pad=min(VadConfig.post_pad, args.min_silence))
+        self.streams: dict[str, MicStream] = {}  # --input zenoh: one per microphone
+        self.last_seen: dict[str, float] = {}
+
+    def open(self, service: Service) -> None:
+        self.service = service
+        args = self.args
+        if args.backend == "text":
+            self.loop = lambda stop: read_stdin(service, args, stop)
+            return
+        try:
+            self.recogniser = make_recogniser(args, service)
+        except BackendError as exc:
+            raise StartupError(str(exc)) from None
+        if args.input == "wav":
+            self.loop = lambda stop: play_wavs(service, args, self.new_stream(args.mic), self.publish, stop)
+        elif args.input == "mic":
+            self.loop = lambda stop: listen_mic(service, args, self.new_stream(args.mic), self.publish, stop)
+        else:
+            self.tick, self.tick_interval = self.flush_idle, 0.1
+
+    def wire(self, service: Service) -> None:
+        if self.args.backend != "text" and self.args.input == "zenoh":
+            service.subscribe_input("audio", self.on_chunk)
+
+    def count(self, name: SpeechCounter, detail: str) -> None:
+        if name in EXPLAINED_COUNTERS and detail:
+            self.service.log.info("%s", detail)
+        self.service.counters.add(name)
+
+    def new_stream(self, mic: str) -> MicStream:
+        return MicStream(
+            mic,
+            self.service.source,
+            self.recogniser,
+            lambda: make_segmenter(self.vad),
+            self.count,
+            partial_every=self.args.partials,
+        )
+
+    def publish(self, heard: list[Heard]) -> None:
+        service = self.service
+        for h in heard:
+            t = h.transcript
+            service.publish_output("transcript", t, lossless=True, mic=t.mic)
+            if t.final:
+                service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
+            else:
+                service.log.debug("hearing %r (partial)", t.text)
+
+    def on_chunk(self, delivery: Delivery) -> None:
+        chunk = delivery.sample
+        assert isinstance(chunk, AudioChunk)  # the runner validated it as the topic's schema
+        try:
+            samples = pcm_to_mono(chunk.data, chunk.channels)
+            stream = self.streams.get(chunk.mic)
+            if stream is None:
+                stream = self.streams[chunk.mic] = self.new_stream(chunk.mic)
+                self.service.log.info("audio from mic %r: %d Hz, %d channel(s)", chunk.mic, chunk.rate, chunk.channels)
+            self.last_seen[chunk.mic] = time.monotonic()
+            self.publish(stream.feed(samples, chunk.rate, chunk.stamp))
+        except AudioError as exc:
+            self.service.counters.reject(exc.reason, str(exc), delivery.key)
+
+    def flush_idle(self) -> None:
+        """A microphone quiet for IDLE_FLUSH_SECONDS: what it said last is recognised now, not at its next chunk."""
+        now = time.monotonic()
+        for mic, seen in list(self.last_seen.items()):
+            if now - seen > IDLE_FLUSH_SECONDS:
+                del self.last_seen[mic]
+                self.publish(self.streams[mic].flush())
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -194,60 +295,10 @@ def main(argv: list[str] | None = None) -> None:
         parser.error("--input wav needs --wav PATH [PATH ...]")
     if args.min_confidence is None:
         args.min_confidence = WHISPER_MIN_CONFIDENCE if args.backend == "whisper" else 0.5
-
-    service = Service("speech", args)
-    if args.backend == "text":
-        main_exit(service.run(loop=lambda stop: read_stdin(service, args, stop)))
-
-    try:
-        recogniser = make_recogniser(args, service)
-    except BackendError as exc:
-        service.log.error("%s", exc)
-        main_exit(2)
-    vad = VadConfig(min_silence=args.min_silence, post_pad=min(VadConfig.post_pad, args.min_silence))
-
-    def count(name: str, detail: str) -> None:
-        if (
-            name
-            in (
-                "not_a_command",
-                "low_confidence",
-                "too_short",
-                "utterance_cut",
-                "clock_resync",
-                "format_changed",
-                "no_speech",
-                "no_words",
-                "repeats_removed",
-            )
-            and detail
-        ):
-            service.log.info("%s", detail)
-        service.counters.add(name)
-
-    def new_stream(mic: str) -> MicStream:
-        return MicStream(
-            mic, service.source, recogniser, lambda: make_segmenter(vad), count, partial_every=args.partials
-        )
-
-    def publish(heard: list[Heard]) -> None:
-        for h in heard:
-            t = h.transcript
-            service.publish_output("transcript", t, lossless=True, mic=t.mic)
-            if t.final:
-                service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
-            else:
-                service.log.debug("hearing %r (partial)", t.text)
-
-    if args.input == "zenoh":
-        run_zenoh(service, new_stream, publish)
-    elif args.input == "wav":
-        main_exit(service.run(loop=lambda stop: play_wavs(service, args, new_stream(args.mic), publish, stop)))
-    else:
-        main_exit(service.run(loop=lambda stop: listen_mic(service, args, new_stream(args.mic), publish, stop)))
+    serve(SpeechApp(args), args)
 
 
-def make_recogniser(args, service: Service):
+def make_recogniser(args: argparse.Namespace, service: Service) -> Recogniser:
     started = time.monotonic()
     commands = None
     if args.commands:
@@ -272,15 +323,17 @@ def make_recogniser(args, service: Service):
         rec.recognise(np.zeros(RATE // 2, np.float32))  # the first decode allocates; not on a person's time
         service.log.info("%s ready in %.1f s", rec.describe(), time.monotonic() - started)
         return rec
-    rec = PocketsphinxRecognizer(args.min_confidence, args.model, log=service.log.warning, commands=commands)
-    if rec.commands is not None:
-        service.log.info("closed command list: %d sentences from %s", len(rec.commands), args.commands)
-    for word, pron in rec.derived.items():
+    sphinx = PocketsphinxRecognizer(args.min_confidence, args.model, log=service.log.warning, commands=commands)
+    if sphinx.commands is not None:
+        service.log.info("closed command list: %d sentences from %s", len(sphinx.commands), args.commands)
+    for word, pron in sphinx.derived.items():
         service.log.info("grammar: %r is not in the dictionary; pronounced as %s", word, pron)
     service.log.info(
-        "pocketsphinx ready in %.1f s (%d words in the grammar)", time.monotonic() - started, len(rec.grammar.words())
+        "pocketsphinx ready in %.1f s (%d words in the grammar)",
+        time.monotonic() - started,
+        len(sphinx.grammar.words()),
     )
-    return rec
+    return sphinx
 
 
 def wait_for_services(service: Service, names: list[str], stop: threading.Event) -> bool:
@@ -304,7 +357,9 @@ def wait_for_services(service: Service, names: list[str], stop: threading.Event)
     return False
 
 
-def play_wavs(service: Service, args, stream: MicStream, publish, stop: threading.Event) -> None:
+def play_wavs(
+    service: Service, args: argparse.Namespace, stream: MicStream, publish: Publish, stop: threading.Event
+) -> None:
     names = [n.strip() for n in args.wait_for.split(",") if n.strip()]
     if names and not wait_for_services(service, names, stop):
         return
@@ -331,18 +386,8 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
         )
         if args.realtime:
             clock = max(clock, time.time())
-        step = max(1, int(wav.rate * CHUNK_SECONDS))
-        wall0 = time.monotonic()
-        for offset in range(0, len(wav.samples), step):
-            if stop.is_set():
-                return
-            stamp = clock + offset / wav.rate
-            if args.realtime:
-                delay = wall0 + offset / wav.rate - time.monotonic()
-                if delay > 0 and stop.wait(delay):
-                    return
-            publish(stream.feed(wav.samples[offset : offset + step], wav.rate, stamp))
-        publish(stream.flush())
+        if not play_wav(wav, clock, WavPlayback(stream, publish, stop, args.realtime)):
+            return
         clock += wav.seconds + args.gap
         if args.realtime and i + 1 < len(files) and stop.wait(args.gap):
             return
@@ -351,7 +396,35 @@ def play_wavs(service: Service, args, stream: MicStream, publish, stop: threadin
         stop.wait()
 
 
-def listen_mic(service: Service, args, stream: MicStream, publish, stop: threading.Event) -> None:
+@dataclass
+class WavPlayback:
+    stream: MicStream
+    publish: Publish
+    stop: threading.Event
+    realtime: bool
+
+
+def play_wav(wav: WavAudio, clock: float, to: WavPlayback) -> bool:
+    """Feeds one file to the stream in chunks stamped from `clock` (paced as spoken with --realtime), then flushes
+    it; False when stopped on the way."""
+    step = max(1, int(wav.rate * CHUNK_SECONDS))
+    wall0 = time.monotonic()
+    for offset in range(0, len(wav.samples), step):
+        if to.stop.is_set():
+            return False
+        stamp = clock + offset / wav.rate
+        if to.realtime:
+            delay = wall0 + offset / wav.rate - time.monotonic()
+            if delay > 0 and to.stop.wait(delay):
+                return False
+        to.publish(to.stream.feed(wav.samples[offset : offset + step], wav.rate, stamp))
+    to.publish(to.stream.flush())
+    return True
+
+
+def listen_mic(
+    service: Service, args: argparse.Namespace, stream: MicStream, publish: Publish, stop: threading.Event
+) -> None:
     try:
         import sounddevice as sd
     except (ImportError, OSError) as exc:
@@ -372,7 +445,7 @@ def listen_mic(service: Service, args, stream: MicStream, publish, stop: threadi
     rate = int(info["default_samplerate"])
     chunks: queue.Queue[tuple[np.ndarray, float]] = queue.Queue()
 
-    def callback(indata, frames, time_info, status) -> None:
+    def callback(indata: Any, frames: int, time_info: Any, status: Any) -> None:
         if status:
             service.counters.add("mic_overflow")
         # stamp of the first sample: now minus how long ago the ADC captured it
@@ -399,37 +472,7 @@ def listen_mic(service: Service, args, stream: MicStream, publish, stop: threadi
         service.fail(2, f"microphone failed: {exc}")
 
 
-def run_zenoh(service: Service, new_stream, publish) -> None:
-    streams: dict[str, MicStream] = {}
-    last_seen: dict[str, float] = {}
-
-    def on_chunk(delivery: Delivery) -> None:
-        chunk: AudioChunk = delivery.sample
-        try:
-            samples = pcm_to_mono(chunk.data, chunk.channels)
-            stream = streams.get(chunk.mic)
-            if stream is None:
-                stream = streams[chunk.mic] = new_stream(chunk.mic)
-                service.log.info("audio from mic %r: %d Hz, %d channel(s)", chunk.mic, chunk.rate, chunk.channels)
-            last_seen[chunk.mic] = time.monotonic()
-            publish(stream.feed(samples, chunk.rate, chunk.stamp))
-        except AudioError as exc:
-            service.counters.reject(exc.reason, str(exc), delivery.key)
-
-    def tick() -> None:
-        now = time.monotonic()
-        for mic, seen in list(last_seen.items()):
-            if now - seen > IDLE_FLUSH_SECONDS:
-                del last_seen[mic]
-                publish(streams[mic].flush())
-
-    if not service.connect():
-        main_exit(0)
-    service.subscribe_input("audio", on_chunk)
-    main_exit(service.run(tick=tick, tick_interval=0.1))
-
-
-def read_stdin(service: Service, args, stop: threading.Event) -> None:
+def read_stdin(service: Service, args: argparse.Namespace, stop: threading.Event) -> None:
     """--backend text: each non-empty line of stdin becomes a final Transcript."""
     key = service.output_key("transcript", mic=args.mic)
     service.log.info("type commands, one per line (Ctrl-D ends)")

@@ -25,18 +25,21 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from common.counters import SpeechCounter
 from common.schema import Transcript, Word
 from services.speech.audio import RATE, AudioError, Resampler, check_rate
 from services.speech.recognizers import Recognition
-from services.speech.vad import Segmenter, Utterance
+from services.speech.vad import Segmenter, VoicedSegment
 
 
 class Recogniser(Protocol):
     name: str
     min_confidence: float
     speculative: bool  # decode at the first silence, before the VAD confirms the end
-    # a grammar the text must be a sentence of (pocketsphinx), or None: publish whatever was heard (whisper)
-    matches: Callable[[str], bool] | None
+
+    @property
+    def matches(self) -> Callable[[str], bool] | None:
+        """A grammar the text must be a sentence of (pocketsphinx), or None: publish whatever was heard (whisper)."""
 
     def recognise(self, audio: np.ndarray) -> Recognition | None: ...
 
@@ -69,7 +72,7 @@ def worker_for(recogniser: Recogniser) -> RecognitionWorker:
         return worker
 
 
-Count = Callable[[str, str], None]  # (counter name, detail for the log)
+Count = Callable[[SpeechCounter, str], None]  # (counter name, detail for the log)
 
 
 @dataclass
@@ -97,7 +100,7 @@ class MicStream:
         # (audio_start, speech_end, decode started at the pause) of the utterance in progress
         self._speculation: tuple[int, int, Future] | None = None
         self.partial_every = partial_every
-        self._partial: tuple[Utterance, Future] | None = None
+        self._partial: tuple[VoicedSegment, Future] | None = None
         self._partial_at = 0  # segmenter position when the last partial decode was started
         if getattr(recogniser, "speculative", False):
             self.segmenter.on_pause = self._speculate
@@ -203,7 +206,7 @@ class MicStream:
             self._partial = (so_far, self.worker.submit(so_far.audio))
         return out
 
-    def _speculate(self, tentative: Utterance) -> None:
+    def _speculate(self, tentative: VoicedSegment) -> None:
         if tentative.speech_seconds < self.segmenter.config.min_speech:
             return  # would be dropped as too short unless speech resumes; then the next pause speculates
         if self._speculation is not None:
@@ -211,7 +214,7 @@ class MicStream:
             self.count("speculation_wasted", "")
         self._speculation = (tentative.audio_start, tentative.speech_end, self.worker.submit(tentative.audio))
 
-    def _decode(self, utt: Utterance) -> Recognition | None:
+    def _decode(self, utt: VoicedSegment) -> Recognition | None:
         spec, self._speculation = self._speculation, None
         if spec is not None and spec[:2] == (utt.audio_start, utt.speech_end) and not spec[2].cancelled():
             self.count("speculation_used", "")
@@ -221,7 +224,7 @@ class MicStream:
             self.count("speculation_wasted", "")
         return self.worker.submit(utt.audio).result()
 
-    def _recognise(self, utt: Utterance) -> Heard | None:
+    def _recognise(self, utt: VoicedSegment) -> Heard | None:
         if self._partial is not None:  # the final result supersedes it
             self._partial[1].cancel()
             self._partial = None
@@ -260,7 +263,7 @@ class MicStream:
             return None
         return self._heard(utt, result, final=True)
 
-    def _heard(self, utt: Utterance, result: Recognition, final: bool) -> Heard:
+    def _heard(self, utt: VoicedSegment, result: Recognition, final: bool) -> Heard:
         audio_t0 = self.stamp_of(utt.audio_start)
         words = [
             Word(
@@ -286,10 +289,4 @@ class MicStream:
         return Heard(transcript, utt.speech_end, result)
 
 
-def chunk_to_samples(data: bytes, channels: int) -> np.ndarray:
-    from services.speech.audio import pcm_to_mono
-
-    return pcm_to_mono(data, channels)
-
-
-__all__ = ["MicStream", "Heard", "AudioError", "chunk_to_samples"]
+__all__ = ["MicStream", "Heard", "AudioError"]

@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from common.counters import NoTextReason
 from services.speech.audio import RATE
 from services.speech.grammar import Grammar, build_grammar
 
@@ -44,7 +45,7 @@ class Recognition:
     confidence: float
     words: list[RecognisedWord] = field(default_factory=list)
     detail: str = ""  # for logs: the scores behind the confidence
-    dropped: str = ""  # with no text: the counter saying why (e.g. "no_speech")
+    dropped: NoTextReason | None = None  # with no text: the counter saying why
     repeats_removed: int = 0  # words dropped as a hallucinated loop
     tail_removed: int = 0  # last words dropped because Whisper doubted the first of them (--tail-probability)
     short_command: str = ""  # "heard -> command" when the short-utterance decode replaced a one-word utterance

@@ -29,7 +29,9 @@ class VadConfig:
 
 
 @dataclass
-class Utterance:
+class VoicedSegment:
+    """One stretch of speech the VAD cut from the stream (what fusion parses is a services.fusion.parse.Utterance)."""
+
     audio: np.ndarray  # float32 16 kHz, padding included
     audio_start: int  # stream sample index of audio[0]
     speech_start: int  # stream sample index of the first speech window
@@ -65,7 +67,7 @@ class Segmenter:
         self.too_short = 0  # bursts dropped as noise
         # called with the utterance as it would close if the speech does not come back, at the first window
         # of silence: a slow recogniser can start on it while the VAD waits `min_silence` to be sure
-        self.on_pause: Callable[[Utterance], None] | None = None
+        self.on_pause: Callable[[VoicedSegment], None] | None = None
 
     @property
     def in_speech(self) -> bool:
@@ -76,12 +78,12 @@ class Segmenter:
         """Stream index of the next window's first sample."""
         return self._position
 
-    def in_progress(self) -> Utterance | None:
+    def in_progress(self) -> VoicedSegment | None:
         """The utterance being spoken, as far as it has been heard (None between utterances)."""
         return self._tentative() if self._voiced is not None and self._silent_windows == 0 else None
 
-    def feed(self, samples: np.ndarray) -> list[Utterance]:
-        out: list[Utterance] = []
+    def feed(self, samples: np.ndarray) -> list[VoicedSegment]:
+        out: list[VoicedSegment] = []
         self._pending = np.concatenate([self._pending, samples.astype(np.float32, copy=False)])
         n = len(self._pending) // self.window
         for i in range(n):
@@ -92,9 +94,9 @@ class Segmenter:
         self._pending = self._pending[n * self.window :]
         return out
 
-    def flush(self) -> list[Utterance]:
+    def flush(self) -> list[VoicedSegment]:
         """End of stream: close an utterance in progress and forget all state (positions restart at 0)."""
-        out: list[Utterance] = []
+        out: list[VoicedSegment] = []
         if self._voiced is not None:
             utt = self._close(forced=False)
             if utt is not None:
@@ -106,7 +108,7 @@ class Segmenter:
             self._reset_model()
         return out
 
-    def _step(self, win: np.ndarray) -> Utterance | None:
+    def _step(self, win: np.ndarray) -> VoicedSegment | None:
         cfg = self.config
         p = self.probability(win)
         start = self._position
@@ -137,10 +139,10 @@ class Segmenter:
             return self._close(forced=True)
         return None
 
-    def _tentative(self) -> Utterance:
+    def _tentative(self) -> VoicedSegment:
         """The utterance as `_close` would give it if the silence that just began lasts (padding so far)."""
         voiced, cut = self._heard_until(self._last_speech_end)
-        return Utterance(voiced[:cut], self._audio_start, self._start, self._last_speech_end)
+        return VoicedSegment(voiced[:cut], self._audio_start, self._start, self._last_speech_end)
 
     def _heard_until(self, end: int) -> tuple[np.ndarray, int]:
         """All audio of the utterance so far, and the index where its kept part ends (`end` + post-padding)."""
@@ -148,11 +150,11 @@ class Segmenter:
         keep_until = min(self._position, end + int(self.config.post_pad * RATE))
         return np.concatenate(self._voiced), keep_until - self._audio_start
 
-    def _close(self, forced: bool) -> Utterance | None:
+    def _close(self, forced: bool) -> VoicedSegment | None:
         cfg = self.config
         end = self._position if forced else self._last_speech_end
         voiced, cut = self._heard_until(end)
-        utt = Utterance(voiced[:cut], self._audio_start, self._start, end, forced)
+        utt = VoicedSegment(voiced[:cut], self._audio_start, self._start, end, forced)
         # the windows after the kept audio are context for the next utterance
         tail = voiced[cut:]
         self._voiced = None

@@ -4,11 +4,14 @@ Detections on <prefix>/vision/<cam>/objects."""
 from __future__ import annotations
 
 import argparse
+import logging
+
+import numpy as np
 
 from common.depth import UndecodableDepth
-from common.image import frame_handler
-from common.runner import Service, main_exit, service_parser
-from common.schema import Detections, Frame
+from common.image import frame_fields, frame_handler
+from common.runner import App, Delivery, Service, StartupError, serve, service_parser
+from common.schema import DepthFrame, Detections, Frame
 from common.settings import add_option
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
@@ -102,46 +105,59 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> None:
-    args = build_parser().parse_args(argv)
+def make_detector(args: argparse.Namespace, log: logging.Logger) -> YoloDetector | ColorSegmenter:
+    """The detector the arguments ask for: an ONNX model when one is given, else colour segmentation."""
+    if args.backend == "onnx" and not args.model:
+        log.warning(
+            "--backend onnx without --model: no model ships with hri-fusion, so the color "
+            "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to "
+            "ONNX)"
+        )
+    if args.model:  # a model given means the onnx backend
+        names_file = args.names or args.labels
+        detector = YoloDetector(
+            args.model,
+            read_names(names_file) if names_file else None,
+            args.conf,
+            args.iou,
+            args.family,
+            args.channels,
+            args.input_scale,
+            args.letterbox,
+        )
+        log.info("%s: %s", args.model, detector.describe())
+        return detector
+    labels, warnings = read_labels(args.labels) if args.labels else ({}, [])
+    for warning in warnings:
+        log.warning("%s", warning)
+    return ColorSegmenter(labels=labels)
 
-    service = Service("vision", args)
-    try:
-        if args.backend == "onnx" and not args.model:
-            service.log.warning(
-                "--backend onnx without --model: no model ships with hri-fusion, so the color "
-                "backend runs; give --model PATH (a YOLOX, YOLOv5 or YOLOv8/11 detector exported to "
-                "ONNX)"
-            )
-        if args.model:  # a model given means the onnx backend
-            names_file = args.names or args.labels
-            detector = YoloDetector(
-                args.model,
-                read_names(names_file) if names_file else None,
-                args.conf,
-                args.iou,
-                args.family,
-                args.channels,
-                args.input_scale,
-                args.letterbox,
-            )
-            service.log.info("%s: %s", args.model, detector.describe())
-        else:
-            labels, warnings = read_labels(args.labels) if args.labels else ({}, [])
-            for warning in warnings:
-                service.log.warning("%s", warning)
-            detector = ColorSegmenter(labels=labels)
-    except (ModelError, OSError, ValueError) as exc:
-        service.log.error("%s", exc)
-        main_exit(2)
-    pipeline = VisionPipeline(detector)
-    if not service.connect():
-        main_exit(0)
 
-    depths = DepthMatcher()
+class VisionApp(App):
+    """Frame (+ the DepthFrame of the same capture) -> the pipeline (services/vision/core.py) -> Detections."""
 
-    def depth_image(frame: Frame, depth) -> DepthImage | None:
+    node = "vision"
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.depths = DepthMatcher()
+
+    def open(self, service: Service) -> None:
+        try:
+            self.pipeline = VisionPipeline(make_detector(self.args, service.log))
+        except (ModelError, OSError, ValueError) as exc:
+            raise StartupError(str(exc)) from None
+        self.service = service
+
+    def wire(self, service: Service) -> None:
+        for cam in self.args.cams.split(","):
+            # the camera sends depth just before colour, so its slot is usually served first
+            service.subscribe_input("depth", self.on_depth, cam=cam.strip())
+            service.subscribe_input("frame", frame_handler(service, self.on_image), cam=cam.strip())
+
+    def depth_image(self, frame: Frame, depth: DepthFrame) -> DepthImage | None:
         """The decoded depth image of this capture, or None (counted) when it does not fit the colour frame."""
+        service = self.service
         if (depth.width, depth.height) != (frame.width, frame.height):
             service.counters.reject(
                 "bad_value",
@@ -156,45 +172,39 @@ def main(argv: list[str] | None = None) -> None:
             service.counters.reject("undecodable", str(exc), service.keys.depth(frame.cam))
             return None
 
-    def process(frame: Frame, img, depth: DepthImage | None) -> None:
-        objects, quality = pipeline.process(frame.cam, img, depth)
-        service.publish_output(
-            "objects",
-            Detections(
-                stamp=frame.stamp,
-                source=service.source,
-                seq=frame.seq,
-                cam=frame.cam,
-                width=frame.width,
-                height=frame.height,
-                objects=objects,
-                quality=quality,
-                frame_id=depth.camera_info.frame_id if depth is not None else None,
-            ),
-            cam=frame.cam,
+    def process(self, frame: Frame, img: np.ndarray, depth: DepthImage | None) -> None:
+        objects, quality = self.pipeline.process(frame.cam, img, depth)
+        detections = Detections(
+            **frame_fields(frame, self.service.source),
+            objects=objects,
+            quality=quality,
+            frame_id=depth.camera_info.frame_id if depth is not None else None,
         )
+        self.service.publish_output("objects", detections, cam=frame.cam)
 
-    def on_depth(delivery) -> None:
-        ready = depths.add(delivery.sample)  # decoded only when a colour frame claims it
+    def on_depth(self, delivery: Delivery) -> None:
+        depth = delivery.sample
+        assert isinstance(depth, DepthFrame)  # the runner validated it as the topic's schema
+        ready = self.depths.add(depth)  # decoded only when a colour frame claims it
         if ready is not None:  # the colour frame of this capture was served first and waited for it
             frame, img = ready
-            process(frame, img, depth_image(frame, delivery.sample))
+            self.process(frame, img, self.depth_image(frame, depth))
 
-    def on_image(frame: Frame, img) -> None:
+    def on_image(self, frame: Frame, img: np.ndarray) -> None:
+        depths, counters = self.depths, self.service.counters
         depth = depths.match(frame.cam, frame.seq, frame.stamp)
         if depth is None and depths.expects(frame.cam, frame.seq, frame.stamp):
             if depths.wait(frame, img) is not None:
-                service.counters.add("skipped")  # an older frame whose depth never came: latest-only
+                counters.add("skipped")  # an older frame whose depth never came: latest-only
             return
         if depths.take_waiting(frame.cam) is not None:
-            service.counters.add("skipped")
-        process(frame, img, None if depth is None else depth_image(frame, depth))
+            counters.add("skipped")
+        self.process(frame, img, None if depth is None else self.depth_image(frame, depth))
 
-    for cam in args.cams.split(","):
-        # the camera sends depth just before colour, so its slot is usually served first
-        service.subscribe_input("depth", on_depth, cam=cam.strip())
-        service.subscribe_input("frame", frame_handler(service, on_image), cam=cam.strip())
-    main_exit(service.run())
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
+    serve(VisionApp(args), args)
 
 
 if __name__ == "__main__":

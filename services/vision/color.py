@@ -5,7 +5,7 @@ Red sits at both ends, so it is two ranges (0–4 and 170–179). Pixels with sa
 ACHROMATIC_SATURATION carry no hue worth reading: they are white, grey or black by value.
 
 A detector's box gets a measurement instead (illuminant_gains, dominant_mask, measure_lab): the CIELAB of the
-object's own pixels, named by common.colour.name_distribution (docs/vision.md "Colour of a detection").
+object's own pixels, named by common.color.name_distribution (docs/vision.md "Colour of a detection").
 """
 
 from __future__ import annotations

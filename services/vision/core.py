@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from common.colour import name_distribution
+from common.color import name_distribution
 from common.language import BASIC_COLORS, canonical_label
 from common.schema import ColorShare, DetectedObject, ImageQuality
 from services.vision.color import (
@@ -123,21 +123,13 @@ def object_colour(
 
 def mixed_names(groups: list[tuple[tuple[float, float, float], float]], top: int = 5) -> list[tuple[str, float]]:
     """The colour names of an object of one or two colour groups ((lab, share) each): the groups' name
-    distributions (common.colour.name_distribution) mixed by their shares, best first, the `top` best."""
+    distributions (common.color.name_distribution) mixed by their shares, best first, the `top` best."""
     total = sum(share for _, share in groups) or 1.0
     mixed: dict[str, float] = {}
     for lab, share in groups:
         for name, p in name_distribution(lab, top=len(BASIC_COLORS)):
             mixed[name] = mixed.get(name, 0.0) + p * share / total
     return sorted(mixed.items(), key=lambda np_: -np_[1])[:top]
-
-
-def object_color(
-    bgr: np.ndarray, bbox: tuple[float, float, float, float], gains: np.ndarray | None = None
-) -> str | None:
-    """The likeliest colour name of the object in this box (see object_colour)."""
-    _, names = object_colour(bgr, bbox, gains)
-    return names[0][0] if names else None
 
 
 class VisionPipeline:

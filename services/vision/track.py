@@ -9,6 +9,7 @@ frames is forgotten. Ids come from a counter and are never reused, so "o7" alway
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Sequence
 
 from services.vision.segment import Detection
 
@@ -20,7 +21,7 @@ class Track:
     missed: int = 0
 
 
-def iou(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> float:
+def iou(a: Sequence[float], b: Sequence[float]) -> float:
     ax, ay, aw, ah = a
     bx, by, bw, bh = b
     iw = max(0.0, min(ax + aw, bx + bw) - max(ax, bx))

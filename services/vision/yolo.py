@@ -24,6 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from common.cpu import available_cores
 from common.language import COCO_LABELS
 
 COCO_NAMES = COCO_LABELS  # the 80 COCO classes in the standard index order (0 person ... 79 toothbrush)
@@ -256,6 +257,9 @@ class YoloDetector:
             # no busy-waiting of the thread pool between runs: on a robot's few cores it steals the CPU from the
             # service's own post-processing and from the other services (benchmarks/vision.py measures both)
             options.add_session_config_entry("session.intra_op.allow_spinning", "0")
+            # its pool sized for the cores this process may use (affinity, a container's quota), not the
+            # machine's physical cores, onnxruntime's default
+            options.intra_op_num_threads = available_cores()
             self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         except Exception as exc:
             raise ModelError(f"onnxruntime cannot load {model_path!r}: {exc}") from None

@@ -14,17 +14,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from common.keys import Keys
 from common.language import canonical_label
 from common.schema import (
+    Bodies,
     Clarification,
     DetectedObject,
     Detections,
     FusedCommand,
     GestureEvent,
+    GestureName,
+    GesturePhase,
     Hand,
+    Handedness,
     Hands,
     ImageQuality,
     Ray,
@@ -33,6 +37,10 @@ from common.schema import (
     Word,
 )
 from services.fusion.ground import SceneObject
+
+if TYPE_CHECKING:  # fusion's core is imported where it runs (run_in_process), not by every scenario user
+    from services.fusion.core import FusionCore
+    from services.fusion.outputs import Output
 
 BASE_STAMP = 1_700_000_000.0
 SCENARIO_SPACING = 200.0  # s of source time between scenarios run in one process
@@ -71,7 +79,7 @@ def scene_of(objs: list[Obj], quality: float = 1.0) -> list[SceneObject]:
             canonical_label(o.label),
             o.label,
             o.color,
-            tuple(o.detected().bbox),
+            bbox_of(o.detected()),
             o.center,
             o.score,
             "cam0",
@@ -107,22 +115,29 @@ class Expect:
         return not self.mismatch(sample)
 
     def mismatch(self, sample: Any) -> str:
+        """What in `sample` is not as expected ("" when it matches)."""
         if self.kind == "command":
-            if not isinstance(sample, FusedCommand):
-                return f"expected a command, got {describe(sample)}"
-            if sample.intent != self.intent:
-                return f"intent {sample.intent} != {self.intent}"
-            got = sample.target.id if sample.target else None
-            if got != self.target:
-                return f"target {got} != {self.target}"
-            if self.location != (sample.location is not None):
-                return f"location {sample.location} (expected {'one' if self.location else 'none'})"
-            if self.motion is not None:
-                m = sample.motion
-                got_motion = (m.direction, m.distance, m.angle) if m is not None else None
-                if got_motion != self.motion:
-                    return f"motion {got_motion} != {self.motion}"
-            return ""
+            return self._command_mismatch(sample)
+        return self._clarification_mismatch(sample)
+
+    def _command_mismatch(self, sample: Any) -> str:
+        if not isinstance(sample, FusedCommand):
+            return f"expected a command, got {describe(sample)}"
+        if sample.intent != self.intent:
+            return f"intent {sample.intent} != {self.intent}"
+        got = sample.target.id if sample.target else None
+        if got != self.target:
+            return f"target {got} != {self.target}"
+        if self.location != (sample.location is not None):
+            return f"location {sample.location} (expected {'one' if self.location else 'none'})"
+        if self.motion is not None:
+            m = sample.motion
+            got_motion = (m.direction, m.distance, m.angle) if m is not None else None
+            if got_motion != self.motion:
+                return f"motion {got_motion} != {self.motion}"
+        return ""
+
+    def _clarification_mismatch(self, sample: Any) -> str:
         if not isinstance(sample, Clarification):
             return f"expected a clarification ({self.reason}), got {describe(sample)}"
         if sample.reason != self.reason:
@@ -243,7 +258,7 @@ def ray_towards(
     return (math.cos(a), math.sin(a))
 
 
-def hands(
+def hands(  # noqa: PLR0913 - a scenario step: every detail has a default and a scenario names the few it changes
     t: float,
     point_at: tuple[float, float] | None = None,
     origin: tuple[float, float] = (320.0, 470.0),
@@ -251,8 +266,8 @@ def hands(
     ray_conf: float = 0.9,
     jitter_deg: float = 0.0,
     cam: str = "cam0",
-    hand: str = "right",
-    show: str | None = None,
+    hand: Handedness = "right",
+    show: GestureName | None = None,
 ) -> Step:
     """A Hands frame: one pointing hand if `point_at`, else no hands. `jitter_deg`: the ray wobbles
     by up to that much from frame to frame (a shaky or badly tracked hand)."""
@@ -279,16 +294,16 @@ def hands(
     return Step(t, build, "hands" + (f" pointing at {point_at}" if point_at else " (none)"))
 
 
-def gesture(
+def gesture(  # noqa: PLR0913 - a scenario step: every detail has a default and a scenario names the few it changes
     t: float,
-    name: str,
-    phase: str = "start",
+    name: GestureName,
+    phase: GesturePhase = "start",
     score: float = 0.9,
     duration: float = 0.4,
     point_at: tuple[float, float] | None = None,
     origin: tuple[float, float] = (320.0, 470.0),
     cam: str = "cam0",
-    hand: str = "right",
+    hand: Handedness = "right",
 ) -> Step:
     def build(base: float) -> tuple[str, Sample]:
         ray = None
@@ -347,6 +362,26 @@ def by_time(steps: list[Step]) -> list[Step]:
 # ---------------------------------------------------------------------------
 # Running a scenario in process (no zenoh): the unit tests and the evaluation use this.
 # ---------------------------------------------------------------------------
+def bbox_of(obj: DetectedObject) -> tuple[float, float, float, float]:
+    x, y, w, h = obj.bbox
+    return (x, y, w, h)
+
+
+def deliver(core: FusionCore, key: str, sample: Sample, wall: float) -> list[Output]:
+    """Hands one input sample to fusion's core, as the service's worker does, by its type."""
+    if isinstance(sample, Transcript):
+        return core.on_transcript(key, sample, wall)
+    if isinstance(sample, Detections):
+        return core.on_detections(key, sample, wall)
+    if isinstance(sample, Hands):
+        return core.on_hands(key, sample, wall)
+    if isinstance(sample, GestureEvent):
+        return core.on_gesture_event(key, sample, wall)
+    if isinstance(sample, Bodies):
+        return core.on_bodies(key, sample, wall)
+    raise TypeError(f"fusion takes no {type(sample).__name__}")
+
+
 def run_in_process(
     scenario: Scenario, config: Any = None, base: float = BASE_STAMP, order: list[int] | None = None
 ) -> list[Sample]:
@@ -362,14 +397,7 @@ def run_in_process(
         core.on_liveliness(modality, "test", True)
     steps = [scenario.steps[i] for i in order] if order is not None else scenario.steps
     for step in steps:
-        key, sample = step.build(base)
-        feed = {
-            Transcript: core.on_transcript,
-            Detections: core.on_detections,
-            Hands: core.on_hands,
-            GestureEvent: core.on_gesture_event,
-        }[type(sample)]
-        out.extend(o.sample for o in feed(key, sample, wall))
+        out.extend(o.sample for o in deliver(core, *step.build(base), wall))
         out.extend(o.sample for o in core.tick(wall))
         wall += 0.002
     out.extend(o.sample for o in core.tick(wall + 100.0))

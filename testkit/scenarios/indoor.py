@@ -18,6 +18,7 @@ from typing import Any, Callable
 
 from common.schema import Clarification, DetectedObject, FusedCommand, ImageQuality
 from services.vision.track import iou
+from testkit.images import read_image
 from testkit.scenarios import Scenario, Step, by_time, detections_at, pointing, run_in_process, say
 
 IOU_MATCH = 0.5
@@ -61,7 +62,7 @@ def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
     pipeline = VisionPipeline(YoloDetector(str(model)))
 
     def see(path: Path) -> Seen:
-        img = cv2.imread(str(path))
+        img = read_image(str(path))
         if img is None:
             raise FileNotFoundError(f"cannot read the photo {path}")
         h, w = img.shape[:2]

@@ -427,7 +427,13 @@ SCENARIOS: list[Scenario] = [
         [cmd("stop")],
         ("gesture",),
     ),
-    S("wave: come here", [gesture(0.5, "wave", "start")], [cmd("come_here")], ("gesture",)),
+    S(
+        "wave held a second: come here",
+        [gesture(0.5, "wave", "start", duration=0.0)]
+        + [gesture(0.5 + 0.1 * i, "wave", "hold", duration=0.1 * i) for i in range(1, 13)],
+        [cmd("come_here")],
+        ("gesture",),
+    ),
     S("weak open palm is ignored", [gesture(0.5, "open_palm", "start", score=0.2)], [], ("gesture",)),
     S(
         "stop gesture during speech wins",
@@ -605,5 +611,13 @@ SCENARIOS: list[Scenario] = [
         normal(TWO_CUPS, "Pick up the red cup.", conf=0.2) + answer(TWO_CUPS, "Yes, please."),
         [ask("low_confidence"), cmd("pick_up", "cup_red")],
         ("dialogue", "language"),
+    ),
+    S(
+        "a brief wave (hands moving while talking): no command",
+        [gesture(0.5, "wave", "start", duration=0.0)]
+        + [gesture(0.5 + 0.1 * i, "wave", "hold", duration=0.1 * i) for i in range(1, 6)]
+        + [gesture(1.1, "wave", "end", duration=0.6)],
+        [],
+        ("gesture",),
     ),
 ]

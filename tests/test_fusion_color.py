@@ -1,4 +1,4 @@
-"""Fusion's colour matching (services/fusion/colour.py through ground.score/choose): a spoken colour matched by
+"""Fusion's colour matching (services/fusion/color.py through ground.score/choose): a spoken colour matched by
 similarity, relative to the other candidates; the colour words and modifiers; the fallback to names without lab.
 Measured colours come from real pixels (the candies of smarties.png through vision's colour model) or, for the
 issue's cups, from the pixel values the issue reports."""
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from common import language as L
-from common.colour import name_similarity, prototypes, term_fit
+from common.color import name_similarity, prototypes, term_fit
 from common.schema import Weights
-from services.fusion.colour import PLAUSIBLE_NAME, colour_factors
+from services.fusion.color import PLAUSIBLE_NAME, colour_factors
 from services.fusion.ground import SceneObject, choose, score
 from services.fusion.parse import parse
 from services.vision.color import measure_lab
@@ -222,7 +222,7 @@ def test_cie94_matches_published_values_and_many_colours_at_once_match_one_at_a_
     """Sharma et al.'s CIEDE2000 test pairs 1–2 have CIE94 (graphic arts, k_L = 1) differences 1.3950 and 1.9341
     with the first colour's chroma as reference; the symmetric form here (geometric mean chroma) gives 1.380 and
     1.893."""
-    from common.colour import COLOR_PROTOTYPES, delta_e94, term_fits
+    from common.color import COLOR_PROTOTYPES, delta_e94, term_fits
 
     assert delta_e94((50, 2.6772, -79.7751), (50, 0, -82.7485), 1.0) == pytest.approx(1.3950, abs=0.05)
     assert delta_e94((50, 3.1571, -77.2803), (50, 0, -82.7485), 1.0) == pytest.approx(1.9341, abs=0.05)

@@ -2,7 +2,7 @@
 
 "The red cup" is the cup that is most plausibly red among the cups (the objects the other words fit):
 - each candidate's fit to the term comes from its measured colour (`lab`, vision's colour model:
-  common.colour.term_fits), else from its colour names (`name_fit`: `colors`, `color`; the term's fit at the
+  common.color.term_fits), else from its colour names (`name_fit`: `colors`, `color`; the term's fit at the
   names' prototypes, so red and orange partly match, red and blue do not);
 - when no candidate is plausibly that colour (fit below PLAUSIBLE; from a name alone below PLAUSIBLE_NAME),
   every candidate gets 0: "I can't see the red cup";
@@ -19,7 +19,7 @@ from typing import Protocol
 
 import numpy as np
 
-from common.colour import name_similarity, term_fits
+from common.color import name_similarity, term_fits
 
 PLAUSIBLE = 0.2  # a measured colour fits the term this well (ΔE94 ≈ 1.8 σ): plausibly that colour
 PLAUSIBLE_NAME = 0.5  # from a name alone: the name's prototype within ≈ 1.2 σ of the term (red/orange, grey/white)

@@ -1,0 +1,532 @@
+"""The whole stack as users start it (`hri up`), on a real clip at 30 fps with its audio, for a minute or more.
+
+What runs: `hri up` (router, camera, vision with YOLOX-Nano ONNX, gesture, speech, fusion) with
+- the camera on a real talking-person clip (../shared/data/talking, 25 fps), looped and paced at `--fps` (30);
+- speech playing, in real time (`--realtime`), the clip's own audio looped for the run's length, with spoken
+  COMMAND sentences (piper's neural voice, testkit/synth.py; espeak-ng if piper is missing) put in at known times
+  between the clip's sentences: the clip's people talk but give no command, so every command the stack emits
+  beyond the spoken ones is one "nobody gave".
+
+What it reports, over the measured window (from the moment every service is live):
+- per service: CPU share of the machine (/proc/<pid>/stat utime+stime of the service and its children, divided
+  by wall time x cores), frames/samples received, published and skipped as stale (the services' own Stats),
+  and the lag of each output from its source stamp to its arrival here (same host, same clock: p50/p99, and
+  p50 of the first and last third of the run, to see whether it grows);
+- speech: last word -> command latency (arrival of the FusedCommand minus the end of the last recognised word
+  of its transcript, both on this host's clock) for every spoken command, while video flows;
+- fusion: every command emitted, the spoken ones and the rest.
+
+`--compare` runs the stack twice in one invocation, first with the knobs of issue #34 turned off (the "before":
+`BEFORE_ARGS`), then as it ships, and prints both side by side so the ratio is meaningful on a shared machine.
+`--speech-alone` adds a third run with no camera, vision or gesture: the same audio, speech's latency with no video
+flowing (the control: what video costs speech on this machine, now).
+
+Usage: python benchmarks/stack.py [--seconds 60] [--clip PATH] [--commands 5] [--compare] [--speech-alone]
+                                  [--rounds N] [--size 640x480] [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from common.codec import decode
+from common.keys import Keys
+from common.schema import Bodies, Detections, Faces, FusedCommand, Hands, Persons, Sample, Transcript
+from services.speech.audio import RATE, read_wav
+from testkit.harness import Client, free_port
+from testkit.synth import PIPER_VOICE, SynthError, read_wav_int16, synthesize, write_wav_int16
+
+# this checkout (not testkit's ROOT: run as `python benchmarks/stack.py`, testkit may come from an installed copy);
+# `hri up` runs here, so the services are this checkout's
+ROOT = Path(__file__).resolve().parent.parent
+SHARED = Path(
+    os.environ.get("HRI_SHARED")
+    or next((p for p in (ROOT.parent / "shared", ROOT.parent.parent / "shared") if p.is_dir()), ROOT.parent / "shared")
+)  # beside the checkout, or beside its worktrees' folder
+DEFAULT_CLIP = SHARED / "data" / "talking" / "real_single_vr1_cfr25.mp4"
+DEFAULT_MODEL = SHARED / "models" / "yolox_nano.onnx"
+SERVICES = ("camera", "vision", "gesture", "speech", "fusion")
+# Commands that need no object in view (the clip shows a man talking, no table): fusion grounds them alone.
+COMMAND_SENTENCES = ("turn left", "stop", "come here", "go forward one meter", "turn right", "look at me")
+# the outputs whose lag is measured: key below the prefix -> (schema, label)
+OUTPUTS: dict[str, tuple[type[Sample], str]] = {
+    "vision/*/objects": (Detections, "vision objects"),
+    "gesture/*/hands": (Hands, "gesture hands"),
+    "gesture/*/bodies": (Bodies, "gesture bodies"),
+    "gesture/*/faces": (Faces, "gesture faces"),
+    "gesture/*/persons": (Persons, "gesture persons"),
+    "speech/*/transcript": (Transcript, "speech transcript"),
+    "fusion/command": (FusedCommand, "fusion command"),
+}
+# The "before" of issue #34 (flags that turn its knobs off), for --compare: every service at normal priority and
+# OpenCV's pools at its own size (every core); the rest of the issue's changes (fusion, gestures) have no switch.
+BEFORE_ARGS: list[str] = [
+    "--vision-arg=--nice=0",
+    "--gesture-arg=--nice=0",
+    "--speech-arg=--nice=0",
+    *(f"--{name}-arg=--cv-threads=0" for name in ("camera", "vision", "gesture")),
+]
+
+
+@dataclass
+class Spoken:
+    text: str
+    at: float  # seconds into the WAV where the sentence's speech starts
+    end: float  # ... and ends (last sample above 1 % of its peak)
+
+
+@dataclass
+class Audio:
+    path: Path
+    seconds: float
+    spoken: list[Spoken]
+
+
+def _speech_span(samples: np.ndarray) -> tuple[float, float]:
+    loud = np.flatnonzero(np.abs(samples.astype(np.float64)) > 0.01 * max(1.0, float(np.max(np.abs(samples)))))
+    return (loud[0] / RATE, loud[-1] / RATE) if loud.size else (0.0, 0.0)
+
+
+def _say(text: str, out: Path) -> np.ndarray:
+    try:
+        synthesize(text, out, voice=PIPER_VOICE, lead_silence=0.6, trail_silence=0.6)
+    except SynthError:  # no piper: espeak-ng's formant voice
+        synthesize(text, out, voice="en-us", lead_silence=0.6, trail_silence=0.6)
+    return read_wav_int16(out)
+
+
+def build_audio(clip_wav: Path, seconds: float, commands: int, folder: Path) -> Audio:
+    """The clip's own audio looped over `seconds` and 15 s more (the services' start-up), with `commands` spoken
+    command sentences put in, spread over the first `seconds` (each after a whole pass of the clip's audio, so no
+    command overlaps the clip's talk)."""
+    talk = read_wav(clip_wav)
+    assert talk.rate == RATE, f"{clip_wav}: expected a {RATE} Hz WAV"
+    clip = np.asarray(talk.samples, dtype=np.int16).reshape(-1)
+    every = seconds / (commands + 1)
+    parts: list[np.ndarray] = []
+    spoken: list[Spoken] = []
+    length, next_command = 0, every
+    while length < (seconds + 15) * RATE:
+        if len(spoken) < commands and length >= next_command * RATE:
+            text = COMMAND_SENTENCES[len(spoken) % len(COMMAND_SENTENCES)]
+            said = _say(text, folder / f"command{len(spoken)}.wav")
+            start, end = _speech_span(said)
+            spoken.append(Spoken(text, length / RATE + start, length / RATE + end))
+            parts.append(said)
+            length += len(said)
+            next_command += every
+            continue
+        parts.append(clip)
+        length += len(clip)
+    out = folder / "stack_audio.wav"
+    write_wav_int16(out, np.concatenate(parts))
+    return Audio(out, length / RATE, spoken)
+
+
+# ---- per-process CPU from /proc ---------------------------------------------------------------------------------
+
+
+def _proc_stat(pid: int) -> tuple[int, float] | None:
+    """(parent pid, utime + stime in seconds) of a live process, None if it is gone."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = text[text.rindex(")") + 2 :].split()  # after "pid (comm) "
+    ticks = os.sysconf("SC_CLK_TCK")
+    return int(fields[1]), (int(fields[11]) + int(fields[12])) / ticks
+
+
+def _cmdline(pid: int) -> list[str]:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace").split("\0")
+    except OSError:
+        return []
+
+
+def _all_parents() -> dict[int, int]:
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            stat = _proc_stat(int(entry.name))
+            if stat is not None:
+                parents[int(entry.name)] = stat[0]
+    return parents
+
+
+def service_pids(root_pid: int) -> dict[str, int]:
+    """The pid of each stack process below `root_pid` (`hri up`), by name ("router" or a service)."""
+    parents = _all_parents()
+    children: dict[int, list[int]] = {}
+    for pid, ppid in parents.items():
+        children.setdefault(ppid, []).append(pid)
+    found: dict[str, int] = {}
+    todo = list(children.get(root_pid, []))
+    while todo:
+        pid = todo.pop()
+        argv = _cmdline(pid)
+        if "-m" in argv and argv.index("-m") + 1 < len(argv):
+            module = argv[argv.index("-m") + 1]
+            name = "router" if module == "hri.cli" and "router" in argv else module.removeprefix("services.")
+            found.setdefault(name, pid)
+        todo += children.get(pid, [])
+    return found
+
+
+def cpu_seconds(pid: int) -> float:
+    """CPU seconds of `pid` and of its live descendants."""
+    parents = _all_parents()
+    total, todo = 0.0, [pid]
+    while todo:
+        p = todo.pop()
+        stat = _proc_stat(p)
+        total += stat[1] if stat else 0.0
+        todo += [c for c, pp in parents.items() if pp == p]
+    return total
+
+
+# ---- what arrives -----------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Arrival:
+    at: float  # wall time of arrival
+    stamp: float
+    sample: Any
+
+
+@dataclass
+class Recorder:
+    keys: Keys
+    start: float = 0.0
+    arrivals: dict[str, list[Arrival]] = field(default_factory=dict)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def listen(self, client: Client) -> None:
+        for pattern, (schema, label) in OUTPUTS.items():
+            self.arrivals[label] = []
+            client._subs.append(
+                client.session.declare_subscriber(f"{self.keys.prefix}/{pattern}", self._handler(schema, label))
+            )
+
+    def _handler(self, schema: type[Sample], label: str) -> Callable[[Any], None]:
+        return lambda raw: self._on(raw, schema, label)
+
+    def _on(self, raw: Any, schema: type[Sample], label: str) -> None:
+        now = time.time()
+        try:
+            sample = decode(raw.payload.to_bytes(), schema)
+        except Exception:  # a bad sample is the services' business; here it is simply not measured
+            return
+        with self.lock:
+            if now >= self.start > 0:
+                self.arrivals[label].append(Arrival(now, sample.stamp, sample))
+
+    def count(self, label: str) -> int:
+        with self.lock:
+            return len(self.arrivals[label])
+
+
+def _percentile(values: list[float], q: float) -> float | None:
+    return float(np.percentile(values, q)) if values else None
+
+
+def lag_figures(arrivals: list[Arrival], seconds: float) -> dict[str, Any]:
+    """Count, rate and lag (arrival - source stamp, ms) of one output; p50 of the first and last third."""
+    lags = [(a.at - a.stamp) * 1000.0 for a in arrivals]
+    thirds = [
+        [lags[i] for i, a in enumerate(arrivals) if int(3 * (a.at - arrivals[0].at) / seconds) == k] for k in (0, 2)
+    ]
+    return {
+        "count": len(arrivals),
+        "rate_hz": len(arrivals) / seconds,
+        "lag_p50_ms": _percentile(lags, 50),
+        "lag_p99_ms": _percentile(lags, 99),
+        "lag_p50_first_third_ms": _percentile(thirds[0], 50) if arrivals else None,
+        "lag_p50_last_third_ms": _percentile(thirds[1], 50) if arrivals else None,
+    }
+
+
+def command_figures(recorder: Recorder, audio: Audio) -> dict[str, Any]:
+    """Every command emitted; for the spoken ones, last recognised word -> command arrival."""
+    transcripts = {a.sample.stamp: a for a in recorder.arrivals["speech transcript"]}
+    commands: list[dict[str, Any]] = []
+    latencies: list[float] = []
+    for a in recorder.arrivals["fusion command"]:
+        cmd: FusedCommand = a.sample
+        heard = transcripts.get(cmd.inputs.get("speech") or -1.0)
+        entry: dict[str, Any] = {"intent": cmd.intent, "text": cmd.text, "gesture": cmd.gesture}
+        if heard is not None:
+            tr: Transcript = heard.sample
+            last_word = tr.words[-1].end if tr.words else tr.end
+            entry["last_word_to_command_ms"] = (a.at - last_word) * 1000.0
+            entry["last_word_to_transcript_ms"] = (heard.at - last_word) * 1000.0
+            latencies.append(entry["last_word_to_command_ms"])
+        commands.append(entry)
+    return {
+        "spoken": [s.text for s in audio.spoken],
+        "emitted": commands,
+        "emitted_without_speech": sum(1 for c in commands if not c["text"]),
+        "last_word_to_command_p50_ms": _percentile(latencies, 50),
+        "last_word_to_command_max_ms": max(latencies) if latencies else None,
+    }
+
+
+# ---- one run ----------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class RunConfig:
+    clip: Path
+    model: Path
+    audio: Audio
+    seconds: float
+    fps: float
+    extra: list[str]  # more `hri up` flags (e.g. the "before" knobs)
+    label: str
+    size: str | None = None  # camera --size WxH
+
+
+def up_argv(cfg: RunConfig, endpoint: str, prefix: str) -> list[str]:
+    return [
+        sys.executable,
+        "-m",
+        "hri.cli",
+        "up",
+        "--prefix",
+        prefix,
+        "--listen",
+        endpoint,
+        "--camera",
+        str(cfg.clip),
+        "--fps",
+        f"{cfg.fps:g}",
+        "--loop",
+        "--vision-backend",
+        "onnx",
+        "--model",
+        str(cfg.model),
+        "--speech-input",
+        "wav",
+        "--wav",
+        str(cfg.audio.path),
+        "--speech-arg=--realtime",
+        *([f"--camera-arg=--size={cfg.size}"] if cfg.size else []),
+        *cfg.extra,
+    ]
+
+
+def _stats(client: Client, service: str) -> dict[str, Any]:
+    try:
+        return client.stats(service, timeout=5.0)
+    except AssertionError:
+        return {}
+
+
+def started(extra: list[str]) -> set[str]:
+    """The services a run starts (`--no-NAME` among its flags leaves one out)."""
+    return {s for s in SERVICES if f"--no-{s}" not in extra}
+
+
+def _wait_live(client: Client, up: subprocess.Popen, timeout: float, expected: set[str]) -> None:
+    deadline = time.monotonic() + timeout
+    while {s for s, _ in client.alive()} < expected:
+        if up.poll() is not None:
+            raise RuntimeError(f"hri up exited with code {up.returncode} before the stack came up")
+        if time.monotonic() > deadline:
+            raise RuntimeError(f"the stack was not live after {timeout:.0f} s")
+        time.sleep(0.5)
+
+
+def _progress(recorder: Recorder, elapsed: float, seconds: float) -> None:
+    counts = ", ".join(f"{label} {recorder.count(label)}" for _, label in OUTPUTS.values())
+    print(f"  {elapsed:5.0f}/{seconds:.0f} s  {counts}", flush=True)
+
+
+@dataclass
+class Window:
+    wall: float
+    cpu: dict[str, float]
+    stats: dict[str, dict[str, Any]]
+
+
+def _window(client: Client, pids: dict[str, int]) -> Window:
+    return Window(
+        time.time(),
+        {name: cpu_seconds(pid) for name, pid in pids.items()},
+        {name: _stats(client, name) for name in SERVICES if name in pids},
+    )
+
+
+def service_figures(first: Window, last: Window, cores: int) -> dict[str, Any]:
+    wall = last.wall - first.wall
+    out: dict[str, Any] = {}
+    for name in first.cpu:
+        out[name] = {"cpu_share_of_machine": (last.cpu.get(name, 0.0) - first.cpu[name]) / (wall * cores)}
+        a, b = first.stats.get(name, {}), last.stats.get(name, {})
+        for counter in ("received", "published", "skipped"):
+            if counter in a and counter in b:
+                out[name][counter] = b[counter] - a[counter]
+        clocks = {k: v for k, v in b.get("other", {}).items() if k.startswith(("clock_offset_ms:", "delay_ms:"))}
+        if clocks:
+            out[name]["clocks"] = clocks  # fusion's view of each source: clock offset, or delay by design
+    out["total_cpu_cores"] = sum(v["cpu_share_of_machine"] for v in out.values()) * cores
+    return out
+
+
+def run_stack(cfg: RunConfig) -> dict[str, Any]:
+    port, prefix = free_port(), f"bench{os.getpid()}"
+    endpoint = f"tcp/127.0.0.1:{port}"
+    log = open(Path(tempfile.gettempdir()) / f"hri-stack-bench-{prefix}-{cfg.label}.log", "w")  # noqa: SIM115
+    up = subprocess.Popen(
+        up_argv(cfg, endpoint, prefix), cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
+    )
+    print(f"[{cfg.label}] hri up (pid {up.pid}); services' log in {log.name}", flush=True)
+    client: Client | None = None
+    try:
+        deadline = time.monotonic() + 30
+        while client is None:
+            try:
+                client = Client(endpoint, prefix=prefix)
+            except Exception:
+                if time.monotonic() > deadline or up.poll() is not None:
+                    raise
+                time.sleep(0.3)
+        _wait_live(client, up, timeout=180, expected=started(cfg.extra))
+        recorder = Recorder(Keys(prefix))
+        recorder.listen(client)
+        pids = service_pids(up.pid)
+        first = _window(client, pids)
+        recorder.start = first.wall
+        while time.time() - first.wall < cfg.seconds:
+            time.sleep(min(5.0, cfg.seconds - (time.time() - first.wall)) or 0.1)
+            _progress(recorder, time.time() - first.wall, cfg.seconds)
+        last = _window(client, pids)
+        recorder.start = float("inf")  # nothing more counts
+        seconds = last.wall - first.wall
+        return {
+            "label": cfg.label,
+            "extra_flags": cfg.extra,
+            "seconds": seconds,
+            "services": service_figures(first, last, os.cpu_count() or 1),
+            "outputs": {label: lag_figures(arr, seconds) for label, arr in recorder.arrivals.items()},
+            "commands": command_figures(recorder, cfg.audio),
+        }
+    finally:
+        if client is not None:
+            client.close()
+        up.terminate()  # hri up stops its services in reverse order
+        try:
+            up.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(up.pid, 9)
+            up.wait(5)
+        log.close()
+
+
+# ---- report -----------------------------------------------------------------------------------------------------
+
+
+def _ms(v: float | None) -> str:
+    return "-" if v is None else f"{v:.0f}"
+
+
+def print_run(result: dict[str, Any], cores: int) -> None:
+    print(f"\n== {result['label']} ({result['seconds']:.0f} s, flags {' '.join(result['extra_flags']) or 'none'})")
+    services = result["services"]
+    print(f"{'service':8s} {'CPU % of machine':>16s} {'received':>9s} {'published':>9s} {'skipped':>8s}")
+    for name in ("router", *SERVICES):
+        s = services.get(name)
+        if s:
+            print(
+                f"{name:8s} {100 * s['cpu_share_of_machine']:16.1f} {s.get('received', '-'):>9} "
+                f"{s.get('published', '-'):>9} {s.get('skipped', '-'):>8}"
+            )
+    print(f"whole stack: {services['total_cpu_cores']:.2f} of {cores} cores")
+    print(f"fusion's clocks: {services.get('fusion', {}).get('clocks', {})}")
+    print(f"{'output':18s} {'count':>6s} {'Hz':>6s} {'p50 ms':>7s} {'p99 ms':>7s} {'p50 1st/3rd third':>18s}")
+    for label, o in result["outputs"].items():
+        print(
+            f"{label:18s} {o['count']:6d} {o['rate_hz']:6.1f} {_ms(o['lag_p50_ms']):>7s} {_ms(o['lag_p99_ms']):>7s} "
+            f"{_ms(o['lag_p50_first_third_ms']):>8s}/{_ms(o['lag_p50_last_third_ms'])}"
+        )
+    cmds = result["commands"]
+    print(f"spoken commands: {len(cmds['spoken'])} ({', '.join(cmds['spoken'])})")
+    for c in cmds["emitted"]:
+        lat = c.get("last_word_to_command_ms")
+        print(f"  emitted {c['intent']:10s} text={c['text']!r} gesture={c['gesture']} last word->command {_ms(lat)} ms")
+    print(
+        f"last word -> command p50 {_ms(cmds['last_word_to_command_p50_ms'])} ms, max "
+        f"{_ms(cmds['last_word_to_command_max_ms'])} ms; commands without speech: {cmds['emitted_without_speech']}"
+    )
+
+
+def planned_runs(compare: bool, speech_alone: bool, rounds: int) -> list[tuple[str, list[str]]]:
+    """The runs, alternated round by round (before, as shipped, speech alone, then again) so that a machine whose
+    load drifts does not favour whichever ran first."""
+    one: list[tuple[str, list[str]]] = [("before", BEFORE_ARGS)] if compare else []
+    one.append(("as shipped", []))
+    if speech_alone:  # the control: the same audio with no video flowing, on the same machine
+        one.append(("speech alone", [f"--no-{s}" for s in ("camera", "vision", "gesture")]))
+    if rounds == 1:
+        return one
+    return [(f"{label} #{r + 1}", flags) for r in range(rounds) for label, flags in one]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seconds", type=float, default=60.0, help="measured window (default 60)")
+    ap.add_argument("--clip", type=Path, default=DEFAULT_CLIP, help="video with a .wav of its audio beside it")
+    ap.add_argument("--model", type=Path, default=DEFAULT_MODEL, help="ONNX detector for vision")
+    ap.add_argument("--fps", type=float, default=30.0)
+    ap.add_argument("--size", default="640x480", help="camera --size (frames fitted inside); '' for the clip's own")
+    ap.add_argument("--commands", type=int, default=5, help="spoken commands put into the audio")
+    ap.add_argument("--compare", action="store_true", help="run the 'before' knobs first, then as shipped")
+    ap.add_argument(
+        "--speech-alone", action="store_true", help="also run router, speech and fusion alone (the control)"
+    )
+    ap.add_argument("--rounds", type=int, default=1, help="repeat the set of runs, alternating (default 1)")
+    ap.add_argument("--up-arg", action="append", default=[], metavar="ARG", help="one more `hri up` flag")
+    ap.add_argument("--json", type=Path, default=None, help="write the figures here")
+    args = ap.parse_args()
+    wav = args.clip.with_suffix(".wav")
+    if not args.clip.exists() or not wav.exists() or not args.model.exists():
+        print(f"skipped: needs {args.clip}, {wav} and {args.model} (../shared; set HRI_SHARED)")
+        return
+    cores = os.cpu_count() or 1
+    print(f"machine: {cores} cores; load average {os.getloadavg()}", flush=True)
+    with tempfile.TemporaryDirectory(prefix="hri-stack-bench-") as tmp:
+        audio = build_audio(wav, args.seconds, args.commands, Path(tmp))
+        print(f"audio: {audio.seconds:.0f} s; commands at {[round(s.at, 1) for s in audio.spoken]} s", flush=True)
+        results = []
+        for label, flags in planned_runs(args.compare, args.speech_alone, args.rounds):
+            cfg = RunConfig(
+                args.clip, args.model, audio, args.seconds, args.fps, [*flags, *args.up_arg], label, args.size or None
+            )
+            results.append(run_stack(cfg))
+    for result in results:
+        print_run(result, cores)
+    report = {"machine": {"cores": cores, "loadavg_after": os.getloadavg()}, "runs": [asdict_safe(r) for r in results]}
+    if args.json:
+        args.json.write_text(json.dumps(report, indent=1))
+        print(f"figures written to {args.json}")
+
+
+def asdict_safe(result: dict[str, Any]) -> dict[str, Any]:
+    return json.loads(json.dumps(result, default=lambda o: asdict(o) if hasattr(o, "__dataclass_fields__") else str(o)))
+
+
+if __name__ == "__main__":
+    main()

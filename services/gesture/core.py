@@ -1,0 +1,195 @@
+"""The gesture service's core: per camera, MediaPipe hands (and body) -> tracked gestures and their rays, as the
+wire samples of one frame. No Zenoh here: the shell (__main__.py) feeds frames and publishes what comes back."""
+
+from __future__ import annotations
+
+import collections
+from dataclasses import dataclass, field
+from typing import Any, cast
+
+import numpy as np
+
+from common.image import frame_fields
+from common.schema import Bodies, Body, DepthFrame, Frame, GestureName, Hand, Handedness, Hands, Persons, Ray, Ray3D
+from services.gesture.landmarks import HandLandmarker, PoseLandmarker
+from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms
+from services.gesture.space import FrameRays
+from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
+
+
+def to_ray(ray: Any, ray3d: Ray3D | None = None) -> Ray | None:
+    if ray is None:
+        return None
+    return Ray(
+        origin=[round(v, 2) for v in ray.origin],
+        direction=list(ray.direction),
+        confidence=ray.confidence,
+        source=ray.source,
+        ray3d=ray3d,
+    )
+
+
+def to_body(landmarks: np.ndarray, arms: list, rays3d: FrameRays | None = None) -> Body:
+    """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body` (3-D rays when depth is known)."""
+    rays = {arm.side: to_ray(ray, rays3d.arm(arm.side) if rays3d and ray else None) for arm, ray in arms}
+    return Body(
+        landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
+        visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
+        left_ray=rays.get("left"),
+        right_ray=rays.get("right"),
+    )
+
+
+@dataclass(frozen=True)
+class GestureSettings:
+    model: str = "lite"
+    max_hands: int = 2
+    mirrored: bool = False
+    start_frames: int = 3
+    end_frames: int = 3
+    start_s: float = 0.0
+    ray_from: str = "eyes"
+    body: bool = True
+    persons_every: int = 2  # the person stage on every Nth frame (issue #33; 0: off)
+
+
+@dataclass
+class FrameResult:
+    """What one frame gives: the Hands (and Bodies) to publish, the gesture events, the 3-D rays (for the
+    events' rays) and why depth could not be used, if it could not."""
+
+    hands: Hands
+    bodies: Bodies | None
+    events: list[Event]
+    rays3d: FrameRays | None
+    hand_rays3d: dict[str, Ray3D | None]
+    persons: Persons | None = None  # on the frames the person stage ran on
+    seen: PeopleOfFrame | None = None  # whose hands and gestures these are
+
+
+@dataclass
+class CameraGestures:
+    """One camera's MediaPipe graphs (they track between frames) and gesture tracker."""
+
+    settings: GestureSettings
+    hands: HandLandmarker = field(init=False)
+    pose: PoseLandmarker | None = field(init=False, default=None)
+    tracker: GestureTracker = field(init=False)
+
+    def __post_init__(self) -> None:
+        s = self.settings
+        self.hands = HandLandmarker(s.model, s.max_hands, s.mirrored)
+        self.restart()
+
+    def restart(self) -> None:
+        """New stream or a new timeline (common/stamps.py): gestures start afresh."""
+        s = self.settings
+        self.tracker = GestureTracker(
+            start_frames=s.start_frames, end_frames=s.end_frames, start_time=s.start_s, ray_from=s.ray_from
+        )
+        if s.body:
+            self.pose = PoseLandmarker()
+
+    def close(self) -> None:
+        self.hands.close()
+        if self.pose is not None:
+            self.pose.close()
+
+
+class GestureCore:
+    """Frames of every camera -> FrameResult; depth frames kept per camera to lift the rays to 3-D."""
+
+    def __init__(self, settings: GestureSettings, source: str, depth_kept: int) -> None:
+        self.settings = settings
+        self.source = source
+        self.cameras: dict[str, CameraGestures] = {}
+        self.depths: dict[str, collections.deque[DepthFrame]] = {}
+        self.depth_kept = depth_kept
+        self.last_stamp: dict[str, float] = {}
+        self.depth_unmatched = 0  # frames of a camera with depth whose own depth had not come (yet)
+        self.people = CameraPeople(settings.persons_every)  # issue #33: Persons, a body per person, whose hand
+
+    def close(self) -> None:
+        for cam in self.cameras.values():
+            cam.close()
+        self.people.close()
+
+    def add_depth(self, depth: DepthFrame) -> None:
+        self.depths.setdefault(depth.cam, collections.deque(maxlen=self.depth_kept)).append(depth)
+
+    def camera(self, frame: Frame) -> CameraGestures:
+        cam = self.cameras.get(frame.cam)
+        if cam is None:  # one graph per stream: MediaPipe tracks between frames
+            cam = self.cameras[frame.cam] = CameraGestures(self.settings)
+        elif frame.stamp < self.last_stamp.get(frame.cam, frame.stamp):
+            cam.restart()
+        self.last_stamp[frame.cam] = frame.stamp
+        return cam
+
+    def frame_rays(self, frame: Frame, skeleton: np.ndarray | None, world: Any) -> FrameRays | None:
+        """The 3-D rays of this frame, when the depth of the same capture (same seq and stamp) has come."""
+        kept = self.depths.get(frame.cam, ())
+        depth = next((d for d in reversed(kept) if d.seq == frame.seq and d.stamp == frame.stamp), None)
+        if depth is None:
+            if frame.cam in self.depths:
+                self.depth_unmatched += 1  # a camera with depth, but not of this capture (yet)
+            return None
+        return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
+
+    def process(self, frame: Frame, img: np.ndarray, fresh: bool) -> FrameResult:
+        """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
+        cam = self.camera(frame)
+        observations = cam.hands.detect(img)
+        skeleton = cam.pose.detect(img) if cam.pose is not None else None
+        world = cam.pose.world if cam.pose is not None and skeleton is not None else None
+        rays3d = self.frame_rays(frame, skeleton, world)
+        joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
+        size = (frame.width, frame.height)
+        tracked, events = cam.tracker.update(frame.stamp, observations, skeleton, size, joints3d)
+        hand_rays3d = {
+            o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
+            for o, t in zip(observations, tracked)
+            if rays3d is not None and t.ray is not None
+        }
+        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh)
+        persons = self.people.sample(frame, seen, self.source) if seen is not None and seen.ran else None
+        fields = frame_fields(frame, self.source)
+        found = [
+            to_hand(o, t, hand_rays3d.get(o.hand), hand_person(seen, k))
+            for k, (o, t) in enumerate(zip(observations, tracked))
+        ]
+        hands = Hands(**fields, hands=found)
+        bodies = None
+        if self.settings.body:
+            bodies = Bodies(**fields, bodies=people_bodies(frame, skeleton, cam.tracker.last_arms, rays3d, seen))
+        return FrameResult(hands, bodies, events, rays3d, hand_rays3d, persons, seen)
+
+
+def people_bodies(
+    frame: Frame, skeleton: np.ndarray | None, arms: list, rays3d: FrameRays | None, seen: PeopleOfFrame | None
+) -> list[Body]:
+    """The full-frame skeleton with the tracker's arms, plus (on the person stage's frames) every other person's."""
+    main = [] if skeleton is None else [to_body(skeleton, arms, rays3d)]
+    if seen is None:
+        return main
+    for body in main:
+        body.person = seen.main_person
+    others = (
+        [(p.id, p.body) for p in seen.persons if p.id != seen.main_person and p.body is not None] if seen.ran else []
+    )
+    for pid, b in others:  # their own arms, this frame's; no 3-D rays (FrameRays lifts the full-frame skeleton)
+        main.append(to_body(b, other_arms(b, frame.width, frame.height)))
+        main[-1].person = pid
+    return main
+
+
+def to_hand(o: Observation, t: TrackedHand, ray3d: Ray3D | None, person: str | None) -> Hand:
+    # the tracker's words are the schema's (its classes and hands are GestureName and Handedness values)
+    return Hand(
+        hand=cast(Handedness, o.hand),
+        score=round(o.score, 4),
+        landmarks=[[round(x, 2), round(y, 2)] for x, y in o.landmarks.tolist()],
+        gesture=cast(GestureName | None, t.gesture),
+        ray=to_ray(t.ray, ray3d),
+        person=person,
+    )
