@@ -9,19 +9,26 @@ replay: the same file, as fast as possible, into a subscriber here:
   - bare:  a process that reads it with mcap.reader and puts each payload on a BLOCK publisher;
   - hri:   `hri replay --speed 0`.
   Figure: samples/s from the first to the last arrival.
-Also: the per-sample cost of the in-process core (SessionWriter.add vs Writer.add_message), no zenoh.
-Usage: python benchmarks/record_replay.py [--n 2000]
+Also: the per-sample cost of the in-process core (SessionWriter.add vs Writer.add_message), no zenoh, with the
+viewer channels of issue #36 (Foxglove shapes beside the raw payload) and without (`--no-viewers`, the old file).
+lag (issue #36): a real camera (the demo photo, 640x480-ish PNG, JPEG on the wire, 30 fps) and vision; the lag of
+  each service's output (receive time at a tap here - the sample's stamp) while nothing, `hri record`,
+  `hri foxglove` with a foxglove.sdk.v1 client subscribed to every channel, or `hri rerun --save` is attached,
+  one after another in one run (the baseline measured first and last: the machine is shared).
+Usage (from the checkout's root): python -m benchmarks.record_replay [--n 2000] [--lag-seconds 15] [--only core|lag|all]
 """
 
 from __future__ import annotations
 
 import argparse
 import io
+import statistics
 import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Callable
 
 import zenoh
 from mcap.reader import make_reader
@@ -31,7 +38,7 @@ from common.codec import ENCODING, encode
 from common.keys import Keys
 from common.transport import open_client
 from hri.recording import SessionWriter
-from testkit.harness import Proc, ProcessGroup
+from testkit.harness import Client, Proc, ProcessGroup
 from testkit.payloads import realistic_samples
 
 
@@ -80,6 +87,8 @@ def bare_replayer(endpoint: str, path: str) -> None:
     pubs: dict[str, zenoh.Publisher] = {}
     with open(path, "rb") as f:
         for _, channel, message in make_reader(f).iter_messages():
+            if channel.message_encoding != "msgpack":
+                continue  # the viewer channels (issue #36) are not replayed
             pub = pubs.get(channel.topic)
             if pub is None:
                 pub = pubs[channel.topic] = s.declare_publisher(
@@ -131,7 +140,7 @@ def measure_record(
     if proc.popen.returncode != 0:
         raise RuntimeError(f"recorder failed:\n{proc.output()}")
     with open(out, "rb") as f:
-        got = sum(1 for _ in make_reader(f).iter_messages())
+        got = sum(1 for _, ch, _ in make_reader(f).iter_messages() if ch.message_encoding == "msgpack")
     if got != n:
         raise RuntimeError(f"recorder wrote {got}/{n} samples")
     return n / elapsed
@@ -157,8 +166,9 @@ def measure_replay(group: ProcessGroup, sub_s: zenoh.Session, n: int, argv: list
     return (n - 1) / (times[-1] - times[0])
 
 
-def core_costs(key: str, payload: bytes, n: int) -> tuple[float, float]:
-    """µs per sample: bare Writer.add_message vs SessionWriter.add (stamp decode + tallies)."""
+def core_costs(key: str, payload: bytes, n: int) -> tuple[float, float, float]:
+    """µs per sample: bare Writer.add_message vs SessionWriter.add (stamp decode + tallies), without and with
+    the viewer channels."""
     bare = Writer(io.BytesIO(), compression=CompressionType.ZSTD)
     bare.start()
     ch = bare.register_channel(key, "msgpack", 0)
@@ -167,13 +177,166 @@ def core_costs(key: str, payload: bytes, n: int) -> tuple[float, float]:
         bare.add_message(ch, i, payload, i)
     bare.finish()
     t_bare = (time.perf_counter() - t0) / n
-    core = SessionWriter(io.BytesIO(), Keys())
-    t0 = time.perf_counter()
-    for i in range(n):
-        core.add(key, payload, i)
-    core.finish()
-    t_core = (time.perf_counter() - t0) / n
-    return t_bare * 1e6, t_core * 1e6
+    costs = []
+    for viewers in (False, True):
+        core = SessionWriter(io.BytesIO(), Keys(), viewers=viewers)
+        t0 = time.perf_counter()
+        for i in range(n):
+            core.add(key, payload, i)
+        core.finish()
+        costs.append((time.perf_counter() - t0) / n)
+    return t_bare * 1e6, costs[0] * 1e6, costs[1] * 1e6
+
+
+def core_table(n_small: int) -> None:
+    print(
+        f"{'payload':20s} {'bytes':>7s} | core µs/sample: {'mcap':>7s} {'hri raw':>8s} {'+viewers':>9s} {'added':>7s}"
+    )
+    for label, (key, payload) in payloads().items():
+        n = max(100, n_small // 10) if len(payload) > 10_000 else n_small
+        bare, raw, viewers = core_costs(key, payload, n)
+        print(f"{label:20s} {len(payload):7d} | {'':15s} {bare:7.1f} {raw:8.1f} {viewers:9.1f} {viewers - raw:6.1f}µ")
+
+
+def process_table(group: ProcessGroup, pub_s: zenoh.Session, sub_s: zenoh.Session, n_small: int, tmp: Path) -> None:
+    me = str(Path(__file__).resolve())
+    print(f"{'payload':20s} {'bytes':>7s} | {'record samples/s':^24s} | {'replay samples/s':^24s}")
+    print(f"{'':20s} {'':7s} | {'bare':>8s} {'hri':>8s} {'ratio':>6s} | {'bare':>8s} {'hri':>8s} {'ratio':>6s}")
+    for label, (key, payload) in payloads().items():
+        n = max(100, n_small // 10) if len(payload) > 10_000 else n_small
+        bare_out, hri_out = tmp / f"bare-{n}.mcap", tmp / f"hri-{n}.mcap"
+        for p in (bare_out, hri_out):
+            p.unlink(missing_ok=True)
+        bare_argv = [me, "--bare-recorder", group.endpoint, str(bare_out), str(n)]
+        rb = measure_record(group, pub_s, key, payload, n, bare_argv, bare_out)
+        hri_argv = ["-m", "hri.cli", "record", "-o", str(hri_out), "hri/**", "--count", str(n)]
+        rh = measure_record(group, pub_s, key, payload, n, hri_argv + ["--connect", group.endpoint], hri_out)
+        pb = measure_replay(group, sub_s, n, [me, "--bare-replayer", group.endpoint, str(hri_out)])
+        replay_argv = ["-m", "hri.cli", "replay", str(hri_out), "--speed", "0", "--connect", group.endpoint]
+        ph = measure_replay(group, sub_s, n, replay_argv)
+        record = f"{rb:8.0f} {rh:8.0f} {rb / rh:5.2f}x"
+        print(f"{label:20s} {len(payload):7d} | {record} | {pb:8.0f} {ph:8.0f} {pb / ph:5.2f}x", flush=True)
+    print("ratios: > 1 means the hri path is slower than the bare library by that factor (hri record writes the")
+    print("viewer channels too when foxglove-sdk is installed)")
+
+
+# -- live lag with a viewer attached (issue #36) ------------------------------------------------------
+class LagTap:
+    """receive time - stamp of every camera frame and vision output, per service, while `attached` runs."""
+
+    def __init__(self, s: zenoh.Session, keys: Keys):
+        from common.codec import decode
+        from common.schema import Detections, Frame
+
+        self.lags: dict[str, list[float]] = {"camera": [], "vision": []}
+        self.on = False
+
+        def tap(name: str, schema: type) -> Callable[[zenoh.Sample], None]:
+            def on(sample: zenoh.Sample) -> None:
+                if self.on:
+                    self.lags[name].append(time.time() - decode(sample.payload.to_bytes(), schema).stamp)
+
+            return on
+
+        self.subs = [
+            s.declare_subscriber(keys.frame("*"), tap("camera", Frame)),
+            s.declare_subscriber(keys.objects("*"), tap("vision", Detections)),
+        ]
+
+    def measure(self, seconds: float) -> dict[str, tuple[float, float, int]]:
+        for v in self.lags.values():
+            v.clear()
+        self.on = True
+        time.sleep(seconds)
+        self.on = False
+        out = {}
+        for name, lags in self.lags.items():
+            ms = sorted(x * 1000 for x in lags) or [float("nan")]
+            out[name] = (statistics.median(ms), ms[min(len(ms) - 1, int(0.99 * len(ms)))], len(lags))
+        return out
+
+
+def foxglove_client(url: str, stop: threading.Event, counts: dict[str, int]) -> None:
+    """A Foxglove client subscribed to every channel it is offered, counting the bytes it gets."""
+    import asyncio
+    import json
+
+    import websockets
+    from websockets.typing import Subprotocol
+
+    async def run() -> None:
+        async with websockets.connect(url, subprotocols=[Subprotocol("foxglove.sdk.v1")], max_size=None) as ws:
+            while not stop.is_set():
+                try:
+                    raw = await asyncio.wait_for(ws.recv(), timeout=0.5)
+                except asyncio.TimeoutError:
+                    continue
+                if isinstance(raw, str):
+                    msg = json.loads(raw)
+                    if msg.get("op") == "advertise":
+                        subs = [{"id": c["id"], "channelId": c["id"]} for c in msg["channels"]]
+                        await ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+                else:
+                    counts["messages"] += 1
+                    counts["bytes"] += len(raw)
+
+    asyncio.run(run())
+
+
+def attach(group: ProcessGroup, what: str, tmp: Path) -> tuple[Proc | None, Callable[[], None]]:
+    """Start the viewer bridge `what`; (its process, a function that stops what else was started)."""
+    import re
+
+    base = [sys.executable, "-m", "hri.cli"]
+    connect = ["--connect", group.endpoint]
+    if what == "nothing":
+        return None, lambda: None
+    if what == "hri record":
+        proc = Proc(what, base + ["record", "-o", str(tmp / "lag.mcap"), "--force", *connect])
+        wait_line(proc, "recording")
+        return proc, lambda: None
+    if what == "hri rerun --save":
+        proc = Proc(what, base + ["rerun", "--save", str(tmp / "lag.rrd"), *connect])
+        time.sleep(3)  # rerun-sdk's start-up
+        return proc, lambda: None
+    proc = Proc(what, base + ["foxglove", "--port", "0", *connect])
+    wait_line(proc, "ws://")
+    port = re.search(r"ws://127\.0\.0\.1:(\d+)", proc.output())
+    assert port is not None
+    stop, counts = threading.Event(), {"messages": 0, "bytes": 0}
+    client = threading.Thread(target=foxglove_client, args=(f"ws://127.0.0.1:{port.group(1)}", stop, counts))
+    client.start()
+
+    def done() -> None:
+        stop.set()
+        client.join(5)
+        print(f"    (the Foxglove client got {counts['messages']} messages, {counts['bytes'] / 1e6:.0f} MB)")
+
+    return proc, done
+
+
+def lag_table(group: ProcessGroup, seconds: float, tmp: Path) -> None:
+    table = Path(__file__).resolve().parents[1] / "data" / "demo" / "table.png"
+    group.service("camera", "--source", str(table), "--cam", "bench", "--fps", "30", "--loop")
+    group.service("vision", "--labels", str(table.with_name("labels.json")))
+    tap_s = open_client(group.endpoint)
+    try:
+        Client(group.endpoint).wait_alive("vision", timeout=90)
+        tap = LagTap(tap_s, Keys())
+        time.sleep(3)  # the services warm up
+        print(f"lag at 30 fps, {seconds:.0f} s each, ms (p50 / p99 / samples) — one run, one after another:")
+        print(f"{'attached':22s} | {'camera':^22s} | {'vision':^22s}")
+        for what in ("nothing", "hri record", "hri foxglove + client", "hri rerun --save", "nothing"):
+            proc, done = attach(group, what, tmp)
+            time.sleep(1)
+            got = tap.measure(seconds)
+            done()
+            if proc is not None:
+                proc.terminate(timeout=10)
+            cells = " | ".join(f"{p50:6.1f} {p99:7.1f} {n:6d}" for p50, p99, n in got.values())
+            print(f"{what:22s} | {cells}", flush=True)
+    finally:
+        tap_s.close()
 
 
 def main() -> None:
@@ -185,64 +348,21 @@ def main() -> None:
         return
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--n", type=int, default=2000, help="samples per measurement (frames: n/10)")
+    parser.add_argument("--lag-seconds", type=float, default=15.0, help="seconds per lag measurement")
+    parser.add_argument("--only", choices=("core", "lag", "all"), default="all")
     args = parser.parse_args()
 
+    core_table(args.n)
+    if args.only == "core":
+        return
     group = ProcessGroup()
     group.router()
     pub_s, sub_s = open_client(group.endpoint), open_client(group.endpoint)
-    me = str(Path(__file__).resolve())
     tmp = Path(tempfile.mkdtemp(prefix="bench-record-"))
     try:
-        print(
-            f"{'payload':20s} {'bytes':>7s} | {'core µs/sample':^22s} | {'record samples/s':^24s} | "
-            f"{'replay samples/s':^24s}"
-        )
-        print(
-            f"{'':20s} {'':7s} | {'mcap':>7s} {'hri':>7s} {'ratio':>6s} | {'bare':>8s} {'hri':>8s} {'ratio':>6s} | "
-            f"{'bare':>8s} {'hri':>8s} {'ratio':>6s}"
-        )
-        for label, (key, payload) in payloads().items():
-            n = max(100, args.n // 10) if len(payload) > 10_000 else args.n
-            cb, cc = core_costs(key, payload, n)
-            bare_out, hri_out = tmp / f"bare-{n}.mcap", tmp / f"hri-{n}.mcap"
-            for p in (bare_out, hri_out):
-                p.unlink(missing_ok=True)
-            rb = measure_record(
-                group, pub_s, key, payload, n, [me, "--bare-recorder", group.endpoint, str(bare_out), str(n)], bare_out
-            )
-            rh = measure_record(
-                group,
-                pub_s,
-                key,
-                payload,
-                n,
-                [
-                    "-m",
-                    "hri.cli",
-                    "record",
-                    "-o",
-                    str(hri_out),
-                    "hri/**",
-                    "--count",
-                    str(n),
-                    "--connect",
-                    group.endpoint,
-                ],
-                hri_out,
-            )
-            pb = measure_replay(group, sub_s, n, [me, "--bare-replayer", group.endpoint, str(hri_out)])
-            ph = measure_replay(
-                group,
-                sub_s,
-                n,
-                ["-m", "hri.cli", "replay", str(hri_out), "--speed", "0", "--connect", group.endpoint],
-            )
-            print(
-                f"{label:20s} {len(payload):7d} | {cb:7.1f} {cc:7.1f} {cc / cb:5.2f}x | {rb:8.0f} {rh:8.0f} "
-                f"{rb / rh:5.2f}x | {pb:8.0f} {ph:8.0f} {pb / ph:5.2f}x",
-                flush=True,
-            )
-        print("ratios: > 1 means the hri path is slower than the bare library by that factor")
+        if args.only == "all":
+            process_table(group, pub_s, sub_s, args.n, tmp)
+        lag_table(group, args.lag_seconds, tmp)
     finally:
         pub_s.close()
         sub_s.close()

@@ -465,6 +465,20 @@ def build_parser() -> argparse.ArgumentParser:
     recording.add_replay_arguments(
         command("replay", "republish a recorded MCAP session with its original timing", recording.REPLAY_EXAMPLES)
     )
+    from hri.viewers import live  # foxglove-sdk is imported only when `hri foxglove` runs
+
+    live.add_foxglove_arguments(
+        command("foxglove", "serve the live stack to Foxglove (WebSocket protocol)", live.FOXGLOVE_EXAMPLES)
+    )
+    from hri.viewers import rerun_log  # rerun-sdk is imported only when `hri rerun` runs
+
+    rerun_log.add_rerun_arguments(
+        command(
+            "rerun",
+            "log the live stack (or a recording) to Rerun: a served web viewer, a spawned one, or an .rrd",
+            rerun_log.RERUN_EXAMPLES,
+        )
+    )
     from hri import rosbag2  # rosbags is imported only when an export runs
 
     rosbag2.add_export_arguments(

@@ -9,7 +9,12 @@ File layout (what a reader of the .mcap can count on):
 - log_time = receive time (ns since the UNIX epoch, the recorder's clock);
 - publish_time = the sample's own `stamp` when the payload decodes under the contract, else the
   receive time; sequence = per-channel count from 1;
-- one metadata record "hri.record" (key expressions, prefix, start time, host).
+- one metadata record "hri.record" (key expressions, prefix, start time, host);
+- viewer channels (since issue #36, when foxglove-sdk is installed and not --no-viewers): each valid contract
+  sample also in the shapes Foxglove decodes (protobuf built-ins, JSON), on topics starting with "/"
+  (hri/viewers/foxglove_msgs.py lists them), channel metadata "hri.viewer": "true", same log_time,
+  publish_time = the sample's stamp. Replay and `read_samples` read only the raw channels, so recordings
+  from before (raw channels only) and after read and replay the same way.
 
 The top half of this module is the functional core (MCAP writing/reading, the replay clock,
 progress lines) and imports neither zenoh nor the transport; the `cmd_*` shells at the bottom
@@ -21,10 +26,12 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import logging
 import os
 import queue
 import signal
 import socket
+import struct
 import sys
 import threading
 import time
@@ -34,8 +41,9 @@ from typing import IO, Any, BinaryIO, Callable, Iterable, Iterator
 
 from common.codec import ENCODING, decode
 from common.keys import Keys
-from common.schema import InvalidSample
+from common.schema import InvalidSample, Sample
 from common.settings import add_option
+from hri.viewers.foxglove_msgs import VIEWER_METADATA, FoxgloveConverter, ViewerSchema, available
 
 MESSAGE_ENCODING = "msgpack"
 PROFILE = ""  # no well-known MCAP profile fits; the contract lives in channel metadata
@@ -71,6 +79,15 @@ def _mcap():
     return mcap
 
 
+def _viewer_converter(keys: Keys) -> FoxgloveConverter | None:
+    if available():
+        return FoxgloveConverter(keys)
+    logging.getLogger("hri.record").warning(
+        "foxglove-sdk is not installed: writing the raw msgpack channels only (pip install 'hri-fusion[foxglove]')"
+    )
+    return None
+
+
 def human_bytes(n: float) -> str:
     for unit in ("B", "kB", "MB", "GB"):
         if abs(n) < 1000 or unit == "GB":
@@ -82,15 +99,21 @@ def human_bytes(n: float) -> str:
 # ---------------------------------------------------------------------------
 # Writing
 # ---------------------------------------------------------------------------
-def stamp_ns(key: str, payload: bytes, keys: Keys) -> int | None:
-    """The sample's `stamp` in ns if `payload` is a valid contract sample for `key`, else None."""
+def contract_sample(key: str, payload: bytes, keys: Keys) -> Sample | None:
+    """The decoded sample if `payload` is a valid contract sample for `key`, else None."""
     schema = keys.schema_for(key)
     if schema is None:
         return None
     try:
-        return int(round(decode(payload, schema).stamp * NS))
+        return decode(payload, schema)
     except InvalidSample:
         return None
+
+
+def stamp_ns(key: str, payload: bytes, keys: Keys) -> int | None:
+    """The sample's `stamp` in ns if `payload` is a valid contract sample for `key`, else None."""
+    sample = contract_sample(key, payload, keys)
+    return None if sample is None else int(round(sample.stamp * NS))
 
 
 @dataclass
@@ -98,10 +121,15 @@ class KeyTally:
     samples: int = 0
     bytes: int = 0
     not_contract: int = 0  # payloads that did not decode under the contract (publish time = receive time)
+    viewer_failed: int = 0  # valid samples the viewer channels could not show (e.g. an undecodable depth PNG)
 
 
 class SessionWriter:
-    """Writes received samples to an MCAP stream: one channel per key, payload bytes untouched."""
+    """Writes received samples to an MCAP stream: one channel per key, payload bytes untouched.
+
+    With `viewers` (the default when foxglove-sdk is installed), each valid contract sample is also written in
+    the shapes Foxglove decodes, on channels of their own (hri/viewers/foxglove_msgs.py lists them).
+    """
 
     def __init__(
         self,
@@ -111,6 +139,7 @@ class SessionWriter:
         compression: str = "zstd",
         metadata: dict[str, str] | None = None,
         chunk_size: int = 1 << 20,
+        viewers: bool | None = None,
     ):
         mcap = _mcap()
         if compression not in COMPRESSIONS:
@@ -127,6 +156,14 @@ class SessionWriter:
             self._writer.add_metadata(METADATA_NAME, metadata)
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
+        self._viewer_channels: dict[tuple[str, str], int] = {}  # (topic, schema name) -> channel id
+        self._viewer_schemas: dict[str, int] = {}  # Foxglove / JSON schema name -> schema id
+        self._viewer_sequence: collections.Counter[int] = collections.Counter()
+        self.converter = _viewer_converter(keys) if viewers or viewers is None else None
+        if viewers and self.converter is None:
+            raise SystemExit(
+                "viewer channels need foxglove-sdk: pip install 'hri-fusion[foxglove]' (or record with --no-viewers)"
+            )
         self.tally: dict[str, KeyTally] = collections.defaultdict(KeyTally)
         self.samples = 0
         self.bytes = 0
@@ -157,7 +194,8 @@ class SessionWriter:
                 schema_id=self._schema_id(schema),
                 metadata={"schema": schema.__name__ if schema else "", "zenoh_encoding": zenoh_encoding},
             )
-        stamp = stamp_ns(key, payload, self.keys)
+        sample = contract_sample(key, payload, self.keys)
+        stamp = None if sample is None else int(round(sample.stamp * NS))
         tally = self.tally[key]
         tally.samples += 1
         tally.bytes += len(payload)
@@ -169,7 +207,37 @@ class SessionWriter:
         )
         self.samples += 1
         self.bytes += len(payload)
+        if sample is not None and self.converter is not None:
+            self._add_viewer(key, sample, receive_ns, tally)
         return publish_ns
+
+    def _viewer_schema_id(self, schema: ViewerSchema) -> int:
+        if schema.encoding == "jsonschema" and schema.name in self._schemas:
+            return self._schemas[schema.name]  # the raw channel's record: the same generated JSON Schema
+        if schema.name not in self._viewer_schemas:
+            self._viewer_schemas[schema.name] = self._writer.register_schema(
+                name=schema.name, encoding=schema.encoding, data=schema.data
+            )
+        return self._viewer_schemas[schema.name]
+
+    def _add_viewer(self, key: str, sample: Sample, receive_ns: int, tally: KeyTally) -> None:
+        try:
+            shown = self.converter.convert(key, sample) if self.converter is not None else []
+        except (ValueError, InvalidSample):  # e.g. a depth PNG that does not decode: the raw sample is kept
+            tally.viewer_failed += 1
+            return
+        for m in shown:
+            channel = self._viewer_channels.get((m.topic, m.schema.name))
+            if channel is None:
+                channel = self._viewer_channels[(m.topic, m.schema.name)] = self._writer.register_channel(
+                    topic=m.topic, message_encoding=m.message_encoding, schema_id=self._viewer_schema_id(m.schema),
+                    metadata={VIEWER_METADATA: "true"},
+                )  # fmt: skip
+            self._viewer_sequence[channel] += 1
+            self._writer.add_message(
+                channel_id=channel, log_time=receive_ns, data=m.data, publish_time=m.stamp_ns,
+                sequence=self._viewer_sequence[channel],
+            )  # fmt: skip
 
     def finish(self) -> None:
         """Write the summary and indexes (the file is a complete MCAP afterwards)."""
@@ -218,7 +286,8 @@ class SessionReader:
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
         mcap = _mcap()
-        self._errors = (mcap.exceptions.McapError, EOFError, ValueError, OSError)
+        # struct.error: a record cut short inside its length-prefixed fields (a SIGKILLed recorder)
+        self._errors = (mcap.exceptions.McapError, EOFError, ValueError, OSError, struct.error)
         try:
             self._stream = open(self.path, "rb")
         except OSError as exc:
@@ -242,6 +311,8 @@ class SessionReader:
                 start_ns=summary.statistics.message_start_time, end_ns=summary.statistics.message_end_time
             )
             for cid, channel in summary.channels.items():
+                if channel.metadata.get(VIEWER_METADATA):
+                    continue  # a copy in a viewer's shape; the raw channel beside it is what replays
                 if channel.message_encoding != MESSAGE_ENCODING:
                     self.skipped_encodings[channel.topic] = channel.message_encoding
                     continue
@@ -265,6 +336,8 @@ class SessionReader:
         reader = mcap.reader.NonSeekingReader(self._stream)
         try:
             for _, channel, message in reader.iter_messages(log_time_order=False):
+                if channel.metadata.get(VIEWER_METADATA):
+                    continue
                 if channel.message_encoding != MESSAGE_ENCODING:
                     self.skipped_encodings[channel.topic] = channel.message_encoding
                     continue
@@ -295,6 +368,25 @@ class SessionReader:
 
     def close(self) -> None:
         self._stream.close()
+
+
+def read_samples(
+    path: str | os.PathLike, keys: Keys | None = None, keep: Callable[[str], bool] = lambda key: True
+) -> Iterator[tuple[str, float, Sample]]:
+    """(key, stamp in seconds, decoded sample) of every valid contract sample of a recording, in receive order.
+
+    Reads recordings of every version (before and after the viewer channels of issue #36: both carry the raw
+    msgpack channels); payloads outside the contract or invalid under it are skipped. Raises RecordingError.
+    """
+    reader = SessionReader(path)
+    keys = keys or Keys(reader.metadata().get("prefix") or Keys().prefix)
+    try:
+        for m in reader.messages(keep):
+            sample = contract_sample(m.key, m.payload, keys)
+            if sample is not None:
+                yield m.key, sample.stamp, sample
+    finally:
+        reader.close()
 
 
 # ---------------------------------------------------------------------------
@@ -374,6 +466,7 @@ def key_table(counts: dict[str, KeyTally] | dict[str, int]) -> str:
         value = counts[key]
         if isinstance(value, KeyTally):
             note = f", {value.not_contract} outside the contract" if value.not_contract else ""
+            note += f", {value.viewer_failed} not shown in the viewer channels" if value.viewer_failed else ""
             rows.append(f"  {key}: {value.samples} ({human_bytes(value.bytes)}{note})")
         else:
             rows.append(f"  {key}: {value}")
@@ -395,6 +488,13 @@ def add_record_arguments(p: argparse.ArgumentParser) -> None:
     add_option(p, "--count", None, "stop after N samples", kind=int, at_least=1, metavar="N", default_text="never")
     add_option(p, "--duration", None, "stop after S seconds", kind=float, above=0, metavar="S", default_text="never")
     p.add_argument("--compression", choices=COMPRESSIONS, default="zstd", help="chunk compression (default zstd)")
+    p.add_argument(
+        "--no-viewers",
+        dest="viewers",
+        action="store_false",
+        default=None,
+        help="write only the raw msgpack channels, not the Foxglove-readable copies (smaller, cheaper)",
+    )
     add_option(
         p,
         "--max-backlog-mb",
@@ -570,7 +670,9 @@ def cmd_record(args: argparse.Namespace) -> int:
     log = setup_logging("hri.record", args.log_level)
     stop = threading.Event()
     _stop_on_signals(stop)
-    writer = SessionWriter(stream, keys, compression=args.compression, metadata=_recording_metadata(exprs, keys))
+    writer = SessionWriter(
+        stream, keys, compression=args.compression, viewers=args.viewers, metadata=_recording_metadata(exprs, keys)
+    )
     inbox = _Inbox(writer, int(args.max_backlog_mb * 1e6))
     session = open_session(args, log, stop)
     progress = Progress()

@@ -35,6 +35,8 @@ FLAGS = [
     "--remote-debugging-port=0",
     "--remote-allow-origins=*",
 ]
+# WebGL on the CPU (SwiftShader through ANGLE), for pages that need it (Rerun's web viewer); --disable-gpu goes
+WEBGL_FLAGS = ["--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 
 
 def require_chromium():
@@ -47,14 +49,15 @@ def require_chromium():
 class Browser:
     """One headless Chromium process; `tab(url)` opens a page in it."""
 
-    def __init__(self, window: tuple[int, int] = (1400, 900), timeout: float = 60.0):
+    def __init__(self, window: tuple[int, int] = (1400, 900), timeout: float = 60.0, webgl: bool = False):
         if CHROMIUM is None:
             raise RuntimeError("chromium is not installed")
+        flags = [f for f in FLAGS if f != "--disable-gpu"] + WEBGL_FLAGS if webgl else FLAGS
         self.profile = tempfile.TemporaryDirectory(prefix="hri-chromium-", ignore_cleanup_errors=True)
         self.proc = subprocess.Popen(
             [
                 CHROMIUM,
-                *FLAGS,
+                *flags,
                 f"--user-data-dir={self.profile.name}",
                 f"--window-size={window[0]},{window[1]}",
                 "about:blank",

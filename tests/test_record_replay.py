@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 
 from common.codec import decode, encode
 from common.keys import Keys
-from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray
+from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray, Sample, Transcript
 from hri.cli import make_transcript
 from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
 from testkit.harness import Client
@@ -56,7 +56,7 @@ def pointing(stamp: float, cam: str = "cam0") -> GestureEvent:
     )
 
 
-def said(text: str, stamp: float) -> object:
+def said(text: str, stamp: float) -> Transcript:
     return make_transcript(text, mic="kbd", end=stamp, confidence=0.95, source="test/speech")
 
 
@@ -76,7 +76,7 @@ def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp
     ]  # key outside the contract
     received = [int((T0 + 1 + i) * NS) for i in range(5)]
     with open(path, "wb") as f:
-        writer = SessionWriter(f, KEYS, metadata={"keyexpr": "hri/**"})
+        writer = SessionWriter(f, KEYS, metadata={"keyexpr": "hri/**"}, viewers=False)  # the raw layout
         for (key, payload), at in zip(contract + outside, received):
             writer.add(key, payload, at)
         writer.finish()
@@ -248,7 +248,7 @@ def test_record_then_replay_round_trip(group, tmp_path):
     try:
         token = client.session.liveliness().declare_token("hri/alive/test/recording")  # not data: not recorded
         now = time.time()
-        sent = [
+        sent: list[tuple[str, Sample]] = [
             (KEYS.transcript("kbd"), said("pick up the red cup", now)),
             (KEYS.objects("cam0"), detections(now + 0.01)),
             (KEYS.gesture_event("cam0"), pointing(now + 0.02)),
@@ -272,14 +272,21 @@ def test_record_then_replay_round_trip(group, tmp_path):
             reader = make_reader(f)
             summary = reader.get_summary()
             assert summary is not None, "no summary: the recorder did not finish the file on SIGTERM"
-            topics = {c.topic: c.message_encoding for c in summary.channels.values()}
-            assert topics == {
+            raw = {c.topic: c.message_encoding for c in summary.channels.values() if "hri.viewer" not in c.metadata}
+            assert raw == {
                 KEYS.transcript("kbd"): "msgpack",
                 KEYS.objects("cam0"): "msgpack",
                 KEYS.gesture_event("cam0"): "msgpack",
                 "hri/test/raw": "msgpack",
             }
-            recorded = [(ch.topic, m.data, m.log_time, m.publish_time) for _, ch, m in reader.iter_messages()]
+            # beside them, the copies Foxglove decodes (tests/test_viewers.py decodes every message of them)
+            viewer = {c.topic for c in summary.channels.values() if "hri.viewer" in c.metadata}
+            assert {"/" + KEYS.transcript("kbd"), "/" + KEYS.objects("cam0") + "/annotations", "/hri/log"} <= viewer
+            recorded = [
+                (ch.topic, m.data, m.log_time, m.publish_time)
+                for _, ch, m in reader.iter_messages()
+                if "hri.viewer" not in ch.metadata
+            ]
         expected = [(k, encode(s)) for k, s in sent] + [("hri/test/raw", b"\xc1 outside the contract")]
         assert [(k, d) for k, d, _, _ in recorded] == expected
         log_times = [t for _, _, t, _ in recorded]
@@ -301,8 +308,8 @@ def test_record_then_replay_round_trip(group, tmp_path):
         # A replay that skipped any one wait (GAP = 0.5 s) still fails.
         recorded_offsets = [(t - log_times[0]) / NS for t in log_times]
         arrival_offsets = [g[2] - got[0][2] for g in got]
-        for recorded, arrived in zip(recorded_offsets, arrival_offsets):
-            assert arrived >= recorded - JITTER_S, (recorded_offsets, arrival_offsets)
+        for recorded_at, arrived_at in zip(recorded_offsets, arrival_offsets):
+            assert arrived_at >= recorded_at - JITTER_S, (recorded_offsets, arrival_offsets)
         assert arrival_offsets[-1] <= recorded_offsets[-1] + 2.0, (recorded_offsets, arrival_offsets)
 
         # -- --only: speech alone, four times faster
