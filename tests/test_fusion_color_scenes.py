@@ -10,11 +10,11 @@ import json
 import cv2
 import pytest
 
+from common.boxes import iou
 from common.schema import Detections, Weights
 from services.fusion.ground import choose, scene_objects, score
 from services.fusion.parse import parse
 from services.vision.core import VisionPipeline
-from services.vision.track import iou
 from testkit.shared import shared_path, yolox_model
 
 RELATION_WORDS = (" in front", " in the ", " next to ", " behind ", " between ")

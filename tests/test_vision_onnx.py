@@ -9,9 +9,9 @@ import cv2
 import numpy as np
 import pytest
 
+from common.boxes import iou
 from services.vision.color import color_name
 from services.vision.core import VisionPipeline, object_colour
-from services.vision.track import iou
 from services.vision.yolo import (
     Letterbox,
     ModelError,

@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 import pytest
 
+from common.boxes import iou
 from services.vision.color import HUE_RANGES
 from services.vision.segment import ColorSegmenter
-from services.vision.track import iou
 from testkit.harness import DATA
 from testkit.shared import shared_path
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from common.boxes import iou
 from common.schema import Face, Faces, Frame, Persons
 from common.settings import setting
 
@@ -104,15 +105,6 @@ def bbox_of(points: np.ndarray) -> list[float]:
     x0, y0 = oval.min(axis=0).tolist()
     x1, y1 = oval.max(axis=0).tolist()
     return [round(float(x0), 1), round(float(y0), 1), round(float(x1 - x0), 1), round(float(y1 - y0), 1)]
-
-
-def iou(a: list[float], b: list[float]) -> float:
-    ax1, ay1, bx1, by1 = a[0] + a[2], a[1] + a[3], b[0] + b[2], b[1] + b[3]
-    iw = max(0.0, min(ax1, bx1) - max(a[0], b[0]))
-    ih = max(0.0, min(ay1, by1) - max(a[1], b[1]))
-    inter = iw * ih
-    union = a[2] * a[3] + b[2] * b[3] - inter
-    return inter / union if union > 0 else 0.0
 
 
 def centre_distance(a: list[float], b: list[float]) -> float:

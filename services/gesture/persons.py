@@ -32,6 +32,7 @@ from typing import Callable
 
 import numpy as np
 
+from common.boxes import iou
 from services.gesture.body import MIN_VISIBILITY
 from services.gesture.temporal import body_scale
 
@@ -133,15 +134,6 @@ def body_fits_face(body: np.ndarray, face: Box) -> bool:
     nose = np.asarray(body, dtype=float).reshape(33, 3)[NOSE, :2]
     size = max(fw, fh)
     return bool(np.hypot(nose[0] - (fx + fw / 2), nose[1] - (fy + fh / 2)) <= NOSE_IN_FACE * size)
-
-
-def iou(a: Box, b: Box) -> float:
-    ax1, ay1, bx1, by1 = a[0] + a[2], a[1] + a[3], b[0] + b[2], b[1] + b[3]
-    iw = max(0.0, min(ax1, bx1) - max(a[0], b[0]))
-    ih = max(0.0, min(ay1, by1) - max(a[1], b[1]))
-    inter = iw * ih
-    union = a[2] * a[3] + b[2] * b[3] - inter
-    return inter / union if union > 0 else 0.0
 
 
 def union_box(a: Box, b: Box) -> Box:

@@ -9,8 +9,8 @@ frames is forgotten. Ids come from a counter and are never reused, so "o7" alway
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Sequence
 
+from common.boxes import iou
 from services.vision.segment import Detection
 
 
@@ -19,16 +19,6 @@ class Track:
     id: str
     det: Detection
     missed: int = 0
-
-
-def iou(a: Sequence[float], b: Sequence[float]) -> float:
-    ax, ay, aw, ah = a
-    bx, by, bw, bh = b
-    iw = max(0.0, min(ax + aw, bx + bw) - max(ax, bx))
-    ih = max(0.0, min(ay + ah, by + bh) - max(ay, by))
-    inter = iw * ih
-    union = aw * ah + bw * bh - inter
-    return inter / union if union > 0 else 0.0
 
 
 @dataclass

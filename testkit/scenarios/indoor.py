@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from common.boxes import iou
 from common.schema import Clarification, DetectedObject, FusedCommand, ImageQuality
-from services.vision.track import iou
 from testkit.images import read_image
 from testkit.scenarios import Scenario, Step, by_time, detections_at, pointing, run_in_process, say
 
