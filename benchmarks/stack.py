@@ -22,7 +22,7 @@ What it reports, over the measured window (from the moment every service is live
 flowing (the control: what video costs speech on this machine, now).
 
 Usage: python benchmarks/stack.py [--seconds 60] [--clip PATH] [--commands 5] [--compare] [--speech-alone]
-                                  [--rounds N] [--size 640x480] [--json out.json]
+                                  [--rounds N] [--variant LABEL=FLAGS] [--size 640x480] [--json out.json]
 """
 
 from __future__ import annotations
@@ -473,10 +473,21 @@ def print_run(result: dict[str, Any], cores: int) -> None:
     )
 
 
-def planned_runs(compare: bool, speech_alone: bool, rounds: int) -> list[tuple[str, list[str]]]:
-    """The runs, alternated round by round (before, as shipped, speech alone, then again) so that a machine whose
-    load drifts does not favour whichever ran first."""
+def variant(text: str) -> tuple[str, list[str]]:
+    """'LABEL=FLAG FLAG ...' (--variant) -> (label, `hri up` flags)."""
+    label, sep, flags = text.partition("=")
+    if not sep or not label.strip():
+        raise argparse.ArgumentTypeError(f"--variant wants LABEL=FLAGS, got {text!r}")
+    return label.strip(), flags.split()
+
+
+def planned_runs(
+    compare: bool, speech_alone: bool, rounds: int, variants: list[tuple[str, list[str]]] | None = None
+) -> list[tuple[str, list[str]]]:
+    """The runs, alternated round by round (before, the variants, as shipped, speech alone, then again) so that a
+    machine whose load drifts does not favour whichever ran first."""
     one: list[tuple[str, list[str]]] = [("before", BEFORE_ARGS)] if compare else []
+    one += variants or []
     one.append(("as shipped", []))
     if speech_alone:  # the control: the same audio with no video flowing, on the same machine
         one.append(("speech alone", [f"--no-{s}" for s in ("camera", "vision", "gesture")]))
@@ -499,6 +510,15 @@ def main() -> None:
     )
     ap.add_argument("--rounds", type=int, default=1, help="repeat the set of runs, alternating (default 1)")
     ap.add_argument("--up-arg", action="append", default=[], metavar="ARG", help="one more `hri up` flag")
+    ap.add_argument(
+        "--variant",
+        action="append",
+        type=variant,
+        default=[],
+        metavar="LABEL=FLAGS",
+        help="one more run before 'as shipped' with these `hri up` flags (space-separated), repeatable: e.g. "
+        "'faces every frame=--gesture-arg=--faces-max-rate=0'",
+    )
     ap.add_argument("--json", type=Path, default=None, help="write the figures here")
     args = ap.parse_args()
     wav = args.clip.with_suffix(".wav")
@@ -511,7 +531,7 @@ def main() -> None:
         audio = build_audio(wav, args.seconds, args.commands, Path(tmp))
         print(f"audio: {audio.seconds:.0f} s; commands at {[round(s.at, 1) for s in audio.spoken]} s", flush=True)
         results = []
-        for label, flags in planned_runs(args.compare, args.speech_alone, args.rounds):
+        for label, flags in planned_runs(args.compare, args.speech_alone, args.rounds, args.variant):
             cfg = RunConfig(
                 args.clip, args.model, audio, args.seconds, args.fps, [*flags, *args.up_arg], label, args.size or None
             )

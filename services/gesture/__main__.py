@@ -87,6 +87,15 @@ def build_parser() -> argparse.ArgumentParser:
         at_least=0,
         metavar="N",
     )
+    add_option(
+        parser,
+        "--hands-idle-every",
+        2,
+        "while no hand is in view, look for hands on every Nth frame only (a hand coming into view is found at "
+        "most N-1 frames late; a hand in view is tracked on every frame); 1 = every frame",
+        at_least=1,
+        metavar="N",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     add_option(
         parser,
@@ -110,6 +119,7 @@ def settings_of(args: argparse.Namespace) -> GestureSettings:
         ray_from=args.ray,
         body=args.body,
         persons_every=args.persons_every,
+        hands_idle_every=args.hands_idle_every,
         faces=args.faces,
         face=from_args(FaceConfig, args),
     )
@@ -157,7 +167,7 @@ class GestureApp(App):
             service.counters.add("depth_unmatched")
         if result.persons is not None:  # the person stage ran on this frame: its Persons
             service.publish_output("persons", result.persons, cam=frame.cam)
-        if result.faces is not None:  # the face stage's sample (tied to the persons: GestureCore.faces_of)
+        if result.faces is not None:  # the face stage's sample (tied to the persons: GestureCore.link)
             service.publish_output("faces", result.faces, cam=frame.cam)
         service.publish_output("hands", result.hands, cam=frame.cam)
         if result.bodies is not None:

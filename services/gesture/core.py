@@ -28,6 +28,7 @@ from common.schema import (
 from services.gesture.faces import FaceConfig, FaceStages, link_faces
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms
+from services.gesture.persons import Box
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 
@@ -66,6 +67,7 @@ class GestureSettings:
     ray_from: str = "eyes"
     body: bool = True
     persons_every: int = 2  # the person stage on every Nth frame (issue #33; 0: off)
+    hands_idle_every: int = 2  # while no hand is in view, look for hands on every Nth frame only (1: every frame)
     faces: bool = True  # the face stage: Faces for who is speaking (issue #33)
     face: FaceConfig = FaceConfig()
 
@@ -93,6 +95,8 @@ class CameraGestures:
     hands: HandLandmarker = field(init=False)
     pose: PoseLandmarker | None = field(init=False, default=None)
     tracker: GestureTracker = field(init=False)
+    hands_in_view: bool = field(init=False, default=False)  # the last hand search found a hand
+    idle_skipped: int = field(init=False, default=0)  # frames since the last search while none is in view
 
     def __post_init__(self) -> None:
         s = self.settings
@@ -107,6 +111,20 @@ class CameraGestures:
         )
         if s.body:
             self.pose = PoseLandmarker()
+        self.hands_in_view, self.idle_skipped = False, 0
+
+    def find_hands(self, img: np.ndarray) -> list[Observation]:
+        """The hands of this frame. While none is in view, the search (MediaPipe's palm detector, most of the
+        hands stage's cost when nothing is tracked) runs on every `hands_idle_every`-th frame only: a hand coming
+        into view is found at most N-1 frames late; a hand in view is tracked on every frame."""
+        every = self.settings.hands_idle_every
+        if not self.hands_in_view and self.idle_skipped + 1 < every:
+            self.idle_skipped += 1
+            return []
+        self.idle_skipped = 0
+        found = self.hands.detect(img)
+        self.hands_in_view = bool(found)
+        return found
 
     def close(self) -> None:
         self.hands.close()
@@ -159,7 +177,7 @@ class GestureCore:
     def process(self, frame: Frame, img: np.ndarray, fresh: bool) -> FrameResult:
         """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
         cam = self.camera(frame)
-        observations = cam.hands.detect(img)
+        observations = cam.find_hands(img)
         skeleton = cam.pose.detect(img) if cam.pose is not None else None
         world = cam.pose.world if cam.pose is not None and skeleton is not None else None
         rays3d = self.frame_rays(frame, skeleton, world)
@@ -171,9 +189,11 @@ class GestureCore:
             for o, t in zip(observations, tracked)
             if rays3d is not None and t.ray is not None
         }
-        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh)
+        faces = self.faces.sample(frame, img, self.source)
+        boxes = face_boxes(faces, self.settings.face.max_faces)
+        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh, faces=boxes)
         persons = self.people.sample(frame, seen, self.source) if seen is not None and seen.ran else None
-        faces = self.faces_of(frame, img, seen, persons)
+        self.link(frame, faces, seen, persons)
         fields = frame_fields(frame, self.source)
         found = [
             to_hand(o, t, hand_rays3d.get(o.hand), hand_person(seen, k))
@@ -185,16 +205,21 @@ class GestureCore:
             bodies = Bodies(**fields, bodies=people_bodies(frame, skeleton, cam.tracker.last_arms, rays3d, seen))
         return FrameResult(hands, bodies, events, rays3d, hand_rays3d, persons, seen, faces)
 
-    def faces_of(
-        self, frame: Frame, img: np.ndarray, seen: PeopleOfFrame | None, persons: Persons | None
-    ) -> Faces | None:
-        """The face stage's Faces of this frame, tied to the persons both ways (`link_faces`: a face's person, a
+    def link(self, frame: Frame, faces: Faces | None, seen: PeopleOfFrame | None, persons: Persons | None) -> None:
+        """The face stage's Faces of this frame tied to the persons both ways (`link_faces`: a face's person, a
         person's face); the persons of the stage's last run stand for the frames between its runs."""
-        faces = self.faces.sample(frame, img, self.source)
         if persons is not None:
             self.people.persons[frame.cam] = persons
         link_faces(faces, self.people.persons.get(frame.cam) if seen is not None else None)
-        return faces
+
+
+def face_boxes(faces: Faces | None, max_faces: int) -> list[tuple[Box, str | None]] | None:
+    """The face stage's faces as the person stage's (box, face id), so that it needs no face detector of its own on
+    this frame; None (the person stage detects faces itself) when the face stage did not run on it, or found as
+    many faces as it tracks (there may be more)."""
+    if faces is None or len(faces.faces) >= max_faces:
+        return None
+    return [((f.bbox[0], f.bbox[1], f.bbox[2], f.bbox[3]), f.id) for f in faces.faces]
 
 
 def people_bodies(

@@ -61,11 +61,11 @@ class FaceConfig:
         metavar="S",
     )
     faces_max_rate: float = setting(
-        0.0,
-        "at most this many frames per second per camera go through the face stage (mouth motion needs >= 12)",
+        15.0,
+        "at most this many frames per second per camera go through the face stage (mouth motion needs >= 12); "
+        "0: every frame",
         at_least=0,
         metavar="FPS",
-        default_text="0: every frame",
     )
 
 
@@ -264,6 +264,29 @@ class FaceStage:
         self.mesher.close()
 
 
+@dataclass
+class RatePace:
+    """At most `rate` runs per second of source time (0: every frame), at that rate on average: each run is due one
+    period after the previous one was due, not after the frame it ran on, so stamps that jitter around the frame
+    period (a 30 fps camera at a 15/s cap) give every 2nd frame, not every 3rd. A frame a quarter period early
+    counts as due; a gap or a clock going back starts afresh."""
+
+    rate: float
+    next_due: float | None = None
+
+    def due(self, stamp: float) -> bool:
+        if self.rate <= 0:
+            return True
+        period = 1.0 / self.rate
+        early = period / 4
+        nxt = self.next_due
+        if nxt is not None and nxt - period <= stamp < nxt - early:
+            return False
+        on_time = nxt is not None and nxt - early <= stamp < nxt + period
+        self.next_due = nxt + period if on_time and nxt is not None else stamp + period
+        return True
+
+
 class FaceStages:
     """The face stage of every camera: a frame -> its `Faces` sample, or None when `faces_max_rate` skips it."""
 
@@ -271,16 +294,14 @@ class FaceStages:
         self.cfg = cfg
         self.enabled = enabled  # off (--no-faces): no sample, no cost
         self.stages: dict[str, FaceStage] = {}
-        self.last: dict[str, float] = {}  # cam -> stamp of the last frame processed
+        self.pace: dict[str, RatePace] = {}  # cam -> which of its frames the stage runs on
 
     def sample(self, frame: Frame, bgr: np.ndarray, source: str) -> Faces | None:
         if not self.enabled:
             return None
-        last = self.last.get(frame.cam)
-        rate = self.cfg.faces_max_rate
-        if rate > 0 and last is not None and last <= frame.stamp < last + 1.0 / rate:
+        pace = self.pace.setdefault(frame.cam, RatePace(self.cfg.faces_max_rate))
+        if not pace.due(frame.stamp):
             return None
-        self.last[frame.cam] = frame.stamp
         if frame.cam not in self.stages:
             self.stages[frame.cam] = FaceStage(self.cfg, id_prefix=f"{frame.cam}/face-")
         faces = self.stages[frame.cam].process(bgr, frame.stamp)

@@ -154,14 +154,16 @@ class CameraPeople:
         hands: list[Observation],
         rays3d: FrameRays | None,
         fresh: bool,
+        faces: list[tuple[Box, str | None]] | None = None,
     ) -> PeopleOfFrame | None:
+        """`faces`: the face stage's faces of this frame, when it ran on it (PeopleStage.update)."""
         if not self.every:
             return None
         if fresh or frame.cam not in self.stages:
             if frame.cam in self.stages:
                 self.stages[frame.cam].close()
             self.stages[frame.cam] = PeopleStage(every=self.every)
-        return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d)
+        return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d, faces)
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
         """The `Persons` of a frame the stage ran on."""
