@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
+from common.boxes import iou
 from common.schema import Frame
 from services.gesture.core import FrameResult, GestureCore, GestureSettings
 from services.gesture.faces import FaceConfig, FaceStages, RatePace
@@ -114,3 +115,22 @@ def test_faces_capped_at_15_per_s_keep_their_ids_and_mouths_on_a_real_clip() -> 
         mouth_full, mouth_capped = a.faces[0].mouth_open, b.faces[0].mouth_open
         if mouth_full is not None and mouth_capped is not None:
             assert abs(mouth_full - mouth_capped) <= 0.05
+
+
+def test_the_person_stage_on_the_face_stages_faces_finds_the_same_people_as_with_its_own_detector() -> None:
+    """Two people on a real clip, every frame through the person stage: fed the face stage's faces (no face
+    detector of its own), it finds the same persons, with bodies, in boxes that overlap its own detector's
+    (IoU >= 0.7), and each person carries the face id of the face inside it."""
+    cap = cv2.VideoCapture(str(shared_path("data/talking/comp_turns_bbaf2n_lbbc2a.mp4")))
+    images = [np.asarray(cap.read()[1]) for _ in range(20)]
+    cap.release()
+    own = _run(GestureSettings(persons_every=1, faces=False, body=False), images)
+    fed = _run(GestureSettings(persons_every=1, faces=True, body=False, face=FaceConfig(faces_max_rate=0)), images)
+    for a, b in zip(own, fed):
+        assert a.persons is not None and b.persons is not None
+        assert len(a.persons.persons) == len(b.persons.persons) == 2
+        for p, q in zip(a.persons.persons, b.persons.persons):
+            assert p.has_body and q.has_body
+            assert iou(p.bbox, q.bbox) >= 0.7
+        assert b.faces is not None
+        assert sorted(p.face or "" for p in b.persons.persons) == sorted(f.id for f in b.faces.faces)
