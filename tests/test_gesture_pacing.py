@@ -1,4 +1,4 @@
-"""The gesture stages at their own rate (issue #34): the face stage capped per camera (`RatePace`, default 15/s)
+"""The gesture stages at their own rate (issue #34): the face stage capped per camera (`RatePace`, default 20/s)
 and the hand search while no hand is in view (`hands_idle_every`, default 2), against the every-frame path on
 real frames: the same gestures start, at most N-1 frames later, and the hands found agree."""
 
@@ -27,6 +27,14 @@ def test_a_15_per_s_cap_on_a_jittery_30_fps_camera_runs_every_second_frame() -> 
     rng = np.random.default_rng(0)
     stamps = [k / 30 + float(rng.uniform(-0.004, 0.004)) for k in range(300)]
     assert runs_of(RatePace(15.0), stamps) == list(range(0, 300, 2))
+
+
+def test_the_default_20_per_s_cap_on_a_30_fps_camera_runs_two_frames_of_three() -> None:
+    rng = np.random.default_rng(1)
+    stamps = [k / 30 + float(rng.uniform(-0.004, 0.004)) for k in range(300)]
+    runs = runs_of(RatePace(FaceConfig().faces_max_rate), stamps)
+    assert len(runs) == 200
+    assert max(b - a for a, b in zip(runs, runs[1:])) == 2
 
 
 def test_the_cap_holds_its_rate_on_average_at_a_frame_rate_that_does_not_divide_it() -> None:

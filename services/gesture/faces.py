@@ -61,7 +61,7 @@ class FaceConfig:
         metavar="S",
     )
     faces_max_rate: float = setting(
-        15.0,
+        20.0,
         "at most this many frames per second per camera go through the face stage (mouth motion needs >= 12); "
         "0: every frame",
         at_least=0,

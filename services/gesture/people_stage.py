@@ -3,9 +3,9 @@ person region feeding the pure tracker (services/gesture/persons.py), turned int
 hand's and skeleton's person id, and a body for every person.
 
 Its faces are the face stage's on the frames that stage ran on (GestureCore passes them: no second face model),
-else its own MediaPipe face detection. It runs on every `every`-th frame of a camera (`--persons-every`: pose per extra person costs a full pose run,
-~35 ms on this machine); on the frames between, hands are given to the persons of the last run (their boxes and
-wrists are at most `every - 1` frames old).
+else its own MediaPipe face detection. It runs on every `every`-th frame of a camera (`--persons-every`: pose per
+extra person costs a full pose run, ~35 ms on this machine); on the frames between, hands are given to the persons
+of the last run (their boxes and wrists are at most `every - 1` frames old).
 """
 
 from __future__ import annotations
