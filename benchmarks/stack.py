@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -389,7 +390,8 @@ def service_figures(first: Window, last: Window, cores: int) -> dict[str, Any]:
 def run_stack(cfg: RunConfig) -> dict[str, Any]:
     port, prefix = free_port(), f"bench{os.getpid()}"
     endpoint = f"tcp/127.0.0.1:{port}"
-    log = open(Path(tempfile.gettempdir()) / f"hri-stack-bench-{prefix}-{cfg.label}.log", "w")  # noqa: SIM115
+    name = re.sub(r"[^\w.-]+", "_", cfg.label)  # a label may hold a '/' ("faces 15/s")
+    log = open(Path(tempfile.gettempdir()) / f"hri-stack-bench-{prefix}-{name}.log", "w")  # noqa: SIM115
     up = subprocess.Popen(
         up_argv(cfg, endpoint, prefix), cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, start_new_session=True
     )
