@@ -111,7 +111,8 @@ class CameraGestures:
         )
         if s.body:
             self.pose = PoseLandmarker()
-        self.hands_in_view, self.idle_skipped = False, 0
+        # a new stream's first frame is searched (as if the idle frames had all gone by)
+        self.hands_in_view, self.idle_skipped = False, s.hands_idle_every
 
     def find_hands(self, img: np.ndarray) -> list[Observation]:
         """The hands of this frame. While none is in view, the search (MediaPipe's palm detector, most of the
