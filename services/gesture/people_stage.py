@@ -41,6 +41,13 @@ def hand_person(seen: PeopleOfFrame | None, k: int) -> str | None:
     return seen.hand_owners[k] if seen is not None else None
 
 
+def other_skeletons(seen: PeopleOfFrame | None) -> list[np.ndarray]:
+    """The skeletons of the persons other than the full-frame skeleton's (the stage's last run between its runs)."""
+    if seen is None:
+        return []
+    return [p.body for p in seen.persons if p.body is not None and p.id != seen.main_person]
+
+
 def event_person(seen: PeopleOfFrame | None, hand: str, ray: TrackedRay | None) -> str | None:
     """The person of a gesture event: for an arm seen by pose alone (a `body` ray), the full-frame skeleton's
     person; else the person of this frame's hand of that side."""
