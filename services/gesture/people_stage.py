@@ -63,9 +63,15 @@ class PeopleStage:
 
     def __init__(self, every: int = 2, keep_s: float = 1.0):
         self.every = every
+        self.keep_s = keep_s
         self.faces = FaceDetector()
         self.regions = RegionPose()
-        self.tracker = PersonTracker(keep_s=keep_s)
+        self.restart()
+
+    def restart(self) -> None:
+        """A new stream: new person ids. The models are kept: neither holds state between frames (single-image
+        detection), and building MediaPipe graphs again on every restart costs time and memory."""
+        self.tracker = PersonTracker(keep_s=self.keep_s)
         self.frames = 0
         self.last: list[PersonTrack] = []
         self.main: str | None = None
@@ -164,10 +170,10 @@ class CameraPeople:
     ) -> PeopleOfFrame | None:
         if not self.every:
             return None
-        if fresh or frame.cam not in self.stages:
-            if frame.cam in self.stages:
-                self.stages[frame.cam].close()
+        if frame.cam not in self.stages:
             self.stages[frame.cam] = PeopleStage(every=self.every)
+        elif fresh:
+            self.stages[frame.cam].restart()
         return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d)
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
