@@ -1,7 +1,8 @@
 """The photo sets and the judging of gestures on real photos, shared by tests/test_gesture_photos.py and
 benchmarks/gesture.py: each photo goes through the service's whole per-frame path (lite hand model + pose, video
-mode, the tracker with hand + body fusion), shown for 6 frames like a camera holding still; what gesture *starts*
-is judged against the expected one. The 27-photo set (issue #23) is defined here and in docs/gesture.md.
+mode, the person stage every 2nd frame, the tracker with hand + body fusion and the other persons' skeletons),
+shown for 6 frames like a camera holding still; what gesture *starts* is judged against the expected one. The
+27-photo set (issue #23) is defined here and in docs/gesture.md.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
+from services.gesture.people_stage import PeopleStage, other_skeletons
 from services.gesture.temporal import GestureTracker
 from testkit.harness import DATA
 from testkit.images import read_image
@@ -74,14 +76,18 @@ def starts_on_photo(path: Path, frames: int = FRAMES) -> list[tuple[str, str]]:
     if img is None:
         raise FileNotFoundError(f"cannot read {path}")
     hands, pose, tracker = HandLandmarker("lite", video=True), PoseLandmarker(video=True), GestureTracker()
+    people = PeopleStage(every=2)  # the service's default `--persons-every 2`: every person's own skeleton
     out = []
     try:
         for i in range(frames):
-            _, events = tracker.update(i / 10, hands.detect(img), pose.detect(img), (img.shape[1], img.shape[0]))
+            found, skeleton = hands.detect(img), pose.detect(img)
+            others = other_skeletons(people.update(i / 10, img, skeleton, found))
+            _, events = tracker.update(i / 10, found, skeleton, (img.shape[1], img.shape[0]), None, others)
             out += [(e.gesture, e.hand) for e in events if e.phase == "start"]
     finally:
         hands.close()
         pose.close()
+        people.close()
     return out
 
 

@@ -214,3 +214,22 @@ def test_a_slow_machine_keeps_the_ids_of_people_seen_in_every_frame_it_processes
     assert [t.id for t in tracker.update(2.5, [_obs(a), _obs(b)])] == ["person-1", "person-2"]
     assert [t.id for t in tracker.update(5.0, [_obs(a)])] == ["person-1"]
     assert [t.id for t in tracker.update(7.5, [_obs(a), _obs(b)])] == ["person-1", "person-3"]
+
+
+def test_the_skeletons_given_to_the_tracker_are_the_other_persons_only() -> None:
+    """`other_skeletons`: the persons other than the full-frame skeleton's, with a body; everyone's when the pose saw
+    nobody in the full frame; none without the stage."""
+    from services.gesture.people_stage import PeopleOfFrame, other_skeletons
+    from services.gesture.persons import PersonTrack
+
+    main, other = np.zeros((33, 3)), np.ones((33, 3))
+    persons = [
+        PersonTrack("person-1", (0.0, 0.0, 10.0, 10.0), None, None, main, 1.0, 0.0, 0.0),
+        PersonTrack("person-2", (20.0, 0.0, 10.0, 10.0), None, None, other, 1.0, 0.0, 0.0),
+        PersonTrack("person-3", (40.0, 0.0, 10.0, 10.0), (40.0, 0.0, 5.0, 5.0), None, None, 1.0, 0.0, 0.0),
+    ]
+    seen = PeopleOfFrame(True, persons, [], [], "person-1")
+    assert [b is other for b in other_skeletons(seen)] == [True]
+    seen.main_person = None
+    assert len(other_skeletons(seen)) == 2
+    assert other_skeletons(None) == []

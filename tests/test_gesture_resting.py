@@ -212,3 +212,67 @@ def test_resting_hands_on_the_real_photos_start_no_point_and_no_grasp(name: str)
         hand_stage.close()
         pose_stage.close()
     assert not {"point", "fist"} & set(started(events)), started(events)
+
+
+# -- a hand of another person than the full-frame skeleton's, and a fist at the head (issue #31 follow-up) ---------
+def run_with_others(
+    observations: list[Observation], pose: np.ndarray | None, others: list[np.ndarray], dims: tuple[int, int]
+) -> list[Event]:
+    tracker, events = GestureTracker(), []
+    for i in range(6):
+        events += tracker.update(100 + i / 30, observations, pose, dims, None, others)[1]
+    return events
+
+
+def test_a_fist_on_the_knee_of_another_person_than_the_full_frame_skeleton_is_no_grasp() -> None:
+    """coco_241's seated man when MediaPipe Pose's full-frame skeleton is the standing man's (as on the full photo):
+    his real hands match no arm of the standing man, so the hand stage alone read `fist`. Given the seated man's own
+    skeleton (the person stage's), his fist rests on his leg: nothing starts. The standing man's skeleton is put far
+    to the right of the seated man's, as in the photo."""
+    seated, seen = body("seated_hands_on_knees"), hands("seated_hands_on_knees")
+    standing = body("standing_fist_hanging").copy()
+    standing[:, 0] += 600.0  # beside him: none of its wrists is near the seated man's hands
+    dims = (1100, 760)
+    assert "fist" in started(run_with_others(seen, standing, [], dims))  # without his skeleton: a grasp
+    assert started(run_with_others(seen, standing, [seated], dims)) == []
+    assert started(run_with_others(seen, None, [seated], dims)) == []  # no full-frame skeleton at all
+
+
+def test_another_persons_arm_never_makes_a_point_but_their_raised_fist_stays_a_grasp() -> None:
+    """The control: the real pointing hand and fist on the arm held out of another person (testkit.hands) keep
+    their own classes: the other person's arm judges rest, it does not invent or remove signs held up."""
+    from testkit.hands import RIGHT_OUT, person
+
+    other = person(right_arm=RIGHT_OUT)
+    pointing = hand_at(real("point_right"), (140, 190), 25)
+    fist = hand_at(fold_index(real("point_right")), (140, 190), 25)
+    assert started(run_with_others([pointing], None, [other], (640, 480))) == ["point"]
+    assert started(run_with_others([fist], None, [other], (640, 480))) == ["fist"]
+
+
+def test_a_fist_at_the_head_is_no_grasp_but_beside_it_is() -> None:
+    """The real fist (the demo's pointing hand with its index folded) at the face of a real skeleton (none_00c84257,
+    at her palm size): a hand at the head (a phone, a "call me" sign the lite model folds, a hand scratching) is
+    not a grasp sign. Four palms to the side of the head, at the same height, it is."""
+    pose = body("forearm_across_belly")
+    palm = palm_size(hands("forearm_across_belly")[0].landmarks)
+    face = pose[[0, 7, 8], :2].mean(axis=0)
+    at_face = hand_at(fold_index(real("point_right")), face + (0.0, palm), palm, hand="right")
+    beside = hand_at(fold_index(real("point_right")), face + (4 * palm, palm), palm, hand="right")
+    assert classify(at_face.landmarks) == classify(beside.landmarks) == "fist"
+    assert started(run([at_face], pose, size("forearm_across_belly"))) == []
+    assert started(run([beside], pose, size("forearm_across_belly"))) == ["fist"]
+    assert started(run_with_others([at_face], None, [pose], size("forearm_across_belly"))) == []  # anyone's head
+
+
+@pytest.mark.parametrize(
+    "photo",
+    ["people_multi/coco_val2014_000000000241.jpg", "people/call_172ba7f6-c6ba-4398-89a2-25375dccfefa.jpg"],
+)
+def test_the_two_resting_hands_left_start_nothing_through_the_service_path(photo: str) -> None:
+    """The whole photos through the service's path (hands, pose, the person stage, the tracker;
+    testkit.gesture_photos): coco_241's seated man's hand on his knee (his skeleton is the person stage's) and the
+    "call" sign held at the ear that the lite hand model folds into a fist. Before: a `fist` start on each."""
+    from testkit.gesture_photos import starts_on_photo
+
+    assert starts_on_photo(shared_path(f"data/{photo}")) == []

@@ -53,6 +53,7 @@ PLAIN_SEGMENT = 0.5  # x body scale: an arm segment at least this long in the im
 ON_KNEE = 0.6  # x shoulder width: a wrist this near a knee rests on it (seated: 0.43-0.45; points: >= 1.6)
 ON_THIGH = 0.35  # x shoulder width: a wrist this near the hip -> knee segment lies on the thigh or the lap
 ON_LEG_M = 0.12  # m: the same in 3-D (a hand is ~0.1 m thick, the lifted points are on the surfaces)
+HEAD = tuple(range(11))  # pose landmarks of the face: nose, eyes, ears, mouth
 UPPER_ARM_M = (0.12, 0.5)  # plausible lifted lengths, m (adults and children, with depth noise)
 FOREARM_M = (0.1, 0.45)
 
@@ -284,3 +285,14 @@ def raised_hand(landmarks: np.ndarray | list, side: str, scale: float) -> bool:
         return False
     up = math.degrees(math.acos(max(-1.0, min(1.0, -forearm[1]))))
     return bool(p[s, 1] - p[w, 1] >= RAISED_ABOVE_SHOULDER * scale and up <= FOREARM_UP_DEG)
+
+
+def at_head(landmarks: np.ndarray | list, point: np.ndarray | tuple, margin: float) -> bool:
+    """Is this point (px, a hand's centre) at the person's head: inside the box of the face's seen landmarks (nose,
+    eyes, ears, mouth) grown by `margin` px on every side (the chin and the cheeks lie beyond the landmarks)?"""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)[list(HEAD)]
+    seen = p[p[:, 2] >= MIN_VISIBILITY, :2]
+    if len(seen) < 3:
+        return False
+    low, high = seen.min(axis=0) - margin, seen.max(axis=0) + margin
+    return bool((low <= np.asarray(point, dtype=float)).all() and (np.asarray(point, dtype=float) <= high).all())

@@ -27,7 +27,7 @@ from common.schema import (
 )
 from services.gesture.faces import FaceConfig, FaceStages, link_faces
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
-from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms
+from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms, other_skeletons
 from services.gesture.persons import Box
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
@@ -184,15 +184,16 @@ class GestureCore:
         rays3d = self.frame_rays(frame, skeleton, world)
         joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
         size = (frame.width, frame.height)
-        tracked, events = cam.tracker.update(frame.stamp, observations, skeleton, size, joints3d)
+        faces = self.faces.sample(frame, img, self.source)
+        boxes = face_boxes(faces, self.settings.face.max_faces)
+        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh, faces=boxes)
+        others = other_skeletons(seen)  # their hands keep the resting rules of their own arms (issue #31)
+        tracked, events = cam.tracker.update(frame.stamp, observations, skeleton, size, joints3d, others)
         hand_rays3d = {
             o.hand: rays3d.hand(o.landmarks, tip=t.ray.source == "hand")
             for o, t in zip(observations, tracked)
             if rays3d is not None and t.ray is not None
         }
-        faces = self.faces.sample(frame, img, self.source)
-        boxes = face_boxes(faces, self.settings.face.max_faces)
-        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh, faces=boxes)
         persons = self.people.sample(frame, seen, self.source) if seen is not None and seen.ran else None
         self.link(frame, faces, seen, persons)
         fields = frame_fields(frame, self.source)

@@ -42,6 +42,13 @@ def hand_person(seen: PeopleOfFrame | None, k: int) -> str | None:
     return seen.hand_owners[k] if seen is not None else None
 
 
+def other_skeletons(seen: PeopleOfFrame | None) -> list[np.ndarray]:
+    """The skeletons of the persons other than the full-frame skeleton's (the stage's last run between its runs)."""
+    if seen is None:
+        return []
+    return [p.body for p in seen.persons if p.body is not None and p.id != seen.main_person]
+
+
 def event_person(seen: PeopleOfFrame | None, hand: str, ray: TrackedRay | None) -> str | None:
     """The person of a gesture event: for an arm seen by pose alone (a `body` ray), the full-frame skeleton's
     person; else the person of this frame's hand of that side."""
@@ -57,9 +64,15 @@ class PeopleStage:
 
     def __init__(self, every: int = 2, keep_s: float = 1.0):
         self.every = every
+        self.keep_s = keep_s
         self.faces = FaceDetector()
         self.regions = RegionPose()
-        self.tracker = PersonTracker(keep_s=keep_s)
+        self.restart()
+
+    def restart(self) -> None:
+        """A new stream: new person ids. The models are kept: neither holds state between frames (single-image
+        detection), and building MediaPipe graphs again on every restart costs time and memory."""
+        self.tracker = PersonTracker(keep_s=self.keep_s)
         self.frames = 0
         self.last: list[PersonTrack] = []
         self.main: str | None = None
@@ -160,10 +173,10 @@ class CameraPeople:
         """`faces`: the face stage's faces of this frame, when it ran on it (PeopleStage.update)."""
         if not self.every:
             return None
-        if fresh or frame.cam not in self.stages:
-            if frame.cam in self.stages:
-                self.stages[frame.cam].close()
+        if frame.cam not in self.stages:
             self.stages[frame.cam] = PeopleStage(every=self.every)
+        elif fresh:
+            self.stages[frame.cam].restart()
         return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d, faces)
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:

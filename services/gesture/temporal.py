@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import cast
 
@@ -30,6 +31,7 @@ from services.gesture.body import (
     Arm,
     arm,
     arm_judged,
+    at_head,
     body_scale as _body_scale,
     held_at_body,
     lowered,
@@ -42,6 +44,7 @@ HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable tha
 CLOSE_UP_PALM_PER_BODY = 0.75  # palm / body_scale at least this: a close-up hand, the skeleton is no reference
 TOGETHER_PALMS = 1.5  # two wrists this near (x the larger palm) are hands held together: clasped, holding a thing
 SAME_HAND_PALMS = 0.25  # mean landmark distance below this (x palm): one hand found twice, not two hands
+AT_HEAD_PALMS = 1.0  # a hand's centre within this (x palm) of the face's landmarks' box: the hand is at the head
 
 
 @dataclass
@@ -138,6 +141,7 @@ def fuse_arms(
     body: np.ndarray | None,
     hand_ray_min_palm: float = HAND_RAY_MIN_PALM,
     joints3d: np.ndarray | None = None,
+    others: Sequence[np.ndarray] = (),
 ) -> list[Cue]:
     """Hands and arms of one frame -> cues. A hand whose wrist is at the arm's wrist is that arm's hand. Its class
     decides (a fist on an extended arm is not pointing; an open palm never becomes a point); the arm adds only
@@ -148,18 +152,25 @@ def fuse_arms(
     at room distance the hand itself is a few pixels. A close-up hand in view also turns pose-only cues off
     (MediaPipe Pose then often guesses a skeleton around the hand). The more reliable ray wins: the finger's when
     the palm is at least `hand_ray_min_palm` px, else the arm's. Hands held at the body (issue #31: together,
-    folded at the chest, on a knee, a fist hanging or on an armrest) are neither a point nor a grasp (`shown`)."""
+    folded at the chest, on a knee, a fist hanging or on an armrest) are neither a point nor a grasp (`shown`).
+    `others`: the skeletons (33x3) of the other persons in view (the person stage's). A hand matched to no arm of
+    `body` is judged on its own person's arm when it lies at the wrist of one of theirs: the same resting rules
+    (held at the body, a lowered fist, a resting palm), but no arm of theirs makes it a point. A fist at anyone's
+    head (`at_head`: a phone, a "call me" sign, a hand scratching or eating) is not a grasp sign."""
     free = [a for a in arms if a.visibility >= MIN_VISIBILITY]  # an arm pose cannot see has no wrist to match
     palms = [palm_size(obs.landmarks) for obs in observations]
     together = hands_together(observations, palms)
+    bodies = [*([] if body is None else [body]), *others]
     cues = []
     for k, obs in enumerate(observations):
         near = [a for a in free if _wrist_gap(a, obs) <= max(1.5 * palms[k], 0.5 * a.forearm)]
         match = min(near, key=lambda a: _wrist_gap(a, obs), default=None)
         if match is not None:
             free.remove(match)  # its hand is in view: no second, pose-only cue for the same arm
-        hand = _HandSeen(k, obs, palms[k], k in together)
-        if match is None or close_up(palms[k], body):
+        hand = _HandSeen(k, obs, palms[k], k in together, _hand_at_head(obs, palms[k], bodies))
+        if match is None:
+            cues.append(_lone_hand_cue(hand, None, _own_arm(obs, palms[k], others)))
+        elif close_up(palms[k], body):
             cues.append(_lone_hand_cue(hand, match))
         else:
             cues.append(_arm_hand_cue(hand, match, body, hand_ray_min_palm, joints3d))
@@ -174,16 +185,62 @@ class _HandSeen:
     obs: Observation
     palm: float
     together: bool  # held together with another hand
+    at_head: bool = False  # its centre at someone's head (`at_head`)
+
+    def held(self, raw: str | None) -> bool:
+        """Is this class, on this hand, a hand held rather than a sign: a point or fist held together with the other
+        hand, or a fist at the head?"""
+        return (self.together and raw in ("point", "fist")) or (self.at_head and raw == "fist")
+
+
+@dataclass(frozen=True)
+class _OwnArm:
+    """The arm of another person (not the tracker's) that a hand lies at the wrist of."""
+
+    body: np.ndarray  # that person's 33x3 skeleton
+    arm: Arm
 
 
 def _wrist_gap(a: Arm, obs: Observation) -> float:
     return float(np.hypot(*(np.array(a.wrist) - obs.landmarks[0])))
 
 
-def _lone_hand_cue(hand: _HandSeen, match: Arm | None) -> Cue:
-    """A hand with no arm, or a close-up one (the skeleton is no reference): the hand stage decides alone."""
+def _hand_at_head(obs: Observation, palm: float, bodies: list[np.ndarray]) -> bool:
+    """Is this hand at the head of a person it is not a close-up beside (a skeleton guessed around a close-up hand
+    puts a "head" anywhere)?"""
+    centre = obs.landmarks.mean(axis=0)
+    return any(at_head(b, centre, AT_HEAD_PALMS * palm) for b in bodies if not close_up(palm, b))
+
+
+def _own_arm(obs: Observation, palm: float, others: Sequence[np.ndarray]) -> _OwnArm | None:
+    """The arm of another person whose wrist this hand is at (the same match as the tracker's own arms), unless
+    the hand is a close-up beside that skeleton."""
+    best: tuple[float, _OwnArm] | None = None
+    for b in others:
+        if close_up(palm, b):
+            continue
+        for side in ("left", "right"):
+            a = arm(b, side, 0, 0)  # (no size: the ray is not wanted, only where the arm is)
+            gap = _wrist_gap(a, obs)
+            if a.visibility >= MIN_VISIBILITY and gap <= max(1.5 * palm, 0.5 * a.forearm):
+                if best is None or gap < best[0]:
+                    best = (gap, _OwnArm(b, a))
+    return best[1] if best else None
+
+
+def _at_rest_on_own_arm(raw: str | None, hand: _HandSeen, own: _OwnArm) -> bool:
+    """The resting rules of a hand on its own person's arm: held at the body (`shown`), or a palm not raised."""
+    side, wrist = own.arm.side, hand.obs.landmarks[0]
+    if not shown(raw, own.body, side, wrist, None):
+        return True
+    return raw == "open_palm" and arm_judged(own.body, side) and not raised_palm(own.body, side, hand.obs.landmarks)
+
+
+def _lone_hand_cue(hand: _HandSeen, match: Arm | None, own: _OwnArm | None = None) -> Cue:
+    """A hand with no arm of the tracker's person, or a close-up one (the skeleton is no reference): the hand stage
+    decides, but a hand at the wrist of another person's arm (`own`) keeps that person's resting rules."""
     raw = classify(hand.obs.landmarks)
-    if hand.together and raw in ("point", "fist"):
+    if hand.held(raw) or (own is not None and _at_rest_on_own_arm(raw, hand, own)):
         raw = None
     ray = pointing_ray(hand.obs.landmarks) if raw == "point" else None
     side = hand.obs.hand if match is None else match.side
@@ -197,7 +254,7 @@ def _arm_hand_cue(
     palm from a resting one, and tells a hand shown from one held at the body."""
     obs, palm = hand.obs, hand.palm
     raw = hand_class = classify(obs.landmarks)
-    if (hand.together and raw in ("point", "fist")) or not shown(raw, body, match.side, obs.landmarks[0], joints3d):
+    if hand.held(raw) or not shown(raw, body, match.side, obs.landmarks[0], joints3d):
         raw = hand_class = None  # held at the body; and then no arm makes it a point either
     elif raw == "open_palm":
         # (an arm is judged only on a body: `body is not None` is said for the type checker)
@@ -296,13 +353,15 @@ class GestureTracker:
         body: np.ndarray | None = None,
         size: tuple[int, int] = (0, 0),
         joints3d: np.ndarray | None = None,
+        others: Sequence[np.ndarray] = (),
     ) -> tuple[list[TrackedHand], list[Event]]:
         """One frame: the hands seen and, if the body stage runs, the person's 33x3 pose landmarks (None: no
         body seen) in an image of `size` (width, height); `joints3d`, with depth, the same landmarks in metres
         (33x3, NaN where unknown: space.lift_pose), so that arms are judged in 3-D. Hand and arm of one side
-        become one cue (fuse_arms)."""
+        become one cue (fuse_arms). `others`: the other persons' skeletons (the person stage's), whose hands keep the
+        resting rules of their own arms."""
         arms = self._judge_arms(body, size, joints3d)
-        cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm, joints3d)
+        cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm, joints3d, others)
         self.last_arms = [(a, None) for a in arms]
         events: list[Event] = []
         assigned = self._associate(cues)
