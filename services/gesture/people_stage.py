@@ -153,7 +153,7 @@ def other_arms(landmarks: np.ndarray, width: int, height: int) -> list[tuple[Arm
 
 class CameraPeople:
     """The person stage of every camera (`every` 0: off). A camera whose stream restarts (`fresh`: new, or gone
-    quiet and back) gets a new stage: new ids."""
+    quiet and back) restarts its tracker: new ids (the models are kept)."""
 
     def __init__(self, every: int):
         self.every = every
