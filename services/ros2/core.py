@@ -527,19 +527,23 @@ class CameraBridge:
             raise InvalidSample("oversized", f"image of {width}x{height} is over the cap of {self.max_pixels} pixels")
 
     def frame(self, image: Any, now: float) -> Frame:
-        stamp = unix_time(image.header.stamp) or now
         width, height = int(image.width), int(image.height)
         self.check_pixels(width, height)
+        return self.stack_frame(image, now, (width, height), "bgr8", bgr8_rows(image))
+
+    def stack_frame(self, image: Any, now: float, size: tuple[int, int], encoding: ImageEncoding, data: bytes) -> Frame:
+        """The stack's Frame of a ROS image (raw or compressed), stamped with its header's time (else `now`)."""
+        stamp = unix_time(image.header.stamp) or now
         return Frame(
             stamp=stamp,
             source=self.source,
             seq=self.seq_of(stamp),
             cam=self.config.cam,
-            width=width,
-            height=height,
-            encoding="bgr8",
-            data=bgr8_rows(image),
-            camera_info=self.info_for(width, height),
+            width=size[0],
+            height=size[1],
+            encoding=encoding,
+            data=data,
+            camera_info=self.info_for(*size),
         )
 
     def compressed_frame(self, image: Any, now: float, size: tuple[int, int]) -> Frame:
@@ -553,18 +557,7 @@ class CameraBridge:
         else:
             raise InvalidSample("bad_value", f"format {image.format!r}: jpeg or png only")
         self.check_pixels(*size)
-        stamp = unix_time(image.header.stamp) or now
-        return Frame(
-            stamp=stamp,
-            source=self.source,
-            seq=self.seq_of(stamp),
-            cam=self.config.cam,
-            width=size[0],
-            height=size[1],
-            encoding=encoding,
-            data=bytes(image.data),
-            camera_info=self.info_for(*size),
-        )
+        return self.stack_frame(image, now, size, encoding, bytes(image.data))
 
     def depth(self, image: Any, now: float) -> DepthFrame:
         """Aligned depth: 16UC1 in millimetres (REP-118) or 32FC1 in metres; needs the camera's calibration."""
