@@ -137,14 +137,16 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     assert schemas == {"hri/camera/cam0/depth": "DepthFrame", "hri/camera/cam0/frame": "Frame"}
     depths = [decode(d, DepthFrame) for t, d in recorded if t.endswith("/depth")]
     frames = [decode(d, Frame) for t, d in recorded if t.endswith("/frame")]
-    # Frames and depth go out droppable (DROP congestion control, docs/foundation.md QoS): under load one of the
-    # two may be lost on the wire, so each recorded sample is checked against what its seq names, and every colour
-    # frame that arrived must have its depth frame, with the same stamp, recorded beside it.
+    # Frames and depth go out droppable (DROP congestion control, docs/foundation.md QoS): under load either of a
+    # capture's two samples may be lost on the wire (a colour frame without its depth was seen in a fresh-clone CI
+    # run), so each recorded sample is checked against what its seq names, at least one capture must be recorded
+    # whole, and every colour frame whose depth was recorded carries the depth's stamp.
     assert frames and depths, (len(frames), len(depths))
     seqs = [d.seq for d in depths]
     assert seqs == sorted(set(seqs)) and set(seqs) <= {0, 1}, seqs
     stamp_of = {d.seq: d.stamp for d in depths}
-    assert all(f.seq in stamp_of and f.stamp == stamp_of[f.seq] for f in frames), ([f.seq for f in frames], seqs)
+    paired = [f for f in frames if f.seq in stamp_of]
+    assert paired and all(f.stamp == stamp_of[f.seq] for f in paired), ([f.seq for f in frames], seqs)
     photos = sorted(folder.glob("*-depth.png"))
     for d in depths:
         assert np.array_equal(depth_units(d), read_image(str(photos[d.seq]), cv2.IMREAD_UNCHANGED))  # lossless
