@@ -16,6 +16,7 @@ from services.vision.color import (
     illuminant_gains,
     measure_lab,
 )
+from services.vision.colour_memory import REUSE_FRAMES, Colour, ColourMemory
 from services.vision.depth import DepthImage, with_depth
 from services.vision.quality import image_quality
 from services.vision.segment import ColorSegmenter, Detection
@@ -133,22 +134,37 @@ def mixed_names(groups: list[tuple[tuple[float, float, float], float]], top: int
 
 
 class VisionPipeline:
-    """Per camera: detect, name colours, keep ids stable. Not thread-safe: one worker calls it."""
+    """Per camera: detect, name colours, keep ids stable. Not thread-safe: one worker calls it.
+    `colour_reuse_frames`: a still object's colour is reused for up to this many frames (colour_memory.py)."""
 
-    def __init__(self, detector: ColorSegmenter | YoloDetector):
+    def __init__(self, detector: ColorSegmenter | YoloDetector, colour_reuse_frames: int = REUSE_FRAMES):
         self.detector = detector
+        self.colour_reuse_frames = colour_reuse_frames
         self.trackers: dict[str, Tracker] = {}
+        self.colours: dict[str, ColourMemory] = {}
 
-    def detections(self, bgr: np.ndarray) -> list[Detection]:
+    def new_scene(self) -> None:
+        """Forget every camera's objects (ids and colours): the next frames show another scene."""
+        self.trackers.clear()
+        self.colours.clear()
+
+    def detections(self, bgr: np.ndarray, cam: str = "") -> list[Detection]:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
-        gains = illuminant_gains(bgr)  # one estimate of the scene's light per frame
-        out = []
-        for label, score, box in self.detector.detect(bgr):
-            label = canonical_label(label)  # the language's class where one fits ("mug" -> "cup")
-            lab, names = object_colour(bgr, box, gains, label)
-            out.append(Detection(label, names[0][0] if names else None, score, box, lab=lab, colors=tuple(names)))
-        return out
+        found = [(canonical_label(label), score, box) for label, score, box in self.detector.detect(bgr)]
+        memory = self.colours.setdefault(cam, ColourMemory(self.colour_reuse_frames))
+        gains: list[np.ndarray] = []  # the scene's light, estimated once per frame, and only if a box is measured
+
+        def measure(label: str, box: tuple[float, float, float, float]) -> Colour:
+            if not gains:
+                gains.append(illuminant_gains(bgr))
+            return object_colour(bgr, box, gains[0], label)
+
+        colours = memory.colours([(label, box) for label, _, box in found], measure)
+        return [
+            Detection(label, names[0][0] if names else None, score, box, lab=lab, colors=tuple(names))
+            for (label, score, box), (lab, names) in zip(found, colours)
+        ]
 
     def process(
         self, cam: str, bgr: np.ndarray, depth: DepthImage | None = None
@@ -166,7 +182,7 @@ class VisionPipeline:
                 lab=None if d.lab is None else [round(v, 1) for v in d.lab],
                 colors=[ColorShare(name=n, p=round(p, 3)) for n, p in d.colors],
             )
-            for obj_id, d in tracker.update(self.detections(bgr))
+            for obj_id, d in tracker.update(self.detections(bgr, cam))
         ]
         if depth is not None:  # positions in metres (services/vision/depth.py)
             objects = [with_depth(o, depth) for o in objects]
