@@ -71,15 +71,19 @@ def foreground_mask(
     bx0, by0 = int((x - x0) * s), int((y - y0) * s)
     bx1, by1 = max(bx0 + 1, int(np.ceil((x + w - x0) * s))), max(by0 + 1, int(np.ceil((y + h - y0) * s)))
     inbox[by0:by1, bx0:bx1] = True
-    ring = ~inbox
-    if ring.sum() < 0.1 * inbox.sum():  # the box fills the frame: its own outer band stands for the surroundings
+    in_counts = np.bincount(bins[by0:by1, bx0:bx1].ravel(), minlength=39)  # counts from the slice: no mask pass
+    n_in = int(in_counts.sum())
+    if bins.size - n_in < 0.1 * n_in:  # the box fills the frame: its own outer band stands for the surroundings
         band = max(1, int(0.12 * min(by1 - by0, bx1 - bx0)))
         ring = inbox.copy()
         ring[by0 + band : by1 - band, bx0 + band : bx1 - band] = False
-    in_hist = np.bincount(bins[inbox], minlength=39) / max(1, int(inbox.sum()))
-    ring_hist = np.bincount(bins[ring], minlength=39) / max(1, int(ring.sum()))
+        ring_counts = np.bincount(bins[ring], minlength=39)
+    else:  # the ring is everything outside the box
+        ring_counts = np.bincount(bins.ravel(), minlength=39) - in_counts
+    in_hist = in_counts / max(1, n_in)
+    ring_hist = ring_counts / max(1, int(ring_counts.sum()))
     own = inbox & (in_hist > FOREGROUND_RATIO * ring_hist + 0.005)[bins]
-    if own.sum() < MIN_OWN * inbox.sum():  # too little stands out to be the object (a detector boxes it tightly):
+    if own.sum() < MIN_OWN * n_in:  # too little stands out to be the object (a detector boxes it tightly):
         # a cushion on a sofa, a logo on a shirt. The box is all we have
         own = inbox
     centre = np.ones(bins.shape, np.float32)  # the object is where the box's middle is: its pixels count double
