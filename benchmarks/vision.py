@@ -95,14 +95,17 @@ def interleaved(
     loops: list, frames: list[np.ndarray], n: int, chunk: int = 20, cpu_ms: list[list[float]] | None = None
 ) -> list[list[float]]:
     """frames/s of each loop, per round: every round runs each loop on the same `chunk` frames in turn, so the
-    load of a shared machine (it changes by the second) hits all loops alike. n frames per loop in all.
+    load of a shared machine (it changes by the second) hits all loops alike, in an order rotated every round.
+    n frames per loop in all (a stateful loop, the service's pipeline, sees the frames in order).
     `cpu_ms`, when given, gets each loop's CPU time per frame per round (all the process's threads, ms): on a
     machine shared with other users' work it moves far less than the wall clock."""
     fps: list[list[float]] = [[] for _ in loops]
     cpu: list[list[float]] = [[] for _ in loops]
     for start in range(0, n, chunk):
         batch = [frames[i % len(frames)] for i in range(start, start + chunk)]
-        for k, loop in enumerate(loops):
+        first = (start // chunk) % len(loops)  # each round starts with the next loop: no loop always runs first
+        for k in [*range(first, len(loops)), *range(first)]:
+            loop = loops[k]
             t0, c0 = time.perf_counter(), time.process_time()
             for f in batch:
                 loop(f)
