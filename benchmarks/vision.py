@@ -117,12 +117,12 @@ def interleaved(
 
 
 def print_cpu(labels: list[str], cpu_ms: list[list[float]]) -> None:
-    """Median CPU ms per frame of each loop, and the first's over each other's (the ratio of the frame rates one
-    core would give)."""
-    first = statistics.median(cpu_ms[0])
+    """Median CPU ms per frame of each loop, and the median over rounds of the first loop's CPU time over each
+    other's in the same round (the ratio of the frame rates one core would give; a round's ratio cancels the
+    load's drift between rounds)."""
     for label, ms in zip(labels, cpu_ms):
-        m = statistics.median(ms)
-        print(f"  CPU {label:28s} {m:7.2f} ms per frame   ratio {first / m:.2f}x")
+        ratio = statistics.median(f / m for f, m in zip(cpu_ms[0], ms))
+        print(f"  CPU {label:28s} {statistics.median(ms):7.2f} ms per frame   ratio {ratio:.2f}x")
 
 
 def throughput(frames: list[np.ndarray], n: int) -> None:
