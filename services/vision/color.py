@@ -115,6 +115,13 @@ def _channel_max(pixels: np.ndarray) -> np.ndarray:
     return np.maximum(np.maximum(pixels[:, 0], pixels[:, 1]), pixels[:, 2])
 
 
+def _column_mean(rows: np.ndarray) -> np.ndarray:
+    """rows.mean(axis=0) as numpy computes it (the sum, then divided in place by the count), without its
+    Python-level overhead."""
+    total = np.add.reduce(rows, axis=0)
+    return np.true_divide(total, np.intp(len(rows)), out=total, casting="unsafe")
+
+
 def illuminant_gains(bgr: np.ndarray) -> np.ndarray:
     """Per-channel (B, G, R) gains that make the scene's light neutral: shades of grey (Finlayson & Trezzi 2004), the
     p-norm mean of each channel over the unclipped pixels of the whole frame, shrunk first. p = 6 lies between
@@ -192,15 +199,15 @@ def measure_lab(bgr_pixels: np.ndarray, gains: np.ndarray | None = None) -> tupl
         return None
     unclipped = _channel_max(pixels) < CLIPPED
     if unclipped.sum() >= 0.3 * len(pixels):  # a white object may be mostly near clipping: then keep them
-        pixels = pixels[unclipped]
+        pixels = pixels.compress(unclipped, axis=0)  # as pixels[unclipped], without boolean indexing's overhead
     lin = SRGB_TO_LINEAR[pixels]
     if gains is not None:
         lin = np.clip(lin * gains, 0.0, 1.0)
     luminance = lin @ _XYZ_FROM_LINEAR_BGR[1]
     ordered = np.sort(luminance)
     lo, hi = ordered[int(TRIM[0] * (len(ordered) - 1))], ordered[int(TRIM[1] * (len(ordered) - 1))]
-    kept = lin[(luminance >= lo) & (luminance <= hi)]
+    kept = lin.compress((luminance >= lo) & (luminance <= hi), axis=0)
     if len(kept) == 0:
         kept = lin
-    lab = linear_to_lab(kept.mean(axis=0))
+    lab = linear_to_lab(_column_mean(kept))
     return float(lab[0]), float(lab[1]), float(lab[2])
