@@ -157,6 +157,7 @@ class VisionPipeline:
     def detections(self, bgr: np.ndarray, cam: str = "") -> list[Detection]:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
+        # labels as the language's classes where one fits ("mug" -> "cup")
         found = [(canonical_label(label), score, box) for label, score, box in self.detector.detect(bgr)]
         memory = self.colours.setdefault(cam, ColourMemory(self.colour_reuse_frames))
         gains: list[np.ndarray] = []  # the scene's light, estimated once per frame, and only if a box is measured
