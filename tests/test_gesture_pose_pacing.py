@@ -132,15 +132,20 @@ def _clip(name: str, frames: int) -> list[np.ndarray]:
     return images
 
 
+DEFAULT_RATE = GestureSettings().pose_max_rate  # 10/s: on a 30 fps camera every 3rd frame
+
+
+@pytest.mark.parametrize("rate", [DEFAULT_RATE, 15.0])
 @pytest.mark.parametrize("name", ["real_single_vr1_cfr25.mp4", "real_single_vr5.mp4", "comp_turns_lbax4n_sbwe5n.mp4"])
-def test_on_real_talking_clips_the_paced_skeleton_follows_the_every_frame_one(name: str) -> None:
-    """Pose capped at 15/s on a real 25 fps clip (people talking, heads moving): the model runs on 3 frames of 5
-    and the skeleton of the frames between is one frame (40 ms) old and says so; every frame has a body on both
-    paths, the arm joints agree within 0.15 shoulder widths and the gesture events are the same. Measured on the
-    six mp4 clips: at most 0.003-0.104; the largest, a head-and-shoulders GRID composite, is the same on the
-    frames pose ran on (the graph run at its own rate tracks a little differently), not the carrying's."""
+def test_on_real_talking_clips_the_paced_skeleton_follows_the_every_frame_one(name: str, rate: float) -> None:
+    """Pose capped at 10/s and 15/s on a real 25 fps clip (people talking, heads moving): the model runs on 2 (3)
+    frames of 5 and the skeleton of the frames between is at most one period old and says so (40 or 80 ms); every
+    frame has a body on both paths, the arm joints agree within 0.15 shoulder widths and the gesture events are the
+    same. Measured on the six mp4 clips: at most 0.005-0.108 (0.003-0.104 at 15/s); the largest, on GRID
+    head-and-shoulders composites, are as large on the frames pose ran on (the graph run at its own rate tracks a
+    little differently), not the carrying's."""
     images = _clip(name, 100)
-    full, paced = _run(0.0, images, 25.0), _run(15.0, images, 25.0)
+    full, paced = _run(0.0, images, 25.0), _run(rate, images, 25.0)
     ages = []
     for a, b in zip(full, paced):
         body_full, body_paced = _body(a), _body(b)
@@ -149,8 +154,9 @@ def test_on_real_talking_clips_the_paced_skeleton_follows_the_every_frame_one(na
         ages.append(body_paced.pose_age_ms)
         assert _joint_error(body_full, body_paced) <= 0.15
     ran = sum(age is None for age in ages)
-    assert abs(ran - 0.6 * len(images)) <= 1
-    assert {age for age in ages if age is not None} == {40.0}
+    assert abs(ran - rate / 25.0 * len(images)) <= 1
+    carried_ages = {age for age in ages if age is not None}
+    assert carried_ages and max(carried_ages) <= 1000.0 / rate
     assert _events(full) == _events(paced)
 
 
@@ -196,14 +202,14 @@ def _same_gestures(full: list[FrameResult], paced: list[FrameResult], ray_deg: f
 
 
 @pytest.mark.parametrize("name", POINTING)
-def test_a_point_held_on_a_real_photo_gives_the_same_events_and_rays_with_pose_every_second_frame(name: str) -> None:
-    """Each real pointing photo held for 10 frames of a 30 fps camera (pose at 15/s: every 2nd frame): the same
-    points start on the same frames with their rays within 1 degree (measured: at most 0.14), the arms' body rays
-    agree within 1 degree wherever both paths have one (measured: at most 0.32), and both paths see a body on all
+def test_a_point_held_on_a_real_photo_gives_the_same_events_and_rays_with_pose_at_its_own_rate(name: str) -> None:
+    """Each real pointing photo held for 10 frames of a 30 fps camera (pose at 10/s: every 3rd frame): the same
+    points start on the same frames with their rays within 1 degree (measured: at most 0.25), the arms' body rays
+    agree within 1 degree wherever both paths have one (measured: at most 0.48), and both paths see a body on all
     but at most 2 of the 10 frames (the nico_table person, mostly out of view, is a skeleton MediaPipe guesses and
     drops now and then on either path; measured: 2 frames)."""
     images = _photos([name]) * 10
-    full, paced = _run(0.0, images, 30.0), _run(15.0, images, 30.0)
+    full, paced = _run(0.0, images, 30.0), _run(DEFAULT_RATE, images, 30.0)
     _same_gestures(full, paced, ray_deg=1.0)
     assert _events(full)
     bodies = [(_body(a), _body(b)) for a, b in zip(full, paced)]
@@ -220,11 +226,20 @@ def test_a_point_held_on_a_real_photo_gives_the_same_events_and_rays_with_pose_e
     [POINTING[:3], POINTING[9:11]],
     ids=["lowcam man: left arm to the left, to the right, raised", "room woman: right arm to the right, left"],
 )
-def test_an_arm_moving_between_real_photos_starts_the_same_points_on_the_same_frames(names: list[str]) -> None:
+def test_an_arm_moving_between_real_photos_starts_the_same_points_at_most_one_pose_period_later(
+    names: list[str],
+) -> None:
     """One person's arm pointing one way, then another (real photos of one camera, 8 frames each at 30 fps): with
-    pose on every 2nd frame the same points start and end on the same frames, the starts' rays within 2 degrees of
-    the every-frame path's (measured: at most 0.9)."""
+    pose at 10/s (every 3rd frame) the same points start and end in the same order, each at most 2 frames (one pose
+    period) after the every-frame path's (measured: 0-2), the starts' rays within 2 degrees of the every-frame
+    path's (measured: at most 0.5)."""
     images = [img for img in _photos(names) for _ in range(8)]
-    full, paced = _run(0.0, images, 30.0), _run(15.0, images, 30.0)
-    assert len(_events(full)) >= 2 * len(names) - 1  # a start per photo, the ends between
-    _same_gestures(full, paced, ray_deg=2.0)
+    full, paced = _run(0.0, images, 30.0), _run(DEFAULT_RATE, images, 30.0)
+    events_full, events_paced = _events(full), _events(paced)
+    assert len(events_full) >= 2 * len(names) - 1  # a start per photo, the ends between
+    assert [e[1:] for e in events_full] == [e[1:] for e in events_paced]
+    assert all(0 <= p[0] - f[0] <= 2 for f, p in zip(events_full, events_paced))
+    rays_full, rays_paced = _start_rays(full), _start_rays(paced)
+    for f, p in zip(events_full, events_paced):
+        if f[2] == "start" and (f[0], f[3]) in rays_full:
+            assert _angle(rays_full[f[0], f[3]], rays_paced[p[0], p[3]]) <= 2.0

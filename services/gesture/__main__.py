@@ -75,10 +75,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_option(
         parser,
         "--pose-max-rate",
-        15.0,
-        "run full-body pose at most this many times per second of source time (on a 30 fps camera 15 = every 2nd "
-        "frame); between its runs the last skeleton is carried, its hands' ends moved with the tracked hands "
-        "(Body.pose_age_ms says how old it is); 0 = every frame",
+        10.0,
+        "run full-body pose at most this many times per second of source time (on a 30 fps camera 10 = every 3rd "
+        "frame, 15 = every 2nd); between its runs the last skeleton is carried, its hands' ends moved with the "
+        "tracked hands (Body.pose_age_ms says how old it is); 0 = every frame",
         at_least=0,
         metavar="HZ",
     )

@@ -72,7 +72,7 @@ class GestureSettings:
     start_s: float = 0.0
     ray_from: str = "eyes"
     body: bool = True
-    pose_max_rate: float = 15.0  # full pose at most this many times per second of source time (0: every frame)
+    pose_max_rate: float = 10.0  # full pose at most this many times per second of source time (0: every frame)
     persons_every: int = 2  # the person stage on every Nth frame (issue #33; 0: off)
     hands_idle_every: int = 2  # while no hand is in view, look for hands on every Nth frame only (1: every frame)
     faces: bool = True  # the face stage: Faces for who is speaking (issue #33)
