@@ -91,32 +91,37 @@ class Latency:
     core: Timed = field(default_factory=Timed)
 
 
-def primed_core(objs: list[Obj], text: str, base: float) -> FusionCore:
-    """A core whose window for `text` waits only for vision to pass its end: detections and pointing buffered."""
+def new_core() -> FusionCore:
     core = FusionCore(Config(), "fusion/bench")
     for m in ("vision", "gesture"):
         core.on_liveliness(m, "bench", True)
-    wall = 1000.0
+    return core
+
+
+def prime(core: FusionCore, objs: list[Obj], text: str, base: float, wall: float) -> None:
+    """An utterance whose window waits only for vision to pass its end: its detections and pointing buffered."""
     for t in (-0.5, 0.5, 1.0):
         deliver(core, *see(t, objs).build(base), wall)
     for i in range(20):
         deliver(core, *hands(-0.5 + i * 0.1, point_at=(500.0, 120.0)).build(base), wall)
     deliver(core, *say(0.0, 1.4, text).build(base), wall)
-    core.tick(wall)
+    assert not core.tick(wall)
     deliver(core, *hands(2.0).build(base), wall)
-    return core
 
 
 def decision_latency(n: int, reps: int, text: str = PLAIN) -> Latency:
+    """One core for all decisions, as the service runs one: each utterance 100 s of source and wall time after the
+    last (the buffers drop what is past their horizon, so memory stays as in a running service)."""
     objs = objects(n, bowls=text == RELATION)
     out = Latency()
+    core = new_core()
     for r in range(reps):
-        base = BASE_STAMP + r * 100
-        core = primed_core(objs, text, base)
+        base, wall_s = BASE_STAMP + r * 100, 1000.0 + r * 100
+        prime(core, objs, text, base, wall_s)
         closing = see(2.0, objs).build(base)  # the last needed input: vision passes the window end
         wall, cpu = time.perf_counter(), time.process_time()
-        deliver(core, *closing, 1000.0)
-        outs = core.tick(1000.0)
+        deliver(core, *closing, wall_s)
+        outs = core.tick(wall_s)
         payload = encode(outs[0].sample)
         out.core.add(cpu, wall)
         fused = outs[0].sample

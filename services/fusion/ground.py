@@ -284,13 +284,20 @@ def on_the_hand(p: Pointing, o: SceneObject) -> bool:
     return x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1
 
 
-def _flat_mask(p: Pointing, objects: list[SceneObject]) -> np.ndarray:
+def _boxes(objects: list[SceneObject]) -> tuple[np.ndarray, np.ndarray]:
+    """Every object's box (n x 4) and centre (n x 2) as arrays, made once for all the steps that need them."""
+    return (
+        np.array([o.bbox for o in objects], dtype=float).reshape(-1, 4),
+        np.array([o.center for o in objects], dtype=float).reshape(-1, 2),
+    )
+
+
+def _flat_mask(p: Pointing, objects: list[SceneObject], c: np.ndarray) -> np.ndarray:
     """Which objects are judged in the image plane: in the ray's camera, not on the hand (`on_the_hand`, the same
-    comparisons over all centres at once), not in metres."""
+    comparisons over all centres `c` at once), not in metres."""
     mask = np.fromiter((o.cam == p.cam for o in objects), bool, len(objects))
-    if p.hand_box is not None and len(objects):
+    if p.hand_box is not None:
         x0, y0, x1, y1 = p.hand_box
-        c = np.array([o.center for o in objects], dtype=float).reshape(-1, 2)
         mask &= ~((x0 <= c[:, 0]) & (c[:, 0] <= x1) & (y0 <= c[:, 1]) & (c[:, 1] <= y1))
     if p.ray3d is not None:
         mask &= ~np.fromiter((in_3d(p, o) for o in objects), bool, len(objects))
@@ -308,8 +315,11 @@ class RayGeometry:
 
     @staticmethod
     def of(p: Pointing, objects: list[SceneObject]) -> "RayGeometry":
-        b = np.array([o.bbox for o in objects], dtype=float).reshape(-1, 4)
-        c = np.array([o.center for o in objects], dtype=float).reshape(-1, 2)
+        return RayGeometry.of_boxes(p, *_boxes(objects))
+
+    @staticmethod
+    def of_boxes(p: Pointing, b: np.ndarray, c: np.ndarray) -> "RayGeometry":
+        """The same from the boxes (n x 4) and centres (n x 2) as arrays."""
         vx, vy = c[:, 0] - p.origin[0], c[:, 1] - p.origin[1]
         dist = np.hypot(vx, vy)
         radius = 0.5 * np.hypot(b[:, 2], b[:, 3]) * 0.5
@@ -351,6 +361,7 @@ class _RayPass:
     camera, on the hand, in metres) one by one; and which lie under the fingertip with G > 0 (`under_fingertip`)."""
 
     flat: np.ndarray  # bool: judged in the image plane
+    boxes: np.ndarray  # every object's box, n x 4
     g: np.ndarray
     angle: np.ndarray  # degrees; NaN where `ray_score` says None
     under: np.ndarray  # bool
@@ -359,11 +370,12 @@ class _RayPass:
     @staticmethod
     def of(p: Pointing, objects: list[SceneObject]) -> "_RayPass":
         n = len(objects)
-        flat = _flat_mask(p, objects)
+        b, c = _boxes(objects)
+        flat = _flat_mask(p, objects, c)
         g, angle, under = np.zeros(n), np.full(n, np.nan), np.zeros(n, dtype=bool)
         idx = np.flatnonzero(flat)
         if len(idx):
-            geo = RayGeometry.of(p, [objects[i] for i in idx])
+            geo = RayGeometry.of_boxes(p, b[idx], c[idx])
             g[idx], angle[idx], under[idx] = geo.g, geo.angle, (geo.g > 0) & geo.under_tip
         others: dict[int, Deictic] = {}
         for i in np.flatnonzero(~flat).tolist():
@@ -371,7 +383,7 @@ class _RayPass:
             g[i] = d.gesture
             angle[i] = np.nan if d.angle is None else d.angle
             under[i] = d.angle is not None and d.gesture > 0 and under_fingertip(p, objects[i])
-        return _RayPass(flat, g, angle, under, others)
+        return _RayPass(flat, b, g, angle, under, others)
 
     def at(self, i: int) -> Deictic:
         d = self.others.get(i)
@@ -409,7 +421,7 @@ class Deictics:
         # never a person (the pointing person's own box holds the fingertip) nor a blob on the hand; objects in metres
         # go by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may lie far behind it
         mine = np.flatnonzero(rays.flat & ~people)
-        hit, _ = touched(fingertip(p.origin, p.direction, p.hand_box), [objects[i].bbox for i in mine.tolist()])
+        hit, _ = touched(fingertip(p.origin, p.direction, p.hand_box), rays.boxes[mine])
         rule: str | None = "touch"
         if hit:
             near[mine[hit]] = True
