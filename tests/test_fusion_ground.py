@@ -270,3 +270,23 @@ def test_scene_objects_are_the_objects_the_constructor_builds() -> None:
         )
         assert vars(b) == vars(expected) and b == expected and b.key == ("cam1", o.id)
     assert built[1].label == canonical_label("dining table") and built[1].colors == (("red", 0.7), ("orange", 0.3))
+
+
+def test_a_relations_anchors_are_what_scoring_the_anchor_words_finds() -> None:
+    """`_anchor_fits` takes the matches and their order from the evidence, without a `Scored` each (issue #34): on
+    scenes full of ties, the anchors and their order are those of `score` on the objects the anchor's words name."""
+    from common.language import label_matches
+    from services.fusion.ground import ANCHOR_WEIGHTS, _anchor_fits
+
+    rng = random.Random(5)
+    for trial in range(4):
+        scene = _varied_scene(rng, 200)
+        for text in ("the bowl", "the red bowl", "the bowl on the left", "the second bowl", "the green one"):
+            anchor = parse(text).obj
+            named = [o for o in scene if label_matches(anchor.label, o.label)]
+            expected = [
+                (s.obj, s.match)
+                for s in score(anchor, named, None, ANCHOR_WEIGHTS, adaptive=False, scene=scene)
+                if s.match >= 0.5
+            ]
+            assert _anchor_fits(anchor, scene) == expected and expected, (trial, text)

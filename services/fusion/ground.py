@@ -165,6 +165,18 @@ def _attribute_match(phrase: ObjectPhrase, o: SceneObject) -> float:
     return m
 
 
+def _attribute_matches(phrase: ObjectPhrase, objects: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """`_attribute_match` of every object, once per label (a thousand objects are a few labels: issue #34)."""
+    by_label: dict[str, float] = {}
+    out = {}
+    for o in objects:
+        m = by_label.get(o.label)
+        if m is None:
+            m = by_label[o.label] = _attribute_match(phrase, o)
+        out[o.key] = m
+    return out
+
+
 def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str], float]:
     """Preference in [0, 1] for each object of `group` (1 for the best fit)."""
 
@@ -462,11 +474,15 @@ def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[S
         return []
     # pruned by the words first: an object whose label does not fit has match 0 whatever the other words say, and
     # the colour, spatial and ordinal steps look only at the objects that fit (the same result, 1000 objects fast)
-    named = [o for o in scene if _attribute_match(anchor, o) > 0]
+    fits = _attribute_matches(anchor, scene)
+    named = [o for o in scene if fits[o.key] > 0]
     if not named:
         return []
-    scored = score(anchor, named, None, ANCHOR_WEIGHTS, adaptive=False, scene=scene)
-    return [(s.obj, s.match) for s in scored if s.match >= 0.5]
+    # `score`'s matches in `score`'s order (its totals, to the bit: `_Evidence.arrays`), without a Scored each
+    ev = _evidence(anchor, named, None, ANCHOR_WEIGHTS, False, None, scene)
+    totals = ev.arrays()[2].tolist()
+    ranked = sorted(range(len(named)), key=lambda i: (-round(totals[i], 9), named[i].cam, named[i].id))
+    return [(named[i], ev.match[named[i].key]) for i in ranked if ev.match[named[i].key] >= 0.5]
 
 
 def _relation_scores(
@@ -615,7 +631,7 @@ def _evidence(
     ref: float | None,
     scene: list[SceneObject] | None,
 ) -> _Evidence:
-    match = {o.key: _attribute_match(phrase, o) for o in objects}
+    match = _attribute_matches(phrase, objects)
     if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/color.py)
         factors = colour_factors(phrase.color, [o for o in objects if match[o.key] > 0])
         match = {k: m * factors.get(k, 0.0) for k, m in match.items()}
