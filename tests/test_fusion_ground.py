@@ -290,3 +290,23 @@ def test_a_relations_anchors_are_what_scoring_the_anchor_words_finds() -> None:
                 if s.match >= 0.5
             ]
             assert _anchor_fits(anchor, scene) == expected and expected, (trial, text)
+
+
+def test_the_evidence_arrays_are_the_scored_numbers_to_the_bit() -> None:
+    """The shortlist and a relation's anchors rank by `_Evidence.arrays`; they equal each object's `Scored` exactly
+    (the same float operations in the same order), with and without pointing, adaptive or not, stamps varied."""
+    from services.fusion.ground import _evidence
+
+    rng = random.Random(13)
+    for trial in range(3):
+        objects = _varied_scene(rng, 150)
+        p = _pointing_at(objects[trial].center, origin=(rng.uniform(0, 640), 470.0))
+        for pointing in (None, p):
+            for text in ("the red cup", "that one on the left", "the bowl next to the bottle"):
+                for adaptive in (True, False):
+                    ev = _evidence(parse(text).obj, objects, pointing, EVEN, adaptive, BASE_STAMP + 0.7, objects)
+                    m, s, total = ev.arrays()
+                    one = [ev.scored(i) for i in range(len(objects))]
+                    assert m.tolist() == [c.match for c in one]
+                    assert s.tolist() == [c.speech for c in one]
+                    assert total.tolist() == [c.total for c in one]
