@@ -15,7 +15,10 @@ ONNX backend (the real YOLOX-Nano model, --model or $HRI_YOLOX_MODEL or ../share
      decoding (rows with objectness < 0.3 skipped first), objectness x class score >= 0.3,
      cv2.dnn.NMSBoxesBatched at IoU 0.45;
    - service path: VisionPipeline(YoloDetector).process = the same plus labels through the language, each
-     object's colour from its own pixels, tracking, image quality and the contract objects.
+     object's colour from its own pixels (reused for a still object: colour_memory.py; also shown measured on
+     every frame), tracking, image quality and the contract objects.
+   On two sequences: the photos, a new scene every frame (every colour measured), and the first --frames frames
+   of a real clip in order (talking/real_single_vr1_cfr25.mp4: a camera's consecutive frames).
 4. The colour step's cost per frame beside the detector's: on the same frames, the detector alone
    (YoloDetector.detect) and the colour model alone on its boxes (one illuminant estimate per frame, then
    each box's own pixels measured and named: core.object_colour), median ms per frame.
@@ -54,9 +57,10 @@ from services.vision.core import VisionPipeline, object_colour
 from services.vision.depth import DepthImage
 from services.vision.segment import ColorSegmenter
 from services.vision.yolo import YoloDetector
-from testkit.harness import DATA, ROOT, Client, ProcessGroup
+from testkit.harness import DATA, Client, ProcessGroup
 from testkit.images import read_image
 from testkit.lag import frame_lag, print_lag_slices, print_throughput
+from testkit.shared import shared_dir
 
 
 def frames_640() -> list[np.ndarray]:
@@ -87,18 +91,38 @@ def bare_segmentation(bgr: np.ndarray, kernel: np.ndarray, lut: np.ndarray) -> l
     return boxes
 
 
-def interleaved(loops: list, frames: list[np.ndarray], n: int, chunk: int = 20) -> list[list[float]]:
+def interleaved(
+    loops: list, frames: list[np.ndarray], n: int, chunk: int = 20, cpu_ms: list[list[float]] | None = None
+) -> list[list[float]]:
     """frames/s of each loop, per round: every round runs each loop on the same `chunk` frames in turn, so the
-    load of a shared machine (it changes by the second) hits all loops alike. n frames per loop in all."""
+    load of a shared machine (it changes by the second) hits all loops alike, in an order rotated every round.
+    n frames per loop in all (a stateful loop, the service's pipeline, sees the frames in order).
+    `cpu_ms`, when given, gets each loop's CPU time per frame per round (all the process's threads, ms): on a
+    machine shared with other users' work it moves far less than the wall clock."""
     fps: list[list[float]] = [[] for _ in loops]
+    cpu: list[list[float]] = [[] for _ in loops]
     for start in range(0, n, chunk):
         batch = [frames[i % len(frames)] for i in range(start, start + chunk)]
-        for k, loop in enumerate(loops):
-            t0 = time.perf_counter()
+        first = (start // chunk) % len(loops)  # each round starts with the next loop: no loop always runs first
+        for k in [*range(first, len(loops)), *range(first)]:
+            loop = loops[k]
+            t0, c0 = time.perf_counter(), time.process_time()
             for f in batch:
                 loop(f)
             fps[k].append(chunk / (time.perf_counter() - t0))
+            cpu[k].append((time.process_time() - c0) * 1e3 / chunk)
+    if cpu_ms is not None:
+        cpu_ms.extend(cpu)
     return fps
+
+
+def print_cpu(labels: list[str], cpu_ms: list[list[float]]) -> None:
+    """Median CPU ms per frame of each loop, and the median over rounds of the first loop's CPU time over each
+    other's in the same round (the ratio of the frame rates one core would give; a round's ratio cancels the
+    load's drift between rounds)."""
+    for label, ms in zip(labels, cpu_ms):
+        ratio = statistics.median(f / m for f, m in zip(cpu_ms[0], ms))
+        print(f"  CPU {label:28s} {statistics.median(ms):7.2f} ms per frame   ratio {ratio:.2f}x")
 
 
 def throughput(frames: list[np.ndarray], n: int) -> None:
@@ -165,32 +189,64 @@ class BareYolox:
         return [(int(cls[keep][i]), float(conf[keep][i]), boxes[i]) for i in np.array(idx).ravel()]
 
 
-def onnx_throughput(model: str, frames: list[np.ndarray], n: int) -> None:
+def clip_frames(n: int) -> list[np.ndarray]:
+    """The first n frames of a real clip (a man talking at a desk, 700x700), cropped to 4:3 and resized to
+    640x480, in order: what a camera sends (consecutive frames of one scene). Empty when ../shared is absent."""
+    cap = cv2.VideoCapture(str(shared_dir() / "data" / "talking" / "real_single_vr1_cfr25.mp4"))
+    frames: list[np.ndarray] = []
+    while len(frames) < n:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        h, w = frame.shape[:2]
+        top = (h - w * 3 // 4) // 2
+        frames.append(cv2.resize(frame[top : top + w * 3 // 4], (640, 480)))
+    cap.release()
+    return frames
+
+
+def onnx_throughput(model: str, frames: list[np.ndarray], n: int, what: str) -> None:
+    """The service's onnx path (colour reused as shipped, and measured on every frame) vs the bare loop."""
     bare = BareYolox(model)
-    bare_spinning = BareYolox(model, spinning=True)
     detector = YoloDetector(model)
-    print(f"onnx model {model}: {detector.describe()}")
-    pipeline = VisionPipeline(detector)
+    pipeline, every_frame = VisionPipeline(detector), VisionPipeline(detector, colour_reuse_frames=0)
     for f in frames[:2]:  # warm the sessions up
         bare.detect(f)
-        bare_spinning.detect(f)
         pipeline.process("cam0", f)
-    bare_fps, service_fps = interleaved([bare.detect, lambda f: pipeline.process("cam0", f)], frames, n)
-    # on its own: a spinning pool goes on burning CPU after its run and would slow whatever runs next
-    (spinning_fps,) = interleaved([bare_spinning.detect], frames, n)
+        every_frame.process("cam0", f)
+    cpu: list[list[float]] = []
+    bare_fps, service_fps, every_fps = interleaved(
+        [bare.detect, lambda f: pipeline.process("cam0", f), lambda f: every_frame.process("cam0", f)],
+        frames,
+        n,
+        cpu_ms=cpu,
+    )
     print_throughput(
-        f"onnx throughput on {n} frames 640x480, rounds of 20",
+        f"onnx throughput on {n} {what}, rounds of 20",
         "bare onnxruntime YOLOX loop",
         bare_fps,
         "vision service onnx path",
         service_fps,
     )
+    e = statistics.median(every_fps)
+    print(
+        f"  {'(colour on every frame)':32s} {e:7.1f} frames/s   ratio {e / statistics.median(bare_fps):.2f}x; "
+        f"colours measured for {pipeline.colours['cam0'].measured} of {every_frame.colours['cam0'].measured} objects"
+    )
+    print_cpu(["bare", "service", "service, colour every frame"], cpu)
+
+
+def spinning_throughput(model: str, frames: list[np.ndarray], n: int) -> None:
+    """On its own: a spinning pool goes on burning CPU after its run and would slow whatever runs next."""
+    bare_spinning = BareYolox(model, spinning=True)
+    bare_spinning.detect(frames[0])
+    (spinning_fps,) = interleaved([bare_spinning.detect], frames, n)
     print(f"  (bare loop with onnxruntime's default thread spinning: {statistics.median(spinning_fps):.1f} frames/s)")
 
 
 def rgbd_frames() -> list[tuple[np.ndarray, np.ndarray]] | None:
     """The YCB-Video colour/depth pairs (640x480, 0.1 mm units), or None when ../shared is absent."""
-    folder = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared") / "data" / "rgbd" / "ycb_video"
+    folder = shared_dir() / "data" / "rgbd" / "ycb_video"
     pairs = [
         (read_image(str(c)), read_image(str(c).replace("-color", "-depth"), cv2.IMREAD_UNCHANGED))
         for c in sorted(folder.glob("*-color.png"))
@@ -228,6 +284,7 @@ def depth_throughput(pairs: list[tuple[np.ndarray, np.ndarray]], n: int) -> None
     ]
     index = {id(c): i for i, c in enumerate(colours)}
     objects = sum(len(pipeline.process("bench", c)[0]) for c in colours) / len(colours)
+    cpu: list[list[float]] = []
     colour_fps, raw_fps, png_fps = interleaved(
         [
             lambda c: pipeline.process("bench", c),
@@ -236,6 +293,7 @@ def depth_throughput(pairs: list[tuple[np.ndarray, np.ndarray]], n: int) -> None
         ],
         colours,
         n,
+        cpu_ms=cpu,
     )
     print_throughput(
         f"depth: throughput on {n} YCB-Video RGB-D frames 640x480 ({objects:.0f} objects per frame "
@@ -250,6 +308,7 @@ def depth_throughput(pairs: list[tuple[np.ndarray, np.ndarray]], n: int) -> None
         f"  {'with depth (PNG, decode included)':32s} {p:7.1f} frames/s   ratio "
         f"{p / statistics.median(colour_fps):.2f}x"
     )
+    print_cpu(["colour only", "with depth (raw 16UC1)", "with depth (PNG)"], cpu)
 
 
 def rgbd_lag(pairs: list[tuple[np.ndarray, np.ndarray]], seconds: float, fps: float) -> None:
@@ -354,7 +413,7 @@ def colour_cost(model: str, frames: list[np.ndarray], n: int) -> None:
 
 
 def default_model() -> str:
-    return os.environ.get("HRI_YOLOX_MODEL") or str(ROOT.parent / "shared" / "models" / "yolox_nano.onnx")
+    return os.environ.get("HRI_YOLOX_MODEL") or str(shared_dir() / "models" / "yolox_nano.onnx")
 
 
 def main() -> None:
@@ -391,7 +450,11 @@ def main() -> None:
         colour_cost(args.model, images, args.frames)
         if args.colour_only:
             return
-        onnx_throughput(args.model, images, args.frames)
+        onnx_throughput(args.model, images, args.frames, "photos 640x480 (a new scene every frame)")
+        clip = clip_frames(args.frames)
+        if clip:
+            onnx_throughput(args.model, clip, args.frames, "frames of a real clip 640x480 (in order)")
+        spinning_throughput(args.model, images, args.frames)
         if not args.skip_lag:
             frame_lag(
                 "vision",

@@ -452,6 +452,13 @@ class Body(Struct, kw_only=True):
     person: Annotated[
         Optional[str], described("**v1 extension**: the id of the person this skeleton belongs to, nil = unknown")
     ] = None
+    pose_age_ms: Annotated[
+        Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+        described(
+            "**v1 extension**: ms of source time since the pose model found this skeleton: it was carried over the "
+            "frames between the model's runs (the hands' ends moved with the tracked hands); nil = found on this frame"
+        ),
+    ] = None
 
 
 class Face(Struct, kw_only=True):

@@ -74,6 +74,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_option(
         parser,
+        "--pose-max-rate",
+        10.0,
+        "run full-body pose at most this many times per second of source time (on a 30 fps camera 10 = every 3rd "
+        "frame, 15 = every 2nd); between its runs the last skeleton is carried, its hands' ends moved with the "
+        "tracked hands (Body.pose_age_ms says how old it is); 0 = every frame",
+        at_least=0,
+        metavar="HZ",
+    )
+    add_option(
+        parser,
         "--ray",
         "eyes",
         "body ray: eyes -> fingertip (forearm when the eyes are out of view) or forearm (elbow -> fingertip)",
@@ -118,6 +128,7 @@ def settings_of(args: argparse.Namespace) -> GestureSettings:
         start_s=args.start_ms / 1000.0,
         ray_from=args.ray,
         body=args.body,
+        pose_max_rate=args.pose_max_rate,
         persons_every=args.persons_every,
         hands_idle_every=args.hands_idle_every,
         faces=args.faces,

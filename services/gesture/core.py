@@ -25,10 +25,11 @@ from common.schema import (
     Ray,
     Ray3D,
 )
-from services.gesture.faces import FaceConfig, FaceStages, link_faces
+from services.gesture.faces import FaceConfig, FaceStages, RatePace, link_faces
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms, other_skeletons
 from services.gesture.persons import Box
+from services.gesture.pose_track import PoseRun, carried, hands_on_arms
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 
@@ -45,15 +46,20 @@ def to_ray(ray: Any, ray3d: Ray3D | None = None) -> Ray | None:
     )
 
 
-def to_body(landmarks: np.ndarray, arms: list, rays3d: FrameRays | None = None) -> Body:
-    """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body` (3-D rays when depth is known)."""
+def to_body(landmarks: np.ndarray, arms: list, rays3d: FrameRays | None = None, age_s: float = 0.0) -> Body:
+    """A pose skeleton (33x3) and the last frame's judged arms -> the wire `Body` (3-D rays when depth is known);
+    `age_s`: source time since the pose model found it (0: on this frame; else carried by `pose_track`)."""
     rays = {arm.side: to_ray(ray, rays3d.arm(arm.side) if rays3d and ray else None) for arm, ray in arms}
     return Body(
         landmarks=[[round(x, 1), round(y, 1)] for x, y in landmarks[:, :2].tolist()],
         visibility=[round(min(1.0, max(0.0, v)), 3) for v in landmarks[:, 2].tolist()],
         left_ray=rays.get("left"),
         right_ray=rays.get("right"),
+        pose_age_ms=round(age_s * 1000.0, 1) if age_s > 0 else None,
     )
+
+
+Body3 = tuple[np.ndarray | None, np.ndarray | None, float]  # skeleton 33x3, world landmarks 33x3, age in s
 
 
 @dataclass(frozen=True)
@@ -66,6 +72,7 @@ class GestureSettings:
     start_s: float = 0.0
     ray_from: str = "eyes"
     body: bool = True
+    pose_max_rate: float = 10.0  # full pose at most this many times per second of source time (0: every frame)
     persons_every: int = 2  # the person stage on every Nth frame (issue #33; 0: off)
     hands_idle_every: int = 2  # while no hand is in view, look for hands on every Nth frame only (1: every frame)
     faces: bool = True  # the face stage: Faces for who is speaking (issue #33)
@@ -89,7 +96,8 @@ class FrameResult:
 
 @dataclass
 class CameraGestures:
-    """One camera's MediaPipe graphs (they track between frames) and gesture tracker."""
+    """One camera's MediaPipe graphs (they track between frames) and gesture tracker; the pose graph at its own
+    rate, its skeleton carried between its runs (`pose_track`)."""
 
     settings: GestureSettings
     hands: HandLandmarker = field(init=False)
@@ -97,6 +105,8 @@ class CameraGestures:
     tracker: GestureTracker = field(init=False)
     hands_in_view: bool = field(init=False, default=False)  # the last hand search found a hand
     idle_skipped: int = field(init=False, default=0)  # frames since the last search while none is in view
+    pose_pace: RatePace = field(init=False)
+    pose_run: PoseRun | None = field(init=False, default=None)  # the pose model's last run
 
     def __post_init__(self) -> None:
         s = self.settings
@@ -111,6 +121,7 @@ class CameraGestures:
         )
         if s.body:
             self.pose = PoseLandmarker()
+        self.pose_pace, self.pose_run = RatePace(s.pose_max_rate), None
         # a new stream's first frame is searched (as if the idle frames had all gone by)
         self.hands_in_view, self.idle_skipped = False, s.hands_idle_every
 
@@ -126,6 +137,19 @@ class CameraGestures:
         found = self.hands.detect(img)
         self.hands_in_view = bool(found)
         return found
+
+    def find_body(self, stamp: float, img: np.ndarray, hands: list[Observation]) -> Body3:
+        """The full-frame skeleton of this frame, its world landmarks and its age (s): the pose model's when it is
+        due (`pose_max_rate`), else its last run's carried to this frame's hands (`pose_track.carried`)."""
+        if self.pose is None:
+            return None, None, 0.0
+        run, due = self.pose_run, self.pose_pace.due(stamp)
+        if run is None or due:
+            skeleton = self.pose.detect(img, stamp)
+            wrists = hands_on_arms(skeleton, hands) if skeleton is not None else {}
+            self.pose_run = PoseRun(skeleton, self.pose.world if skeleton is not None else None, stamp, wrists)
+            return skeleton, self.pose_run.world, 0.0
+        return carried(run, hands), run.world, max(0.0, stamp - run.stamp)
 
     def close(self) -> None:
         self.hands.close()
@@ -179,8 +203,7 @@ class GestureCore:
         """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
         cam = self.camera(frame)
         observations = cam.find_hands(img)
-        skeleton = cam.pose.detect(img) if cam.pose is not None else None
-        world = cam.pose.world if cam.pose is not None and skeleton is not None else None
+        skeleton, world, pose_age = cam.find_body(frame.stamp, img, observations)
         rays3d = self.frame_rays(frame, skeleton, world)
         joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
         size = (frame.width, frame.height)
@@ -204,7 +227,8 @@ class GestureCore:
         hands = Hands(**fields, hands=found)
         bodies = None
         if self.settings.body:
-            bodies = Bodies(**fields, bodies=people_bodies(frame, skeleton, cam.tracker.last_arms, rays3d, seen))
+            main = (skeleton, cam.tracker.last_arms, pose_age)
+            bodies = Bodies(**fields, bodies=people_bodies(frame, main, rays3d, seen))
         return FrameResult(hands, bodies, events, rays3d, hand_rays3d, persons, seen, faces)
 
     def link(self, frame: Frame, faces: Faces | None, seen: PeopleOfFrame | None, persons: Persons | None) -> None:
@@ -225,10 +249,12 @@ def face_boxes(faces: Faces | None, max_faces: int) -> list[tuple[Box, str | Non
 
 
 def people_bodies(
-    frame: Frame, skeleton: np.ndarray | None, arms: list, rays3d: FrameRays | None, seen: PeopleOfFrame | None
+    frame: Frame, full: tuple[np.ndarray | None, list, float], rays3d: FrameRays | None, seen: PeopleOfFrame | None
 ) -> list[Body]:
-    """The full-frame skeleton with the tracker's arms, plus (on the person stage's frames) every other person's."""
-    main = [] if skeleton is None else [to_body(skeleton, arms, rays3d)]
+    """The full-frame skeleton with the tracker's arms and its age (`full`), plus (on the person stage's frames)
+    every other person's."""
+    skeleton, arms, age_s = full
+    main = [] if skeleton is None else [to_body(skeleton, arms, rays3d, age_s)]
     if seen is None:
         return main
     for body in main:

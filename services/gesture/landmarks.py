@@ -71,6 +71,9 @@ POSE_FULL = 1  # model_complexity of pose_landmark_full.tflite, the one pose mod
 # heavy are downloaded by MediaPipe on first use: not possible offline, and nothing is downloaded here)
 
 
+SIMULATED_STEP_US = 33333  # what mediapipe's SolutionBase.process() adds to its clock per call
+
+
 class PoseLandmarker:
     """One MediaPipe Pose graph for one video stream: the 33 body landmarks of the most prominent person."""
 
@@ -83,6 +86,8 @@ class PoseLandmarker:
                 f"mediapipe==0.10.21 with --no-deps plus protobuf<5, attrs, matplotlib)"
             ) from None
         self.world: np.ndarray | None = None  # the last detect()'s 33x3 world landmarks
+        self.video = video
+        self._last_us: int | None = None  # the graph's clock at the last run given a stamp (us)
         self._pose = mp_pose.Pose(
             static_image_mode=not video,
             model_complexity=POSE_FULL,
@@ -90,9 +95,13 @@ class PoseLandmarker:
             min_tracking_confidence=min_tracking,
         )
 
-    def detect(self, bgr: np.ndarray) -> np.ndarray | None:
-        """33x3 [x px, y px, visibility], or None when no person is seen."""
+    def detect(self, bgr: np.ndarray, stamp: float | None = None) -> np.ndarray | None:
+        """33x3 [x px, y px, visibility], or None when no person is seen. `stamp`: the frame's source time (s), so
+        that the graph's landmark smoothing sees the real time between its runs (the legacy API assumes 33 ms; a
+        graph run on every 2nd frame would otherwise follow a moving arm half as fast)."""
         h, w = bgr.shape[:2]
+        if stamp is not None and self.video:
+            self._set_time(stamp)
         result = self._pose.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
         world = result.pose_world_landmarks
         # metres, origin between the hips (the 3-D ray when the arm has no depth: services/gesture/space.py)
@@ -100,6 +109,16 @@ class PoseLandmarker:
         if not result.pose_landmarks:
             return None
         return np.array([[lm.x * w, lm.y * h, lm.visibility] for lm in result.pose_landmarks.landmark], dtype=float)
+
+    def _set_time(self, stamp: float) -> None:
+        # SolutionBase.process() stamps its packet `_simulated_timestamp` + 33333 us (private, but the one way
+        # into the legacy graph's clock); kept strictly increasing, as the graph requires
+        now_us = int(stamp * 1e6)
+        last = self._last_us
+        if last is not None:
+            now_us = max(now_us, last + 1)
+        self._pose._simulated_timestamp = now_us - SIMULATED_STEP_US
+        self._last_us = now_us
 
     def close(self) -> None:
         self._pose.close()

@@ -13,6 +13,7 @@ from common.image import frame_fields, frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
 from common.schema import DepthFrame, Detections, Frame
 from common.settings import add_option
+from services.vision.colour_memory import REUSE_FRAMES, REUSE_IOU
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
@@ -101,6 +102,15 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("center", "topleft"),
         default_text="topleft for yolox, center otherwise",
     )
+    add_option(
+        parser,
+        "--color-reuse",
+        REUSE_FRAMES,
+        "onnx: a still object's colour (its box overlapping the one measured at IoU >= "
+        f"{REUSE_IOU}) is reused for up to N frames after it was measured; 0: measured on every frame",
+        at_least=0,
+        metavar="N",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -144,7 +154,7 @@ class VisionApp(App):
 
     def open(self, service: Service) -> None:
         try:
-            self.pipeline = VisionPipeline(make_detector(self.args, service.log))
+            self.pipeline = VisionPipeline(make_detector(self.args, service.log), self.args.color_reuse)
         except (ModelError, OSError, ValueError) as exc:
             raise StartupError(str(exc)) from None
         self.service = service

@@ -75,11 +75,16 @@ def box_samples(
     # centred grid: the samples sit symmetrically in the box (a mirrored box samples the mirrored pixels)
     ox, oy = ((x1 - x0 - 1) % step) // 2, ((y1 - y0 - 1) % step) // 2
     grid = depth[y0 + oy : y1 : step, x0 + ox : x1 : step]
-    z = grid.ravel().astype(np.float64) * depth_scale
-    with np.errstate(invalid="ignore"):
-        index = np.flatnonzero((z > 0) & (z < np.inf))  # NaN compares False: 0, NaN and inf are no depth
+    if grid.dtype.kind == "u" and depth_scale > 0:  # integer units: only 0 is no depth, read before scaling
+        index = np.flatnonzero(grid)
+        z = grid.ravel()[index].astype(np.float64) * depth_scale
+    else:
+        z = grid.ravel().astype(np.float64) * depth_scale
+        with np.errstate(invalid="ignore"):
+            index = np.flatnonzero((z > 0) & (z < np.inf))  # NaN compares False: 0, NaN and inf are no depth
+        z = z[index]
     rows, cols = np.divmod(index, grid.shape[1])
-    return (x0 + ox + cols * step).astype(np.float64), (y0 + oy + rows * step).astype(np.float64), z[index], z.size
+    return (x0 + ox + cols * step).astype(np.float64), (y0 + oy + rows * step).astype(np.float64), z, grid.size
 
 
 def foreground(z: np.ndarray) -> np.ndarray:
@@ -153,8 +158,7 @@ def object_depth(
     n_own = int(own.sum())
     if n_own < MIN_POINTS:
         return None
-    pts = np.sort(back_project(u[own], v[own], z[own], info), axis=0)
-    p5, position, p95 = _quantiles(pts, n_own).tolist()
+    p5, position, p95 = _quantiles(back_project(u[own], v[own], z[own], info), n_own).tolist()
     return ObjectDepth(
         position=tuple(position),
         extent=(p95[0] - p5[0], p95[1] - p5[1], p95[2] - p5[2]),
@@ -164,15 +168,20 @@ def object_depth(
 
 
 QUANTILES = np.array([0.05, 0.5, 0.95])
+PARTITION_FROM = 256  # rows: from here, putting only the quantiles' ranks in order beats a full sort (~3x at 1000)
 
 
-def _quantiles(sorted_rows: np.ndarray, n: int) -> np.ndarray:
-    """The 5th, 50th and 95th percentiles (rows) of each column of row-sorted data, interpolated linearly as
+def _quantiles(rows: np.ndarray, n: int) -> np.ndarray:
+    """The 5th, 50th and 95th percentiles (rows) of each column of `rows` (n of them), interpolated linearly as
     numpy's default."""
     at = QUANTILES * (n - 1)
     lo = at.astype(np.int64)
     hi = np.minimum(lo + 1, n - 1)
-    return sorted_rows[lo] + (at - lo)[:, None] * (sorted_rows[hi] - sorted_rows[lo])
+    if n >= PARTITION_FROM:  # the values at the ranks asked for are those a sort gives
+        ranked = np.partition(rows, np.unique(np.concatenate([lo, hi])), axis=0)
+    else:
+        ranked = np.sort(rows, axis=0)
+    return ranked[lo] + (at - lo)[:, None] * (ranked[hi] - ranked[lo])
 
 
 def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:

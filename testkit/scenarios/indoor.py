@@ -69,7 +69,7 @@ def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
         s = min(1.0, 960 / max(h, w))
         if s < 1.0:
             img = cv2.resize(img, (int(w * s), int(h * s)))
-        pipeline.trackers.clear()  # every photo is a new scene: fresh ids
+        pipeline.new_scene()  # every photo is a new scene: fresh ids, colours measured
         objects, quality = pipeline.process("cam0", img)
         return Seen(objects, quality, img.shape[1], img.shape[0])
 
