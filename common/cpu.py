@@ -43,13 +43,34 @@ def limit_opencv_threads(threads: int) -> None:
         cv2.setNumThreads(threads)
 
 
-def change_priority(by: int) -> str | None:
+AUTOGROUP = Path("/proc/self/autogroup")
+
+
+def change_priority(by: int, autogroup: Path = AUTOGROUP) -> str | None:
     """Change this process's niceness by `by` (os.nice): positive yields the CPU to others, negative asks for more,
-    which needs root or CAP_SYS_NICE. Returns why it was not done, None when it was (or nothing was asked)."""
+    which needs root or CAP_SYS_NICE. Returns why it was not done, None when it was (or nothing was asked).
+
+    With the kernel's autogroup scheduling on (most desktop and robot Linux kernels), a session's processes share
+    the CPU as one group against every other session, and a thread's niceness counts only inside its own group: the
+    services `hri up` starts each lead a session of their own (so that a signal reaches one service), so os.nice
+    alone changed nothing between them. A session leader also gives its group the same niceness (its group is its
+    own); a process inside someone else's session (a shell's) leaves the group alone."""
     if by == 0:
         return None
     try:
         os.nice(max(-20, min(19, int(by))))
     except OSError as exc:  # EPERM without the capability (a container, a normal user): run at the usual priority
         return f"CPU priority left as it is (--nice {by}: {exc.strerror}; needs root or CAP_SYS_NICE to raise it)"
+    return set_autogroup_priority(os.nice(0), autogroup)
+
+
+def set_autogroup_priority(niceness: int, autogroup: Path = AUTOGROUP) -> str | None:
+    """Give this process's autogroup `niceness` when the group is this process's own (it leads its session).
+    Returns why it was not done, None when it was or there is nothing to do (no autogroup, not a session leader)."""
+    if os.getsid(0) != os.getpid() or not autogroup.exists():
+        return None
+    try:
+        autogroup.write_text(f"{niceness}\n")
+    except OSError as exc:
+        return f"session CPU priority left as it is (niceness {niceness} for {autogroup}: {exc.strerror})"
     return None

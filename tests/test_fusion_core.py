@@ -79,3 +79,27 @@ def test_memory_stays_flat_over_a_long_stream():
         core.tick(1000.0 + second + 1)
         sizes.append(core.memory_items())
     assert max(sizes[300:]) <= max(sizes[100:300]) + 5
+
+
+def test_the_service_pauses_the_collector_only_until_a_decisions_output_is_out() -> None:
+    """`collector_after_output` (services/fusion/__main__.py, issue #34): the collector is paused inside, running again
+    after, also when the decision raised; a collector the process had turned off stays off."""
+    import gc
+
+    from services.fusion.__main__ import collector_after_output
+
+    assert gc.isenabled()
+    with collector_after_output():
+        assert not gc.isenabled()
+    assert gc.isenabled()
+    with pytest.raises(ValueError):
+        with collector_after_output():
+            raise ValueError("a failed decision")
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        with collector_after_output():
+            pass
+        assert not gc.isenabled()
+    finally:
+        gc.enable()

@@ -3,14 +3,27 @@ pointed location."""
 
 from __future__ import annotations
 
+import dataclasses
+import random
+
 import pytest
 
+from common.language import canonical_label
 from common.schema import Weights
 from services.fusion.evidence import select_pointing
-from services.fusion.ground import choose, pointing_score, ray_point, score
+from services.fusion.ground import (
+    MAX_CANDIDATES,
+    SceneObject,
+    choose,
+    pointing_score,
+    ray_point,
+    scene_objects,
+    score,
+    shortlist,
+)
 from services.fusion.parse import parse
 from testkit.fusion import EVEN, pointing_obs
-from testkit.scenarios import BASE_STAMP, Obj, scene_of
+from testkit.scenarios import BASE_STAMP, Obj, bbox_of, scene_of
 from testkit.scenarios.suite import BLUE_CUP, CANDIES, TWO_CUPS
 
 
@@ -158,3 +171,142 @@ def test_the_vectorised_ray_step_gives_what_the_one_object_functions_give() -> N
                 assert (o.key in under) == expected, (o, p)
                 checked_under += expected
     assert checked_under > 20  # the scenes do put objects under the fingertip
+
+
+def _varied_scene(rng: random.Random, n: int) -> list[SceneObject]:
+    """n objects of few labels and colours on a grid of few positions and sizes: many exact ties in words, place and
+    ray (identical copies too), detection scores, image qualities and stamps varied (adaptive trust)."""
+    labels, colours = ("cup", "bowl", "bottle", "person"), ("red", "blue", "green", None)
+    objs = [
+        Obj(
+            f"o{i:03d}",
+            rng.choice(labels),
+            rng.choice(colours),
+            (float(rng.randrange(20, 620, 40)), float(rng.randrange(20, 460, 40))),
+            (float(rng.choice((20, 40, 80))), float(rng.choice((20, 40, 80)))),
+            rng.choice((0.5, 0.7, 0.9)),
+        )
+        for i in range(n)
+    ]
+    return [
+        dataclasses.replace(o, quality=rng.choice((0.5, 1.0)), stamp=BASE_STAMP + rng.choice((0.0, 0.4, 1.5)))
+        for o in scene_of(objs)
+    ]
+
+
+def test_the_shortlist_decides_what_the_whole_ranking_decides() -> None:
+    """`shortlist` builds only what `choose` reads of the ranking (issue #34: 1000 objects); on scenes full of ties,
+    for plain, coloured, spatial, ordinal and relational words, with and without pointing (a hand ray, touching or
+    not), adaptive or not, it is a part of `score`'s ranking in the same order and `choose` makes the same Choice."""
+    rng = random.Random(11)
+    phrases = (
+        "the red cup",
+        "that cup",
+        "that one",
+        "the bottle on the left",
+        "the second cup from the left",
+        "the blue cup next to the bowl",
+        "the biggest green bottle",
+        "the person",
+    )
+    checked = 0
+    for trial in range(6):
+        objects = _varied_scene(rng, 300)
+        target = objects[trial * 7].center
+        base = _pointing_at(target, origin=(rng.uniform(0, 640), 470.0))
+        assert base is not None
+        tip_box = (target[0] - 60.0, target[1] - 60.0, target[0] - 5.0, target[1] - 5.0)  # a finger at the target
+        for p in (None, base, dataclasses.replace(base, hand_box=tip_box)):
+            for text in phrases:
+                phrase = parse(text).obj
+                for adaptive in (True, False):
+                    ref = BASE_STAMP + 0.3
+                    whole = score(phrase, objects, p, EVEN, adaptive=adaptive, ref=ref)
+                    short = shortlist(phrase, objects, p, EVEN, adaptive=adaptive, ref=ref)
+                    assert len(short) < len(whole) // 2 or p is None, (text, len(short))
+                    positions = [whole.index(s) for s in short]
+                    assert positions == sorted(positions) and positions[: MAX_CANDIDATES + 1] == list(
+                        range(MAX_CANDIDATES + 1)
+                    )
+                    assert choose(phrase, short) == choose(phrase, whole), (trial, text, p)
+                    checked += 1
+    assert checked == 6 * 3 * len(phrases) * 2
+
+
+def test_scene_objects_are_the_objects_the_constructor_builds() -> None:
+    """`scene_objects` fills each object's fields in one step (issue #34); every field, the key included, is what
+    `SceneObject(...)` makes of the same wire object: with and without depth, measured colour and colour names."""
+    from common.schema import ColorShare, Detections
+    from testkit.scenarios import see
+
+    _, det = see(0.0, [Obj("a", "cup", "red", (100.0, 120.0)), Obj("b", "dining table", None, (300.0, 200.0))]).build(
+        BASE_STAMP
+    )
+    assert isinstance(det, Detections)
+    det.cam, det.frame_id = "cam1", "cam1_optical"
+    full = det.objects[1]
+    full.position, full.extent, full.lab = [0.1, 0.2, 1.5], [0.3, 0.2, 0.1], [50.0, 40.0, 20.0]
+    full.colors = [ColorShare(name="red", p=0.7), ColorShare(name="orange", p=0.3)]
+    built = scene_objects([det])
+    for o, b in zip(det.objects, built):
+        expected = SceneObject(
+            o.id,
+            canonical_label(o.label),
+            o.label,
+            o.color,
+            bbox_of(o),
+            (o.center[0], o.center[1]),
+            o.score,
+            "cam1",
+            det.width,
+            det.height,
+            det.stamp,
+            b.quality,
+            tuple(o.position) if o.position else None,  # type: ignore[arg-type]
+            tuple(o.extent) if o.extent else None,  # type: ignore[arg-type]
+            "cam1_optical",
+            tuple(o.lab) if o.lab else None,  # type: ignore[arg-type]
+            tuple((c.name, c.p) for c in o.colors),
+        )
+        assert vars(b) == vars(expected) and b == expected and b.key == ("cam1", o.id)
+    assert built[1].label == canonical_label("dining table") and built[1].colors == (("red", 0.7), ("orange", 0.3))
+
+
+def test_a_relations_anchors_are_what_scoring_the_anchor_words_finds() -> None:
+    """`_anchor_fits` takes the matches and their order from the evidence, without a `Scored` each (issue #34): on
+    scenes full of ties, the anchors and their order are those of `score` on the objects the anchor's words name."""
+    from common.language import label_matches
+    from services.fusion.ground import ANCHOR_WEIGHTS, _anchor_fits
+
+    rng = random.Random(5)
+    for trial in range(4):
+        scene = _varied_scene(rng, 200)
+        for text in ("the bowl", "the red bowl", "the bowl on the left", "the second bowl", "the green one"):
+            anchor = parse(text).obj
+            named = [o for o in scene if label_matches(anchor.label, o.label)]
+            expected = [
+                (s.obj, s.match)
+                for s in score(anchor, named, None, ANCHOR_WEIGHTS, adaptive=False, scene=scene)
+                if s.match >= 0.5
+            ]
+            assert _anchor_fits(anchor, scene) == expected and expected, (trial, text)
+
+
+def test_the_evidence_arrays_are_the_scored_numbers_to_the_bit() -> None:
+    """The shortlist and a relation's anchors rank by `_Evidence.arrays`; they equal each object's `Scored` exactly
+    (the same float operations in the same order), with and without pointing, adaptive or not, stamps varied."""
+    from services.fusion.ground import _evidence
+
+    rng = random.Random(13)
+    for trial in range(3):
+        objects = _varied_scene(rng, 150)
+        p = _pointing_at(objects[trial].center, origin=(rng.uniform(0, 640), 470.0))
+        for pointing in (None, p):
+            for text in ("the red cup", "that one on the left", "the bowl next to the bottle"):
+                for adaptive in (True, False):
+                    ev = _evidence(parse(text).obj, objects, pointing, EVEN, adaptive, BASE_STAMP + 0.7, objects)
+                    m, s, total = ev.arrays()
+                    one = [ev.scored(i) for i in range(len(objects))]
+                    assert m.tolist() == [c.match for c in one]
+                    assert s.tolist() == [c.speech for c in one]
+                    assert total.tolist() == [c.total for c in one]

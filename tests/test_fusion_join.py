@@ -114,3 +114,18 @@ def test_seen_once_drops_a_redelivered_transcript_and_forgets_beyond_the_horizon
     for stamp in (51.0, 52.0, 53.0):
         assert seen.first(("speech/mic0", stamp), stamp)
     assert len(seen) == 3 and seen.first(("speech/mic0", 50.0), 53.0)  # the cap pushed the oldest out
+
+
+def test_a_motion_does_not_wait_for_gestures_after_the_words_but_a_phrase_that_names_something_does():
+    """The after-window (--window-after) is where a point completing the words is looked for: a motion or an answer
+    names nothing to look at, so it is decided once the inputs have passed the utterance's end."""
+    for text, waits in (("turn left", False), ("go forward one meter", False), ("pick up that cup", True)):
+        core = FusionCore(Config(max_wait=0.5, window_after=0.3), "fusion/test")
+        for step in scene(TWO_CUPS, -1.0, 1.6):  # vision has passed the end (1.5) but not the after-window (1.8)
+            core.on_detections(*step.build(BASE_STAMP), 1000.0)
+        key, t = say(0.5, 1.5, text).build(BASE_STAMP)
+        core.on_transcript(key, t, 1000.0)
+        decided = core.tick(1000.05)
+        assert (decided == []) == waits, text
+        if waits:  # decided at the deadline, with what is there
+            assert len(core.tick(1000.6)) == 1

@@ -59,3 +59,20 @@ def test_one_builder_for_commands_and_questions():
     question = build.clarification(t, "ambiguous", "Which one?", ctx.objects).sample
     assert isinstance(question, Clarification) and question.id == stable_id("clr", t.source, t.stamp, t.mic)
     assert len(ctx.objects) > MAX_CANDIDATES and len(question.candidates) == MAX_CANDIDATES
+
+
+def test_the_prompts_most_confident_objects_are_those_sorting_all_would_list() -> None:
+    """`most_confident` sorts only what scores at least the n-th best (issue #34): with many equal scores, across
+    cameras, fewer objects than asked, it lists exactly what sorting every object would."""
+    import dataclasses
+    import random
+
+    from services.fusion.describe import most_confident
+    from testkit.scenarios import scene_of
+
+    rng = random.Random(3)
+    objs = [Obj(f"o{i:03d}", "cup", "red", (10.0, 10.0), score=rng.choice((0.3, 0.5, 0.5, 0.9))) for i in range(300)]
+    objects = [dataclasses.replace(o, cam=rng.choice(("cam0", "cam1"))) for o in scene_of(objs)]
+    for n in (1, 5, 25, 299, 300, 400):
+        expected = sorted(objects, key=lambda o: (-o.score, o.cam, o.id))[:n]
+        assert most_confident(objects, n) == expected

@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from common.runner import service_parser
 from testkit.harness import ROOT
 
@@ -59,3 +61,33 @@ def test_services_run_opencv_on_one_thread_unless_told() -> None:
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert int(out.stdout.split()[-1]) == 1
     assert service_parser("gesture", "").parse_args(["--cv-threads", "0"]).cv_threads == 0
+
+
+def _autogroup_after(change: int, new_session: bool) -> tuple[str, str]:
+    """(the child's /proc/self/autogroup before, after) change_priority(change), in a session of its own or not."""
+    code = (
+        "from pathlib import Path\nfrom common.cpu import change_priority\n"
+        "before = Path('/proc/self/autogroup').read_text().strip()\n"
+        f"change_priority({change})\nprint(before)\nprint(Path('/proc/self/autogroup').read_text().strip())"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+        start_new_session=new_session,
+    )
+    before, after = out.stdout.splitlines()
+    return before, after
+
+
+@pytest.mark.skipif(not Path("/proc/self/autogroup").exists(), reason="no autogroup scheduling in this kernel")
+def test_a_service_leading_its_session_gives_its_autogroup_the_same_priority() -> None:
+    """`hri up` starts each service in a session of its own; with autogroups a thread's niceness counts only inside
+    its session's group, so the group must carry it too (else --nice changed nothing between services)."""
+    before, after = _autogroup_after(4, new_session=True)
+    assert after.endswith("nice 4") and before != after, (before, after)
+    # inside another session (a shell's, here pytest's) the group is shared: left alone
+    before, after = _autogroup_after(4, new_session=False)
+    assert after == before

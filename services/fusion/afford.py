@@ -139,8 +139,16 @@ def applicable(
     commander = commanding_person(pointing, objects)
     kept: list[SceneObject] = []
     removed: list[Removed] = []
+    # the affordance's verdict depends on the label and the size alone: once per kind of object, not once per object
+    # (a thousand objects in view are a few labels: issue #34)
+    not_afforded: dict[tuple[str, tuple[float, float, float] | None], str | None] = {}
     for o in objects:
-        why = _on_commander(pointing, commander, o) or _not_afforded(kind, verb, o)
+        why = _on_commander(pointing, commander, o)
+        if why is None:
+            kind_of = (o.label, o.extent)
+            if kind_of not in not_afforded:
+                not_afforded[kind_of] = _not_afforded(kind, verb, o)
+            why = not_afforded[kind_of]
         if why is None:
             kept.append(o)
         else:

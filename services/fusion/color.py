@@ -57,9 +57,13 @@ def colour_factors(term: str, candidates: list[Coloured]) -> dict[tuple[str, str
     fits = term_fits(term, np.array([o.lab for o in measured], np.float64)).tolist() if measured else []
     plausible = [f for f in fits if f >= PLAUSIBLE]  # all measured colours in one array operation
     unknown = []
+    by_names: dict[object, float | None] = {}  # objects reporting the same names fit alike: once per set of names
     for o in candidates:
         if o.lab is None:
-            f = name_fit(term, o)
+            names = o.colors or o.color
+            if names not in by_names:
+                by_names[names] = name_fit(term, o)
+            f = by_names[names]
             if f is None:
                 unknown.append(o.key)
                 continue

@@ -64,7 +64,8 @@ class Config:
     )
     window_after: float = setting(
         0.3,
-        "seconds after the utterance end searched: a point may come just after the word",
+        "seconds after the utterance end searched: a point may come just after the word (not for words that name "
+        "nothing to look at: a motion, come here, a greeting, an answer)",
         at_least=0,
         metavar="S",
     )
@@ -272,9 +273,8 @@ class FusionCore:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
             stop = Act("stop", confidence=t.confidence, explanation=why, realtime=True)
             return self.with_speaker(t, [self.outputs.command(t, stop, None)])
-        self.join.open(
-            PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before, t.end + self.cfg.window_after)
-        )
+        after = self.cfg.window_after if u.looks_at_something else 0.0
+        self.join.open(PendingTranscript(key, t, u, wall, t.start - self.cfg.window_before, t.end + after))
         return []
 
     def on_liveliness(self, service: str, instance: str, present: bool) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import heapq
+import math
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -282,6 +284,16 @@ class PromptScene:
     missing: Sequence[str] = ()
 
 
+def most_confident(objects: Sequence[SceneObject], n: int) -> list[SceneObject]:
+    """The n most confident objects (ties by camera and id), as sorting all would list them; only those scoring at
+    least the n-th best score are sorted (a thousand objects in view: issue #34)."""
+    if len(objects) <= n:
+        cut = -math.inf
+    else:
+        cut = heapq.nlargest(n, [o.score for o in objects])[-1]
+    return sorted([o for o in objects if o.score >= cut], key=lambda o: (-o.score, o.cam, o.id))[:n]
+
+
 def planner_prompt(act: Act, text: str | None, scene: PromptScene) -> str:
     """Everything a planner needs, in plain text, from the same data the decision used."""
     intent, target, location, place, motion = act.intent, act.target, act.location, act.place, act.motion
@@ -315,7 +327,7 @@ def planner_prompt(act: Act, text: str | None, scene: PromptScene) -> str:
     elif gesture:
         lines.append(f"Gesture: {gesture}")
     if objects:
-        shown = sorted(objects, key=lambda o: (-o.score, o.cam, o.id))[:PROMPT_MAX_OBJECTS]
+        shown = most_confident(objects, PROMPT_MAX_OBJECTS)
         if target is not None and target not in shown:
             shown[-1] = target
         lines.append(

@@ -20,12 +20,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from itertools import chain
 from typing import Literal, NamedTuple
 
 import numpy as np
 
 from common.language import canonical_label, label_matches
-from common.schema import GESTURE, SPEECH, ClarificationReason, Detections, Location, Target, Weights
+from common.schema import (
+    GESTURE,
+    SPEECH,
+    ClarificationReason,
+    DetectedObject,
+    Detections,
+    Location,
+    Target,
+    Weights,
+)
 from services.fusion import space
 from services.fusion.color import colour_factors
 from services.fusion.evidence import Pointing, image_quality
@@ -90,6 +100,34 @@ class SceneObject:
         return f"{self.color + ' ' if self.color else ''}{self.label}"
 
 
+def _scene_object(det: Detections, o: DetectedObject, label: str, quality: float) -> SceneObject:
+    """One wire object as a SceneObject, its fields set in one `__dict__` update: a frozen dataclass's `__init__` sets
+    each of its 18 fields by `object.__setattr__`, half the time of building 1000 objects (issue #34). The same
+    fields and values as `SceneObject(...)` (tests/test_fusion_ground.py checks it)."""
+    obj = object.__new__(SceneObject)
+    obj.__dict__.update(
+        id=o.id,
+        label=label,
+        raw_label=o.label,
+        color=o.color,
+        bbox=tuple(o.bbox),
+        center=tuple(o.center),
+        score=o.score,
+        cam=det.cam,
+        width=det.width,
+        height=det.height,
+        stamp=det.stamp,
+        quality=quality,
+        position=space.vec3(o.position) if o.position else None,
+        extent=space.vec3(o.extent) if o.extent else None,
+        frame_id=det.frame_id,
+        lab=None if o.lab is None else space.vec3(o.lab),
+        colors=tuple([(c.name, c.p) for c in o.colors]) if o.colors else (),
+        key=(det.cam, o.id),
+    )
+    return obj
+
+
 def scene_objects(detections: list[Detections]) -> list[SceneObject]:
     out = []
     labels: dict[str, str] = {}  # canonical_label once per label, not once per object (1000 objects: issue #34)
@@ -99,27 +137,7 @@ def scene_objects(detections: list[Detections]) -> list[SceneObject]:
             label = labels.get(o.label)
             if label is None:
                 label = labels[o.label] = canonical_label(o.label)
-            out.append(
-                SceneObject(
-                    o.id,
-                    label,
-                    o.label,
-                    o.color,
-                    tuple(o.bbox),  # type: ignore[arg-type]  # a wire Box: 4 numbers (schema)
-                    tuple(o.center),  # type: ignore[arg-type]  # a wire Point: 2 numbers
-                    o.score,
-                    det.cam,
-                    det.width,
-                    det.height,
-                    det.stamp,
-                    q,
-                    space.vec3(o.position) if o.position else None,
-                    space.vec3(o.extent) if o.extent else None,
-                    det.frame_id,
-                    None if o.lab is None else space.vec3(o.lab),
-                    tuple([(c.name, c.p) for c in o.colors]) if o.colors else (),
-                )
-            )
+            out.append(_scene_object(det, o, label, q))
     return out
 
 
@@ -146,6 +164,18 @@ def _attribute_match(phrase: ObjectPhrase, o: SceneObject) -> float:
     if not label_matches(phrase.label, o.label):  # "fruit" names the banana; "the banana" only the banana
         m = 0.0
     return m
+
+
+def _attribute_matches(phrase: ObjectPhrase, objects: list[SceneObject]) -> dict[tuple[str, str], float]:
+    """`_attribute_match` of every object, once per label (a thousand objects are a few labels: issue #34)."""
+    by_label: dict[str, float] = {}
+    out = {}
+    for o in objects:
+        m = by_label.get(o.label)
+        if m is None:
+            m = by_label[o.label] = _attribute_match(phrase, o)
+        out[o.key] = m
+    return out
 
 
 def _spatial_scores(word: str, group: list[SceneObject]) -> dict[tuple[str, str], float]:
@@ -267,21 +297,25 @@ def on_the_hand(p: Pointing, o: SceneObject) -> bool:
     return x0 <= o.center[0] <= x1 and y0 <= o.center[1] <= y1
 
 
-def touched_objects(p: Pointing, objects: list[SceneObject]) -> set[tuple[str, str]]:
-    """The objects the fingertip touches (services/fusion/touch.py): the smallest box that contains it wins over
-    the box it rests on. A person's box is never touched: the pointing person's own body holds the fingertip; nor is
-    a blob on the pointing hand itself."""
-    tip = fingertip(p.origin, p.direction, p.hand_box)
-    # Objects in metres are judged by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may
-    # lie far behind it.
-    mine = [o for o in objects if o.cam == p.cam and o.label != "person" and not on_the_hand(p, o) and not in_3d(p, o)]
-    hit, _ = touched(tip, [o.bbox for o in mine])
-    return {mine[i].key for i in hit}
+def _boxes(objects: list[SceneObject]) -> tuple[np.ndarray, np.ndarray]:
+    """Every object's box (n x 4) and centre (n x 2) as arrays, made once for all the steps that need them."""
+    n = len(objects)  # fromiter over the flattened numbers: half the time of np.array over a list of tuples
+    return (
+        np.fromiter(chain.from_iterable([o.bbox for o in objects]), float, 4 * n).reshape(-1, 4),
+        np.fromiter(chain.from_iterable([o.center for o in objects]), float, 2 * n).reshape(-1, 2),
+    )
 
 
-def _flat_2d(p: Pointing, objects: list[SceneObject]) -> list[int]:
-    """Indices of the objects judged in the image plane: in the ray's camera, not on the hand, not in metres."""
-    return [i for i, o in enumerate(objects) if o.cam == p.cam and not on_the_hand(p, o) and not in_3d(p, o)]
+def _flat_mask(p: Pointing, objects: list[SceneObject], c: np.ndarray) -> np.ndarray:
+    """Which objects are judged in the image plane: in the ray's camera, not on the hand (`on_the_hand`, the same
+    comparisons over all centres `c` at once), not in metres."""
+    mask = np.fromiter((o.cam == p.cam for o in objects), bool, len(objects))
+    if p.hand_box is not None:
+        x0, y0, x1, y1 = p.hand_box
+        mask &= ~((x0 <= c[:, 0]) & (c[:, 0] <= x1) & (y0 <= c[:, 1]) & (c[:, 1] <= y1))
+    if p.ray3d is not None:
+        mask &= ~np.fromiter((in_3d(p, o) for o in objects), bool, len(objects))
+    return mask
 
 
 @dataclass(frozen=True)
@@ -295,8 +329,11 @@ class RayGeometry:
 
     @staticmethod
     def of(p: Pointing, objects: list[SceneObject]) -> "RayGeometry":
-        b = np.array([o.bbox for o in objects], dtype=float).reshape(-1, 4)
-        c = np.array([o.center for o in objects], dtype=float).reshape(-1, 2)
+        return RayGeometry.of_boxes(p, *_boxes(objects))
+
+    @staticmethod
+    def of_boxes(p: Pointing, b: np.ndarray, c: np.ndarray) -> "RayGeometry":
+        """The same from the boxes (n x 4) and centres (n x 2) as arrays."""
         vx, vy = c[:, 0] - p.origin[0], c[:, 1] - p.origin[1]
         dist = np.hypot(vx, vy)
         radius = 0.5 * np.hypot(b[:, 2], b[:, 3]) * 0.5
@@ -332,29 +369,89 @@ def _enters_within_reach(p: Pointing, b: np.ndarray) -> np.ndarray:
     return hit & (t_near <= t_far) & (t_near <= reach)
 
 
+@dataclass(frozen=True)
+class _RayPass:
+    """`ray_score` of many objects: the image-plane ones in one numpy pass (`RayGeometry`), the others (another
+    camera, on the hand, in metres) one by one; and which lie under the fingertip with G > 0 (`under_fingertip`)."""
+
+    flat: np.ndarray  # bool: judged in the image plane
+    boxes: np.ndarray  # every object's box, n x 4
+    g: np.ndarray
+    angle: np.ndarray  # degrees; NaN where `ray_score` says None
+    under: np.ndarray  # bool
+    others: dict[int, Deictic]  # the `ray_score` of each object not in the image plane, by index
+
+    @staticmethod
+    def of(p: Pointing, objects: list[SceneObject]) -> "_RayPass":
+        n = len(objects)
+        b, c = _boxes(objects)
+        flat = _flat_mask(p, objects, c)
+        g, angle, under = np.zeros(n), np.full(n, np.nan), np.zeros(n, dtype=bool)
+        idx = np.flatnonzero(flat)
+        if len(idx):
+            geo = RayGeometry.of_boxes(p, b[idx], c[idx])
+            g[idx], angle[idx], under[idx] = geo.g, geo.angle, (geo.g > 0) & geo.under_tip
+        others: dict[int, Deictic] = {}
+        for i in np.flatnonzero(~flat).tolist():
+            d = others[i] = ray_score(p, objects[i])
+            g[i] = d.gesture
+            angle[i] = np.nan if d.angle is None else d.angle
+            under[i] = d.angle is not None and d.gesture > 0 and under_fingertip(p, objects[i])
+        return _RayPass(flat, b, g, angle, under, others)
+
+    def at(self, i: int) -> Deictic:
+        d = self.others.get(i)
+        return d if d is not None else Deictic(float(self.g[i]), float(self.angle[i]), "along the image ray")
+
+
 def ray_scores(p: Pointing, objects: list[SceneObject]) -> tuple[dict[tuple[str, str], Deictic], set[tuple[str, str]]]:
     """`ray_score` of every object, and the keys of those under the fingertip with G > 0 (`under_fingertip`); the
     image-plane ones (all of them, but for depth) in one numpy pass: 1000 objects in about a millisecond."""
-    out: dict[tuple[str, str], Deictic] = {}
-    under: set[tuple[str, str]] = set()
-    flat = _flat_2d(p, objects)
-    flat_set = set(flat)
-    for i, o in enumerate(objects):
-        if i not in flat_set:
-            d = out[o.key] = ray_score(p, o)
-            if d.angle is not None and d.gesture > 0 and under_fingertip(p, o):
-                under.add(o.key)
-    if flat:
-        geo = RayGeometry.of(p, [objects[i] for i in flat])
-        for j, i in enumerate(flat):
-            out[objects[i].key] = Deictic(float(geo.g[j]), float(geo.angle[j]), "along the image ray")
-            if geo.g[j] > 0 and geo.under_tip[j]:
-                under.add(objects[i].key)
-    return {o.key: out[o.key] for o in objects}, under
+    rays = _RayPass.of(p, objects)
+    out = {o.key: rays.at(i) for i, o in enumerate(objects)}
+    return out, {objects[i].key for i in np.flatnonzero(rays.under).tolist()}
 
 
-def _people(objects: list[SceneObject]) -> set[tuple[str, str]]:
-    return {o.key for o in objects if o.label == "person"}
+def _people(objects: list[SceneObject]) -> np.ndarray:
+    return np.fromiter((o.label == "person" for o in objects), bool, len(objects))
+
+
+@dataclass(frozen=True)
+class Deictics:
+    """What pointing says about many objects (`deictic_scores`' rules): G of each as one array, for ranking, and
+    each one's whole `Deictic` on demand (`at`), the same values, without building 1000 of them (issue #34)."""
+
+    rays: _RayPass
+    near: np.ndarray  # bool: touched, or (nothing touched) under the fingertip
+    rule: str | None  # the near objects' rule; None: none is near, every object keeps its ray score
+    gesture: np.ndarray  # G after the rule
+
+    @staticmethod
+    def of(p: Pointing, objects: list[SceneObject]) -> "Deictics":
+        rays = _RayPass.of(p, objects)
+        people = _people(objects)
+        near = np.zeros(len(objects), dtype=bool)
+        # touched (services/fusion/touch.py): the smallest box holding the fingertip wins over the box it rests on;
+        # never a person (the pointing person's own box holds the fingertip) nor a blob on the hand; objects in metres
+        # go by the 3-D rule (`under_fingertip`): a box around the fingertip's pixel may lie far behind it
+        mine = np.flatnonzero(rays.flat & ~people)
+        hit, _ = touched(fingertip(p.origin, p.direction, p.hand_box), rays.boxes[mine])
+        rule: str | None = "touch"
+        if hit:
+            near[mine[hit]] = True
+        else:
+            near = rays.under & ~people
+            rule = "under the fingertip" if near.any() else None
+        gesture = rays.g if rule is None else np.where(near, 1.0, rays.g * FARTHER_ALONG)
+        return Deictics(rays, near, rule, gesture)
+
+    def at(self, i: int) -> Deictic:
+        d = self.rays.at(i)
+        if self.rule is None:
+            return d
+        if self.near[i]:
+            return Deictic(1.0, d.angle if d.angle is not None else 0.0, self.rule, d.off_m)
+        return d._replace(gesture=d.gesture * FARTHER_ALONG)
 
 
 def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, str], Deictic]:
@@ -362,22 +459,8 @@ def deictic_scores(p: Pointing, objects: list[SceneObject]) -> dict[tuple[str, s
     behind the tip: a finger on a laptop's keyboard), else what lies under the fingertip wins over what lies further
     along the ray. People never win by touch or by being under the fingertip: the pointing person's own box holds
     the fingertip (issue #31); another person is scored by the ray alone."""
-    out, under = ray_scores(p, objects)
-    near = touched_objects(p, objects)
-    rule = "touch"
-    if not near:
-        rule = "under the fingertip"
-        near = {k for k in under if k in out and k not in _people(objects)}
-    if not near:
-        return out
-    return {
-        k: (
-            Deictic(1.0, d.angle if d.angle is not None else 0.0, rule, d.off_m)
-            if k in near
-            else d._replace(gesture=d.gesture * FARTHER_ALONG)
-        )
-        for k, d in out.items()
-    }
+    d = Deictics.of(p, objects)
+    return {o.key: d.at(i) for i, o in enumerate(objects)}
 
 
 RELATION_FLOOR = 0.05  # below this fit nobody is in that relation to the anchor: the words are not matched
@@ -393,11 +476,15 @@ def _anchor_fits(anchor: ObjectPhrase, scene: list[SceneObject]) -> list[tuple[S
         return []
     # pruned by the words first: an object whose label does not fit has match 0 whatever the other words say, and
     # the colour, spatial and ordinal steps look only at the objects that fit (the same result, 1000 objects fast)
-    named = [o for o in scene if _attribute_match(anchor, o) > 0]
+    fits = _attribute_matches(anchor, scene)
+    named = [o for o in scene if fits[o.key] > 0]
     if not named:
         return []
-    scored = score(anchor, named, None, ANCHOR_WEIGHTS, adaptive=False, scene=scene)
-    return [(s.obj, s.match) for s in scored if s.match >= 0.5]
+    # `score`'s matches in `score`'s order (its totals, to the bit: `_Evidence.arrays`), without a Scored each
+    ev = _evidence(anchor, named, None, ANCHOR_WEIGHTS, False, None, scene)
+    totals = ev.arrays()[2].tolist()
+    ranked = sorted(range(len(named)), key=lambda i: (-round(totals[i], 9), named[i].cam, named[i].id))
+    return [(named[i], ev.match[named[i].key]) for i in ranked if ev.match[named[i].key] >= 0.5]
 
 
 def _relation_scores(
@@ -493,6 +580,82 @@ def _relations_and_order(
             match[o.key] *= prefs.get(o.key, 0.0)
 
 
+@dataclass(frozen=True)
+class _Evidence:
+    """Everything `score` weighs, per object: `scored(i)` is one object's `Scored` (the formulas), `arrays` the same
+    speech and total of all objects at once (numpy), for choosing which objects to build (`shortlist`)."""
+
+    objects: list[SceneObject]
+    match: dict[tuple[str, str], float]
+    deictic: Deictics | None  # None: pointing not used
+    ws: float
+    wg: float
+    adaptive: bool
+    ref: float | None
+
+    def scored(self, i: int) -> Scored:
+        o = self.objects[i]
+        m = self.match[o.key]
+        if self.adaptive:
+            recency = math.exp(-abs(o.stamp - self.ref) / RECENCY_S) if self.ref is not None else 1.0
+            trust = o.score * o.quality * recency
+        else:
+            trust = 1.0
+        s = 0.5 + (m - 0.5) * trust
+        d = self.deictic.at(i) if self.deictic is not None else Deictic(0.0, None)
+        g = d.gesture if self.deictic is not None else None
+        total = (self.ws * s + self.wg * (g or 0.0)) / (self.ws + self.wg)
+        return Scored(o, m, trust, s, g, d.angle, total, d.rule, d.off_m)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(match, speech, total) of every object by `scored`'s formulas over arrays, the same numbers to the bit:
+        the same float operations in the same order, and the recency's `math.exp` once per stamp (one per sample)."""
+        n = len(self.objects)
+        m = np.fromiter((self.match[o.key] for o in self.objects), float, n)
+        trust = np.ones(n)
+        if self.adaptive:
+            trust = np.fromiter((o.score * o.quality for o in self.objects), float, n)
+            if self.ref is not None:
+                ref = self.ref
+                recency = {t: math.exp(-abs(t - ref) / RECENCY_S) for t in {o.stamp for o in self.objects}}
+                trust = trust * np.fromiter((recency[o.stamp] for o in self.objects), float, n)
+        s = 0.5 + (m - 0.5) * trust
+        g = self.deictic.gesture if self.deictic is not None else np.zeros(n)
+        return m, s, (self.ws * s + self.wg * g) / (self.ws + self.wg)
+
+
+def _evidence(
+    phrase: ObjectPhrase,
+    objects: list[SceneObject],
+    pointing: Pointing | None,
+    weights: Weights,
+    adaptive: bool,
+    ref: float | None,
+    scene: list[SceneObject] | None,
+) -> _Evidence:
+    match = _attribute_matches(phrase, objects)
+    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/color.py)
+        factors = colour_factors(phrase.color, [o for o in objects if match[o.key] > 0])
+        match = {k: m * factors.get(k, 0.0) for k, m in match.items()}
+    fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
+    for word in phrase.spatial:  # spatial words choose among the objects that fit the other words
+        prefs = _spatial_scores(word, fitting)
+        for o in objects:
+            match[o.key] *= prefs.get(o.key, 1.0)
+    _relations_and_order(phrase, objects, match, scene if scene is not None else objects)
+    use_gesture = pointing is not None and weights.gesture > 0
+    ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
+    if ws + wg <= 0:
+        ws = 1.0
+    deictic = Deictics.of(pointing, objects) if pointing is not None and use_gesture else None
+    return _Evidence(objects, match, deictic, ws, wg, adaptive, ref)
+
+
+def _ranked(scored: list[Scored]) -> list[Scored]:
+    scored.sort(key=lambda c: (-round(c.total, 9), c.obj.cam, c.obj.id))
+    return scored
+
+
 def score(
     phrase: ObjectPhrase,
     objects: list[SceneObject],
@@ -508,36 +671,53 @@ def score(
     candidates of its question, but "the one next to the laptop" may name a laptop that is not one of them)."""
     if not objects:
         return []
-    match = {o.key: _attribute_match(phrase, o) for o in objects}
-    if phrase.color:  # by similarity, relative to the objects the other words fit (services/fusion/color.py)
-        factors = colour_factors(phrase.color, [o for o in objects if match[o.key] > 0])
-        match = {k: m * factors.get(k, 0.0) for k, m in match.items()}
-    fitting = [o for o in objects if match[o.key] >= 0.5] or list(objects)
-    for word in phrase.spatial:  # spatial words choose among the objects that fit the other words
-        prefs = _spatial_scores(word, fitting)
-        for o in objects:
-            match[o.key] *= prefs.get(o.key, 1.0)
-    _relations_and_order(phrase, objects, match, scene if scene is not None else objects)
-    use_gesture = pointing is not None and weights.gesture > 0
-    ws, wg = weights.speech, (weights.gesture if use_gesture else 0.0)
-    if ws + wg <= 0:
-        ws = 1.0
-    deictic = deictic_scores(pointing, objects) if pointing is not None and use_gesture else {}
-    scored = []
-    for o in objects:
-        m = match[o.key]
-        if adaptive:
-            recency = math.exp(-abs(o.stamp - ref) / RECENCY_S) if ref is not None else 1.0
-            trust = o.score * o.quality * recency
-        else:
-            trust = 1.0
-        s = 0.5 + (m - 0.5) * trust
-        d = deictic[o.key] if use_gesture else Deictic(0.0, None)
-        g = d.gesture if use_gesture else None
-        total = (ws * s + wg * (g or 0.0)) / (ws + wg)
-        scored.append(Scored(o, m, trust, s, g, d.angle, total, d.rule, d.off_m))
-    scored.sort(key=lambda c: (-round(c.total, 9), c.obj.cam, c.obj.id))
-    return scored
+    ev = _evidence(phrase, objects, pointing, weights, adaptive, ref, scene)
+    return _ranked([ev.scored(i) for i in range(len(objects))])
+
+
+RANK_SLACK = 1e-6  # covers the ranking's rounding of totals to 1e-9: a total this far below another may rank first
+
+
+def _first_ranked(best: np.ndarray, total: np.ndarray) -> np.ndarray:
+    """Of the objects `best` marks, those that may be ranked first among them (the ranking rounds totals)."""
+    return best & (total >= total[best].max() - RANK_SLACK)
+
+
+def _shortlisted(ev: _Evidence) -> list[int]:
+    """The indices of what `choose` reads (see `shortlist`), from `_Evidence.arrays`: the first MAX_CANDIDATES + 1 of
+    the ranking (all whose total may rank among them: more where totals tie), the first ranked of the best by the
+    words and by the ray, one object with the best match."""
+    n = len(ev.objects)
+    top = MAX_CANDIDATES + 1  # `choose` reads the winner, the runner-up and at most MAX_CANDIDATES close ones
+    if n <= 4 * top:
+        return list(range(n))
+    m, s, total = ev.arrays()
+    keep = total >= np.partition(total, n - top)[n - top] - RANK_SLACK
+    keep |= _first_ranked(s == s.max(), total)  # speech_best
+    if ev.deictic is not None:
+        g = ev.deictic.gesture
+        keep |= _first_ranked(g == g.max(), total)  # gesture_best
+    keep[int(np.argmax(m))] = True  # `choose` reads the best match
+    return np.flatnonzero(keep).tolist()
+
+
+def shortlist(
+    phrase: ObjectPhrase,
+    objects: list[SceneObject],
+    pointing: Pointing | None,
+    weights: Weights,
+    *,
+    adaptive: bool = True,
+    ref: float | None = None,
+    scene: list[SceneObject] | None = None,
+) -> list[Scored]:
+    """What `choose` reads of `score`'s ranking, in its order: the first MAX_CANDIDATES + 1, the best by the words
+    (speech, and a best match) and by the ray. `choose` decides the same on it as on the whole ranking (it never
+    reads more), and only those objects are built: a thousand objects in view, a handful of `Scored` (issue #34)."""
+    if not objects:
+        return []
+    ev = _evidence(phrase, objects, pointing, weights, adaptive, ref, scene)
+    return _ranked([ev.scored(i) for i in _shortlisted(ev)])
 
 
 PART_OF = 0.9  # a box this much inside a bigger box of the same label is the detector boxing part of that object
@@ -658,7 +838,7 @@ def ray_point(p: Pointing, reach: float = LOCATION_REACH) -> tuple[float, float]
 
 def best_pointed(p: Pointing, objects: list[SceneObject]) -> Scored | None:
     """The object the ray points at best, by the gesture alone (None: no objects)."""
-    ranked = score(ObjectPhrase(), objects, p, GESTURE_ONLY)
+    ranked = shortlist(ObjectPhrase(), objects, p, GESTURE_ONLY)
     return ranked[0] if ranked else None
 
 

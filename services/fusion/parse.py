@@ -195,6 +195,10 @@ class ObjectPhrase:
         return own + tuple(n for r in self.relations for a in r.anchors for n in a.unknown_nouns)
 
 
+# intents that name nothing to look at when said alone: a gesture after the words cannot complete them
+SELF_CONTAINED_INTENTS: frozenset[str] = frozenset({"turn", "move", "come_here", "greet"})
+
+
 @dataclass(frozen=True)
 class Utterance:
     text: str
@@ -223,6 +227,17 @@ class Utterance:
             or self.deictic_place
             or self.other
         )
+
+    @property
+    def looks_at_something(self) -> bool:
+        """A gesture just after the words may complete them: they name an object or a place ("that", "the red one"
+        + a point), have words nothing matched, or ask for an action on something not named ("pick up" + a point).
+        A motion ("turn left", "go forward one meter"), "come here", a greeting or a bare answer names nothing to
+        look at: its decision does not wait for gestures after the utterance."""
+        named = self.obj.specific or self.obj.deictic or self.place or self.deictic_place or self.dest_obj
+        if named or self.other or self.unknown:
+            return True
+        return self.intent is not None and self.intent not in SELF_CONTAINED_INTENTS
 
     @property
     def deictic(self) -> bool:

@@ -34,7 +34,7 @@ import operator
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Iterable, Sequence, TypeVar
+from typing import Any, Callable, Iterable, Sequence, TypeVar
 
 import numpy as np
 
@@ -67,6 +67,21 @@ PROMPTS = ("none", "short", "vocabulary")
 # against those commands (common.language.one_word_commands) with the model's own probabilities; the best
 # command is taken when its probability times COMMAND_PRIOR is at least that of the word heard.
 SHORT_SECONDS = 2.0
+WINDOW_FRAMES = 3000  # Whisper's 30 s window in feature frames (10 ms each)
+# silence the encoder sees after the utterance, at the least: Whisper was trained on 30 s windows, most of a short
+# command's window being padding; with too little of it after the speech it repeats itself ("turn left... turn left")
+ENCODER_TAIL_SECONDS = 5.0
+
+
+def encoder_frames(audio_seconds: float, encoder_seconds: float | None) -> int:
+    """Feature frames the encoder sees for an utterance of `audio_seconds`: all 30 s if `encoder_seconds` is None,
+    else the utterance and ENCODER_TAIL_SECONDS after it, at least `encoder_seconds`; a whole second, at most 30 s."""
+    if encoder_seconds is None:
+        return WINDOW_FRAMES
+    seconds = max(encoder_seconds, audio_seconds + ENCODER_TAIL_SECONDS)
+    return min(WINDOW_FRAMES, 100 * math.ceil(seconds))
+
+
 COMMAND_PRIOR = 20.0
 # ... and the probabilities are the mean over copies of the utterance (scoring_copies; 1: as heard). The copies
 # after the first (test-time augmentation, docs/speech.md): the utterance shifted later in Whisper's 30 s window
@@ -98,6 +113,9 @@ class WhisperSettings:
     # the short-utterance decode: a one-word utterance favours the command words (None: off)
     command_prior: float | None = COMMAND_PRIOR
     command_copies: int = COMMAND_COPIES
+    # seconds of Whisper's 30 s window the encoder sees: the utterance and silence after it to at least this
+    # (None: all 30 s). The encoder is ~80 % of a decode and its cost grows with the window (docs/speech.md)
+    encoder_seconds: float | None = 20.0
 
 
 def packaged_model_dir() -> Path:
@@ -373,6 +391,11 @@ class WhisperRecognizer:
             )
         except Exception as exc:  # ctranslate2 raises RuntimeError/ValueError for a broken folder
             raise BackendError(f"cannot load the Whisper model in {folder}: {exc}. " + _MODEL_HELP) from None
+        self._encoder_frames = WINDOW_FRAMES
+        self._full_window_encode = self.model.encode
+        # faster-whisper pads every window to 30 s before encoding: the encoder is cut to the frames chosen
+        # for the utterance being decoded (encoder_frames) at that one place; the model is used by one thread
+        self.model.encode = self._encode
         self.folder, self.packaged = folder, packaged
         self.settings = settings
         commands = list(commands)
@@ -396,6 +419,14 @@ class WhisperRecognizer:
 
             self._command_tokens = {w: ids for w in one_word_commands() if (ids := self._single_tokens(w))}
 
+    def _encode(self, features: np.ndarray) -> Any:
+        if features.shape[-1] > self._encoder_frames:
+            features = np.ascontiguousarray(features[..., : self._encoder_frames])
+        return self._full_window_encode(features)
+
+    def _window_for(self, samples: int) -> None:
+        self._encoder_frames = encoder_frames(samples / RATE, self.settings.encoder_seconds)
+
     def _single_tokens(self, word: str) -> list[int]:
         """The ids of the spellings of `word` that are one token each (a command word's spellings are: the rest
         would need a decode step per token, and are left out)."""
@@ -409,9 +440,9 @@ class WhisperRecognizer:
         decoder step, no timestamps, nothing suppressed."""
         from faster_whisper.audio import pad_or_trim
 
-        features = np.stack(
-            [pad_or_trim(self.model.feature_extractor(copy)) for copy in scoring_copies(audio, copies)]
-        ).astype(np.float32)
+        copies_ = scoring_copies(audio, copies)
+        self._window_for(max(len(c) for c in copies_))
+        features = np.stack([pad_or_trim(self.model.feature_extractor(copy)) for copy in copies_]).astype(np.float32)
         encoded = self.model.encode(features)
         result = self.model.model.generate(
             encoded,
@@ -441,6 +472,7 @@ class WhisperRecognizer:
 
     def recognise(self, audio: np.ndarray) -> Recognition | None:
         s = self.settings
+        self._window_for(len(audio))
         segments, _ = self.model.transcribe(
             audio.astype(np.float32, copy=False),
             language="en",
