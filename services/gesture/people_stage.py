@@ -195,6 +195,8 @@ class CameraPeople:
         if not self.every:
             return None
         ran = self.due(frame, fresh) if run is None else run
+        if frame.cam not in self.stages:  # `run` given without `due` asked first
+            self.stages[frame.cam] = PeopleStage(every=self.every)
         return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d, faces, run=ran)
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
