@@ -51,7 +51,7 @@ fix:
 compose:
 	@$(PY) -m hri.compose --write
 
-BENCHMARKS := transport vision gesture pose_pacing faces speech fusion fusion_eval record_replay view pointing_3d distributed ros2 stack
+BENCHMARKS := transport vision gesture pose_pacing stagger faces speech fusion fusion_eval record_replay view pointing_3d distributed ros2 stack
 
 bench: setup
 	@for b in $(BENCHMARKS); do echo "== benchmarks/$$b.py"; $(PY) benchmarks/$$b.py || exit 1; done

@@ -247,8 +247,10 @@ def test_an_arm_moving_between_real_photos_starts_the_same_points_at_most_one_po
 
 
 def _run_stages(pose_max_rate: float, images: list[np.ndarray]) -> list[FrameResult]:
-    """The service's whole path as shipped (person stage on every 2nd frame, face stage), at this pose rate."""
-    core = GestureCore(GestureSettings(pose_max_rate=pose_max_rate), "gesture/t", 2)
+    """The service's whole path as shipped (person stage on every 2nd frame, face stage), at this pose rate, the
+    stages each on the frames they are due (not staggered: the Persons of both rates then come on the same frames;
+    the staggered path against this one: tests/test_gesture_stagger.py)."""
+    core = GestureCore(GestureSettings(pose_max_rate=pose_max_rate, stagger=False), "gesture/t", 2)
     try:
         return [core.process(_frame(img, k, 25.0), img, fresh=k == 0) for k, img in enumerate(images)]
     finally:

@@ -106,6 +106,13 @@ def build_parser() -> argparse.ArgumentParser:
         at_least=1,
         metavar="N",
     )
+    add_option(
+        parser,
+        "--stagger",
+        True,
+        "spread the paced stages over frames: the face stage, the idle hand search and the person stage, when due on "
+        "a frame full pose runs on, move to the next frame (each keeps its rate; --no-stagger: each runs when due)",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     add_option(
         parser,
@@ -133,6 +140,7 @@ def settings_of(args: argparse.Namespace) -> GestureSettings:
         hands_idle_every=args.hands_idle_every,
         faces=args.faces,
         face=from_args(FaceConfig, args),
+        stagger=args.stagger,
     )
 
 

@@ -30,6 +30,7 @@ from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms, other_skeletons
 from services.gesture.persons import Box
 from services.gesture.pose_track import PoseRun, carried, hands_on_arms
+from services.gesture.schedule import Due, FramePlan, StageScheduler
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 
@@ -77,6 +78,7 @@ class GestureSettings:
     hands_idle_every: int = 2  # while no hand is in view, look for hands on every Nth frame only (1: every frame)
     faces: bool = True  # the face stage: Faces for who is speaking (issue #33)
     face: FaceConfig = FaceConfig()
+    stagger: bool = True  # spread the paced stages over frames (schedule.py); False: each runs when it is due
 
 
 @dataclass
@@ -91,7 +93,8 @@ class FrameResult:
     hand_rays3d: dict[str, Ray3D | None]
     persons: Persons | None = None  # on the frames the person stage ran on
     seen: PeopleOfFrame | None = None  # whose hands and gestures these are
-    faces: Faces | None = None  # the face stage's sample (None: off, or skipped by faces_max_rate)
+    faces: Faces | None = None  # the face stage's sample (None: off, skipped by faces_max_rate, or deferred)
+    plan: FramePlan | None = None  # which paced stages ran on this frame (schedule.py)
 
 
 @dataclass
@@ -107,6 +110,7 @@ class CameraGestures:
     idle_skipped: int = field(init=False, default=0)  # frames since the last search while none is in view
     pose_pace: RatePace = field(init=False)
     pose_run: PoseRun | None = field(init=False, default=None)  # the pose model's last run
+    schedule: StageScheduler = field(init=False)  # which paced stages run on a frame
 
     def __post_init__(self) -> None:
         s = self.settings
@@ -122,34 +126,68 @@ class CameraGestures:
         if s.body:
             self.pose = PoseLandmarker()
         self.pose_pace, self.pose_run = RatePace(s.pose_max_rate), None
+        self.schedule = StageScheduler(stagger=s.stagger)
         # a new stream's first frame is searched (as if the idle frames had all gone by)
         self.hands_in_view, self.idle_skipped = False, s.hands_idle_every
 
-    def find_hands(self, img: np.ndarray) -> list[Observation]:
-        """The hands of this frame. While none is in view, the search (MediaPipe's palm detector, most of the
-        hands stage's cost when nothing is tracked) runs on every `hands_idle_every`-th frame only: a hand coming
-        into view is found at most N-1 frames late; a hand in view is tracked on every frame."""
-        every = self.settings.hands_idle_every
-        if not self.hands_in_view and self.idle_skipped + 1 < every:
+    def search_due(self) -> bool:
+        """Whether the hand search is due on this frame while no hand is in view: on every `hands_idle_every`-th
+        frame only (MediaPipe's palm detector, most of the hands stage's cost when nothing is tracked). Counted from
+        when it was due, not when it ran (the schedule may move it a frame), so it keeps its rate."""
+        if self.hands_in_view:
+            return False
+        if self.idle_skipped + 1 < self.settings.hands_idle_every:
             self.idle_skipped += 1
-            return []
+            return False
         self.idle_skipped = 0
+        return True
+
+    def find_hands(self, img: np.ndarray, search: bool) -> list[Observation]:
+        """The hands of this frame: a hand in view is tracked on every frame; while none is, only the frames the
+        search runs on (`search`) look: a hand coming into view is found at most `hands_idle_every` - 1 frames
+        late, one more when the schedule moved the search off a pose frame."""
+        if not self.hands_in_view and not search:
+            return []
         found = self.hands.detect(img)
         self.hands_in_view = bool(found)
         return found
 
-    def find_body(self, stamp: float, img: np.ndarray, hands: list[Observation]) -> Body3:
-        """The full-frame skeleton of this frame, its world landmarks and its age (s): the pose model's when it is
-        due (`pose_max_rate`), else its last run's carried to this frame's hands (`pose_track.carried`)."""
+    def pose_due(self, stamp: float) -> bool:
+        """Whether the pose model runs on this frame (`pose_max_rate`; always before its first run)."""
+        if self.pose is None:
+            return False
+        due = self.pose_pace.due(stamp)
+        return due or self.pose_run is None
+
+    def find_body(self, stamp: float, img: np.ndarray, hands: list[Observation], run: bool) -> Body3:
+        """The full-frame skeleton of this frame, its world landmarks and its age (s): the pose model's when it
+        runs (`run`: `pose_due`), else its last run's carried to this frame's hands (`pose_track.carried`)."""
         if self.pose is None:
             return None, None, 0.0
-        run, due = self.pose_run, self.pose_pace.due(stamp)
-        if run is None or due:
+        run_before = self.pose_run
+        if run_before is None or run:
             skeleton = self.pose.detect(img, stamp)
             wrists = hands_on_arms(skeleton, hands) if skeleton is not None else {}
             self.pose_run = PoseRun(skeleton, self.pose.world if skeleton is not None else None, stamp, wrists)
             return skeleton, self.pose_run.world, 0.0
-        return carried(run, hands), run.world, max(0.0, stamp - run.stamp)
+        return carried(run_before, hands), run_before.world, max(0.0, stamp - run_before.stamp)
+
+    def plan(self, stamp: float, faces_due: bool, persons_due: bool) -> FramePlan:
+        """This frame's paced stages, each pacer asked once (they count the frames they are asked about)."""
+        s = self.settings
+        every_frame = {"pose"} if s.pose_max_rate <= 0 else set()
+        every_frame |= {"hand_search"} if s.hands_idle_every <= 1 else set()
+        every_frame |= {"faces"} if s.face.faces_max_rate <= 0 else set()
+        every_frame |= {"persons"} if s.persons_every == 1 else set()
+        due = Due(
+            pose=self.pose_due(stamp),
+            hands_tracked=self.hands_in_view,
+            faces=faces_due,
+            hand_search=self.search_due(),
+            persons=persons_due,
+            every_frame=frozenset(every_frame),
+        )
+        return self.schedule.plan(due)
 
     def close(self) -> None:
         self.hands.close()
@@ -202,14 +240,19 @@ class GestureCore:
     def process(self, frame: Frame, img: np.ndarray, fresh: bool) -> FrameResult:
         """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
         cam = self.camera(frame)
-        observations = cam.find_hands(img)
-        skeleton, world, pose_age = cam.find_body(frame.stamp, img, observations)
+        if fresh:
+            cam.schedule.restart()
+        plan = cam.plan(frame.stamp, self.faces.due(frame), self.people.due(frame, fresh))
+        observations = cam.find_hands(img, plan.hand_search)
+        skeleton, world, pose_age = cam.find_body(frame.stamp, img, observations, plan.pose)
         rays3d = self.frame_rays(frame, skeleton, world)
         joints3d = rays3d.joints() if rays3d is not None else None  # with depth, arms are judged in 3-D
         size = (frame.width, frame.height)
-        faces = self.faces.sample(frame, img, self.source)
+        faces = self.faces.sample(frame, img, self.source, run=plan.faces)
         boxes = face_boxes(faces, self.settings.face.max_faces)
-        seen = self.people.update(frame, img, skeleton, observations, rays3d, fresh=fresh, faces=boxes)
+        seen = self.people.update(
+            frame, img, skeleton, observations, rays3d, fresh=fresh, faces=boxes, run=plan.persons
+        )
         others = other_skeletons(seen)  # their hands keep the resting rules of their own arms (issue #31)
         tracked, events = cam.tracker.update(frame.stamp, observations, skeleton, size, joints3d, others)
         hand_rays3d = {
@@ -229,7 +272,7 @@ class GestureCore:
         if self.settings.body:
             main = (skeleton, cam.tracker.last_arms, pose_age)
             bodies = Bodies(**fields, bodies=people_bodies(frame, main, rays3d, seen))
-        return FrameResult(hands, bodies, events, rays3d, hand_rays3d, persons, seen, faces)
+        return FrameResult(hands, bodies, events, rays3d, hand_rays3d, persons, seen, faces, plan)
 
     def link(self, frame: Frame, faces: Faces | None, seen: PeopleOfFrame | None, persons: Persons | None) -> None:
         """The face stage's Faces of this frame tied to the persons both ways (`link_faces`: a face's person, a

@@ -296,11 +296,16 @@ class FaceStages:
         self.stages: dict[str, FaceStage] = {}
         self.pace: dict[str, RatePace] = {}  # cam -> which of its frames the stage runs on
 
-    def sample(self, frame: Frame, bgr: np.ndarray, source: str) -> Faces | None:
+    def due(self, frame: Frame) -> bool:
+        """Whether the stage is due on this frame of its camera (`faces_max_rate`); asks the camera's pacer."""
         if not self.enabled:
-            return None
-        pace = self.pace.setdefault(frame.cam, RatePace(self.cfg.faces_max_rate))
-        if not pace.due(frame.stamp):
+            return False
+        return self.pace.setdefault(frame.cam, RatePace(self.cfg.faces_max_rate)).due(frame.stamp)
+
+    def sample(self, frame: Frame, bgr: np.ndarray, source: str, run: bool | None = None) -> Faces | None:
+        """`run`: whether the stage runs on this frame (the gesture core's schedule, which asked `due`); None: it
+        runs when `due`."""
+        if not self.enabled or not (self.due(frame) if run is None else run):
             return None
         if frame.cam not in self.stages:
             self.stages[frame.cam] = FaceStage(self.cfg, id_prefix=f"{frame.cam}/face-")

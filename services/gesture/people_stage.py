@@ -73,7 +73,7 @@ class PeopleStage:
         """A new stream: new person ids. The models are kept: neither holds state between frames (single-image
         detection), and building MediaPipe graphs again on every restart costs time and memory."""
         self.tracker = PersonTracker(keep_s=self.keep_s)
-        self.frames = 0
+        self.frames = 0  # frames counted by `due`
         self.last: list[PersonTrack] = []
         self.main: str | None = None
 
@@ -85,11 +85,12 @@ class PeopleStage:
         hands: list[Observation],
         rays3d: FrameRays | None = None,
         faces: list[tuple[Box, str | None]] | None = None,
+        run: bool | None = None,
     ) -> PeopleOfFrame:
         """`faces`: the face stage's faces of this frame (box, `Face.id`) when it runs; else the stage finds the
-        faces itself (MediaPipe face detection, boxes without ids)."""
-        ran = self.frames % self.every == 0
-        self.frames += 1
+        faces itself (MediaPipe face detection, boxes without ids). `run`: whether the stage runs on this frame (the
+        gesture core's schedule, which asked `due`); None: it runs when `due`."""
+        ran = self.due() if run is None else run
         if ran:
             h, w = img.shape[:2]
             previous = [b for _, b in self.tracker.bodies()]
@@ -110,6 +111,12 @@ class PeopleStage:
                 if point is not None:
                     out.positions[p.id] = [round(float(v), 3) for v in point]
         return out
+
+    def due(self) -> bool:
+        """Whether the stage is due on this frame: every `every`-th frame since the stream (re)started."""
+        due = self.frames % self.every == 0
+        self.frames += 1
+        return due
 
     def wire(self, people: PeopleOfFrame) -> list[Person]:
         """The persons of a frame as the wire's `Person`s (`face` stays nil until a face tracker names faces)."""
@@ -160,6 +167,17 @@ class CameraPeople:
         self.stages: dict[str, PeopleStage] = {}
         self.persons: dict[str, Persons] = {}  # cam -> the Persons of the stage's last run (the face stage links to)
 
+    def due(self, frame: Frame, fresh: bool) -> bool:
+        """Whether the stage is due on this frame of its camera (`PeopleStage.due`); a camera's stage is made here
+        on its first frame and restarted when its stream is `fresh`."""
+        if not self.every:
+            return False
+        if frame.cam not in self.stages:
+            self.stages[frame.cam] = PeopleStage(every=self.every)
+        elif fresh:
+            self.stages[frame.cam].restart()
+        return self.stages[frame.cam].due()
+
     def update(
         self,
         frame: Frame,
@@ -169,15 +187,17 @@ class CameraPeople:
         rays3d: FrameRays | None,
         fresh: bool,
         faces: list[tuple[Box, str | None]] | None = None,
+        run: bool | None = None,
     ) -> PeopleOfFrame | None:
-        """`faces`: the face stage's faces of this frame, when it ran on it (PeopleStage.update)."""
+        """`faces`: the face stage's faces of this frame, when it ran on it (PeopleStage.update). `run`: whether
+        the stage runs on this frame (the gesture core's schedule, which asked `due` with `fresh`); None: it runs
+        when `due`."""
         if not self.every:
             return None
-        if frame.cam not in self.stages:
+        ran = self.due(frame, fresh) if run is None else run
+        if frame.cam not in self.stages:  # `run` given without `due` asked first
             self.stages[frame.cam] = PeopleStage(every=self.every)
-        elif fresh:
-            self.stages[frame.cam].restart()
-        return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d, faces)
+        return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d, faces, run=ran)
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:
         """The `Persons` of a frame the stage ran on."""
