@@ -14,7 +14,8 @@ import pytest
 from common.boxes import iou
 from common.schema import Frame
 from services.gesture.core import FrameResult, GestureCore, GestureSettings
-from services.gesture.faces import FaceConfig, FaceStages, RatePace
+from services.gesture.faces import FaceConfig, FaceStages
+from services.gesture.schedule import RatePace
 from testkit.shared import shared_path
 
 DEMO = Path(__file__).resolve().parent.parent / "data" / "demo"

@@ -6,8 +6,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from services.gesture.faces import RatePace
-from services.gesture.schedule import Due, FramePlan, StageCosts, StageScheduler
+from services.gesture.schedule import Due, FramePlan, RatePace, StageCosts, StageScheduler
 
 STAGES = ("pose", "faces", "hand_search", "persons")
 

@@ -195,10 +195,6 @@ class ObjectPhrase:
         return own + tuple(n for r in self.relations for a in r.anchors for n in a.unknown_nouns)
 
 
-# intents that name nothing to look at when said alone: a gesture after the words cannot complete them
-SELF_CONTAINED_INTENTS: frozenset[str] = frozenset({"turn", "move", "come_here", "greet"})
-
-
 @dataclass(frozen=True)
 class Utterance:
     text: str
@@ -237,7 +233,7 @@ class Utterance:
         named = self.obj.specific or self.obj.deictic or self.place or self.deictic_place or self.dest_obj
         if named or self.other or self.unknown:
             return True
-        return self.intent is not None and self.intent not in SELF_CONTAINED_INTENTS
+        return self.intent in L.INTENT_AFFORDANCES  # an intent not listed there acts on no object
 
     @property
     def deictic(self) -> bool:

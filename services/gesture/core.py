@@ -25,12 +25,12 @@ from common.schema import (
     Ray,
     Ray3D,
 )
-from services.gesture.faces import FaceConfig, FaceStages, RatePace, link_faces
+from services.gesture.faces import FaceConfig, FaceStages, link_faces
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms, other_skeletons
 from services.gesture.persons import Box
 from services.gesture.pose_track import PoseRun, carried, hands_on_arms
-from services.gesture.schedule import Due, FramePlan, StageScheduler
+from services.gesture.schedule import Due, FramePlan, RatePace, StageScheduler
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 

@@ -17,6 +17,30 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+
+@dataclass
+class RatePace:
+    """At most `rate` runs per second of source time (0: every frame), at that rate on average: each run is due one
+    period after the previous one was due, not after the frame it ran on, so stamps that jitter around the frame
+    period (a 30 fps camera at a 15/s cap) give every 2nd frame, not every 3rd. A frame a quarter period early
+    counts as due; a gap or a clock going back starts afresh."""
+
+    rate: float
+    next_due: float | None = None
+
+    def due(self, stamp: float) -> bool:
+        if self.rate <= 0:
+            return True
+        period = 1.0 / self.rate
+        early = period / 4
+        nxt = self.next_due
+        if nxt is not None and nxt - period <= stamp < nxt - early:
+            return False
+        on_time = nxt is not None and nxt - early <= stamp < nxt + period
+        self.next_due = nxt + period if on_time and nxt is not None else stamp + period
+        return True
+
+
 DEFERRABLE = ("faces", "hand_search", "persons")  # in the order they are given room on a frame
 
 
