@@ -33,11 +33,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.persons import frames_of  # noqa: E402
 from common.schema import Faces  # noqa: E402
 from services.fusion.core import Config, FusionCore  # noqa: E402
 from services.fusion.speaker import attribute  # noqa: E402
 from services.gesture.faces import MESH_MIN_CONFIDENCE, FaceConfig, FaceStage  # noqa: E402
+from testkit.frames import read_frames  # noqa: E402
 from testkit.scenarios import say, scene  # noqa: E402
 from testkit.scenarios.suite import TWO_CUPS  # noqa: E402
 from testkit.shared import shared_dir  # noqa: E402
@@ -80,7 +80,7 @@ def stage_run(clips: list[list[np.ndarray]], cfg: FaceConfig) -> float:
 
 def speed(names: list[str], repeats: int) -> None:
     """Bare and face stage alternate clip by clip (the machine's load hits both alike); per-run medians."""
-    clips = [frames_of(shared_dir() / TALKING / name, limit=10**6) for name in names]
+    clips = [read_frames(shared_dir() / TALKING / name, 10**6) for name in names]
     cfg = FaceConfig()
     frames = sum(len(c) for c in clips)
     bare: list[float] = []

@@ -22,27 +22,15 @@ import time
 from pathlib import Path
 from typing import Callable
 
-import cv2
 import numpy as np
 
 from services.gesture.landmarks import FaceDetector, HandLandmarker, PoseLandmarker, RegionPose
 from services.gesture.people_stage import PeopleStage
 from services.gesture.persons import body_fits_face, crop_int, face_region
+from testkit.frames import read_frames
 from testkit.harness import ROOT
 
 SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
-
-
-def frames_of(clip: Path, limit: int) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(clip))
-    out: list[np.ndarray] = []
-    while len(out) < limit:
-        ok, img = cap.read()
-        if not ok:
-            break
-        out.append(img)
-    cap.release()
-    return out
 
 
 def timed(frames: list[np.ndarray], work: Callable[[np.ndarray], object]) -> list[float]:
@@ -69,7 +57,7 @@ def main() -> None:
     clip = SHARED / "data" / "talking" / args.clip
     if not clip.exists():
         raise SystemExit(f"{clip} not found (../shared/ beside the checkout, or HRI_SHARED)")
-    frames = frames_of(clip, args.frames)
+    frames = read_frames(clip, args.frames)
     print(f"{len(frames)} frames of {clip.name} ({frames[0].shape[1]}x{frames[0].shape[0]})")
     faces, regions, main_pose = FaceDetector(), RegionPose(), PoseLandmarker()
     skeletons = [main_pose.detect(img) for img in frames]  # the gesture frame's own pose, not timed here

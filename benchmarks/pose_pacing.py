@@ -25,8 +25,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # this checkout's services, when run as `python benchmarks/pose_pacing.py`
 
-from common.schema import Frame  # noqa: E402
 from services.gesture.core import GestureCore, GestureSettings  # noqa: E402
+from testkit.frames import bgr_frame, read_frames  # noqa: E402
 
 SHARED = Path(os.environ.get("HRI_SHARED") or ROOT.parent / "shared")
 DEFAULT_CLIP = SHARED / "data" / "talking" / "real_single_vr1_cfr25.mp4"
@@ -34,16 +34,11 @@ DEFAULT_CLIP = SHARED / "data" / "talking" / "real_single_vr1_cfr25.mp4"
 
 def clip_frames(path: Path, n: int, side: int) -> list[np.ndarray]:
     """The clip's first `n` frames fitted inside side x side (as the camera's `--size 640x480` gives 480x480)."""
-    cap = cv2.VideoCapture(str(path))
     out: list[np.ndarray] = []
-    while len(out) < n:
-        ok, img = cap.read()
-        if not ok:
-            break
+    for img in read_frames(path, n):
         h, w = img.shape[:2]
         scale = side / max(h, w)
         out.append(np.ascontiguousarray(cv2.resize(img, (round(w * scale), round(h * scale)))))
-    cap.release()
     return out
 
 
@@ -56,19 +51,7 @@ def cpu_ms_per_frame(n: int, step: Callable[[int], object]) -> float:
 
 def service_path(images: list[np.ndarray], pose_max_rate: float) -> float:
     core = GestureCore(GestureSettings(pose_max_rate=pose_max_rate), "gesture/bench", 2)
-    frames = [
-        Frame(
-            stamp=k / 30.0,
-            source="camera/bench",
-            seq=k,
-            cam="bench",
-            width=img.shape[1],
-            height=img.shape[0],
-            encoding="bgr8",
-            data=img.tobytes(),
-        )
-        for k, img in enumerate(images)
-    ]
+    frames = [bgr_frame(img, k, k / 30.0, cam="bench", source="camera/bench") for k, img in enumerate(images)]
     try:
         return cpu_ms_per_frame(len(images), lambda k: core.process(frames[k], images[k], fresh=k == 0))
     finally:

@@ -24,8 +24,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # this checkout's services, when run as `python benchmarks/stagger.py`
 
 from benchmarks.pose_pacing import SHARED, clip_frames  # noqa: E402
-from common.schema import Frame  # noqa: E402
 from services.gesture.core import GestureCore, GestureSettings  # noqa: E402
+from testkit.frames import bgr_frame  # noqa: E402
 
 CLIPS = "real_single_vr1_cfr25.mp4,comp_turns_bbaf2n_lbbc2a.mp4"
 
@@ -45,19 +45,7 @@ def served_stamps(n: int, served: float, fps: float = 30.0) -> list[float]:
 def service_frames(images: list[np.ndarray], stagger: bool, stamps: list[float]) -> list[float]:
     """CPU ms of each frame through the service's path."""
     core = GestureCore(GestureSettings(stagger=stagger), "gesture/bench", 2)
-    frames = [
-        Frame(
-            stamp=stamps[k],
-            source="camera/bench",
-            seq=k,
-            cam="bench",
-            width=img.shape[1],
-            height=img.shape[0],
-            encoding="bgr8",
-            data=img.tobytes(),
-        )  # fmt: skip
-        for k, img in enumerate(images)
-    ]
+    frames = [bgr_frame(img, k, stamps[k], cam="bench", source="camera/bench") for k, img in enumerate(images)]
     out: list[float] = []
     try:
         for k, img in enumerate(images):

@@ -57,6 +57,7 @@ from services.vision.core import VisionPipeline, object_colour
 from services.vision.depth import DepthImage
 from services.vision.segment import ColorSegmenter
 from services.vision.yolo import YoloDetector
+from testkit.frames import read_frames
 from testkit.harness import DATA, Client, ProcessGroup
 from testkit.images import read_image
 from testkit.lag import frame_lag, print_lag_slices, print_throughput
@@ -192,16 +193,11 @@ class BareYolox:
 def clip_frames(n: int) -> list[np.ndarray]:
     """The first n frames of a real clip (a man talking at a desk, 700x700), cropped to 4:3 and resized to
     640x480, in order: what a camera sends (consecutive frames of one scene). Empty when ../shared is absent."""
-    cap = cv2.VideoCapture(str(shared_dir() / "data" / "talking" / "real_single_vr1_cfr25.mp4"))
     frames: list[np.ndarray] = []
-    while len(frames) < n:
-        ok, frame = cap.read()
-        if not ok:
-            break
+    for frame in read_frames(shared_dir() / "data" / "talking" / "real_single_vr1_cfr25.mp4", n):
         h, w = frame.shape[:2]
         top = (h - w * 3 // 4) // 2
         frames.append(cv2.resize(frame[top : top + w * 3 // 4], (640, 480)))
-    cap.release()
     return frames
 
 

@@ -13,9 +13,10 @@ import pytest
 
 from common.boxes import iou
 from common.schema import Frame
-from services.gesture.core import FrameResult, GestureCore, GestureSettings
+from services.gesture.core import FrameResult, GestureSettings
 from services.gesture.faces import FaceConfig, FaceStages
 from services.gesture.schedule import RatePace
+from testkit.frames import bgr_frame, read_frames, run_gesture
 from testkit.shared import shared_path
 
 DEMO = Path(__file__).resolve().parent.parent / "data" / "demo"
@@ -59,18 +60,11 @@ def _read(path: Path) -> np.ndarray:
 
 
 def _frame(img: np.ndarray, k: int, fps: float = 30) -> Frame:
-    h, w = img.shape[:2]
-    return Frame(
-        stamp=k / fps, source="camera/test", seq=k, cam="cam0", width=w, height=h, encoding="bgr8", data=img.tobytes()
-    )
+    return bgr_frame(img, k, k / fps)
 
 
 def _run(settings: GestureSettings, images: list[np.ndarray]) -> list[FrameResult]:
-    core = GestureCore(settings, "gesture/test", depth_kept=2)
-    try:
-        return [core.process(_frame(img, k), img, fresh=k == 0) for k, img in enumerate(images)]
-    finally:
-        core.close()
+    return run_gesture(settings, images, 30.0)
 
 
 def _starts(results: list[FrameResult]) -> list[tuple[int, str, str]]:
@@ -104,14 +98,9 @@ def test_a_hand_coming_into_view_is_found_at_most_one_frame_late_and_then_tracke
 def test_faces_capped_at_15_per_s_keep_their_ids_and_mouths_on_a_real_clip() -> None:
     """The face stage at 15/s on a real 25 fps talking clip: 3 of every 5 frames run (15/s), the face keeps one id,
     and each capped sample's mouth opening equals the every-frame path's on that frame within 0.05."""
-    cap = cv2.VideoCapture(str(shared_path("data/talking/real_single_vr1_cfr25.mp4")))
-    images: list[np.ndarray] = []
-    while len(images) < 50:
-        ok, img = cap.read()
-        if not ok:
-            pytest.fail("the clip has fewer than 50 frames")
-        images.append(img)
-    cap.release()
+    images = read_frames(shared_path("data/talking/real_single_vr1_cfr25.mp4"), 50)
+    if len(images) < 50:
+        pytest.fail("the clip has fewer than 50 frames")
     full, capped = FaceStages(FaceConfig(faces_max_rate=0)), FaceStages(FaceConfig(faces_max_rate=15))
     try:
         pairs = []
@@ -135,9 +124,8 @@ def test_the_person_stage_on_the_face_stages_faces_finds_the_same_people_as_with
     """Two people on a real clip, every frame through the person stage: fed the face stage's faces (no face
     detector of its own), it finds the same persons, with bodies, in boxes that overlap its own detector's
     (IoU >= 0.7), and each person carries the face id of the face inside it."""
-    cap = cv2.VideoCapture(str(shared_path("data/talking/comp_turns_bbaf2n_lbbc2a.mp4")))
-    images = [np.asarray(cap.read()[1]) for _ in range(20)]
-    cap.release()
+    images = read_frames(shared_path("data/talking/comp_turns_bbaf2n_lbbc2a.mp4"), 20)
+    assert len(images) == 20
     own = _run(GestureSettings(persons_every=1, faces=False, body=False), images)
     fed = _run(GestureSettings(persons_every=1, faces=True, body=False, face=FaceConfig(faces_max_rate=0)), images)
     for a, b in zip(own, fed):

@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 
 from common.boxes import iou
-from common.schema import Body, Frame
-from services.gesture.core import FrameResult, GestureCore, GestureSettings
+from common.schema import Body
+from services.gesture.core import FrameResult, GestureSettings
 from services.gesture.pose_track import HAND_END, PoseRun, carried, hands_on_arms
 from services.gesture.temporal import Observation
+from testkit.frames import read_frames, run_gesture
 from testkit.shared import shared_path
 
 ARM_JOINTS = (11, 12, 13, 14, 15, 16, 19, 20)  # shoulders, elbows, wrists, index fingertips
@@ -75,19 +76,8 @@ def test_an_arm_whose_hand_is_gone_or_jumped_away_keeps_its_last_place_and_no_ru
 # --- the paced path against the every-frame path on real material ---------------------------------------------
 
 
-def _frame(img: np.ndarray, k: int, fps: float) -> Frame:
-    h, w = img.shape[:2]
-    return Frame(
-        stamp=k / fps, source="camera/test", seq=k, cam="cam0", width=w, height=h, encoding="bgr8", data=img.tobytes()
-    )
-
-
 def _run(pose_max_rate: float, images: list[np.ndarray], fps: float) -> list[FrameResult]:
-    core = GestureCore(GestureSettings(pose_max_rate=pose_max_rate, persons_every=0, faces=False), "gesture/t", 2)
-    try:
-        return [core.process(_frame(img, k, fps), img, fresh=k == 0) for k, img in enumerate(images)]
-    finally:
-        core.close()
+    return run_gesture(GestureSettings(pose_max_rate=pose_max_rate, persons_every=0, faces=False), images, fps)
 
 
 def _body(result: FrameResult) -> Body | None:
@@ -121,14 +111,7 @@ def _start_rays(results: list[FrameResult]) -> dict[tuple[int, str], Sequence[fl
 
 
 def _clip(name: str, frames: int) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(shared_path(f"data/talking/{name}")))
-    images: list[np.ndarray] = []
-    while len(images) < frames:
-        ok, img = cap.read()
-        if not ok:
-            break
-        images.append(np.asarray(img))
-    cap.release()
+    images = read_frames(shared_path(f"data/talking/{name}"), frames)
     assert len(images) >= 75, name
     return images
 
@@ -250,11 +233,7 @@ def _run_stages(pose_max_rate: float, images: list[np.ndarray]) -> list[FrameRes
     """The service's whole path as shipped (person stage on every 2nd frame, face stage), at this pose rate, the
     stages each on the frames they are due (not staggered: the Persons of both rates then come on the same frames;
     the staggered path against this one: tests/test_gesture_stagger.py)."""
-    core = GestureCore(GestureSettings(pose_max_rate=pose_max_rate, stagger=False), "gesture/t", 2)
-    try:
-        return [core.process(_frame(img, k, 25.0), img, fresh=k == 0) for k, img in enumerate(images)]
-    finally:
-        core.close()
+    return run_gesture(GestureSettings(pose_max_rate=pose_max_rate, stagger=False), images, 25.0)
 
 
 @pytest.mark.parametrize("name", ["comp_turns_bbaf2n_lbbc2a.mp4", "comp_dub_brbk7n_lbax4n_audioL.mp4"])

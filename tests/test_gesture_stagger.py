@@ -5,46 +5,26 @@ after the first runs pose together with another paced stage."""
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import pytest
 
 from common.boxes import iou
-from common.schema import Frame
-from services.gesture.core import FrameResult, GestureCore, GestureSettings
+from services.gesture.core import FrameResult, GestureSettings
 from services.gesture.schedule import FramePlan
+from testkit.frames import read_frames, run_gesture
 from testkit.shared import shared_path
 
 FPS = 25.0  # the clips' own rate
 
 
 def _clip(name: str, frames: int) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(shared_path(f"data/talking/{name}")))
-    images: list[np.ndarray] = []
-    while len(images) < frames:
-        ok, img = cap.read()
-        if not ok:
-            break
-        images.append(np.asarray(img))
-    cap.release()
+    images = read_frames(shared_path(f"data/talking/{name}"), frames)
     assert len(images) == frames, name
     return images
 
 
 def _run(stagger: bool, images: list[np.ndarray]) -> list[FrameResult]:
-    core = GestureCore(GestureSettings(stagger=stagger), "gesture/t", 2)
-    try:
-        results = []
-        for k, img in enumerate(images):
-            h, w = img.shape[:2]
-            frame = Frame(
-                stamp=k / FPS, source="camera/t", seq=k, cam="cam0", width=w, height=h, encoding="bgr8",
-                data=img.tobytes(),
-            )  # fmt: skip
-            results.append(core.process(frame, img, fresh=k == 0))
-        return results
-    finally:
-        core.close()
+    return run_gesture(GestureSettings(stagger=stagger), images, FPS)
 
 
 def _pairs(before: list[int], after: list[int]) -> list[tuple[int, int]]:

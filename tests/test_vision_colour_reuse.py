@@ -3,8 +3,6 @@ on real frames through the real YOLOX-Nano detector (skipped with the reason whe
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import cv2
 import numpy as np
 import pytest
@@ -13,6 +11,7 @@ from common.schema import DetectedObject
 from services.vision.colour_memory import REUSE_FRAMES, REUSE_IOU, Colour, ColourMemory
 from services.vision.core import VisionPipeline
 from services.vision.yolo import YoloDetector
+from testkit.frames import read_frames
 from testkit.images import read_image
 from testkit.shared import shared_path, yolox_model
 
@@ -117,16 +116,8 @@ def test_a_moved_object_is_measured_again_at_once(yolox: YoloDetector) -> None:
         assert pipeline.colours["cam"].measured == len(before) + len(after), name
 
 
-def clip_frames(relative: str, count: int) -> Iterator[np.ndarray]:
-    cap = cv2.VideoCapture(str(shared_path(relative)))
-    try:
-        for _ in range(count):
-            ok, frame = cap.read()
-            if not ok:
-                return
-            yield frame
-    finally:
-        cap.release()
+def clip_frames(relative: str, count: int) -> list[np.ndarray]:
+    return read_frames(shared_path(relative), count)
 
 
 @pytest.mark.parametrize("clip", ["data/talking/real_single_vr1_cfr25.mp4", "data/talking/real_single_vr5.mp4"])
