@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from common.boxes import iou
+from common.boxes import iou, match_in_order
 from common.schema import Face, Faces, Frame, Persons
 from common.settings import setting
 from services.gesture.schedule import RatePace
@@ -142,18 +142,13 @@ class FaceTracker:
             self.tracks = []
         self.last_stamp = stamp
         self.tracks = [t for t in self.tracks if t.missed_since is None or stamp - t.missed_since <= self.keep]
-        pairs = sorted(
-            ((self._affinity(t.bbox, b), ti, bi) for ti, t in enumerate(self.tracks) for bi, b in enumerate(boxes)),
-            reverse=True,
-        )
+        pairs = [(self._affinity(t.bbox, b), ti, bi) for ti, t in enumerate(self.tracks) for bi, b in enumerate(boxes)]
+        matched = match_in_order(sorted((p for p in pairs if p[0] > 0), reverse=True))
         ids: list[str | None] = [None] * len(boxes)
-        used: set[int] = set()
-        for affinity, ti, bi in pairs:
-            if affinity <= 0 or ti in used or ids[bi] is not None:
-                continue
-            used.add(ti)
+        for bi, ti in matched.items():
             ids[bi] = self.tracks[ti].id
             self.tracks[ti].bbox, self.tracks[ti].missed_since = boxes[bi], None
+        used = set(matched.values())
         for ti, track in enumerate(self.tracks):
             if ti not in used and track.missed_since is None:
                 track.missed_since = stamp

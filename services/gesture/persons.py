@@ -32,7 +32,7 @@ from typing import Callable
 
 import numpy as np
 
-from common.boxes import iou
+from common.boxes import iou, match_in_order
 from services.gesture.body import MIN_VISIBILITY
 from services.gesture.temporal import body_scale
 
@@ -180,17 +180,9 @@ class PersonTracker:
         self.tracks = [
             t for t in self.tracks if t.last_seen <= stamp and (t.seen_now or stamp - t.last_seen <= self.keep_s)
         ]
-        pairs = sorted(
-            ((_affinity(t, o), ti, oi) for ti, t in enumerate(self.tracks) for oi, o in enumerate(observations)),
-            key=lambda p: (-p[0], p[1], p[2]),
-        )
-        assigned: dict[int, PersonTrack] = {}
-        used: set[int] = set()
-        for affinity, ti, oi in pairs:
-            if affinity < MIN_IOU or ti in used or oi in assigned:
-                continue
-            used.add(ti)
-            assigned[oi] = self.tracks[ti]
+        pairs = [(_affinity(t, o), ti, oi) for ti, t in enumerate(self.tracks) for oi, o in enumerate(observations)]
+        best_first = sorted((p for p in pairs if p[0] >= MIN_IOU), key=lambda p: (-p[0], p[1], p[2]))
+        assigned = {oi: self.tracks[ti] for oi, ti in match_in_order(best_first).items()}
         for t in self.tracks:
             t.seen_now = False
         out = []

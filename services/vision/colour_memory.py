@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from common.boxes import iou
+from common.boxes import iou, match_in_order
 
 REUSE_IOU = 0.85  # a box overlapping the one a colour was measured on this much shows the same pixels
 REUSE_FRAMES = 4  # a colour is reused for at most this many frames after the one it was measured on
@@ -85,11 +85,4 @@ class ColourMemory:
                     overlap = iou(m.box, box)
                     if overlap >= self.reuse_iou:
                         pairs.append((overlap, mi, di))
-        pairs.sort(reverse=True)
-        taken: set[int] = set()
-        reused: dict[int, Measured] = {}
-        for _, mi, di in pairs:
-            if mi not in taken and di not in reused:
-                taken.add(mi)
-                reused[di] = self.kept[mi]
-        return reused
+        return {di: self.kept[mi] for di, mi in match_in_order(sorted(pairs, reverse=True)).items()}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from common.boxes import iou
+from common.boxes import iou, match_in_order
 from services.vision.segment import Detection
 
 
@@ -43,15 +43,12 @@ class Tracker:
                 jump = ((tx - dx) ** 2 + (ty - dy) ** 2) ** 0.5 / size
                 if overlap >= self.min_iou or jump <= self.max_jump:
                     pairs.append((overlap - jump, ti, di))
-        pairs.sort(reverse=True)
+        matched = match_in_order(sorted(pairs, reverse=True))
         ids: dict[int, str] = {}
-        used_tracks: set[int] = set()
-        for _, ti, di in pairs:
-            if ti in used_tracks or di in ids:
-                continue
-            used_tracks.add(ti)
+        for di, ti in matched.items():
             ids[di] = self.tracks[ti].id
             self.tracks[ti].det, self.tracks[ti].missed = detections[di], 0
+        used_tracks = set(matched.values())
         for ti, track in enumerate(self.tracks):
             if ti not in used_tracks:
                 track.missed += 1
