@@ -33,6 +33,7 @@ import numpy as np
 
 LEFT_EYE, RIGHT_EYE = 2, 5
 ARMS = {"left": (11, 13, 15, 19, 23), "right": (12, 14, 16, 20, 24)}  # shoulder, elbow, wrist, index, hip
+WRISTS = {side: joints[2] for side, joints in ARMS.items()}  # the pose wrist of each arm
 MIDDLE_MCP = 9  # hand landmark
 
 MIN_VISIBILITY = 0.5

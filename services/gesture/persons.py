@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from common.boxes import iou, match_in_order
-from services.gesture.body import MIN_VISIBILITY
+from services.gesture.body import MIN_VISIBILITY, WRISTS
 from services.gesture.temporal import body_scale
 
 Box = tuple[float, float, float, float]  # x, y, w, h px
@@ -45,7 +45,6 @@ BODY_MARGIN = 0.25  # of the body box's size, each side: where last frame's body
 NOSE_IN_FACE = 0.75  # the skeleton's nose within this many face sizes of the face centre: the face's body
 MIN_IOU = 0.2  # boxes overlapping less are different people
 WRIST_MATCH = 0.6  # body scales: a hand's wrist this near the pose wrist of its side is that person's hand
-WRISTS = {"left": 15, "right": 16}  # MediaPipe Pose, the person's own sides
 NOSE = 0
 
 

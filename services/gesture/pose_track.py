@@ -15,12 +15,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from services.gesture.body import MIN_VISIBILITY, body_scale
+from services.gesture.body import MIN_VISIBILITY, WRISTS, body_scale
+from services.gesture.rules import WRIST as HAND_WRIST  # hand landmark 0
 from services.gesture.temporal import Observation
 
 HAND_END = {"left": (15, 17, 19, 21), "right": (16, 18, 20, 22)}  # pose wrist, pinky, index, thumb of each arm
-WRIST = {"left": 15, "right": 16}
-HAND_WRIST = 0  # hand landmark
 ON_ARM = 0.5  # x body scale: a hand's wrist this near the pose's wrist is that arm's hand (a palm is 0.25-0.4)
 MAX_STEP = 0.75  # x body scale: a hand's wrist that moved further since the pose run is not followed (another hand)
 
@@ -41,7 +40,7 @@ def hands_on_arms(skeleton: np.ndarray, hands: list[Observation]) -> dict[str, n
     wrist only); an arm with no hand there has none."""
     scale = body_scale(skeleton)
     out: dict[str, np.ndarray] = {}
-    for side, w in WRIST.items():
+    for side, w in WRISTS.items():
         if skeleton[w, 2] < MIN_VISIBILITY or not hands:
             continue
         wrists = [np.asarray(o.landmarks[HAND_WRIST], dtype=float) for o in hands]
