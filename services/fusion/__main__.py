@@ -45,12 +45,12 @@ def collector_after_output() -> Iterator[None]:
     """A decision and the publishing of its output run with the cyclic garbage collector paused: a decision over
     1000 objects allocates enough to set off a collection in its middle (issue #34: 1-2 ms of its p99). The pass
     runs at the next allocation after, once the command is out; nothing is skipped, only moved."""
-    paused = gc.isenabled()
+    was_enabled = gc.isenabled()
     gc.disable()
     try:
         yield
     finally:
-        if paused:
+        if was_enabled:
             gc.enable()
 
 

@@ -440,9 +440,9 @@ class WhisperRecognizer:
         decoder step, no timestamps, nothing suppressed."""
         from faster_whisper.audio import pad_or_trim
 
-        copies_ = scoring_copies(audio, copies)
-        self._window_for(max(len(c) for c in copies_))
-        features = np.stack([pad_or_trim(self.model.feature_extractor(copy)) for copy in copies_]).astype(np.float32)
+        scored = scoring_copies(audio, copies)
+        self._window_for(max(len(c) for c in scored))
+        features = np.stack([pad_or_trim(self.model.feature_extractor(copy)) for copy in scored]).astype(np.float32)
         encoded = self.model.encode(features)
         result = self.model.model.generate(
             encoded,
