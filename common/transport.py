@@ -8,6 +8,7 @@ import logging
 import os
 import threading
 import time
+from collections.abc import MutableMapping
 
 import zenoh
 
@@ -22,6 +23,20 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 LEASE_MS = 3000
 KEEP_ALIVE = 4
 RETRY = {"period_init_ms": 250, "period_max_ms": 1000, "period_increase_factor": 2}
+# The router's receive pool (docs/foundation.md, "Across machines"). Zenoh reads every link and routes on a pool of
+# 2 threads, and closing a session whose host dropped off the network holds one of them for ~10 s (the TCP
+# close of a link with unsent data). Two hosts' sessions expiring at once stalled all routing for ~9 s; a third
+# longer, past the other clients' 3 s lease, and a command typed meanwhile was lost. Each dropped session holds
+# one thread: ROUTER_RX_THREADS leaves room for every service of a few hosts dropping together.
+ROUTER_RX_THREADS = 16
+
+
+def size_router_pools(environ: MutableMapping[str, str] = os.environ) -> str:
+    """Give the router's receive pool ROUTER_RX_THREADS workers unless the user sized Zenoh's pools
+    (ZENOH_RUNTIME); returns the setting in force. Call before the session opens: Zenoh reads it once."""
+    return environ.setdefault("ZENOH_RUNTIME", f"(rx: (worker_threads: {ROUTER_RX_THREADS}))")
+
+
 # Commands and clarifications published while a link is down: the AdvancedPublisher keeps the last
 # RECOVERY_CACHE of them, and announces its last sequence number every HEARTBEAT_S so a subscriber that was cut
 # off notices what it missed and fetches it (declare_recovering_subscriber).

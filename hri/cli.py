@@ -26,6 +26,7 @@ from common.transport import (
     live_tokens,
     open_session,
     resolve,
+    size_router_pools,
     zenoh_config,
 )
 
@@ -95,6 +96,7 @@ def cmd_router(args: argparse.Namespace) -> int:
     args.listen = args.listen or [e for e in os.environ.get("HRI_LISTEN", "").split(",") if e] or ["tcp/127.0.0.1:7447"]
     log = setup_logging("hri.router", args.log_level)
     init_zenoh_logging()
+    pools = size_router_pools()
     conf = zenoh_config(args)
     # before the port opens: a client that sees the port may stop the router at once, and must get exit 0
     stop = threading.Event()
@@ -108,7 +110,7 @@ def cmd_router(args: argparse.Namespace) -> int:
             str(exc).split(" at ")[0],
         )
         return 1
-    log.info("zenoh router listening on %s (zid %s)", ", ".join(args.listen), session.zid())
+    log.info("zenoh router listening on %s (zid %s, ZENOH_RUNTIME %s)", ", ".join(args.listen), session.zid(), pools)
     if args.secure:
         from common.security import read_secrets
 
