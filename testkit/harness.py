@@ -121,8 +121,8 @@ class ProcessGroup:
         self.procs.append(proc)
         return proc
 
-    def router(self) -> Proc:
-        proc = self.start("router", "hri.cli", "router", "--listen", self.endpoint, connect=False)
+    def router(self, *, env: dict[str, str] | None = None) -> Proc:
+        proc = self.start("router", "hri.cli", "router", "--listen", self.endpoint, connect=False, env=env)
         wait_for_port(self.port)
         return proc
 

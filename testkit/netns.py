@@ -165,9 +165,9 @@ class NetnsGroup(ProcessGroup):
         self.procs.append(proc)
         return proc
 
-    def router(self, *extra: str) -> Proc:
+    def router(self, *extra: str, env: dict[str, str] | None = None) -> Proc:
         listen = [a for ep in self.net.router_listen(self.port) for a in ("--listen", ep)]
-        proc = self.start("router", "hri.cli", "router", *listen, *extra, connect=False, host="router")
+        proc = self.start("router", "hri.cli", "router", *listen, *extra, env=env, connect=False, host="router")
         self.wait_router()
         return proc
 

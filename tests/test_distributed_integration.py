@@ -13,7 +13,7 @@ import pytest
 
 from common.schema import Clarification, FusedCommand
 from common.transport import ROUTER_RX_THREADS
-from testkit.harness import DATA, Client, Proc, ProcessGroup, type_command, wait_for_port
+from testkit.harness import DATA, Client, Proc, ProcessGroup, type_command
 from testkit.netns import netns_fixture
 
 pytestmark = pytest.mark.integration
@@ -68,8 +68,7 @@ def test_the_stack_split_over_hosts_survives_a_cut_link(netns_group):
         # MediaPipe builds its graphs on the first frames: on a loaded machine gesture had published nothing yet by
         # the first command and grew 240 -> 530 MB later, which is warm-up, not a pile-up. Measure from warm.
         for name in ("camera", "vision", "gesture"):
-            warm = lambda name=name: client.stats(name)["published"] >= 20  # noqa: E731
-            wait_until(warm, 60, f"{name} publishing (warm)", step=0.2)
+            wait_until(lambda name=name: client.stats(name)["published"] >= 20, 60, f"{name} warm", step=0.2)
         rss_before = {p.name: rss_mb(p.pid) for p in (camera, vision, gesture, fusion)}
 
         t_cut = time.monotonic()
@@ -137,11 +136,8 @@ def test_the_router_receives_on_a_pool_that_dropped_sessions_cannot_fill(user_se
     group = ProcessGroup()
     client = None
     try:
-        env = {"ZENOH_RUNTIME": user_setting} if user_setting else None
-        group.start("router", "hri.cli", "router", "--listen", group.endpoint, connect=False, env=env)
-        wait_for_port(group.port)
+        router = group.router(env={"ZENOH_RUNTIME": user_setting} if user_setting else None)
         client = Client(group.endpoint)  # the pool is built with the first session
-        router = group.procs[0]
         expected = 3 if user_setting else ROUTER_RX_THREADS
         # tokio starts the workers one after another: wait for them all, then check no more come
         wait_until(lambda: len(rx_threads(router.pid)) >= expected, 10, f"{expected} receive threads")
