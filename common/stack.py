@@ -237,6 +237,7 @@ NODES: tuple[Node, ...] = (
             Input("command", "fifo", maxlen=100),
             Input("clarification", "fifo", maxlen=100),
             Input("frame", "latest"),  # for the camera's intrinsics (sensor_msgs/CameraInfo), on change
+            Input("robot_profile", "latest"),  # the robot's profile from fusion, latched on ROS (docs/robot.md)
         ),
         outputs=("frame", "depth", "robot_state"),  # a ROS 2 camera as the stack's camera; the robot's state
         reads_images=True,

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from common.robot import DEFAULT, Profile, load_profile
-from common.schema import Clarification, FusedCommand, HeldObject, RobotState
+from common.schema import Clarification, FusedCommand, HeldObject, RobotState, RobotStatus
 from services.fusion import robot
 from services.fusion.core import Config, FusionCore
 from testkit.scenarios import BASE_STAMP, KEYS, Obj, Step, deliver, say, see
@@ -18,7 +18,7 @@ TABLE = [Obj("cup_1", "cup", "red", (150, 300)), Obj("bowl_1", "bowl", "blue", (
 RED_CUP = HeldObject(label="cup", id="cup_1", color="red")
 
 
-def state(t: float, status: str, **fields: Any) -> Step:
+def state(t: float, status: RobotStatus, **fields: Any) -> Step:
     def build(base: float) -> tuple[str, RobotState]:
         return KEYS.robot_state(), RobotState(stamp=base + t, source="robot/test", status=status, **fields)
 
@@ -35,7 +35,7 @@ class Fusion:
         self.wall = 1000.0
 
     def feed(self, *steps: Step) -> list[Any]:
-        out = []
+        out: list[Any] = []
         for s in sorted(steps, key=lambda s: s.t):
             out.extend(o.sample for o in deliver(self.core, *s.build(BASE_STAMP), self.wall))
             out.extend(o.sample for o in self.core.tick(self.wall))

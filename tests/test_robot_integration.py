@@ -24,6 +24,7 @@ from common.schema import (
     ImageQuality,
     RobotProfile,
     RobotState,
+    RobotStatus,
 )
 from testkit.harness import Client, ProcessGroup, requires_services, type_command
 
@@ -88,7 +89,7 @@ def said(client: Client, results: Any, text: str, timeout: float = 20.0) -> Any:
     return results.wait(n + 1, timeout=timeout, where=lambda k, s: isinstance(s, (FusedCommand, Clarification)))[-1][1]
 
 
-def robot_state(client: Client, status: str, **fields: Any) -> None:
+def robot_state(client: Client, status: RobotStatus, **fields: Any) -> None:
     client.publish("hri/robot/state", RobotState(stamp=time.time(), source="robot/test", status=status, **fields))
     time.sleep(0.3)  # the state is in before the next words
 
@@ -174,3 +175,73 @@ def test_a_profile_given_to_fusion_is_on_the_wire_and_decides():
         if client is not None:
             client.close()
         group.close()
+
+
+@pytest.mark.integration
+@requires_services("fusion", "ros2")
+def test_the_ros2_node_brings_the_robots_state_in_and_publishes_its_profile():
+    """The ros2 node (bridge layout: the topic name as the key, raw CDR, as zenoh-bridge-ros2dds carries it): the
+    robot's state as JSON on a std_msgs/String becomes RobotState on robot/state, a malformed one is counted and
+    dropped, and fusion's profile is relayed to ROS as latched JSON."""
+    from services.ros2 import core
+    from services.ros2.types import deserialize, serialize
+
+    group = ProcessGroup()
+    client = None
+    try:
+        group.router()
+        group.service("fusion", "--profile", str(ROOT / "profiles" / "mobile_manipulator.toml"))
+        client = Client(group.endpoint)
+        client.wait_alive("fusion", timeout=60)
+        profiles: list[Any] = []
+        got = threading.Event()
+
+        def on_profile(sample: Any) -> None:
+            profiles.append(deserialize(sample.payload.to_bytes(), core.STRING).data)
+            got.set()
+
+        sub = client.session.declare_subscriber("hri_fusion/robot_profile", on_profile)
+        states = client.collect("hri/robot/state")
+        ros2 = ["--key-layout", "bridge", "--state-topic", "robot_state", "--image-topic", "", "--depth-topic", ""]
+        group.service("ros2", *ros2)
+        client.wait_alive("ros2", timeout=60)
+        assert got.wait(20), "no profile on hri_fusion/robot_profile"
+        assert '"name": "mobile-manipulator"' in profiles[0] and '"max_weight_kg": 8.0' in profiles[0]
+        client.wait_matched(["hri_fusion/robot_state"])
+        bad = core.msg(core.STRING, data='{"status": "failed"}')  # a failure without a reason
+        client.session.put("hri_fusion/robot_state", serialize(bad, core.STRING))
+        text = '{"status": "busy", "command": "cmd-1", "intent": "bring", "holding": {"label": "cup", "id": "cup_1"}}'
+        client.session.put("hri_fusion/robot_state", serialize(core.msg(core.STRING, data=text), core.STRING))
+        _, state = states.wait(1, timeout=20)[0]
+        assert isinstance(state, RobotState) and state.status == "busy" and state.command == "cmd-1"
+        assert state.holding is not None and state.holding.label == "cup" and state.source.startswith("ros2/")
+        assert client.stats("ros2")["rejected"].get("bad_value") == 1
+        sub.undeclare()
+    finally:
+        if client is not None:
+            client.close()
+        group.close()
+
+
+def test_hri_up_passes_the_profile_to_fusion_and_refuses_a_malformed_one_before_starting_anything(tmp_path: Path):
+    import argparse
+
+    from hri.launcher import add_up_arguments, services_from_args
+
+    p = argparse.ArgumentParser()
+    add_up_arguments(p)
+    args = p.parse_args(["--profile", "profiles/tabletop_arm.toml", "--camera", "none"])
+    (fusion,) = [s for s in services_from_args(args) if s.name == "fusion"]
+    assert fusion.argv == ["services.fusion", "--profile", "profiles/tabletop_arm.toml"]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "x"\n[abilities]\nflies = true\n')
+    port = "tcp/127.0.0.1:9"  # nothing may start: no router is reached, no service is spawned
+    res = subprocess.run(
+        [sys.executable, "-m", "hri.cli", "up", "--profile", str(bad), "--listen", port],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert res.returncode == 2 and f"robot profile {bad}: [abilities]: unknown key(s) flies" in res.stderr
+    assert "[hri up ]" not in res.stdout  # refused before the launcher said anything

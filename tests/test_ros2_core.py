@@ -357,3 +357,34 @@ def test_per_id_topics_of_people_no_camera_tracks_are_gone():
     tracked.update("persons", "cam1", ["p_2"])  # another camera still sees p_2
     assert tracked.gone("persons", topics, CONFIG) == []
     assert tracked.gone("faces", topics, CONFIG) == ["/humans/faces/f_1/roi"]  # no camera reported faces
+
+
+def test_the_robots_state_from_ros_json_and_the_profile_to_ros():
+    """docs/robot.md: a std_msgs/String of JSON -> RobotState (stamp: the JSON's, else now); anything else is refused
+    with the contract's reasons; the profile goes out once as latched JSON, again only when it changes."""
+    from common.robot import DEFAULT
+    from common.schema import InvalidSample as Invalid
+
+    state = core.robot_state('{"status": "failed", "reason": "couldn\'t reach it", "command": "c1"}', 5.0, "ros2/x")
+    assert (state.status, state.reason, state.command, state.stamp, state.source) == (
+        "failed",
+        "couldn't reach it",
+        "c1",
+        5.0,
+        "ros2/x",
+    )
+    assert core.robot_state('{"status": "idle", "stamp": 7.5}', 9.0, "ros2/x").stamp == 7.5
+    for text, reason in [
+        ("not json", "bad_value"),
+        ("[1, 2]", "not_a_map"),
+        ('{"status": "asleep"}', "bad_value"),
+        ('{"status": "failed"}', "bad_value"),
+        ('{"status": "idle", "holding": {"id": "x"}}', "missing_field"),
+    ]:
+        with pytest.raises(Invalid) as err:
+            core.robot_state(text, 5.0, "ros2/x")
+        assert err.value.reason == reason, (text, err.value)
+    latch = core.Latch()
+    (out,) = core.profile_messages(DEFAULT.sample(5.0, "fusion/x"), CONFIG, latch)
+    assert out.topic == "/hri_fusion/robot_profile" and out.latched and '"name": "default"' in out.message.data
+    assert core.profile_messages(DEFAULT.sample(6.0, "fusion/x"), CONFIG, latch) == []  # unchanged: not sent again

@@ -7,6 +7,7 @@ import gc
 import queue
 import time
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
 import zenoh
@@ -15,7 +16,7 @@ from common.codec import ENCODING, encode
 from common.robot import DEFAULT, Profile, ProfileError, load_profile
 from common.runner import App, Delivery, RateLimitedLog, Service, StartupError, serve, service_parser
 from common.schema import Clarification, FusedCommand
-from common.settings import add_settings, from_args
+from common.settings import add_settings, from_args, setting
 from services.fusion.core import Config, FusionCore
 from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
@@ -57,6 +58,18 @@ def collector_after_output() -> Iterator[None]:
             gc.enable()
 
 
+@dataclass(frozen=True)
+class RobotSettings:
+    """Which robot fusion serves (docs/robot.md)."""
+
+    profile: str | None = setting(
+        None,
+        "the robot's profile (TOML): what it may grasp, weight and size limits, whether it carries, navigates, "
+        "speaks, what a command while busy does; none: the built-in default (profiles/default.toml)",
+        metavar="FILE",
+    )
+
+
 CLOCK_WARN_SHARE = 0.5  # warn when a source's clock offset uses more than this share of the window's margin
 
 
@@ -69,13 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_settings(parser.add_argument_group("fusion (docs/fusion.md, Settings)"), Config)
     add_settings(parser.add_argument_group("who is speaking (docs/people.md)"), SpeakerConfig)
-    parser.add_argument(
-        "--profile",
-        default=None,
-        metavar="FILE",
-        help="the robot's profile (TOML, docs/robot.md): what it may grasp, weight and size limits, whether it "
-        "carries, navigates, speaks, what a command while busy does; default: the built-in default profile",
-    )
+    add_settings(parser.add_argument_group("the robot (docs/robot.md)"), RobotSettings)
     return parser
 
 
@@ -158,7 +165,7 @@ class FusionApp(App):
     def __init__(self, args: argparse.Namespace) -> None:
         self.config = from_args(Config, args)
         self.speaker = from_args(SpeakerConfig, args)
-        self.profile_path: str | None = args.profile
+        self.profile_path = from_args(RobotSettings, args).profile
         self.profile: Profile = DEFAULT
         # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
         self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()

@@ -9,6 +9,7 @@ becomes a typed Transcript. docs/ros2.md has the topic table.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -30,6 +31,8 @@ from common.schema import (
     ImageEncoding,
     InvalidSample,
     Persons,
+    RobotProfile,
+    RobotState,
     Speaker,
     Target,
     Transcript,
@@ -595,6 +598,26 @@ def text_transcript(text: str, now: float, source: str) -> Transcript | None:
     if not text.strip():
         return None
     return make_transcript(text.strip(), mic=TEXT_MIC, end=now, confidence=1.0, source=source)
+
+
+def robot_state(text: str, now: float, source: str) -> RobotState:
+    """The robot's state from the JSON of a std_msgs/String (docs/robot.md): `status` (idle, busy, done, failed),
+    optional `command`, `intent`, `holding` ({label, id, color}), `reason`, and `stamp` (seconds; absent: now)."""
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise InvalidSample("bad_value", f"robot state is not JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise InvalidSample("not_a_map", f"robot state: expected a JSON object, got {type(data).__name__}")
+    return RobotState.from_dict({"stamp": now, **data, "source": source, "v": 1})
+
+
+def profile_messages(sample: RobotProfile, config: Ros2Config, latch: Latch) -> list[Outgoing]:
+    """The robot's profile as JSON on a latched std_msgs/String (sent when it changes)."""
+    text = json.dumps({k: v for k, v in sample.to_dict().items() if k not in ("v", "stamp")}, sort_keys=True)
+    if not latch.changed("robot_profile", text):
+        return []
+    return [Outgoing(config.own("robot_profile"), STRING, string(text), latched=True)]
 
 
 def passes_while_busy(cmd: FusedCommand, busy: bool) -> bool:
