@@ -80,6 +80,7 @@ FusionCounter = Literal[
     "asked_while_busy",
     "queued_while_busy",
     "released_after_busy",
+    "queue_dropped_by_stop",
     "robot_failure_announced",
 ]
 GestureIntent = Literal["stop", "come_here"]  # the commands a gesture alone gives

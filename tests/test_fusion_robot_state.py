@@ -109,6 +109,14 @@ def test_a_command_while_busy_is_queued_by_a_queueing_profile_and_goes_out_when_
     assert f.feed(state(7.0, "idle")) == []  # released once
 
 
+def test_a_stop_drops_what_was_queued_while_busy():
+    f = Fusion(TABLETOP)
+    assert f.command(3.0, "pick up the cup", state(2.0, "busy", command="cmd-x", intent="pick_up")) == []
+    stop = only(f.command(6.0, "stop"))
+    assert isinstance(stop, FusedCommand) and stop.intent == "stop"
+    assert f.feed(state(8.0, "idle")) == []  # nothing left to release
+
+
 def test_a_failure_is_announced_once_with_the_reason():
     f = Fusion()
     first = only(f.command(0.0, "bring me the bowl"))

@@ -267,6 +267,13 @@ class FusionCore:
             out.append(Output(queued))
         return out
 
+    def _drop_queued(self) -> None:
+        """A stop also cancels what waits for the robot to be free (a stop never means "later")."""
+        dropped = self.robot.drop_queued()
+        if dropped:
+            self.count("queue_dropped_by_stop")
+            self.log.info("stop: %d command(s) queued while busy dropped", dropped)
+
     def _robot_lines(self) -> list[str]:
         """The planner prompt's lines about the robot: none for the default profile and no state heard (as before)."""
         lines = [] if self.profile.is_default else [f"Robot: {self.profile.words()}"]
@@ -281,6 +288,7 @@ class FusionCore:
             return []
         if command.intent == "stop":
             self.dialogue.close()
+            self._drop_queued()
         self.count(GESTURE_COMMAND_COUNTER[command.intent])
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
 
@@ -300,6 +308,7 @@ class FusionCore:
         )
         if u.intent == "stop" or near:  # no window to wait for: stop now
             self.dialogue.close()
+            self._drop_queued()
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
             if near:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"

@@ -139,6 +139,11 @@ class RobotNow:
     def queue(self, cmd: FusedCommand) -> None:
         self.queued = (self.queued + [cmd])[-QUEUE_MAX:]
 
+    def drop_queued(self) -> int:
+        """Forget every queued command (a stop); how many there were."""
+        dropped, self.queued = len(self.queued), []
+        return dropped
+
     def release(self) -> FusedCommand | None:
         """The next queued command once the robot is idle or done (then it is busy with it: one at a time)."""
         if self.state is None or self.state.status not in ("idle", "done") or not self.queued:
