@@ -182,7 +182,7 @@ def test_a_profile_given_to_fusion_is_on_the_wire_and_decides():
 def test_the_ros2_node_brings_the_robots_state_in_and_publishes_its_profile():
     """The ros2 node (bridge layout: the topic name as the key, raw CDR, as zenoh-bridge-ros2dds carries it): the
     robot's state as JSON on a std_msgs/String becomes RobotState on robot/state, a malformed one is counted and
-    dropped, and fusion's profile is relayed to ROS as latched JSON."""
+    dropped, and fusion's profile is relayed to ROS as latched JSON with its camera mount on /tf_static."""
     from services.ros2 import core
     from services.ros2.types import deserialize, serialize
 
@@ -201,12 +201,25 @@ def test_the_ros2_node_brings_the_robots_state_in_and_publishes_its_profile():
             got.set()
 
         sub = client.session.declare_subscriber("hri_fusion/robot_profile", on_profile)
+        transforms: list[Any] = []
+        tf_sub = client.session.declare_subscriber(
+            "tf_static", lambda s: transforms.append(deserialize(s.payload.to_bytes(), core.TF_MESSAGE))
+        )
         states = client.collect("hri/robot/state")
         ros2 = ["--key-layout", "bridge", "--state-topic", "robot_state", "--image-topic", "", "--depth-topic", ""]
         group.service("ros2", *ros2)
         client.wait_alive("ros2", timeout=60)
         assert got.wait(20), "no profile on hri_fusion/robot_profile"
         assert '"name": "mobile-manipulator"' in profiles[0] and '"max_weight_kg": 8.0' in profiles[0]
+        deadline = time.monotonic() + 10
+        while not transforms and time.monotonic() < deadline:
+            time.sleep(0.1)
+        (mount,) = transforms[0].transforms  # the head camera, 1.2 m up on base_link
+        assert (mount.header.frame_id, mount.child_frame_id, mount.transform.translation.z) == (
+            "base_link",
+            "cam0_optical",
+            1.2,
+        )
         client.wait_matched(["hri_fusion/robot_state"])
         bad = core.msg(core.STRING, data='{"status": "failed"}')  # a failure without a reason
         client.session.put("hri_fusion/robot_state", serialize(bad, core.STRING))
@@ -217,6 +230,7 @@ def test_the_ros2_node_brings_the_robots_state_in_and_publishes_its_profile():
         assert state.holding is not None and state.holding.label == "cup" and state.source.startswith("ros2/")
         assert client.stats("ros2")["rejected"].get("bad_value") == 1
         sub.undeclare()
+        tf_sub.undeclare()
     finally:
         if client is not None:
             client.close()
