@@ -188,3 +188,14 @@ def test_the_five_chair_lines_are_refused_with_the_reason_by_default(chair_lines
         verb = "bring" if line.say.startswith("bring") else "pick up"
         assert out[0].question == f"I can't {verb} a chair: I don't lift furniture.", (line.say, out[0].question)
         assert out[0].reason == "not_found" and out[0].candidates == []
+
+
+def test_a_wave_brings_a_robot_with_a_base_and_not_a_tabletop_arm():
+    from services.fusion.gestures import WAVE_HOLD_S
+    from testkit.scenarios import gesture
+
+    steps = [see(t / 10, TABLE) for t in range(-10, 16, 2)] + [gesture(1.0, "wave", duration=WAVE_HOLD_S)]
+    scenario = Scenario("wave", sorted(steps, key=lambda s: s.t), [])
+    (come,) = run_in_process(scenario)
+    assert isinstance(come, FusedCommand) and come.intent == "come_here"
+    assert run_in_process(scenario, profile=TABLETOP) == []  # it cannot come: nothing is sent

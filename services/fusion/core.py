@@ -289,6 +289,10 @@ class FusionCore:
         if command.intent == "stop":
             self.dialogue.close()
             self._drop_queued()
+        elif self.profile.missing_ability(command.intent) is not None:  # a wave to a robot that cannot come
+            self.count("refused_ability")
+            self.log.info("%s by gesture: %s", command.intent, self.profile.missing_ability(command.intent))
+            return []
         self.count(GESTURE_COMMAND_COUNTER[command.intent])
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
 
@@ -410,13 +414,12 @@ class FusionCore:
 
     def hold_while_busy(self, t: Transcript, ctx: Context, outs: list[Output]) -> list[Output]:
         """A new command while the robot is busy: asked about or queued, as the profile says (stop always passes)."""
+        state = self.robot.state
         kept: list[Output] = []
         for out in outs:
             cmd = out.sample
-            action = (
-                robot.while_busy(self.robot.state, self.profile, cmd.intent) if isinstance(cmd, FusedCommand) else "act"
-            )
-            if action == "act" or not isinstance(cmd, FusedCommand) or self.robot.state is None:
+            action = robot.while_busy(state, self.profile, cmd.intent) if isinstance(cmd, FusedCommand) else "act"
+            if action == "act" or state is None or not isinstance(cmd, FusedCommand):
                 kept.append(out)
             elif action == "queue":
                 self.count("queued_while_busy")
@@ -424,7 +427,7 @@ class FusionCore:
                 self.robot.queue(cmd)
             else:
                 self.count("asked_while_busy")
-                question = robot.busy_question(self.robot.state, self.robot.command(self.robot.state), cmd)
+                question = robot.busy_question(state, self.robot.command(state), cmd)
                 kept.append(self.dialogue.confirm(t, cmd, ctx.objects, question))
         return kept
 
@@ -498,7 +501,8 @@ class FusionCore:
 
     def command(self, t: Transcript, u: Utterance, ctx: Context) -> Decided:
         """A command utterance: its words about sides turned into the camera's, a place that is a thing said as
-        the thing, the window narrowed to what the action may apply to (services/fusion/afford.py); then decided."""
+        the thing, the window narrowed to what the action may apply to for this robot (services/fusion/afford.py);
+        refused when the robot cannot do it at all; then decided, "put it down" on what the robot holds."""
         u = self._in_camera_words(t, u, ctx)
         intent = u.intent
         assert intent is not None
