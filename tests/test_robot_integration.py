@@ -29,6 +29,14 @@ from common.schema import (
 from testkit.harness import Client, ProcessGroup, requires_services, type_command
 
 ROOT = Path(__file__).resolve().parent.parent
+
+
+def encode_map(data: dict[str, Any]) -> bytes:
+    import msgpack
+
+    return msgpack.packb(data)
+
+
 TABLETOP = ROOT / "profiles" / "tabletop_arm.toml"
 OBJECTS = [
     DetectedObject(id="cup_1", label="cup", color="red", score=0.9, bbox=[120, 260, 60, 80], center=[150, 300]),
@@ -109,7 +117,13 @@ def test_the_robots_state_changes_what_fusion_does():
         assert [p.name for p in profile] == ["default"] and profile[0].while_busy == "ask"
         results = client.collect("hri/fusion/**")
         table = Table(client)
+        client.put_raw("hri/robot/state", b"\xff not a state")  # bad input: counted and dropped
+        client.put_raw(
+            "hri/robot/state", encode_map({"v": 1, "stamp": time.time(), "source": "r/1", "status": "failed"})
+        )
         time.sleep(1.0)
+        rejected = client.stats("fusion")["rejected"]
+        assert rejected.get("not_msgpack") == 1 and rejected.get("bad_value") == 1, rejected  # a failure says why
         first = said(client, results, "bring me the bowl")
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.id == "bowl_1", first
         robot_state(client, "busy", command=first.id, intent="bring")
