@@ -11,6 +11,7 @@ from typing import Any, Callable, Iterator
 
 import zenoh
 
+from common.engagement import EngagementConfig
 from common.runner import App, Delivery, RateLimitedLog, Service, serve, service_parser
 from common.schema import Clarification, FusedCommand
 from common.settings import add_settings, from_args
@@ -66,6 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_settings(parser.add_argument_group("fusion (docs/fusion.md, Settings)"), Config)
     add_settings(parser.add_argument_group("who is speaking (docs/people.md)"), SpeakerConfig)
+    add_settings(parser.add_argument_group("engagement: said to the robot? (docs/people.md)"), EngagementConfig)
     return parser
 
 
@@ -148,13 +150,19 @@ class FusionApp(App):
     def __init__(self, args: argparse.Namespace) -> None:
         self.config = from_args(Config, args)
         self.speaker = from_args(SpeakerConfig, args)
+        self.engagement = from_args(EngagementConfig, args)
         # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
         self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
 
     def open(self, service: Service) -> None:
         self.service = service
         self.core = FusionCore(
-            self.config, service.source, count=service.counters.add, log=service.log, speaker=self.speaker
+            self.config,
+            service.source,
+            count=service.counters.add,
+            log=service.log,
+            speaker=self.speaker,
+            engagement=self.engagement,
         )
         self.clocks = ClockReport(service, self.config)
         self.command_key = service.output_key("command")
