@@ -65,6 +65,7 @@ def test_two_mouths_one_voice_the_voiced_mouth_speaks(clip: str) -> None:
     mapping = person_of_face(meta, faces)
     t = heard(meta, 0)
     speaker = attribute(t, faces)
+    assert speaker.confidence >= 0.6  # measured 0.69-0.74: the voiced mouth leads by 0.38-0.47
     voiced = meta["speech"][0]["speaker"]
     silent = meta["mouthing_without_audio"][0]["person"]
     assert mapping.get(speaker.person or "") == voiced, speaker
@@ -78,7 +79,7 @@ def test_a_voice_no_visible_mouth_matches_is_nobodys() -> None:
     """The dub video (both mouths moving) heard with the voice of someone not in it: the first utterance of each
     real_single clip (another man, natural speech), with its own time span as the speech service would give it.
     Neither mouth moves with that voice: unknown, never a person in view. (A third GRID speaker's sentence, read at
-    GRID's fixed pace, is matched to a mouth in 2 of 3 trials: docs/people.md "Known weaknesses".)"""
+    GRID's fixed pace, is matched to a mouth in 1 of 3 trials: docs/people.md "Known weaknesses".)"""
     meta = clips()["comp_dub_brbk7n_lbax4n_audioL.mp4"]
     faces = faces_of(meta["clip"])
     for other in ("real_single_vr1_cfr25.mp4", "real_single_vr5.mp4"):
@@ -101,7 +102,7 @@ def test_turns_with_the_sound_the_talking_mouth_wins() -> None:
 
 def test_the_correlation_on_recorded_series_puts_the_speaker_first() -> None:
     """sound_match on the recorded mouth series of the development clips with two people: the speaker's mouth
-    correlates with the sound, the other's does not (a margin of at least 0.1 on this material)."""
+    correlates with the sound more than the other's (measured leads 0.33-0.55; bound 0.2)."""
     cache = load_cache()
     for name in ("comp_turns_bbaf2n_lbbc2a.mp4", "comp_dub_brbk7n_lbax4n_audioL.mp4"):
         meta = clips()[name]
@@ -115,4 +116,4 @@ def test_the_correlation_on_recorded_series_puts_the_speaker_first() -> None:
             other = next(p for p in r if p != u.speaker)
             mine, theirs = r[u.speaker], r[other]
             assert mine is not None and theirs is not None
-            assert mine >= 0.1 and mine - theirs >= 0.1, (name, u, r)
+            assert mine - theirs >= 0.2, (name, u, r)

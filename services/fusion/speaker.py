@@ -15,8 +15,8 @@ in view, whose mouth is not still) is the speaker; when two or more move with it
 never a silent person. A face's person id is `Face.person`, else its face id (persons may be absent).
 
 THE SOUND (issue #40), when the transcript carries its `loudness`: with two or more mouths moving (not still)
-during the utterance, the one whose opening goes up and down with the sound level is the speaker: `sound_match`
-is the correlation of each mouth's opening with the level around each of its frames; the best must reach
+during the utterance, the one that opens and closes with the rise and fall of the sound is the speaker:
+`sound_match` is the correlation of each mouth's frame-to-frame change with the sound's; the best must reach
 `sound_min_match` and lead the next moving mouth by `sound_margin`, else the speaker is unknown (a voice no
 visible mouth matches is nobody's in view, never a silent person's). Without loudness, timing decides as above.
 
@@ -76,8 +76,9 @@ class SpeakerConfig:
         0.5, "share of the utterance a face's mouth must be seen in to be judged", above=0, at_most=1, metavar="P"
     )
     sound_min_match: float = setting(
-        0.1,
-        "correlation of a mouth's opening with the sound level it needs to be the voice's mouth (two mouths moving)",
+        0.3,
+        "correlation of a mouth's opening and closing with the sound's rise and fall it needs to be the voice's mouth "
+        "(two mouths moving)",
         at_least=-1,
         at_most=1,
         metavar="R",
@@ -189,27 +190,28 @@ MIN_SOUND_FRAMES = 8  # frames of a mouth inside the utterance needed to correla
 
 
 def sound_match(track: Track, loudness: Loudness, start: float, end: float) -> float | None:
-    """How well the mouth's opening goes up and down with the sound over [start, end]: the correlation of its
-    opening in each frame with the mean sound level (dB, floored 50 dB under the utterance's peak: breath and room
-    noise are all "silence") within one frame spacing of the frame. None: too few frames, or either series flat."""
+    """How well the mouth moves with the sound over [start, end]: the correlation of the mouth's opening and closing
+    from frame to frame with the rise and fall of the sound's amplitude (RMS, from the dB values, averaged within
+    one frame spacing of each frame) between the same frames. Changes, not levels: lips open into a syllable and
+    close after it, while a mouth left ajar or a slowly changing level only adds a trend that a short window turns
+    into correlation; and amplitude, not dB, whose log would blow up the noise of the quiet stretches. None: too few
+    frames in a row, or either series flat."""
     rows = [(s, m) for s, m in zip(track.stamps, track.mouth) if start <= s <= end and m is not None]
     if len(rows) < MIN_SOUND_FRAMES or not loudness.db:
         return None
     stamps = np.array([r[0] for r in rows])
     mouth = np.array([r[1] for r in rows])
-    level = np.asarray(loudness.db, dtype=float)
-    level = np.maximum(level, level.max() - 50.0)
-    centres = loudness.start + (np.arange(len(level)) + 0.5) * loudness.step
-    spacing = float(np.median(np.diff(stamps))) if len(stamps) > 1 else loudness.step
-    heard = []
-    for stamp in stamps:
-        near = level[np.abs(centres - stamp) <= max(spacing, loudness.step / 2)]
-        heard.append(float(near.mean()) if len(near) else np.nan)
-    sound = np.array(heard)
-    keep = ~np.isnan(sound)
-    if keep.sum() < MIN_SOUND_FRAMES or np.std(mouth[keep]) < 1e-6 or np.std(sound[keep]) < 1e-6:
+    amplitude = 10.0 ** (np.asarray(loudness.db, dtype=float) / 20.0)
+    centres = loudness.start + (np.arange(len(amplitude)) + 0.5) * loudness.step
+    reach = max(float(np.median(np.diff(stamps))), loudness.step / 2)
+    heard = np.array(
+        [float(near.mean()) if len(near := amplitude[np.abs(centres - s) <= reach]) else np.nan for s in stamps]
+    )
+    d_mouth, d_sound = np.diff(mouth), np.diff(heard)
+    keep = ~np.isnan(d_sound)
+    if keep.sum() < MIN_SOUND_FRAMES - 1 or np.std(d_mouth[keep]) < 1e-9 or np.std(d_sound[keep]) < 1e-12:
         return None
-    return float(np.corrcoef(mouth[keep], sound[keep])[0, 1])
+    return float(np.corrcoef(d_mouth[keep], d_sound[keep])[0, 1])
 
 
 def _by_sound(moving: list[tuple[Judged, float | None]], cfg: SpeakerConfig) -> Speaker | None:
