@@ -262,3 +262,22 @@ def test_a_speaker_turned_away_is_not_addressed_in_fusion_attribution() -> None:
     speaker = attribute(transcript_of(u), turned)
     assert mapping.get(speaker.person or "") == "P1" and speaker.addressed is False
     assert attribute(transcript_of(u), faces).addressed is True  # as recorded: frontal, addressed
+
+
+def test_the_gesture_service_publishes_the_level_on_persons() -> None:
+    """The gesture core's whole path on a real two-person clip (both facing the camera, 75 frames at 25 fps): the
+    Persons it publishes carry REP-155 levels that rise to `engaged` for both, with `engaged` true."""
+    from services.gesture.core import GestureSettings
+    from testkit.frames import read_frames, run_gesture
+
+    images = read_frames(shared_path("data/talking/comp_turns_bbaf2n_lbbc2a.mp4"), 75)
+    results = run_gesture(GestureSettings(), images, 25.0)
+    published = [r.persons for r in results if r.persons is not None]
+    assert len(published) >= 30
+    first, last = published[0], published[-1]
+    assert all(p.engagement is None for p in first.persons)  # nothing judged yet: unknown (nil)
+    assert len(last.persons) == 2 and all(p.face is not None for p in last.persons)
+    assert [(p.engagement, p.engaged) for p in last.persons] == [("engaged", True)] * 2
+    levels = [p.engagement for s in published for p in s.persons if p.engagement is not None]
+    # hri_engagement's way up from unknown (first seen: disengaged), and never down for people who keep facing it
+    assert levels[0] == "disengaged" and set(levels) <= {"disengaged", "engaging", "engaged"}
