@@ -209,7 +209,8 @@ def engaged_over(
     face's frames engaged for at least `engage_share` of the window and of its last `engage_end` seconds. `persons`:
     `Persons` samples whose `position` (depth) gives the distance."""
     cfg = cfg or EngagementConfig()
-    frames = person_frames(faces, person, t0, t1, cfg, persons)
+    near = [s for s in persons if t0 - 0.5 <= s.stamp <= t1 + 0.5]  # the ones a frame of the window may use
+    frames = person_frames(faces, person, t0, t1, cfg, near)
     judged = [j for _, j in frames if j.engaged is not None]
     if not judged:
         return Engagement(None, None, None, 0, None, f"no frame shows {person}'s head orientation")

@@ -117,3 +117,33 @@ def test_the_correlation_on_recorded_series_puts_the_speaker_first() -> None:
             mine, theirs = r[u.speaker], r[other]
             assert mine is not None and theirs is not None
             assert mine - theirs >= 0.2, (name, u, r)
+
+
+@pytest.mark.parametrize("clip", ["comp_dub_brbk7n_lbax4n_audioL.mp4", "comp_dub_brbk7n_lbax4n_audioR.mp4"])
+def test_fusion_gives_the_command_to_the_voiced_mouth(clip: str) -> None:
+    """Fusion in process: the dub clip's recorded faces, a scene of two cups, and "pick up the red cup" said over
+    the labelled speech with the clip's loudness on the transcript: the command carries the voiced person."""
+    from common.schema import FusedCommand
+    from services.fusion.core import Config, FusionCore
+    from testkit.scenarios import say, scene
+    from testkit.scenarios.suite import TWO_CUPS
+
+    meta = clips()[clip]
+    faces = load_cache()[clip]
+    mapping = person_of_face(meta, faces)
+    u = utterances(meta)[0]
+    core = FusionCore(Config(), "fusion/test")
+    core.on_liveliness("vision", "test", True)
+    wall = 1000.0
+    for sample in faces:
+        core.on_faces("hri/gesture/cam0/faces", sample, wall)
+    for step in scene(TWO_CUPS, 0.0, meta["duration_s"], 0.2):
+        key, det = step.build(T0)
+        core.on_detections(key, det, wall)  # type: ignore[arg-type]
+    key, said = say(u.start, u.end, "pick up the red cup").build(T0)
+    assert isinstance(said, Transcript)
+    core.on_transcript(key, msgspec.structs.replace(said, loudness=loudness(meta["wav"])), wall)
+    (out,) = core.tick(wall + 10.0)
+    assert isinstance(out.sample, FusedCommand) and out.sample.speaker is not None
+    assert mapping.get(out.sample.speaker.person or "") == u.speaker, out.sample.speaker
+    assert out.sample.speaker.addressed is True
