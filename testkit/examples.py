@@ -20,6 +20,7 @@ from common.schema import (
     Hands,
     ImageQuality,
     Location,
+    Loudness,
     Motion,
     Person,
     Persons,
@@ -134,6 +135,7 @@ def examples():
             words=[Word(word="pick", start=T - 1.2, end=T - 1.0, confidence=0.9)],
             final=True,
             backend="pocketsphinx",
+            loudness=Loudness(start=T - 1.3, step=0.02, db=[-62, -35, -24, -120]),
         ),
         FusedCommand(
             stamp=T,
@@ -229,6 +231,7 @@ def examples():
                     frame_id="cam0_optical",
                     speaking=0.7,
                     engaged=True,
+                    engagement="engaged",
                 )
             ],
         ),
