@@ -2,7 +2,8 @@
 Visual Social Engagement from Proxemics and Gaze"): a person is engaged when they and the robot face each other
 within reach, judged over a window of frames, and reported as REP-155's levels. Pure: wire `Faces` (and `Persons`
 for depth) in; used by the gesture service (`Person.engagement`) and by fusion (was an utterance said to the
-robot?). One question for everyone: `engaged_over(faces, person, t0, t1)`.
+robot?). One question for everyone: `engaged_over(faces, person, t0, t1)` (in the gesture service, from the frames
+its tracker judged: `EngagementTracker.engaged_between(person, t0, t1)`, the same rule).
 
 Each frame of a person's face (`frame_engaged`) counts as engaged when all three hold:
 - **the person faces the robot**: the head's angle off the line to the camera, combining yaw and pitch
@@ -192,9 +193,13 @@ def person_frames(
     return out
 
 
-def _share(judged: list[FrameEngagement]) -> float | None:
-    known = [j.engaged for j in judged if j.engaged is not None]
-    return sum(known) / len(known) if known else None
+def window_verdict(marks: Sequence[tuple[float, bool]], t1: float, cfg: EngagementConfig) -> tuple[bool, float, float]:
+    """The window rule on (stamp, engaged) frames ending at `t1`: (engaged, share, share in the last `engage_end` s).
+    The end falls back on the last frame when none is that recent. `marks` must not be empty."""
+    share = sum(e for _, e in marks) / len(marks)
+    end = [e for s, e in marks if s >= t1 - cfg.engage_end] or [marks[-1][1]]
+    at_end = sum(end) / len(end)
+    return share >= cfg.engage_share and at_end >= cfg.engage_share, share, at_end
 
 
 def engaged_over(
@@ -210,16 +215,12 @@ def engaged_over(
     `Persons` samples whose `position` (depth) gives the distance."""
     cfg = cfg or EngagementConfig()
     near = [s for s in persons if t0 - 0.5 <= s.stamp <= t1 + 0.5]  # the ones a frame of the window may use
-    frames = person_frames(faces, person, t0, t1, cfg, near)
-    judged = [j for _, j in frames if j.engaged is not None]
-    if not judged:
+    frames = [(s, j) for s, j in person_frames(faces, person, t0, t1, cfg, near) if j.engaged is not None]
+    if not frames:
         return Engagement(None, None, None, 0, None, f"no frame shows {person}'s head orientation")
-    share = _share(judged)
-    end = [j for s, j in frames if j.engaged is not None and s >= t1 - cfg.engage_end] or judged[-1:]
-    at_end = _share(end)
+    engaged, share, at_end = window_verdict([(s, bool(j.engaged)) for s, j in frames], t1, cfg)
+    judged = [j for _, j in frames]
     distance = sorted(j.distance for j in judged)[len(judged) // 2]
-    assert share is not None and at_end is not None
-    engaged = share >= cfg.engage_share and at_end >= cfg.engage_share
     angles = sorted(j.head_angle for j in judged if j.head_angle is not None)
     how = "depth" if any(j.from_depth for j in judged) else "face size"
     reason = (
@@ -292,6 +293,13 @@ class EngagementTracker:
     def level(self, person: str) -> EngagementLevel:
         hist = self.people.get(person)
         return hist.level if hist is not None else "unknown"
+
+    def engaged_between(self, person: str, t0: float, t1: float) -> bool | None:
+        """`engaged_over`'s answer from the frames this tracker judged (the last `window` s): for a gesture service
+        rule asking about a span that just ended (a palm held, a wave). None: no frame of the person in the span."""
+        hist = self.people.get(person)
+        marks = [(s, m > 0) for s, m in hist.marks if t0 <= s <= t1] if hist is not None else []
+        return window_verdict(marks, t1, self.cfg)[0] if marks else None
 
 
 def engaged_flag(level: EngagementLevel) -> bool | None:

@@ -142,11 +142,17 @@ def test_tracker_on_a_real_face_that_turns_away_and_back() -> None:
     back = [msgspec.structs.replace(s, stamp=s.stamp + 2 * span) for s in frames]
     tracker = EngagementTracker()
     levels: list[str] = []
-    for sample in frames + turned + back:
-        tracker.update(sample)
-        level = tracker.level(sample.faces[0].id)
-        if not levels or levels[-1] != level:
-            levels.append(level)
+    between: list[bool | None] = []  # engaged_between over the last second, at the end of each part
+    for part in (frames, turned, back):
+        for sample in part:
+            tracker.update(sample)
+            level = tracker.level(sample.faces[0].id)
+            if not levels or levels[-1] != level:
+                levels.append(level)
+        t1 = part[-1].stamp
+        between.append(tracker.engaged_between(part[-1].faces[0].id, t1 - 1.0, t1))
+    assert between == [True, False, True]
+    assert tracker.engaged_between("cam0/face-9", 0.0, 1e12) is None
     assert levels == [
         "unknown",
         "disengaged",
