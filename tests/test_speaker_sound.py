@@ -147,3 +147,20 @@ def test_fusion_gives_the_command_to_the_voiced_mouth(clip: str) -> None:
     assert isinstance(out.sample, FusedCommand) and out.sample.speaker is not None
     assert mapping.get(out.sample.speaker.person or "") == u.speaker, out.sample.speaker
     assert out.sample.speaker.addressed is True
+
+
+def test_every_labelled_utterance_with_the_sound_names_the_speaker_never_a_silent_one() -> None:
+    """All 15 labelled utterances of the 11 clips (the recorded face series, the loudness from each WAV): the
+    speaker is the labelled one (9 with one face in view, 4 turns, 2 dubs); no utterance is given to a person who
+    only mouthed it."""
+    cache = load_cache()
+    named = []
+    for name, meta in clips().items():
+        mapping = person_of_face(meta, cache[name])
+        silent = {m["person"] for m in meta.get("mouthing_without_audio", [])}
+        for k, u in enumerate(utterances(meta)):
+            who = mapping.get(attribute(heard(meta, k), cache[name]).person or "")
+            assert who not in silent
+            named.append((name, u.speaker, who))
+    assert len(named) == 15
+    assert [n for n in named if n[1] != n[2]] == []
