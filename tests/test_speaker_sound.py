@@ -55,6 +55,8 @@ def test_loudness_is_the_rms_level_in_whole_db() -> None:
     assert loudness_db(np.zeros(100), rate) == []  # shorter than a step
     wire = loudness_of(tone, rate, 12.0)
     assert wire.start == 12.0 and wire.step == STEP and Loudness.from_dict(wire.to_dict()) == wire
+    long = loudness_of(np.zeros(rate * 180), rate, 0.0)  # 3 minutes: longer steps, within the wire's caps
+    assert long.step == pytest.approx(0.03) and len(long.db) == 6000 and Loudness.from_dict(long.to_dict()) == long
 
 
 @pytest.mark.parametrize("clip", ["comp_dub_brbk7n_lbax4n_audioL.mp4", "comp_dub_brbk7n_lbax4n_audioR.mp4"])

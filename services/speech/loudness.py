@@ -28,6 +28,11 @@ def loudness_db(audio: np.ndarray, rate: int, step: float = STEP) -> list[int]:
     return [int(v) for v in np.clip(np.round(db), FLOOR_DB, 0)]
 
 
+MAX_VALUES = 6000  # the wire's cap: 2 minutes at 20 ms
+
+
 def loudness_of(audio: np.ndarray, rate: int, start: float, step: float = STEP) -> Loudness:
-    """The wire's `Loudness` of `audio` whose first sample is at source time `start`."""
-    return Loudness(start=start, step=step, db=loudness_db(audio, rate, step))
+    """The wire's `Loudness` of `audio` whose first sample is at source time `start`; an utterance longer than
+    `MAX_VALUES` steps gets longer steps (at most 0.1 s, the wire's cap; beyond 10 minutes its start only)."""
+    step = min(max(step, len(audio) / rate / MAX_VALUES), 0.1)
+    return Loudness(start=start, step=step, db=loudness_db(audio, rate, step)[:MAX_VALUES])
