@@ -41,6 +41,8 @@ SpeakerMethod = Literal["mouth_motion", "only_face", "unknown"]
 # v1 extension (the robot, issue #43): what the robot is doing, and what fusion does with a command meanwhile.
 RobotStatus = Literal["idle", "busy", "done", "failed"]
 WhileBusy = Literal["ask", "queue"]
+# v1 extension (issue #40): REP-155's engagement levels (hri_msgs/EngagementLevel, lower-case).
+EngagementLevel = Literal["unknown", "disengaged", "engaging", "engaged", "disengaging"]
 # The modalities fusion weighs (Weights' fields, the keys of FusedCommand.inputs), each named after the service
 # that feeds it (common/stack.py; tests/test_stack_declaration.py checks they are among fusion's input services).
 # Code names them by these constants, so a misspelt one fails the type check.
@@ -505,6 +507,13 @@ class Person(Struct, kw_only=True):
     engaged: Annotated[
         Optional[bool], described("facing the robot (REP-155 engagement: engaged / disengaged), nil when unknown")
     ] = None
+    engagement: Annotated[
+        Optional[EngagementLevel],
+        described(
+            '**v1 extension**: the REP-155 engagement level over the last seconds (docs/people.md "Engagement"); '
+            "`engaged` is true at `engaged` and `disengaging`"
+        ),
+    ] = None
 
 
 class Word(Struct, kw_only=True):
@@ -759,6 +768,18 @@ class GestureEvent(Sample, kw_only=True):
 WORD_TIME_SLACK = 0.05
 
 
+class Loudness(Struct, kw_only=True):
+    """v1 extension (issue #40): the utterance's sound level over time, for telling which visible mouth spoke."""
+
+    start: Annotated[Finite, described("source time of the start of the first step")]
+    step: Annotated[float, Meta(gt=0.0, le=0.1), described("seconds per value")]
+    db: Annotated[
+        list[Annotated[int, Meta(ge=-120, le=0)]],
+        Meta(max_length=6000),
+        described("RMS level of each step in dB full scale, rounded (-120 = silence)"),
+    ]
+
+
 class Transcript(Sample, kw_only=True):
     mic: Annotated[NonEmpty, described("microphone id")]
     start: Annotated[Finite, described("utterance start, source time (audio clock)")]
@@ -768,6 +789,10 @@ class Transcript(Sample, kw_only=True):
     words: Annotated[list[Word], described("empty when the backend has no word times")]
     final: Annotated[bool, described("false for a partial result while the person is still speaking")]
     backend: Annotated[NonEmpty, described("the recogniser that produced it")]
+    loudness: Annotated[
+        Optional[Loudness],
+        described("**v1 extension**: the utterance's audio level every `step` s; absent or nil when not measured"),
+    ] = None
 
     def _check_sample(self) -> None:
         _check_span(self.start, self.end)

@@ -22,6 +22,7 @@ from common.schema import (
     HeldObject,
     ImageQuality,
     Location,
+    Loudness,
     Motion,
     Person,
     Persons,
@@ -138,6 +139,7 @@ def examples():
             words=[Word(word="pick", start=T - 1.2, end=T - 1.0, confidence=0.9)],
             final=True,
             backend="pocketsphinx",
+            loudness=Loudness(start=T - 1.3, step=0.02, db=[-62, -35, -24, -120]),
         ),
         FusedCommand(
             stamp=T,
@@ -233,6 +235,7 @@ def examples():
                     frame_id="cam0_optical",
                     speaking=0.7,
                     engaged=True,
+                    engagement="engaged",
                 )
             ],
         ),

@@ -64,9 +64,10 @@ def test_persons_tracked_links_engagement_and_voices():
         person("p-1", face="f-1", has_body=True, speaking=0.7, engaged=True),
         person("p-2", speaking=0.2, engaged=False),
         person("p-3"),
+        person("p-4", engaged=True, engagement="disengaging"),  # the REP-155 level, when given, is published
     )
     outs = by_topic(core.persons_messages(sample, CONFIG, latch))
-    assert list(outs["/humans/persons/tracked"].message.ids) == ["p_1", "p_2", "p_3"]
+    assert list(outs["/humans/persons/tracked"].message.ids) == ["p_1", "p_2", "p_3", "p_4"]
     assert list(outs["/humans/voices/tracked"].message.ids) == ["p_1", "p_2"]  # speaking measured: a voice
     assert outs["/humans/persons/p_1/face_id"].message.data == "f_1"
     assert outs["/humans/persons/p_1/body_id"].message.data == "p_1"
@@ -74,7 +75,7 @@ def test_persons_tracked_links_engagement_and_voices():
     assert outs["/humans/persons/p_1/voice_id"].message.data == "p_1"
     assert all(o.latched for t, o in outs.items() if t.endswith("_id"))
     levels = {t.split("/")[3]: o.message.level for t, o in outs.items() if t.endswith("engagement_status")}
-    assert levels == {"p_1": 3, "p_2": 1, "p_3": 0}  # ENGAGED, DISENGAGED, UNKNOWN
+    assert levels == {"p_1": 3, "p_2": 1, "p_3": 0, "p_4": 4}  # ENGAGED, DISENGAGED, UNKNOWN, DISENGAGING
     assert outs["/humans/voices/p_1/is_speaking"].message.data is True
     assert outs["/humans/voices/p_2/is_speaking"].message.data is False
     assert "/humans/voices/p_3/is_speaking" not in outs

@@ -13,6 +13,7 @@ from typing import Any, Callable, Iterator
 import zenoh
 
 from common.codec import ENCODING, encode
+from common.engagement import EngagementConfig
 from common.robot import DEFAULT, Profile, ProfileError, load_profile
 from common.runner import App, Delivery, RateLimitedLog, Service, StartupError, serve, service_parser
 from common.schema import Clarification, FusedCommand
@@ -83,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_settings(parser.add_argument_group("fusion (docs/fusion.md, Settings)"), Config)
     add_settings(parser.add_argument_group("who is speaking (docs/people.md)"), SpeakerConfig)
     add_settings(parser.add_argument_group("the robot (docs/robot.md)"), RobotSettings)
+    add_settings(parser.add_argument_group("engagement: said to the robot? (docs/people.md)"), EngagementConfig)
     return parser
 
 
@@ -167,6 +169,7 @@ class FusionApp(App):
         self.speaker = from_args(SpeakerConfig, args)
         self.profile_path = from_args(RobotSettings, args).profile
         self.profile: Profile = DEFAULT
+        self.engagement = from_args(EngagementConfig, args)
         # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
         self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
 
@@ -183,6 +186,7 @@ class FusionApp(App):
             log=service.log,
             speaker=self.speaker,
             profile=self.profile,
+            engagement=self.engagement,
         )
         self.clocks = ClockReport(service, self.config)
         self.command_key = service.output_key("command")

@@ -18,6 +18,7 @@ from typing import Callable
 import msgspec
 
 from common.counters import GESTURE_COMMAND_COUNTER, SPEAKER_COUNTER, FusionCounter
+from common.engagement import EngagementConfig
 from common.language import ANY_OBJECT, PLACE_AS_OBJECT
 from common.robot import DEFAULT, Profile
 from common.schema import (
@@ -183,11 +184,13 @@ class FusionCore:
         log: logging.Logger | None = None,
         speaker: SpeakerConfig | None = None,
         profile: Profile = DEFAULT,
+        engagement: EngagementConfig | None = None,
     ):
         self.cfg = config
         self.profile = profile  # what this robot can do (common/robot.py, docs/robot.md)
         self.robot = robot.RobotNow()  # what it is doing: unknown until a RobotState arrives
         self.speaker_cfg = speaker or SpeakerConfig()
+        self.engagement_cfg = engagement or EngagementConfig()
         self.faces = FaceHistory(config.horizon)  # who is speaking: mouths over time (issue #33)
         self.source = source
         self.count = count
@@ -352,7 +355,8 @@ class FusionCore:
         if not len(self.faces):
             return None
         margin = self.speaker_cfg.speaker_guard + self.speaker_cfg.speaker_context
-        speaker = attribute(t, self.faces.around(t.start - margin, t.end + margin), self.speaker_cfg)
+        around = self.faces.around(t.start - margin, t.end + margin)
+        speaker = attribute(t, around, self.speaker_cfg, self.engagement_cfg, self.persons)
         self.count(SPEAKER_COUNTER[speaker.method])
         return speaker
 

@@ -180,7 +180,14 @@ def tracked_ids(outs: list[Outgoing], config: Ros2Config) -> dict[str, list[str]
     return found
 
 
-def engagement_level(engaged: bool | None) -> int:
+REP155_LEVELS = {"unknown": 0, "disengaged": 1, "engaging": 2, "engaged": 3, "disengaging": 4}  # EngagementLevel
+
+
+def engagement_level(engaged: bool | None, level: str | None = None) -> int:
+    """hri_msgs/EngagementLevel's number: the person's REP-155 level when the sender gives it (`Person.engagement`),
+    else from `engaged` alone."""
+    if level is not None:
+        return REP155_LEVELS[level]
     if engaged is None:
         return 0  # UNKNOWN
     return 3 if engaged else 1  # ENGAGED, DISENGAGED
@@ -207,7 +214,7 @@ def persons_messages(sample: Persons, config: Ros2Config, latch: Latch) -> list[
             topic = config.human("persons", pid, link)
             if latch.changed(topic, value):
                 out.append(Outgoing(topic, STRING, string(value), latched=True))
-        level = msg(ENGAGEMENT, header=header(sample.stamp), level=engagement_level(person.engaged))
+        level = msg(ENGAGEMENT, header=header(sample.stamp), level=engagement_level(person.engaged, person.engagement))
         out.append(Outgoing(config.human("persons", pid, "engagement_status"), ENGAGEMENT, level))
     for person in voices:
         speaking = msg(BOOL, data=bool(person.speaking is not None and person.speaking >= SPEAKING_AT))
