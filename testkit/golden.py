@@ -1,8 +1,8 @@
 """The golden net under fusion: every in-process fusion run's outputs, written out in full and compared byte for byte.
 
 Two files under tests/data/golden/:
-- `fusion_synthetic.txt`: the scenario suite (testkit/scenarios/suite.py) and the seeded degraded sweep of
-  benchmarks/fusion_eval.py, each with adaptive and with fixed weights. Needs nothing but the project.
+- `fusion_synthetic.txt`: the scenario suite (testkit/scenarios/suite.py) and the seeded degraded sweep
+  (testkit/scenarios/sweep.py), each with adaptive and with fixed weights. Needs nothing but the project.
 - `fusion_real.txt`: the scenes made from real photos (YOLOX-Nano detections, testkit/scenarios/real.py) and the real
   indoor scenes (../shared/data/scenes/, through vision's own pipeline). Needs ../shared/ (the model and the photos).
 
@@ -22,7 +22,6 @@ import argparse
 import difflib
 import json
 import os
-import random
 import sys
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -60,14 +59,11 @@ def _runs(title: str, scenarios: list[Any]) -> Iterator[str]:
 
 
 def synthetic_lines() -> Iterator[str]:
-    sys.path.insert(0, str(ROOT))  # benchmarks/ is a folder of scripts, not a package
-    from benchmarks.fusion_eval import KINDS, trial
     from testkit.scenarios.suite import SCENARIOS
+    from testkit.scenarios.sweep import degraded_sweep
 
-    rng = random.Random(SWEEP_SEED)
-    sweep = [trial(kind, rng) for kind in KINDS for _ in range(SWEEP_TRIALS)]
     yield from _runs("suite", SCENARIOS)
-    yield from _runs("sweep", sweep)
+    yield from _runs("sweep", degraded_sweep(SWEEP_SEED, SWEEP_TRIALS))
 
 
 def real_lines() -> Iterator[str]:
