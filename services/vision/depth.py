@@ -265,7 +265,7 @@ class DepthMatcher:
         """True if a newer capture's depth is already in (within EXPECT_DEPTH_S): this colour frame's own depth was
         replaced in its latest-only slot, and the newer capture's colour frame is next with its depth."""
         kept = self.frames.get(cam)
-        return bool(kept) and 0 < kept[-1].stamp - stamp <= self.expect_s
+        return kept is not None and len(kept) > 0 and 0 < kept[-1].stamp - stamp <= self.expect_s
 
     def wait(self, frame: Any, image: Any) -> tuple[Any, Any] | None:
         """Park a colour frame for its depth; returns the one it replaces (its depth never came), if any."""
