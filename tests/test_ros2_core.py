@@ -238,12 +238,12 @@ def test_the_node_declares_at_start_every_topic_of_a_fixed_name_with_the_type_an
     latch = core.Latch()
     sent = [
         *core.fused_command_messages(msgspec.structs.replace(cmd, target=placed_target()), CONFIG),
-        *core.clarification_messages(example(Clarification), CONFIG),  # type: ignore[arg-type]
-        *core.detections_messages(example(Detections), CONFIG),  # type: ignore[arg-type]
-        *core.persons_messages(example(Persons), CONFIG, latch),  # type: ignore[arg-type]
-        *core.bodies_messages(example(Bodies), CONFIG),  # type: ignore[arg-type]
-        *core.faces_messages(example(Faces), CONFIG),  # type: ignore[arg-type]
-        *core.camera_info_messages(example(Frame), CONFIG, latch),  # type: ignore[arg-type]
+        *core.clarification_messages(example(Clarification), CONFIG),
+        *core.detections_messages(example(Detections), CONFIG),
+        *core.persons_messages(example(Persons), CONFIG, latch),
+        *core.bodies_messages(example(Bodies), CONFIG),
+        *core.faces_messages(example(Faces), CONFIG),
+        *core.camera_info_messages(example(Frame), CONFIG, latch),
     ]
     per_id = CONFIG.human("")  # /humans/<kind>/<id>/...; the <kind>/tracked lists are fixed
 
