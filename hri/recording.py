@@ -159,7 +159,7 @@ def _viewer_converter(keys: Keys) -> FoxgloveConverter | None:
     if available():
         return FoxgloveConverter(keys)
     logging.getLogger("hri.record").warning(
-        "foxglove-sdk is not installed: writing the raw msgpack channels only (pip install 'hri-fusion[foxglove]')"
+        "foxglove-sdk is not installed: writing the raw channels only (pip install 'hri-fusion[foxglove]')"
     )
     return None
 
@@ -445,8 +445,9 @@ def read_samples(
 ) -> Iterator[tuple[str, float, Sample]]:
     """(key, stamp in seconds, decoded sample) of every valid contract sample of a recording, in receive order.
 
-    Reads recordings of every version (before and after the viewer channels of issue #36: both carry the raw
-    msgpack channels); payloads outside the contract or invalid under it are skipped. Raises RecordingError.
+    Reads recordings of every version (before and after the viewer channels of issue #36, and the msgpack raw
+    channels before issue #41's RawSample); payloads outside the contract or invalid under it are skipped. Raises
+    RecordingError.
     """
     reader = SessionReader(path)
     keys = keys or Keys(reader.metadata().get("prefix") or Keys().prefix)
@@ -563,7 +564,7 @@ def add_record_arguments(p: argparse.ArgumentParser) -> None:
         dest="viewers",
         action="store_false",
         default=None,
-        help="write only the raw msgpack channels, not the Foxglove-readable copies (smaller, cheaper)",
+        help="write only the raw channels (the payloads), not the decoded viewer copies (smaller, cheaper)",
     )
     add_option(
         p,

@@ -92,8 +92,10 @@ def test_spares_are_kept_built_ahead_and_closed_with_the_supply(spares: int) -> 
     made: list[Graphs] = []
     gate = threading.Event()
     gate.set()
-    supply = GraphSupply(lambda: build_one(made, gate), spares=spares)
+    changes: list[tuple[int, int]] = []  # what the stats gauges are told
+    supply = GraphSupply(lambda: build_one(made, gate), spares=spares, on_change=lambda *c: changes.append(c))
     supply.prepare([], spares)  # with a wildcard: sets for the cameras to come
+    assert changes == [(spares, spares)]
     first = supply.take("a")
     assert first is made[0]
     for _ in range(100):  # the one taken is built again
@@ -101,6 +103,7 @@ def test_spares_are_kept_built_ahead_and_closed_with_the_supply(spares: int) -> 
             break
         threading.Event().wait(0.05)
     assert supply.ready == spares and supply.built == spares + 1
+    assert changes[1] == (spares, spares - 1) and changes[-1] == (spares + 1, spares)  # taken, then built again
     supply.close()
     assert not first.closed  # the camera's: closed with the core
     assert all(g.closed for g in made[1:])

@@ -170,12 +170,13 @@ class GestureApp(App):
     def open(self, service: Service) -> None:
         """The graphs of the cameras --cams names (with a wildcard: of the first camera, and --spare-graphs more) are
         built and warmed here, before the service declares itself live: their first frames are served at once."""
-        s = self.settings
+        s, self.service = self.settings, service
         self.supply: GraphSupply[CameraGraphs] = GraphSupply(
             lambda: build_graphs(s),
             self.args.spare_graphs,
             lambda exc: service.log.error("could not build a camera's graphs: %s", exc),
             lambda seconds: service.log.info("graphs for a new camera built and warmed in %.1f s", seconds),
+            self.count_graph_sets,
         )
         cams = [c.strip() for c in self.args.cams.split(",")]
         named = [c for c in cams if "*" not in c]
@@ -184,7 +185,6 @@ class GestureApp(App):
         except LandmarkError as exc:  # fail now, with the reason
             raise StartupError(str(exc)) from None
         service.log.info("graphs of %d camera(s) built and warmed", self.supply.built)
-        self.service = service
         self.core = GestureCore(s, service.source, DEPTH_KEPT)
         service.on_close(self.core.close)
         service.on_close(self.supply.close)
@@ -210,6 +210,11 @@ class GestureApp(App):
         self.core.adopt(cam, graphs)
         self.service.log.info("new camera %s: its graphs are ready", cam)
         return True
+
+    def count_graph_sets(self, built: int, ready: int) -> None:
+        """The stats gauges of the graph sets: built so far, and ready for a camera not seen yet."""
+        self.service.counters.set("graph_sets_built", built)
+        self.service.counters.set("graph_sets_ready", ready)
 
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         if not self.has_graphs(frame.cam):  # a new camera whose graphs are being built: no frame waits for them
@@ -266,9 +271,6 @@ class GestureApp(App):
 
     def end_idle_streams(self) -> None:
         """A camera that stopped sends no frame to show the hand is gone: end its gestures after --idle-end s."""
-        counters = self.service.counters
-        counters.set("graph_sets_built", self.supply.built)
-        counters.set("graph_sets_ready", self.supply.ready)
         now, idle_end = time.monotonic(), self.args.idle_end
         for cam, (done, frame) in list(self.last_frame.items()):
             if now - done >= idle_end:

@@ -30,11 +30,13 @@ class GraphSupply(Generic[G]):
         spares: int = 0,
         on_error: Callable[[BaseException], None] = print,
         on_built: Callable[[float], None] = lambda seconds: None,
+        on_change: Callable[[int, int], None] = lambda built, ready: None,
     ):
         self._build = build
         self._spares = spares
         self._on_error = on_error
         self._on_built = on_built  # told how long each background build took
+        self._on_change = on_change  # told (built, ready) whenever they change, in order (under the lock)
         self._cond = threading.Condition()
         self._ready: list[G] = []
         self._waiting: set[str] = set()  # cameras that asked and got none (yet)
@@ -52,6 +54,8 @@ class GraphSupply(Generic[G]):
         for _ in range(spares_at_start):
             self._ready.append(self._build())
             self.built += 1
+        with self._cond:
+            self._on_change(self.built, len(self._ready))
 
     def take(self, cam: str) -> G | None:
         """`cam`'s graphs (its own, or a ready set) for its first frame, or None: a set is being built for it (ask
@@ -66,6 +70,7 @@ class GraphSupply(Generic[G]):
                 self._waiting.discard(cam)
             self._start_builder()
             self._cond.notify_all()
+            self._on_change(self.built, len(self._ready))
             return graphs
 
     @property
@@ -102,6 +107,7 @@ class GraphSupply(Generic[G]):
                     return
                 self._ready.append(graphs)
                 self.built += 1
+                self._on_change(self.built, len(self._ready))
             self._on_built(time.monotonic() - started)
 
     def close(self) -> None:
