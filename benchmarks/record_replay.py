@@ -37,7 +37,7 @@ from mcap.writer import CompressionType, Writer
 from common.codec import ENCODING, encode
 from common.keys import Keys
 from common.transport import open_client
-from hri.recording import SessionWriter
+from hri.recording import SessionWriter, is_raw_channel, raw_payload
 from testkit.harness import Client, Proc, ProcessGroup
 from testkit.payloads import realistic_samples
 
@@ -86,8 +86,8 @@ def bare_replayer(endpoint: str, path: str) -> None:
     s = open_client(endpoint)
     pubs: dict[str, zenoh.Publisher] = {}
     with open(path, "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages():
-            if channel.message_encoding != "msgpack":
+        for schema, channel, message in make_reader(f).iter_messages():
+            if not is_raw_channel(schema, channel):
                 continue  # the viewer channels (issue #36) are not replayed
             pub = pubs.get(channel.topic)
             if pub is None:
@@ -97,7 +97,7 @@ def bare_replayer(endpoint: str, path: str) -> None:
                     congestion_control=zenoh.CongestionControl.BLOCK,
                     priority=zenoh.Priority.DATA_HIGH,
                 )
-            pub.put(message.data)
+            pub.put(raw_payload(schema, channel, message.data))
     time.sleep(0.3)
     s.close()
 
@@ -140,7 +140,7 @@ def measure_record(
     if proc.popen.returncode != 0:
         raise RuntimeError(f"recorder failed:\n{proc.output()}")
     with open(out, "rb") as f:
-        got = sum(1 for _, ch, _ in make_reader(f).iter_messages() if ch.message_encoding == "msgpack")
+        got = sum(1 for sc, ch, _ in make_reader(f).iter_messages() if is_raw_channel(sc, ch))
     if got != n:
         raise RuntimeError(f"recorder wrote {got}/{n} samples")
     return n / elapsed

@@ -37,7 +37,7 @@ SpeechCounter = Literal[
 NoTextReason = Literal["no_speech", "no_words"]
 
 # gesture
-GestureCounter = Literal["depth_unmatched", "ended_idle_stream"]
+GestureCounter = Literal["depth_unmatched", "ended_idle_stream", "skipped_building_graphs"]
 
 # ros2 (the ROS 2 bridge, services/ros2)
 Ros2Counter = Literal["ros_published", "ros_topics_retired", "held_while_busy"]

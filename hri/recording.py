@@ -1,11 +1,13 @@
 """`hri record` / `hri replay`: sessions on disk as MCAP, and back onto the bus.
 
 File layout (what a reader of the .mcap can count on):
-- one channel per concrete key; topic = the key, message_encoding = "msgpack"; a key of the contract has
-  a schema record (name = the contract type, encoding "jsonschema", data = its JSON Schema, generated from
-  common/schema.py), a key outside it none (schema_id 0); channel metadata names the contract type
-  ("schema": "Transcript", or "") and the zenoh encoding the first sample arrived with;
-- message data = the payload bytes exactly as received;
+- one channel per concrete key; topic = the key, message_encoding = "protobuf", schema `hri_fusion.RawSample`
+  (encoding "protobuf": `message RawSample { bytes data = 1; }`, so that Foxglove and every MCAP tool decode it);
+  channel metadata names the contract type ("schema": "Transcript", or "" for a key outside the contract) and the
+  zenoh encoding the first sample arrived with;
+- message data = a RawSample whose `data` is the payload bytes exactly as received (`raw_payload` unwraps it);
+  recordings made before issue #41 have message_encoding "msgpack" and the payload itself as data (and a
+  "jsonschema" record of the contract type): they read and replay as before;
 - log_time = receive time (ns since the UNIX epoch, the recorder's clock);
 - publish_time = the sample's own `stamp` when the payload decodes under the contract, else the
   receive time; sequence = per-channel count from 1;
@@ -25,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import json
 import logging
 import os
 import queue
@@ -45,11 +46,86 @@ from common.schema import InvalidSample, Sample
 from common.settings import add_option
 from hri.viewers.foxglove_msgs import VIEWER_METADATA, FoxgloveConverter, ViewerSchema, available
 
-MESSAGE_ENCODING = "msgpack"
+LEGACY_ENCODING = "msgpack"  # raw channels before issue #41: the payload itself as message data
+RAW_ENCODING = "protobuf"
+RAW_SCHEMA = "hri_fusion.RawSample"
 PROFILE = ""  # no well-known MCAP profile fits; the contract lives in channel metadata
 METADATA_NAME = "hri.record"
 COMPRESSIONS = ("zstd", "lz4", "none")
 NS = 1_000_000_000
+
+
+# ---------------------------------------------------------------------------
+# The raw sample as protobuf (`message RawSample { bytes data = 1; }`), written by hand: recording needs no
+# protobuf library; tests/test_record_replay.py checks both against google.protobuf and mcap's protobuf decoder.
+# ---------------------------------------------------------------------------
+def _varint(n: int) -> bytes:
+    out = bytearray()
+    while True:
+        low, n = n & 0x7F, n >> 7
+        out.append(low | (0x80 if n else 0))
+        if not n:
+            return bytes(out)
+
+
+def _field(number: int, value: bytes | str | int) -> bytes:
+    """One protobuf field: a varint (int) or length-delimited (bytes, str) value."""
+    if isinstance(value, int):
+        return _varint(number << 3) + _varint(value)
+    data = value.encode() if isinstance(value, str) else value
+    return _varint(number << 3 | 2) + _varint(len(data)) + data
+
+
+def _raw_sample_descriptor() -> bytes:
+    """The FileDescriptorSet of hri_fusion/raw_sample.proto (what Foxglove reads a protobuf schema as)."""
+    data_field = _field(1, "data") + _field(3, 1) + _field(4, 1) + _field(5, 12) + _field(10, "data")  # bytes, = 1
+    message = _field(1, "RawSample") + _field(2, data_field)
+    proto = _field(1, "hri_fusion/raw_sample.proto") + _field(2, "hri_fusion") + _field(4, message)
+    return _field(1, proto + _field(12, "proto3"))
+
+
+RAW_SCHEMA_DATA = _raw_sample_descriptor()
+
+
+def wrap_raw(payload: bytes) -> bytes:
+    """A payload as a RawSample message."""
+    return _field(1, payload) if payload else b""  # proto3 leaves an empty field out
+
+
+def unwrap_raw(message: bytes) -> bytes:
+    """The payload of a RawSample message; ValueError when it is not one."""
+    if not message:
+        return b""
+    if message[0] != 0x0A:
+        raise ValueError(f"not a RawSample: first byte {message[0]:#x}")
+    length, shift, k = 0, 0, 1
+    while True:
+        if k >= len(message) or shift > 63:
+            raise ValueError("not a RawSample: its length is cut short")
+        byte = message[k]
+        length |= (byte & 0x7F) << shift
+        shift, k = shift + 7, k + 1
+        if not byte & 0x80:
+            break
+    if k + length != len(message):
+        raise ValueError(f"not a RawSample: {len(message) - k} bytes after the tag, the length says {length}")
+    return message[k:]
+
+
+def is_raw_channel(schema: Any, channel: Any) -> bool:
+    """A channel `hri record` keeps the received payloads on (today's protobuf RawSample, or the msgpack channels
+    of recordings made before issue #41), as opposed to the viewer channels beside them."""
+    if channel.metadata.get(VIEWER_METADATA):
+        return False
+    if channel.message_encoding == LEGACY_ENCODING:
+        return True
+    return channel.message_encoding == RAW_ENCODING and schema is not None and schema.name == RAW_SCHEMA
+
+
+def raw_payload(schema: Any, channel: Any, data: bytes) -> bytes:
+    """The payload as received of a raw channel's message (`is_raw_channel`)."""
+    return data if channel.message_encoding == LEGACY_ENCODING else unwrap_raw(data)
+
 
 RECORD_EXAMPLES = """\
 examples:
@@ -83,7 +159,7 @@ def _viewer_converter(keys: Keys) -> FoxgloveConverter | None:
     if available():
         return FoxgloveConverter(keys)
     logging.getLogger("hri.record").warning(
-        "foxglove-sdk is not installed: writing the raw msgpack channels only (pip install 'hri-fusion[foxglove]')"
+        "foxglove-sdk is not installed: writing the raw channels only (pip install 'hri-fusion[foxglove]')"
     )
     return None
 
@@ -155,7 +231,7 @@ class SessionWriter:
         if metadata:
             self._writer.add_metadata(METADATA_NAME, metadata)
         self._channels: dict[str, int] = {}
-        self._schemas: dict[str, int] = {}
+        self._raw_schema = self._writer.register_schema(name=RAW_SCHEMA, encoding=RAW_ENCODING, data=RAW_SCHEMA_DATA)
         self._viewer_channels: dict[tuple[str, str], int] = {}  # (topic, schema name) -> channel id
         self._viewer_schemas: dict[str, int] = {}  # Foxglove / JSON schema name -> schema id
         self._viewer_sequence: collections.Counter[int] = collections.Counter()
@@ -169,20 +245,6 @@ class SessionWriter:
         self.bytes = 0
         self.finished = False
 
-    def _schema_id(self, schema: type | None) -> int:
-        """The id of the schema record of a contract type (written once per file), 0 for none."""
-        if schema is None:
-            return 0
-        if schema.__name__ not in self._schemas:
-            from hri.wiredoc import json_schema
-
-            self._schemas[schema.__name__] = self._writer.register_schema(
-                name=schema.__name__,
-                encoding="jsonschema",
-                data=json.dumps(json_schema(schema), separators=(",", ":")).encode(),
-            )
-        return self._schemas[schema.__name__]
-
     def add(self, key: str, payload: bytes, receive_ns: int, zenoh_encoding: str = ENCODING) -> int:
         """Write one sample; returns the publish time written (stamp, or receive time)."""
         channel = self._channels.get(key)
@@ -190,8 +252,8 @@ class SessionWriter:
             schema = self.keys.schema_for(key)
             channel = self._channels[key] = self._writer.register_channel(
                 topic=key,
-                message_encoding=MESSAGE_ENCODING,
-                schema_id=self._schema_id(schema),
+                message_encoding=RAW_ENCODING,
+                schema_id=self._raw_schema,
                 metadata={"schema": schema.__name__ if schema else "", "zenoh_encoding": zenoh_encoding},
             )
         sample = contract_sample(key, payload, self.keys)
@@ -203,7 +265,11 @@ class SessionWriter:
             tally.not_contract += 1
         publish_ns = receive_ns if stamp is None else stamp
         self._writer.add_message(
-            channel_id=channel, log_time=receive_ns, data=payload, publish_time=publish_ns, sequence=tally.samples
+            channel_id=channel,
+            log_time=receive_ns,
+            data=wrap_raw(payload),
+            publish_time=publish_ns,
+            sequence=tally.samples,
         )
         self.samples += 1
         self.bytes += len(payload)
@@ -212,8 +278,6 @@ class SessionWriter:
         return publish_ns
 
     def _viewer_schema_id(self, schema: ViewerSchema) -> int:
-        if schema.encoding == "jsonschema" and schema.name in self._schemas:
-            return self._schemas[schema.name]  # the raw channel's record: the same generated JSON Schema
         if schema.name not in self._viewer_schemas:
             self._viewer_schemas[schema.name] = self._writer.register_schema(
                 name=schema.name, encoding=schema.encoding, data=schema.data
@@ -281,7 +345,7 @@ class RecordingError(Exception):
 
 
 class SessionReader:
-    """Reads an .mcap written by `hri record` (or any MCAP whose msgpack channels are zenoh keys)."""
+    """Reads an .mcap written by `hri record` (or any MCAP whose RawSample or msgpack channels are zenoh keys)."""
 
     def __init__(self, path: str | os.PathLike):
         self.path = Path(path)
@@ -313,7 +377,7 @@ class SessionReader:
             for cid, channel in summary.channels.items():
                 if channel.metadata.get(VIEWER_METADATA):
                     continue  # a copy in a viewer's shape; the raw channel beside it is what replays
-                if channel.message_encoding != MESSAGE_ENCODING:
+                if not is_raw_channel(summary.schemas.get(channel.schema_id), channel):
                     self.skipped_encodings[channel.topic] = channel.message_encoding
                     continue
                 info.keys[channel.topic] = info.keys.get(
@@ -335,13 +399,13 @@ class SessionReader:
         self._stream.seek(0)
         reader = mcap.reader.NonSeekingReader(self._stream)
         try:
-            for _, channel, message in reader.iter_messages(log_time_order=False):
+            for schema, channel, message in reader.iter_messages(log_time_order=False):
                 if channel.metadata.get(VIEWER_METADATA):
                     continue
-                if channel.message_encoding != MESSAGE_ENCODING:
+                if not is_raw_channel(schema, channel):
                     self.skipped_encodings[channel.topic] = channel.message_encoding
                     continue
-                yield Recorded(channel.topic, message.data, message.log_time, message.publish_time, message.sequence)
+                yield self._recorded(schema, channel, message)
         except self._errors as exc:
             self.damaged = f"{type(exc).__name__}: {exc}"
 
@@ -354,8 +418,14 @@ class SessionReader:
             # written in arrival order, which is log-time order up to the writer's queueing
             yield from (m for m in self._linear() if keep(m.key))
             return
-        for _, channel, message in self._reader.iter_messages(topics=topics, log_time_order=True):
-            yield Recorded(channel.topic, message.data, message.log_time, message.publish_time, message.sequence)
+        for schema, channel, message in self._reader.iter_messages(topics=topics, log_time_order=True):
+            if is_raw_channel(schema, channel):  # a viewer channel could share a raw channel's topic
+                yield self._recorded(schema, channel, message)
+
+    @staticmethod
+    def _recorded(schema: Any, channel: Any, message: Any) -> Recorded:
+        payload = raw_payload(schema, channel, message.data)
+        return Recorded(channel.topic, payload, message.log_time, message.publish_time, message.sequence)
 
     def metadata(self) -> dict[str, str]:
         try:
@@ -375,8 +445,9 @@ def read_samples(
 ) -> Iterator[tuple[str, float, Sample]]:
     """(key, stamp in seconds, decoded sample) of every valid contract sample of a recording, in receive order.
 
-    Reads recordings of every version (before and after the viewer channels of issue #36: both carry the raw
-    msgpack channels); payloads outside the contract or invalid under it are skipped. Raises RecordingError.
+    Reads recordings of every version (before and after the viewer channels of issue #36, and the msgpack raw
+    channels before issue #41's RawSample); payloads outside the contract or invalid under it are skipped. Raises
+    RecordingError.
     """
     reader = SessionReader(path)
     keys = keys or Keys(reader.metadata().get("prefix") or Keys().prefix)
@@ -493,7 +564,7 @@ def add_record_arguments(p: argparse.ArgumentParser) -> None:
         dest="viewers",
         action="store_false",
         default=None,
-        help="write only the raw msgpack channels, not the Foxglove-readable copies (smaller, cheaper)",
+        help="write only the raw channels (the payloads), not the decoded viewer copies (smaller, cheaper)",
     )
     add_option(
         p,
@@ -717,7 +788,7 @@ def _selected_keys(reader: SessionReader, args: argparse.Namespace, keep: Callab
     """The recorded keys to replay, with their sample counts; warns of what cannot be replayed."""
     info = reader.info
     for key, enc in reader.skipped_encodings.items():
-        log.warning("skipping %s: message encoding %r is not msgpack", key, enc)
+        log.warning("skipping %s: message encoding %r is not a raw sample (RawSample or msgpack)", key, enc)
     if not info.complete:
         log.warning(
             "%s has no summary (the recorder did not finish it); replaying the %d readable samples",

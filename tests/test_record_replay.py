@@ -16,7 +16,7 @@ from common.codec import decode, encode
 from common.keys import Keys
 from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray, Sample, Transcript
 from hri.cli import make_transcript
-from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter
+from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter, raw_payload
 from testkit.harness import Client
 
 KEYS = Keys("hri")
@@ -63,7 +63,7 @@ def said(text: str, stamp: float) -> Transcript:
 # ---------------------------------------------------------------------------
 # The functional core: no zenoh, no processes
 # ---------------------------------------------------------------------------
-def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp_path):
+def test_writer_makes_one_raw_sample_channel_per_key_with_stamp_as_publish_time(tmp_path):
     path = tmp_path / "core.mcap"
     contract = [
         (KEYS.transcript("kbd"), encode(said("pick up the red cup", T0))),
@@ -87,18 +87,18 @@ def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp
         assert summary is not None and summary.statistics.message_count == 5
         channels = {c.topic: c for c in summary.channels.values()}
         assert set(channels) == {"hri/speech/kbd/transcript", "hri/vision/cam0/objects", "hri/test/raw"}
-        assert {c.message_encoding for c in channels.values()} == {"msgpack"}
+        assert {c.message_encoding for c in channels.values()} == {"protobuf"}
         assert channels["hri/speech/kbd/transcript"].metadata["schema"] == "Transcript"
         assert channels["hri/vision/cam0/objects"].metadata["schema"] == "Detections"
-        assert channels["hri/test/raw"].metadata["schema"] == "" and channels["hri/test/raw"].schema_id == 0
-        # each contract channel points at a JSON Schema record of its type, written once per type
-        schemas = summary.schemas
-        for topic, name in (("hri/speech/kbd/transcript", "Transcript"), ("hri/vision/cam0/objects", "Detections")):
-            record = schemas[channels[topic].schema_id]
-            assert record.name == name and record.encoding == "jsonschema"
-            assert name in json.loads(record.data)["$defs"]
-        assert len(schemas) == 2
-        got = [(ch.topic, m.data, m.log_time, m.publish_time, m.sequence) for _, ch, m in reader.iter_messages()]
+        assert channels["hri/test/raw"].metadata["schema"] == ""
+        # every raw channel points at the one RawSample schema record: the payload in a protobuf bytes field
+        (record,) = summary.schemas.values()
+        assert {c.schema_id for c in channels.values()} == {record.id}
+        assert (record.name, record.encoding) == ("hri_fusion.RawSample", "protobuf")
+        got = [
+            (ch.topic, raw_payload(sc, ch, m.data), m.log_time, m.publish_time, m.sequence)
+            for sc, ch, m in reader.iter_messages()
+        ]
         assert [m.name for m in reader.iter_metadata()] == ["hri.record"]
     stamps = [T0, T0 + 0.1, T0 + 0.5]
     expected = [
@@ -108,6 +108,71 @@ def test_writer_makes_one_msgpack_channel_per_key_with_stamp_as_publish_time(tmp
     assert [g[:4] for g in got] == expected
     assert [g[4] for g in got] == [1, 1, 2, 3, 1]  # per-channel sequence
     assert writer.tally["hri/speech/kbd/transcript"].not_contract == 1
+
+
+# what Foxglove decodes: message encoding -> the schema encoding it reads the schema as (it also reads ros2msg/CDR,
+# flatbuffer, cbor and schemaless JSON; a recording uses these two); msgpack is not among them
+FOXGLOVE_DECODES = {"protobuf": "protobuf", "json": "jsonschema"}
+
+
+def example_key(sample: Sample) -> str:
+    """The key the stack publishes one of testkit/examples.py's samples on."""
+    kind = type(sample).__name__
+    if kind in ("FusedCommand", "Clarification"):
+        return KEYS.command() if kind == "FusedCommand" else KEYS.clarification()
+    if kind == "Stats":
+        return KEYS.stats(sample.service, sample.instance)  # type: ignore[attr-defined]
+    topic = {"Frame": "frame", "DepthFrame": "depth", "AudioChunk": "audio", "Detections": "objects"}.get(kind)
+    topic = topic or {"GestureEvent": "event"}.get(kind, kind.lower())
+    chunk = {"mic": sample.mic} if hasattr(sample, "mic") else {"cam": sample.cam}  # type: ignore[attr-defined]
+    return KEYS.key(topic, **chunk)
+
+
+def test_every_channel_decodes_in_foxglove_and_replays_the_payloads_byte_for_byte(tmp_path):
+    foxglove_protobuf = pytest.importorskip("mcap_protobuf.decoder", reason="mcap-protobuf-support is not installed")
+    jsonschema = pytest.importorskip("jsonschema")
+    pytest.importorskip("foxglove", reason="foxglove-sdk (the viewer channels) is not installed")
+    from testkit.examples import examples
+
+    sent = [(example_key(sample), encode(sample)) for sample in examples()]
+    sent += [
+        (KEYS.transcript("kbd"), msgpack.packb({"text": "no envelope"})),  # a contract key, an invalid sample
+        ("hri/test/raw", b"\x0a\x02 not msgpack, nor protobuf"),
+        ("hri/test/empty", b""),
+    ]
+    path = tmp_path / "session.mcap"
+    with open(path, "wb") as f:
+        writer = SessionWriter(f, KEYS, viewers=True)
+        for i, (key, payload) in enumerate(sent):
+            writer.add(key, payload, int((T0 + 0.01 * i) * NS))
+        writer.finish()
+
+    decoders = foxglove_protobuf.DecoderFactory()
+    raw_back = []
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        assert summary is not None
+        for channel in summary.channels.values():  # each channel's encoding and schema, as Foxglove reads them
+            schema = summary.schemas[channel.schema_id]
+            assert FOXGLOVE_DECODES.get(channel.message_encoding) == schema.encoding, (channel.topic, schema.name)
+            if schema.encoding == "jsonschema":
+                jsonschema.Draft202012Validator.check_schema(json.loads(schema.data))
+            else:
+                assert decoders.decoder_for("protobuf", schema) is not None, schema.name
+        assert len(summary.channels) > 23  # the raw channels and the viewer channels beside them
+        for schema, channel, message in reader.iter_messages(log_time_order=True):  # every message decodes
+            if channel.message_encoding == "json":
+                jsonschema.validate(json.loads(message.data), json.loads(schema.data))
+                continue
+            decoded = decoders.decoder_for("protobuf", schema)(message.data)
+            if schema.name == "hri_fusion.RawSample":  # Foxglove shows its `data`: the payload as received
+                raw_back.append((channel.topic, decoded.data))
+    assert raw_back == sent
+
+    replayed = SessionReader(path)  # what `hri replay` sends
+    assert [(m.key, m.payload) for m in replayed.messages()] == sent and not replayed.skipped_encodings
+    replayed.close()
 
 
 def test_reader_filters_keys_keeps_receive_order_and_survives_a_cut_off_file(tmp_path):
@@ -274,17 +339,17 @@ def test_record_then_replay_round_trip(group, tmp_path):
             assert summary is not None, "no summary: the recorder did not finish the file on SIGTERM"
             raw = {c.topic: c.message_encoding for c in summary.channels.values() if "hri.viewer" not in c.metadata}
             assert raw == {
-                KEYS.transcript("kbd"): "msgpack",
-                KEYS.objects("cam0"): "msgpack",
-                KEYS.gesture_event("cam0"): "msgpack",
-                "hri/test/raw": "msgpack",
+                KEYS.transcript("kbd"): "protobuf",
+                KEYS.objects("cam0"): "protobuf",
+                KEYS.gesture_event("cam0"): "protobuf",
+                "hri/test/raw": "protobuf",
             }
             # beside them, the copies Foxglove decodes (tests/test_viewers.py decodes every message of them)
             viewer = {c.topic for c in summary.channels.values() if "hri.viewer" in c.metadata}
             assert {"/" + KEYS.transcript("kbd"), "/" + KEYS.objects("cam0") + "/annotations", "/hri/log"} <= viewer
             recorded = [
-                (ch.topic, m.data, m.log_time, m.publish_time)
-                for _, ch, m in reader.iter_messages()
+                (ch.topic, raw_payload(sc, ch, m.data), m.log_time, m.publish_time)
+                for sc, ch, m in reader.iter_messages()
                 if "hri.viewer" not in ch.metadata
             ]
         expected = [(k, encode(s)) for k, s in sent] + [("hri/test/raw", b"\xc1 outside the contract")]

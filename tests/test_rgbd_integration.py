@@ -114,6 +114,8 @@ def test_a_wrong_resolution_intrinsics_file_is_refused_at_start_up(group, tmp_pa
 def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
     from mcap.reader import make_reader
 
+    from hri.recording import is_raw_channel, raw_payload
+
     folder = ycb_folder(tmp_path)
     group.router()
     path = tmp_path / "rgbd.mcap"
@@ -133,7 +135,9 @@ def test_record_and_replay_carry_depth_and_intrinsics(group, tmp_path):
         assert summary is not None
         raw = [c for c in summary.channels.values() if "hri.viewer" not in c.metadata]  # not the viewer channels
         schemas = {c.topic: c.metadata["schema"] for c in raw}
-        recorded = [(ch.topic, m.data) for _, ch, m in reader.iter_messages() if "hri.viewer" not in ch.metadata]
+        recorded = [
+            (ch.topic, raw_payload(sc, ch, m.data)) for sc, ch, m in reader.iter_messages() if is_raw_channel(sc, ch)
+        ]
     assert schemas == {"hri/camera/cam0/depth": "DepthFrame", "hri/camera/cam0/frame": "Frame"}
     depths = [decode(d, DepthFrame) for t, d in recorded if t.endswith("/depth")]
     frames = [decode(d, Frame) for t, d in recorded if t.endswith("/frame")]

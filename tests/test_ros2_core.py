@@ -18,6 +18,7 @@ from common.schema import (  # noqa: E402
     Detections,
     Face,
     Faces,
+    Frame,
     FusedCommand,
     InvalidSample,
     Person,
@@ -228,6 +229,32 @@ def test_clarification_with_candidates():
     message = core.clarification_messages(question, CONFIG)[0].message
     assert message.question == question.question and message.reason == question.reason
     assert [c.id for c in message.candidates] == [c.id for c in question.candidates]
+
+
+def test_the_node_declares_at_start_every_topic_of_a_fixed_name_with_the_type_and_qos_it_is_sent_with():
+    """`core.node_topics` (declared when the node starts, issue #41) is exactly the topics the converters send
+    whose name holds no person id nor camera id, each with the type and latching it is sent with."""
+    cmd = example(FusedCommand)
+    assert isinstance(cmd, FusedCommand)
+    latch = core.Latch()
+    sent = [
+        *core.fused_command_messages(msgspec.structs.replace(cmd, target=placed_target()), CONFIG),
+        *core.clarification_messages(example(Clarification), CONFIG),
+        *core.detections_messages(example(Detections), CONFIG),
+        *core.persons_messages(example(Persons), CONFIG, latch),
+        *core.bodies_messages(example(Bodies), CONFIG),
+        *core.faces_messages(example(Faces), CONFIG),
+        *core.camera_info_messages(example(Frame), CONFIG, latch),
+    ]
+    per_id = CONFIG.human("")  # /humans/<kind>/<id>/...; the <kind>/tracked lists are fixed
+
+    def varies(topic: str) -> bool:
+        return (topic.startswith(per_id) and not topic.endswith("/tracked")) or "/cam0/" in topic
+
+    assert any(varies(o.topic) for o in sent)  # the examples do send per-id and per-camera topics
+    fixed = {o.topic: (o.type, o.latched) for o in sent if not varies(o.topic)}
+    assert {o.topic: (o.type, o.latched) for o in core.node_topics(CONFIG)} == fixed
+    assert "/hri_fusion/command" in fixed and "/hri_fusion/objects/detections_3d" in fixed
 
 
 def test_namespace_and_absolute_topic_names():

@@ -30,7 +30,7 @@ from zenoh_ros2_sdk.session import ZenohSession  # noqa: E402
 from common.image import decode_image, png_size  # noqa: E402
 from common.schema import Frame, FusedCommand  # noqa: E402
 from services.ros2 import core, rmw  # noqa: E402
-from services.ros2.types import MSG_ROOT, deserialize, serialize  # noqa: E402
+from services.ros2.types import MSG_ROOT, dds_type_name, deserialize, serialize, type_hash  # noqa: E402
 from testkit.examples import examples  # noqa: E402
 from testkit.harness import DATA, Client, ProcessGroup  # noqa: E402
 
@@ -157,6 +157,40 @@ def send_camera(stack: ProcessGroup, stop: threading.Event) -> None:
         stop.wait(1.0 / FPS)
     images.close()
     infos.close()
+
+
+def test_every_fixed_topic_is_on_the_ros_graph_with_its_type_before_anything_is_sent() -> None:
+    """What `ros2 topic list/info` read (rmw_zenoh's liveliness tokens) shows the node's command, clarification,
+    objects and tracked-people topics with their types as soon as it runs, before any command or sample."""
+    group = ProcessGroup()
+    client = None
+    try:
+        group.router()
+        group.service("ros2")  # alone: no service to send it anything
+        client = Client(group.endpoint)
+        client.wait_alive("ros2", timeout=90)
+        wanted = {
+            (rmw.mangle(o.topic), dds_type_name(o.type), type_hash(o.type)) for o in core.node_topics(core.Ros2Config())
+        }
+        deadline = time.monotonic() + 30
+        while True:
+            tokens = [t.split("/") for t in graph(client)]
+            published = {(t[9], t[10], t[11]) for t in tokens if len(t) > 11 and t[5] == "MP"}
+            if wanted <= published or time.monotonic() > deadline:
+                break
+            time.sleep(0.2)
+        assert wanted <= published, f"not on the graph: {sorted(wanted - published)}"
+        assert (
+            "%hri_fusion%command",
+            "hri_fusion_msgs::msg::dds_::FusedCommand_",
+            type_hash(core.FUSED_COMMAND),
+        ) in wanted
+        assert client.stats("ros2")["other"].get("ros_published", 0) == 0  # nothing was sent
+    finally:
+        if client is not None:
+            client.close()
+        print(group.logs())
+        group.close()
 
 
 def test_a_ros_camera_and_text_drive_the_stack_and_ros_gets_objects_and_the_command(stack: ProcessGroup, ros: None):

@@ -110,13 +110,16 @@ def decode_any(schema: Any, channel: Any, data: bytes, validators: dict[int, Any
     if channel.message_encoding == "protobuf":
         decoder = mcap_protobuf_decoder.DecoderFactory().decoder_for("protobuf", schema)
         assert decoder is not None, f"no protobuf decoder for {schema.name}"
-        return decoder(data)
-    if channel.message_encoding == "json":
+        if schema.name != "hri_fusion.RawSample":
+            return decoder(data)
+        data = decoder(data).data  # a raw channel: the payload as received, in a bytes field (issue #41)
+    elif channel.message_encoding == "json":
         assert schema.encoding == "jsonschema"
         value = json.loads(data)
         validators.setdefault(schema.id, jsonschema.Draft202012Validator(json.loads(schema.data))).validate(value)
         return value
-    assert channel.message_encoding == "msgpack"
+    else:
+        assert channel.message_encoding == "msgpack"  # a raw channel recorded before issue #41
     kind = channel.metadata["schema"]
     if not kind:
         return data  # outside the contract: bytes as received

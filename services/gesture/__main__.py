@@ -13,12 +13,13 @@ from common.runner import App, Delivery, Service, StartupError, serve, service_p
 from common.schema import DepthFrame, Frame, GestureEvent, GestureName, GesturePhase, Handedness, Ray3D
 from common.settings import add_option, add_settings, from_args
 from common.stack import node
-from services.gesture.core import GestureCore, GestureSettings, to_ray
+from services.gesture.core import CameraGraphs, GestureCore, GestureSettings, build_graphs, to_ray
 from services.gesture.faces import FaceConfig
-from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
+from services.gesture.landmarks import LandmarkError
 from services.gesture.people_stage import PeopleOfFrame, event_person
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event
+from services.gesture.warm import GraphSupply
 
 EPILOG = """\
 examples:
@@ -116,6 +117,16 @@ def build_parser() -> argparse.ArgumentParser:
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     add_option(
         parser,
+        "--spare-graphs",
+        0,
+        "sets of MediaPipe graphs kept built ahead for cameras not seen yet (~300 MB each): a new camera is served "
+        "from its first frame. The cameras --cams names (or, with a wildcard, the first camera) get theirs at start; "
+        "with 0 a later new camera's are built in the background while its frames are skipped",
+        at_least=0,
+        metavar="N",
+    )
+    add_option(
+        parser,
         "--faces",
         True,
         "run the face stage (MediaPipe Face Mesh): publishes Faces, mouths and head orientation for who is "
@@ -157,16 +168,26 @@ class GestureApp(App):
         self.last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
 
     def open(self, service: Service) -> None:
-        s = self.settings
+        """The graphs of the cameras --cams names (with a wildcard: of the first camera, and --spare-graphs more) are
+        built and warmed here, before the service declares itself live: their first frames are served at once."""
+        s, self.service = self.settings, service
+        self.supply: GraphSupply[CameraGraphs] = GraphSupply(
+            lambda: build_graphs(s),
+            self.args.spare_graphs,
+            lambda exc: service.log.error("could not build a camera's graphs: %s", exc),
+            lambda seconds: service.log.info("graphs for a new camera built and warmed in %.1f s", seconds),
+            self.count_graph_sets,
+        )
+        cams = [c.strip() for c in self.args.cams.split(",")]
+        named = [c for c in cams if "*" not in c]
         try:
-            HandLandmarker(s.model, s.max_hands, s.mirrored).close()  # fail now, with the reason
-            if s.body:
-                PoseLandmarker().close()
-        except LandmarkError as exc:
+            self.supply.prepare(named, max(1, self.args.spare_graphs) if len(named) < len(cams) else 0)
+        except LandmarkError as exc:  # fail now, with the reason
             raise StartupError(str(exc)) from None
-        self.service = service
+        service.log.info("graphs of %d camera(s) built and warmed", self.supply.built)
         self.core = GestureCore(s, service.source, DEPTH_KEPT)
         service.on_close(self.core.close)
+        service.on_close(self.supply.close)
         self.tick = self.end_idle_streams
 
     def wire(self, service: Service) -> None:
@@ -179,7 +200,26 @@ class GestureApp(App):
         assert isinstance(delivery.sample, DepthFrame)  # the runner validated it as the topic's schema
         self.core.add_depth(delivery.sample)
 
+    def has_graphs(self, cam: str) -> bool:
+        """Whether `cam`'s graphs exist; a new camera takes a built set, else one is built off the frame path."""
+        if cam in self.core.cameras:
+            return True
+        graphs = self.supply.take(cam)
+        if graphs is None:
+            return False
+        self.core.adopt(cam, graphs)
+        self.service.log.info("new camera %s: its graphs are ready", cam)
+        return True
+
+    def count_graph_sets(self, built: int, ready: int) -> None:
+        """The stats gauges of the graph sets: built so far, and ready for a camera not seen yet."""
+        self.service.counters.set("graph_sets_built", built)
+        self.service.counters.set("graph_sets_ready", ready)
+
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
+        if not self.has_graphs(frame.cam):  # a new camera whose graphs are being built: no frame waits for them
+            self.service.counters.add("skipped_building_graphs")
+            return
         service, unmatched = self.service, self.core.depth_unmatched
         result = self.core.process(frame, img, fresh=frame.cam not in self.last_frame)
         if self.core.depth_unmatched > unmatched:

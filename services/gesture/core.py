@@ -5,7 +5,7 @@ No Zenoh here: the shell (__main__.py) feeds frames and publishes what comes bac
 from __future__ import annotations
 
 import collections
-from dataclasses import dataclass, field
+from dataclasses import InitVar, dataclass, field
 from typing import Any, cast
 
 import numpy as np
@@ -26,9 +26,16 @@ from common.schema import (
     Ray,
     Ray3D,
 )
-from services.gesture.faces import FaceConfig, FaceStages, link_faces
+from services.gesture.faces import FaceConfig, FaceStage, FaceStages, FaceTracker, link_faces
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
-from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_person, other_arms, other_skeletons
+from services.gesture.people_stage import (
+    CameraPeople,
+    PeopleOfFrame,
+    PeopleStage,
+    hand_person,
+    other_arms,
+    other_skeletons,
+)
 from services.gesture.persons import Box
 from services.gesture.pose_track import PoseRun, carried, hands_on_arms
 from services.gesture.schedule import Due, FramePlan, RatePace, StageScheduler
@@ -98,12 +105,60 @@ class FrameResult:
     plan: FramePlan | None = None  # which paced stages ran on this frame (schedule.py)
 
 
+WARM_SIZE = (480, 640)  # (height, width) of the blank frame a new camera's graphs are warmed on
+
+
+@dataclass
+class CameraGraphs:
+    """The MediaPipe graphs one camera needs: hands, the full-frame pose, the face mesh and the person stage's (each
+    per the settings). Building them takes ~0.05 s; MediaPipe sets a graph's models up on its first run (~0.2-0.7 s
+    each, ~300 MB for the set), so `warm` runs each once on a blank frame: a camera's first frames then cost what
+    its later ones do. A blank frame leaves no state behind (no hand, body or face is tracked from it)."""
+
+    hands: HandLandmarker
+    pose: PoseLandmarker | None
+    faces: FaceStage | None
+    people: PeopleStage | None
+
+    def warm(self) -> None:
+        blank = np.zeros((*WARM_SIZE, 3), np.uint8)
+        self.hands.detect(blank)
+        if self.pose is not None:
+            self.pose.detect(blank, 0.0)  # stamp 0: every camera's stamps come after it, as the graph's clock needs
+        if self.faces is not None:
+            self.faces.mesher.detect(blank)
+        if self.people is not None:
+            self.people.faces.detect(blank)
+            self.people.regions.detect(blank, (0, 0, WARM_SIZE[1], WARM_SIZE[0]))
+
+    def close(self) -> None:
+        for graph in (self.hands, self.pose, self.faces, self.people):
+            if graph is not None:
+                graph.close()
+
+
+def build_graphs(settings: GestureSettings, warm: bool = True) -> CameraGraphs:
+    """The graphs of one camera under these settings, warmed (`CameraGraphs.warm`) unless `warm` is False."""
+    s = settings
+    graphs = CameraGraphs(
+        hands=HandLandmarker(s.model, s.max_hands, s.mirrored),
+        pose=PoseLandmarker() if s.body else None,
+        faces=FaceStage(s.face) if s.faces else None,
+        people=PeopleStage(every=s.persons_every) if s.persons_every else None,
+    )
+    if warm:
+        graphs.warm()
+    return graphs
+
+
 @dataclass
 class CameraGestures:
     """One camera's MediaPipe graphs (they track between frames) and gesture tracker; the pose graph at its own
-    rate, its skeleton carried between its runs (`pose_track`)."""
+    rate, its skeleton carried between its runs (`pose_track`). `graphs`: its hands and pose graphs built
+    beforehand (`build_graphs`), else built here."""
 
     settings: GestureSettings
+    graphs: InitVar[CameraGraphs | None] = None
     hands: HandLandmarker = field(init=False)
     pose: PoseLandmarker | None = field(init=False, default=None)
     tracker: GestureTracker = field(init=False)
@@ -113,18 +168,23 @@ class CameraGestures:
     pose_run: PoseRun | None = field(init=False, default=None)  # the pose model's last run
     schedule: StageScheduler = field(init=False)  # which paced stages run on a frame
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, graphs: CameraGraphs | None) -> None:
         s = self.settings
-        self.hands = HandLandmarker(s.model, s.max_hands, s.mirrored)
-        self.restart()
+        self.hands = graphs.hands if graphs is not None else HandLandmarker(s.model, s.max_hands, s.mirrored)
+        if s.body:
+            self.pose = graphs.pose if graphs is not None and graphs.pose is not None else PoseLandmarker()
+        self.restart(new_pose=False)
 
-    def restart(self) -> None:
-        """New stream or a new timeline (common/stamps.py): gestures start afresh."""
+    def restart(self, new_pose: bool = True) -> None:
+        """New stream or a new timeline (common/stamps.py): gestures start afresh (on a new timeline, with a new pose
+        graph: its clock and smoothing must not see time go back)."""
         s = self.settings
         self.tracker = GestureTracker(
             start_frames=s.start_frames, end_frames=s.end_frames, start_time=s.start_s, ray_from=s.ray_from
         )
-        if s.body:
+        if s.body and new_pose:
+            if self.pose is not None:
+                self.pose.close()
             self.pose = PoseLandmarker()
         self.pose_pace, self.pose_run = RatePace(s.pose_max_rate), None
         self.schedule = StageScheduler(stagger=s.stagger)
@@ -220,10 +280,21 @@ class GestureCore:
     def add_depth(self, depth: DepthFrame) -> None:
         self.depths.setdefault(depth.cam, collections.deque(maxlen=self.depth_kept)).append(depth)
 
+    def adopt(self, cam: str, graphs: CameraGraphs) -> None:
+        """Give camera `cam` (not seen yet) these graphs, built beforehand (`build_graphs`): its frames are served
+        from the first without building any."""
+        self.cameras[cam] = CameraGestures(self.settings, graphs)
+        if graphs.faces is not None:  # the face ids of this camera: "<cam>/face-N", as FaceStages names them
+            graphs.faces.tracker = FaceTracker(keep=self.settings.face.face_keep, prefix=f"{cam}/face-")
+            self.faces.stages[cam] = graphs.faces
+        if graphs.people is not None:
+            self.people.stages[cam] = graphs.people
+
     def camera(self, frame: Frame) -> CameraGestures:
         cam = self.cameras.get(frame.cam)
-        if cam is None:  # one graph per stream: MediaPipe tracks between frames
-            cam = self.cameras[frame.cam] = CameraGestures(self.settings)
+        if cam is None:  # one graph per stream: MediaPipe tracks between frames (cold: `adopt` gives warm ones)
+            self.adopt(frame.cam, build_graphs(self.settings, warm=False))
+            cam = self.cameras[frame.cam]
         elif frame.stamp < self.last_stamp.get(frame.cam, frame.stamp):
             cam.restart()
         self.last_stamp[frame.cam] = frame.stamp

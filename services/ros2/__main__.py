@@ -63,8 +63,8 @@ class RosPublisher:
 
 
 class RosNode:
-    """One ROS 2 node on the rmw_zenoh graph: its token, its publishers (declared on first use) and
-    subscriptions."""
+    """One ROS 2 node on the rmw_zenoh graph: its token, its publishers (those of `core.node_topics` declared when
+    it starts, the per-id ones on first use) and subscriptions."""
 
     def __init__(self, session: zenoh.Session, config: Ros2Config):
         self.session = session
@@ -93,6 +93,11 @@ class RosNode:
                     zpub = self.session.declare_publisher(key)
                 pub = self._publishers[out.topic] = RosPublisher(key, zpub, self._token("MP", out), os.urandom(16))
             return pub
+
+    def declare(self, outs: list[Outgoing]) -> None:
+        """Declare the publishers of these topics now (their graph tokens too), before anything is sent on them."""
+        for out in outs:
+            self.publisher(out)
 
     def key(self, topic: str, type_name: str) -> str:
         if self.rmw:
@@ -236,6 +241,7 @@ class Ros2App(App):
         self.service = service
         self.ros = RosNode(service.session, config)
         service.on_close(self.ros.close)
+        self.ros.declare(core.node_topics(config))  # ROS tools see every fixed topic from the start, as rclpy's
         self.inputs = RosInputs(service, self.ros, config)
         service.subscribe_input("persons", self.publishing(lambda s: core.persons_messages(s, config, latch)))
         service.subscribe_input("bodies", self.publishing(lambda s: core.bodies_messages(s, config)))

@@ -75,6 +75,22 @@ class Outgoing:
     latched: bool = False  # transient local: late joiners get the last one (REP-155 ids)
 
 
+def node_topics(config: Ros2Config) -> list[Outgoing]:
+    """The topics this node publishes whose names do not depend on what it sees (no message: `message` None), with
+    the type and QoS the converters below publish them with: declared when the node starts, as an rclpy node
+    declares its publishers, so that `ros2 topic list/info/echo` know them before their first message. The per-id
+    topics of REP-155 and each camera's camera_info come and go with the ids and cameras seen."""
+    return [
+        Outgoing(config.own("command"), FUSED_COMMAND, None),
+        Outgoing(config.own("target_pose"), POSE_STAMPED, None),
+        Outgoing(config.own("planner_prompt"), STRING, None),
+        Outgoing(config.own("clarification"), CLARIFICATION, None),
+        Outgoing(config.own("objects/detections_2d"), DETECTIONS_2D, None),
+        Outgoing(config.own("objects/detections_3d"), DETECTIONS_3D, None),
+        *(Outgoing(config.human(kind, "tracked"), IDS_LIST, None) for kind in ("persons", "voices", "bodies", "faces")),
+    ]
+
+
 def msg(name: str, **fields: Any) -> Any:
     return message_class(name)(**fields)
 

@@ -136,6 +136,8 @@ def make_detector(args: argparse.Namespace, log: logging.Logger) -> YoloDetector
             args.letterbox,
         )
         log.info("%s: %s", args.model, detector.describe())
+        # onnxruntime sets its buffers up on the first run (~2x a later one): done here, before the service is live
+        detector.detect(np.full((*detector.input_hw, 3), 114, np.uint8))
         return detector
     labels, warnings = read_labels(args.labels) if args.labels else ({}, [])
     for warning in warnings:
