@@ -13,7 +13,7 @@ from common.image import frame_fields, frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
 from common.schema import DepthFrame, Detections, Frame
 from common.settings import add_option
-from services.vision.colour_memory import REUSE_FRAMES, REUSE_IOU
+from services.vision.colour_memory import MAX_MEASURED, REUSE_FRAMES, REUSE_IOU
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
@@ -111,6 +111,16 @@ def build_parser() -> argparse.ArgumentParser:
         at_least=0,
         metavar="N",
     )
+    add_option(
+        parser,
+        "--color-max",
+        MAX_MEASURED,
+        "onnx: measure at most N objects' colours per frame (the ones with none first, then the longest "
+        "unmeasured); the others keep the colour of their box on the last frame (issue #42: a frame's cost "
+        "bounded whatever the scene holds); 0: no cap",
+        at_least=0,
+        metavar="N",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -154,7 +164,9 @@ class VisionApp(App):
 
     def open(self, service: Service) -> None:
         try:
-            self.pipeline = VisionPipeline(make_detector(self.args, service.log), self.args.color_reuse)
+            self.pipeline = VisionPipeline(
+                make_detector(self.args, service.log), self.args.color_reuse, self.args.color_max
+            )
         except (ModelError, OSError, ValueError) as exc:
             raise StartupError(str(exc)) from None
         self.service = service
@@ -191,6 +203,8 @@ class VisionApp(App):
             frame_id=depth.camera_info.frame_id if depth is not None else None,
         )
         self.service.publish_output("objects", detections, cam=frame.cam)
+        for name, count in self.pipeline.colour_counts().items():
+            self.service.counters.set(name, count)
 
     def on_depth(self, delivery: Delivery) -> None:
         depth = delivery.sample
