@@ -17,6 +17,7 @@ from services.gesture.core import GestureCore, GestureSettings, to_ray
 from services.gesture.faces import FaceConfig
 from services.gesture.landmarks import HandLandmarker, LandmarkError, PoseLandmarker
 from services.gesture.people_stage import PeopleOfFrame, event_person
+from services.gesture.pose_rotation import MAX_POSES
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event
 
@@ -99,6 +100,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_option(
         parser,
+        "--persons-max-poses",
+        MAX_POSES,
+        "the person stage poses at most N persons' regions per run, in turn (the longest unposed first, a new "
+        "face first of all); the others keep their last skeleton (Body.pose_age_ms says how old); 0 = no cap",
+        at_least=0,
+        metavar="N",
+    )
+    add_option(
+        parser,
         "--hands-idle-every",
         2,
         "while no hand is in view, look for hands on every Nth frame only (a hand coming into view is found at "
@@ -137,6 +147,7 @@ def settings_of(args: argparse.Namespace) -> GestureSettings:
         body=args.body,
         pose_max_rate=args.pose_max_rate,
         persons_every=args.persons_every,
+        persons_max_poses=args.persons_max_poses,
         hands_idle_every=args.hands_idle_every,
         faces=args.faces,
         face=from_args(FaceConfig, args),
