@@ -26,6 +26,7 @@ from common.schema import (
     Ray,
     Ray3D,
     Speaker,
+    SpeechDecoding,
     Stats,
     Target,
     Transcript,
@@ -232,6 +233,7 @@ def examples():
                 )
             ],
         ),
+        SpeechDecoding(stamp=T, source="speech/a", mic="mic0", decoding=True),
         DepthFrame(
             stamp=T,
             source="camera/a",

@@ -10,8 +10,18 @@ import numpy as np
 
 from common.image import frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import DepthFrame, Frame, GestureEvent, GestureName, GesturePhase, Handedness, Ray3D
+from common.schema import (
+    DepthFrame,
+    Frame,
+    GestureEvent,
+    GestureName,
+    GesturePhase,
+    Handedness,
+    Ray3D,
+    SpeechDecoding,
+)
 from common.settings import add_option, add_settings, from_args
+from common.speech_first import SpeechFirst
 from common.stack import node
 from services.gesture.core import GestureCore, GestureSettings, to_ray
 from services.gesture.faces import FaceConfig
@@ -123,6 +133,13 @@ def build_parser() -> argparse.ArgumentParser:
         "spread the paced stages over frames: the face stage, the idle hand search and the person stage, when due on "
         "a frame full pose runs on, move to the next frame (each keeps its rate; --no-stagger: each runs when due)",
     )
+    add_option(
+        parser,
+        "--speech-first",
+        True,
+        "while speech decodes an utterance (its SpeechDecoding samples), skip full pose, the face stage and the "
+        "person stage (hands and stop palms keep running), so that the decode gets the cores (issue #42)",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     add_option(
         parser,
@@ -166,6 +183,7 @@ class GestureApp(App):
         self.args = args
         self.settings = settings_of(args)
         self.last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
+        self.speech_first = SpeechFirst()
 
     def open(self, service: Service) -> None:
         s = self.settings
@@ -181,6 +199,8 @@ class GestureApp(App):
         self.tick = self.end_idle_streams
 
     def wire(self, service: Service) -> None:
+        if self.args.speech_first:
+            service.subscribe_input("decoding", self.on_decoding)
         for cam in self.args.cams.split(","):
             service.subscribe_input("frame", frame_handler(service, self.on_image), cam=cam.strip())
             # a camera without depth sends none: nothing changes (2-D rays only)
@@ -190,9 +210,18 @@ class GestureApp(App):
         assert isinstance(delivery.sample, DepthFrame)  # the runner validated it as the topic's schema
         self.core.add_depth(delivery.sample)
 
+    def on_decoding(self, delivery: Delivery) -> None:
+        notice = delivery.sample
+        assert isinstance(notice, SpeechDecoding)  # the runner validated it as the topic's schema
+        self.speech_first.heard(notice.mic, notice.decoding, time.monotonic())
+
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         service, unmatched = self.service, self.core.depth_unmatched
-        result = self.core.process(frame, img, fresh=frame.cam not in self.last_frame)
+        ease = self.speech_first.easing(time.monotonic())
+        result = self.core.process(frame, img, fresh=frame.cam not in self.last_frame, ease=ease)
+        if ease:
+            self.speech_first.eased += 1
+            service.counters.set("eased_for_speech", self.speech_first.eased)
         if self.core.depth_unmatched > unmatched:
             service.counters.add("depth_unmatched")
         if result.persons is not None:  # the person stage ran on this frame: its Persons

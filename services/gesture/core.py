@@ -31,7 +31,7 @@ from services.gesture.people_stage import CameraPeople, PeopleOfFrame, hand_pers
 from services.gesture.persons import Box
 from services.gesture.pose_rotation import MAX_POSES
 from services.gesture.pose_track import PoseRun, carried, hands_on_arms
-from services.gesture.schedule import Due, FramePlan, RatePace, StageScheduler
+from services.gesture.schedule import Due, FramePlan, RatePace, StageScheduler, eased
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 
@@ -240,12 +240,15 @@ class GestureCore:
             return None
         return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
-    def process(self, frame: Frame, img: np.ndarray, fresh: bool) -> FrameResult:
-        """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
+    def process(self, frame: Frame, img: np.ndarray, fresh: bool, ease: bool = False) -> FrameResult:
+        """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids);
+        `ease`: speech is decoding, the heavy stages skip this frame (schedule.eased)."""
         cam = self.camera(frame)
         if fresh:
             cam.schedule.restart()
         plan = cam.plan(frame.stamp, self.faces.due(frame), self.people.due(frame, fresh))
+        if ease:
+            plan = eased(plan)
         observations = cam.find_hands(img, plan.hand_search)
         skeleton, world, pose_age = cam.find_body(frame.stamp, img, observations, plan.pose)
         rays3d = self.frame_rays(frame, skeleton, world)

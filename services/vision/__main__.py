@@ -5,14 +5,16 @@ from __future__ import annotations
 
 import argparse
 import logging
+import time
 
 import numpy as np
 
 from common.depth import UndecodableDepth
 from common.image import frame_fields, frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import DepthFrame, Detections, Frame
+from common.schema import DepthFrame, Detections, Frame, SpeechDecoding
 from common.settings import add_option
+from common.speech_first import EASED_PERIOD_S, EasedRate, SpeechFirst
 from services.vision.colour_memory import MAX_MEASURED, REUSE_FRAMES, REUSE_IOU
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
@@ -121,6 +123,13 @@ def build_parser() -> argparse.ArgumentParser:
         at_least=0,
         metavar="N",
     )
+    add_option(
+        parser,
+        "--speech-first",
+        True,
+        "while speech decodes an utterance (its SpeechDecoding samples), run the model on at most one frame every "
+        f"{EASED_PERIOD_S} s, the others skipped, so that the decode gets the cores (issue #42)",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -161,6 +170,8 @@ class VisionApp(App):
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
         self.depths = DepthMatcher()
+        self.speech_first = SpeechFirst()
+        self.eased_rate = EasedRate()
 
     def open(self, service: Service) -> None:
         try:
@@ -172,6 +183,8 @@ class VisionApp(App):
         self.service = service
 
     def wire(self, service: Service) -> None:
+        if self.args.speech_first:
+            service.subscribe_input("decoding", self.on_decoding)
         for cam in self.args.cams.split(","):
             # the camera sends depth just before colour, so its slot is usually served first
             service.subscribe_input("depth", self.on_depth, cam=cam.strip())
@@ -214,8 +227,19 @@ class VisionApp(App):
             frame, img = ready
             self.process(frame, img, self.depth_image(frame, depth))
 
+    def on_decoding(self, delivery: Delivery) -> None:
+        notice = delivery.sample
+        assert isinstance(notice, SpeechDecoding)  # the runner validated it as the topic's schema
+        self.speech_first.heard(notice.mic, notice.decoding, time.monotonic())
+
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         depths, counters = self.depths, self.service.counters
+        now = time.monotonic()
+        if not self.eased_rate.take(now, self.speech_first.easing(now)):
+            counters.add("skipped")  # speech first: this frame gives its CPU to the decode
+            self.speech_first.eased += 1
+            counters.set("eased_for_speech", self.speech_first.eased)
+            return
         depth = depths.match(frame.cam, frame.seq, frame.stamp)
         if depth is None and depths.expects(frame.cam, frame.seq, frame.stamp):
             if depths.wait(frame, img) is not None:
