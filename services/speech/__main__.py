@@ -246,6 +246,7 @@ class SpeechApp(App):
         self.vad = VadConfig(min_silence=args.min_silence, post_pad=min(VadConfig.post_pad, args.min_silence))
         self.streams: dict[str, MicStream] = {}  # --input zenoh: one per microphone
         self.last_seen: dict[str, float] = {}
+        self.notices = 0  # SpeechDecoding samples published (the recogniser's thread only)
 
     def open(self, service: Service) -> None:
         self.service = service
@@ -301,6 +302,8 @@ class SpeechApp(App):
         sample = SpeechDecoding(stamp=time.time(), source=self.service.source, mic=mic, decoding=decoding)
         try:
             self.service.publish_output("decoding", sample, realtime=True, mic=mic)
+            self.notices += 1
+            self.service.counters.set("decoding_notices", self.notices)  # besides the transcripts in `published`
         except Exception as exc:  # a lost notice costs only speed (the subscribers' hold ends it): never the decode
             self.service.log.warning("could not publish the decoding notice: %s", exc)
 
