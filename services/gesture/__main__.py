@@ -194,6 +194,10 @@ class GestureApp(App):
         except LandmarkError as exc:
             raise StartupError(str(exc)) from None
         self.service = service
+        # the rates its paced stages run at (`hri up` sets them from the machine's cores: common/budget.py)
+        service.counters.set("pose_max_rate_mhz", round(1000 * s.pose_max_rate))
+        service.counters.set("faces_max_rate_mhz", round(1000 * s.face.faces_max_rate))
+        service.counters.set("persons_every", s.persons_every)
         self.core = GestureCore(s, service.source, DEPTH_KEPT)
         service.on_close(self.core.close)
         self.tick = self.end_idle_streams

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from common.budget import MaxRate
 from common.depth import UndecodableDepth
 from common.image import frame_fields, frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
@@ -125,6 +126,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_option(
         parser,
+        "--max-rate",
+        0.0,
+        "run the model on at most this many frames per second of source time per camera, the others skipped "
+        "(`hri up` sets it from the machine's cores: common/budget.py); 0: every frame it can",
+        at_least=0,
+        metavar="HZ",
+    )
+    add_option(
+        parser,
         "--speech-first",
         True,
         "while speech decodes an utterance (its SpeechDecoding samples), run the model on at most one frame every "
@@ -172,8 +182,12 @@ class VisionApp(App):
         self.depths = DepthMatcher()
         self.speech_first = SpeechFirst()
         self.eased_rate = EasedRate()
+        self.max_rates: dict[str, MaxRate] = {}  # cam -> its pace (--max-rate)
+        self.rate_skipped = 0
 
     def open(self, service: Service) -> None:
+        if self.args.max_rate > 0:
+            service.counters.set("max_rate_mhz", round(1000 * self.args.max_rate))  # the rate it runs at, in stats
         try:
             self.pipeline = VisionPipeline(
                 make_detector(self.args, service.log), self.args.color_reuse, self.args.color_max
@@ -234,6 +248,11 @@ class VisionApp(App):
 
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         depths, counters = self.depths, self.service.counters
+        if not self.max_rates.setdefault(frame.cam, MaxRate(self.args.max_rate)).take(frame.stamp):
+            counters.add("skipped")  # the budget's rate (--max-rate): this frame is not due
+            self.rate_skipped += 1
+            counters.set("skipped_by_max_rate", self.rate_skipped)
+            return
         now = time.monotonic()
         if not self.eased_rate.take(now, self.speech_first.easing(now)):
             counters.add("skipped")  # speech first: this frame gives its CPU to the decode
