@@ -138,7 +138,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--speech-first",
         True,
         "while speech decodes an utterance (its SpeechDecoding samples), run the model on at most one frame every "
-        f"{EASED_PERIOD_S} s, the others skipped, so that the decode gets the cores (issue #42)",
+        "--speech-first-period, the others skipped, so that the decode gets the cores (issue #42)",
+    )
+    add_option(
+        parser,
+        "--speech-first-period",
+        EASED_PERIOD_S,
+        "while speech decodes: at most one frame every S seconds (a watermark for fusion's join)",
+        above=0,
+        metavar="S",
     )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
@@ -181,7 +189,7 @@ class VisionApp(App):
         self.args = args
         self.depths = DepthMatcher()
         self.speech_first = SpeechFirst()
-        self.eased_rate = EasedRate()
+        self.eased_rate = EasedRate(args.speech_first_period)
         self.max_rates: dict[str, MaxRate] = {}  # cam -> its pace (--max-rate)
         self.rate_skipped = 0
 
