@@ -1,15 +1,8 @@
 """Fixed vs adaptive modality weights: accuracy side by side.
 
-Runs (in process, deterministic) the scenario suite of testkit/scenarios plus a seeded sweep of
-degraded trials, once with `--weights adaptive` and once with `--weights fixed`:
-- noisy speech: ASR heard the wrong colour, with low confidence; the person points clearly at the
-  right object -> expected: the pointed object;
-- dark frame: vision mislabels colours in a dark frame (the red cup comes out "blue" and vice
-  versa); the person says "the red cup" and points at it -> expected: the pointed object;
-- shaky gesture: clear speech names the object; a weak, wobbling ray points near the other one
-  -> expected: the named object;
-- clear gesture: "that cup" + a steady point -> the pointed object;
-- clear both, disagreeing: says one, points at the other -> expected: a conflict question.
+Runs (in process, deterministic) the scenario suite of testkit/scenarios plus the seeded sweep of degraded
+trials of testkit/scenarios/sweep.py (noisy speech, dark frame, shaky gesture, clear gesture, clear both but
+disagreeing), once with `--weights adaptive` and once with `--weights fixed`.
 With ../shared/ present it also scores the scenes made from the real YOLOX-Nano detections on real photos
 (testkit/scenarios/real.py: "the cup", "the person", "the fruit" -> question, "the banana" -> not found …) and the
 real indoor scenes of ../shared/data/scenes/ line by line (testkit/scenarios/indoor.py).
@@ -21,66 +14,16 @@ Run: .venv/bin/python benchmarks/fusion_eval.py [--trials N]
 from __future__ import annotations
 
 import argparse
-import random
 import sys
 from collections import defaultdict
 from pathlib import Path
 
 from services.fusion.core import Config
-from testkit.scenarios import DARK, Expect, Obj, Scenario, by_time, check, pointing, run_in_process, say, scene
+from testkit.scenarios import Scenario, check, run_in_process
 from testkit.scenarios.suite import SCENARIOS
+from testkit.scenarios.sweep import degraded_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
-
-COLORS = ("red", "blue", "green", "yellow")
-
-
-def two_cups(rng: random.Random) -> tuple[Obj, Obj]:
-    ca, cb = rng.sample(COLORS, 2)
-    xa = rng.uniform(80, 260)
-    xb = rng.uniform(380, 560)
-    y = rng.uniform(200, 330)
-    a = Obj("cup_a", "cup", ca, (xa, y), score=rng.uniform(0.75, 0.95))
-    b = Obj("cup_b", "cup", cb, (xb, y + rng.uniform(-40, 40)), score=rng.uniform(0.75, 0.95))
-    return a, b
-
-
-def cmd(target: str) -> Expect:
-    return Expect("command", intent="pick_up", target=target)
-
-
-def trial(kind: str, rng: random.Random) -> Scenario:
-    a, b = two_cups(rng)
-    truth, other = (a, b) if rng.random() < 0.5 else (b, a)
-    if kind == "noisy speech":
-        steps = scene([a, b]) + pointing(truth.center)
-        steps.append(say(0.0, 1.5, f"pick up the {other.color} cup", conf=rng.uniform(0.3, 0.5)))
-        expect = [cmd(truth.id)]
-    elif kind == "dark frame":
-        swapped = [Obj(o.id, o.label, (b.color if o is a else a.color), o.center, o.size, o.score) for o in (a, b)]
-        steps = scene(swapped, quality=DARK) + pointing(truth.center)
-        steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.8, 0.95)))
-        expect = [cmd(truth.id)]
-    elif kind == "shaky gesture":
-        steps = scene([a, b]) + pointing(
-            other.center, jitter_deg=rng.uniform(12, 25), score=rng.uniform(0.4, 0.7), ray_conf=rng.uniform(0.4, 0.7)
-        )
-        steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.85, 0.97)))
-        expect = [cmd(truth.id)]
-    elif kind == "clear gesture":
-        steps = scene([a, b]) + pointing(truth.center)
-        steps.append(say(0.0, 1.5, "pick up that cup", conf=rng.uniform(0.8, 0.97)))
-        expect = [cmd(truth.id)]
-    elif kind == "clear both, disagreeing":
-        steps = scene([a, b]) + pointing(other.center)
-        steps.append(say(0.0, 1.5, f"pick up the {truth.color} cup", conf=rng.uniform(0.85, 0.97)))
-        expect = [Expect("clarification", reason="conflict")]
-    else:
-        raise ValueError(kind)
-    return Scenario(f"{kind} #{rng.random():.6f}", by_time(steps), expect, (kind,))
-
-
-KINDS = ("noisy speech", "dark frame", "shaky gesture", "clear gesture", "clear both, disagreeing")
 
 
 def evaluate(scenarios: list[Scenario], mode: str) -> dict[str, list[bool]]:
@@ -138,8 +81,7 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=40, help="degraded trials per kind (default 40)")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
-    rng = random.Random(args.seed)
-    sweep = [trial(kind, rng) for kind in KINDS for _ in range(args.trials)]
+    sweep = degraded_sweep(args.seed, args.trials)
     print(
         f"scenario suite: {len(SCENARIOS)} scenarios; degraded sweep: {len(sweep)} trials "
         f"({args.trials} per kind, seed {args.seed})\n"

@@ -24,6 +24,14 @@ def panel_shot(tab) -> np.ndarray:
     return shot.astype(int)
 
 
+def redraw(tab) -> None:
+    """Have the page fetch the latest frame at once and wait until it has drawn it (not a fixed sleep: under load
+    a second was not always enough)."""
+    drawn = tab.js("hriView.framesDrawn")
+    tab.js("hriView.cams.cam0.n = -1")  # the next fetch returns the latest frame, not the one after it
+    tab.wait_for(f"hriView.framesDrawn > {drawn}", 30, "a frame drawn after the change")
+
+
 def test_depth_toggle_overlays_the_depth_and_objects_carry_positions(tmp_path):
     require_chromium()
     src = shared_path("data/rgbd/ycb_video")
@@ -59,16 +67,13 @@ def test_depth_toggle_overlays_the_depth_and_objects_carry_positions(tmp_path):
         before = panel_shot(tab)
         tab.js("document.querySelector('[data-depth=cam0]').click()")
         tab.wait_for("hriView.cams.cam0.depthBitmap !== null", 30, "the depth picture")
-        tab.js("hriView.cams.cam0.n = -1")  # draw again now, not at the next frame
-        import time
-
-        time.sleep(1.0)
+        redraw(tab)
         after = panel_shot(tab)
         cv2.imwrite(str(tmp_path / "depth-overlay.png"), after.astype(np.uint8))
         assert np.abs(after - before).mean() > 15, "the depth overlay changed nothing"
         # jet: the table and objects at ~1 m lean red/orange, the far background blue; holes stay dark
         tab.js("document.querySelector('[data-depth=cam0]').click()")
-        time.sleep(1.0)
+        redraw(tab)
         again = panel_shot(tab)
         assert np.abs(again - before).mean() < np.abs(after - before).mean() / 2, "toggling off kept the overlay"
     finally:

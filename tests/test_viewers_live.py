@@ -30,6 +30,7 @@ mcap_protobuf_decoder = pytest.importorskip("mcap_protobuf.decoder", reason="mca
 
 TABLE = DATA / "demo" / "table.png"
 CAM = "table"
+FPS = 2
 FOUND = 0.5  # the photo is there: measured 0.64-0.93 once drawn; 0.16 (loading page), 0.31 (a small faded thumbnail)
 
 
@@ -39,7 +40,10 @@ def stack() -> Any:
     client = None
     try:
         group.router()
-        group.service("camera", "--source", str(TABLE), "--cam", CAM, "--fps", "10", "--loop")
+        # 2 frames a second: every test here needs a few frames only, and Rerun's web viewer (WebGL on the CPU)
+        # is slow to start on a loaded 2-core machine: the photo first drawn after 55-104 s, a screenshot taking
+        # 10-50 s, the viewer 80-100 s behind the stream (issue #41: nothing drawn in 120 s, 2 runs of 3)
+        group.service("camera", "--source", str(TABLE), "--cam", CAM, "--fps", str(FPS), "--loop")
         group.service("vision", "--labels", str(DATA / "demo" / "labels.json"))
         group.service("fusion")
         client = Client(group.endpoint)
@@ -240,16 +244,20 @@ def test_the_rerun_web_viewer_served_by_hri_rerun_shows_the_camera_image(stack: 
     served = stack.start("rerun-web", "hri.cli", "rerun", "--web-port", "0", "--grpc-port", "0")
     url = printed(served, r"hri rerun: (http://\S+)").group(1)
     photo = read_photo()
-    browser = Browser(webgl=True)
+    # a smaller page than the default 1400x900: every repaint and screenshot is rasterised on the CPU (SwiftShader)
+    browser = Browser(window=(1120, 700), webgl=True)
     try:
         tab = browser.tab(url)
-        deadline, found, shot = time.monotonic() + 120, 0.0, b""
+        deadline, found, best, shots = time.monotonic() + 120, 0.0, b"", 0
         while time.monotonic() < deadline and found < FOUND:
             time.sleep(3)  # the viewer's wasm loads, connects, then draws the streamed frames
             shot = tab.screenshot()
             decoded = cv2.imdecode(np.frombuffer(shot, np.uint8), cv2.IMREAD_COLOR)
-            found = photo_in_screenshot(photo, decoded) if decoded is not None else 0.0
-        (tmp_path / "rerun-web.png").write_bytes(shot)
-        assert found >= FOUND, f"the camera image is not in the screenshot (best correlation {found:.2f})"
+            score, shots = photo_in_screenshot(photo, decoded) if decoded is not None else 0.0, shots + 1
+            if score >= found:
+                found, best = score, shot
+        (tmp_path / "rerun-web.png").write_bytes(best)
+        # 0.33: the viewer connected, its recording still empty (0 entities)
+        assert found >= FOUND, f"the camera image is in none of {shots} screenshots (best correlation {found:.2f})"
     finally:
         browser.close()

@@ -15,7 +15,7 @@ import pytest
 from common.depth import UndecodableDepth, depth_frame, depth_metres, depth_units, encode_depth, metres
 from common.schema import CameraInfo, DetectedObject, InvalidSample
 from services.camera.rgbd import mirror_camera_info
-from services.vision.depth import DepthImage, DepthMatcher, foreground, object_depth, with_depth
+from services.vision.depth import DEPTH_MISSES, DepthImage, DepthMatcher, foreground, object_depth, with_depth
 from testkit.images import read_image
 from testkit.shared import shared_path
 
@@ -279,9 +279,37 @@ def test_a_colour_frame_served_before_its_depth_waits_for_it_but_colour_only_cam
     f2, f3 = colour(2), colour(3)
     matcher.wait(f2, "image 2")
     assert matcher.wait(f3, "image 3") == (f2, "image 2")
-    # a newer depth already in: this frame's depth is lost, no waiting
+    # a newer depth already in: this frame's depth is lost, no waiting, and the frame is overtaken (skipped)
     matcher.add(depth(5))
     assert not matcher.expects("c", 4, colour(4).stamp)
-    # a camera whose depth stopped a while ago is not waited for
-    assert not matcher.expects("c", 99, 10.0 + 99 / 30)
+    assert matcher.overtaken("c", colour(4).stamp)
+    assert not matcher.overtaken("c", colour(5).stamp) and not matcher.overtaken("c", colour(6).stamp)
+    assert not matcher.overtaken("c", 10.0 + 5 / 30 - 2.0)  # colour lagging its depth by 2 s: not this rule's case
+    assert not matcher.overtaken("other", 10.0)  # colour-only cameras are never overtaken
+    # a camera whose depth stopped a while ago (source time) is waited for only until DEPTH_MISSES colour frames
+    # asked in vain since its last depth (the frame for 4 was the first)
+    assert [matcher.expects("c", seq, 10.0 + seq / 30) for seq in range(99, 99 + DEPTH_MISSES)] == [True, True, False]
+    matcher.add(depth(120))  # its depth is back: the next frame waits for its own again
+    assert matcher.expects("c", 150, 10.0 + 150 / 30)
     assert not matcher.expects("other", 1, 10.0)
+
+
+def test_a_depth_camera_on_a_slow_worker_keeps_waiting_for_depth():
+    """Vision serving one item a second or slower (a loaded machine): the newest depth it has served is more than
+    EXPECT_DEPTH_S older than the colour frame, yet the camera is sending depth: the frame waits for its own."""
+    from types import SimpleNamespace
+
+    info = CameraInfo(width=2, height=2, k=[1, 0, 0.5, 0, 1, 0.5, 0, 0, 1], frame_id="f")
+    matcher = DepthMatcher()
+    for seq in range(0, 60, 6):  # 5 frames a second, every 6th capture served: 1.2 s apart
+        stamp = 10.0 + seq / 5
+        d = depth_frame(
+            np.ones((2, 2), np.uint16), stamp=stamp, source="t/x", seq=seq, cam="c", depth_scale=0.001, camera_info=info
+        )
+        if seq % 12:  # every other time the colour frame is served first: it waits and its depth releases it
+            assert matcher.match("c", seq, stamp) is None and matcher.expects("c", seq, stamp)
+            matcher.wait(SimpleNamespace(cam="c", seq=seq, stamp=stamp), f"image {seq}")
+            assert matcher.add(d) is not None
+        else:
+            matcher.add(d)
+            assert matcher.match("c", seq, stamp) is d

@@ -272,6 +272,9 @@ class VisionApp(App):
             if depths.wait(frame, img) is not None:
                 counters.add("skipped")  # an older frame whose depth never came: latest-only
             return
+        if depth is None and depths.overtaken(frame.cam, frame.stamp):
+            counters.add("skipped")  # its depth was replaced by a newer capture's, whose colour frame comes next
+            return
         if depths.take_waiting(frame.cam) is not None:
             counters.add("skipped")
         self.process(frame, img, None if depth is None else self.depth_image(frame, depth))

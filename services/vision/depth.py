@@ -199,6 +199,7 @@ def with_depth(obj: DetectedObject, depth: DepthImage) -> DetectedObject:
 
 
 EXPECT_DEPTH_S = 1.0  # a camera that sent depth this recently (source time) is expected to send it again
+DEPTH_MISSES = 3  # ... and so is one whose depth came since its last this many colour frames without a depth
 
 
 class DepthMatcher:
@@ -206,23 +207,35 @@ class DepthMatcher:
     the service's one worker calls it.
 
     Depth and colour arrive on two latest-only keys, so the colour frame can be served before its depth. A
-    colour frame without its depth therefore waits (one per camera) when that camera sent depth within
-    EXPECT_DEPTH_S and no newer depth is already in: its depth is then usually next in line. It is released when
-    the depth comes, or dropped when a newer colour frame of the camera arrives first (counted by the caller as
-    skipped: latest-only). A camera without depth never makes a frame wait.
+    colour frame without its depth therefore waits (one per camera) when the camera is sending depth and no newer
+    depth is already in: its depth is then usually next in line. It is released when the depth comes, or dropped
+    when a newer colour frame of the camera arrives first (counted by the caller as skipped: latest-only).
+
+    "Sending depth": its newest depth is within EXPECT_DEPTH_S (source time) of the frame, or a depth came since
+    fewer than DEPTH_MISSES colour frames asked (`expects`) in vain. Time alone judged it wrongly on a loaded
+    machine: the newest depth the worker had served was then a whole vision cycle (over 1 s) older than the colour
+    frame, and every colour frame served before its depth went out without positions (issue #41). A camera
+    whose depth stopped is waited for until both run out; a camera without depth never makes a frame wait.
+
+    A colour frame whose depth a newer capture's depth already replaced (`overtaken`) is skipped too: published
+    without positions it would turn a depth camera's objects 2-D for a frame, so that "the nearest" meant the
+    lowest box (issue #41); the newer capture's colour frame comes next with its depth.
     """
 
-    def __init__(self, keep: int = 4, expect_s: float = EXPECT_DEPTH_S):
+    def __init__(self, keep: int = 4, expect_s: float = EXPECT_DEPTH_S, misses: int = DEPTH_MISSES):
         self.keep = keep
         self.expect_s = expect_s
+        self.misses = misses
         self.frames: dict[str, list[DepthFrame]] = {}
         self.waiting: dict[str, tuple[Any, Any]] = {}  # cam -> (colour frame, its decoded image)
+        self.missed: dict[str, int] = {}  # cam -> colour frames that asked for a depth since its newest came
 
     def add(self, frame: DepthFrame) -> tuple[Any, Any] | None:
         """Keep a depth frame; returns the waiting (colour frame, image) it belongs to, if any."""
         kept = self.frames.setdefault(frame.cam, [])
         kept.append(frame)
         del kept[: -self.keep]
+        self.missed[frame.cam] = 0
         waiting = self.waiting.get(frame.cam)
         if waiting is not None and self._same(frame, waiting[0].seq, waiting[0].stamp):
             return self.waiting.pop(frame.cam)
@@ -239,12 +252,20 @@ class DepthMatcher:
         return None
 
     def expects(self, cam: str, seq: int, stamp: float) -> bool:
-        """True if the depth of this capture is probably still on its way."""
+        """True if the depth of this capture is probably still on its way (asked once per colour frame that has
+        no depth in yet)."""
         kept = self.frames.get(cam)
         if not kept:
             return False
+        self.missed[cam] = missed = self.missed.get(cam, 0) + 1
         newest = kept[-1]
-        return newest.stamp < stamp and stamp - newest.stamp <= self.expect_s
+        return newest.stamp < stamp and (stamp - newest.stamp <= self.expect_s or missed <= self.misses)
+
+    def overtaken(self, cam: str, stamp: float) -> bool:
+        """True if a newer capture's depth is already in (within EXPECT_DEPTH_S): this colour frame's own depth was
+        replaced in its latest-only slot, and the newer capture's colour frame is next with its depth."""
+        kept = self.frames.get(cam)
+        return kept is not None and len(kept) > 0 and 0 < kept[-1].stamp - stamp <= self.expect_s
 
     def wait(self, frame: Any, image: Any) -> tuple[Any, Any] | None:
         """Park a colour frame for its depth; returns the one it replaces (its depth never came), if any."""

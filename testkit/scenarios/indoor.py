@@ -14,12 +14,15 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from common.boxes import iou
 from common.schema import Clarification, DetectedObject, FusedCommand, ImageQuality
 from testkit.images import read_image
 from testkit.scenarios import Scenario, Step, by_time, detections_at, pointing, run_in_process, say
+
+if TYPE_CHECKING:
+    from services.vision.yolo import YoloDetector
 
 IOU_MATCH = 0.5
 SCENES = "data/scenes"
@@ -52,14 +55,15 @@ class Seen:
     height: int
 
 
-def vision_pipeline(model: Path) -> Callable[[Path], Seen]:
-    """photo -> what the vision service publishes (its own pipeline on the upright photo, longest side <= 960)."""
+def vision_pipeline(model: Path, detector: YoloDetector | None = None) -> Callable[[Path], Seen]:
+    """photo -> what the vision service publishes (its own pipeline on the upright photo, longest side <= 960);
+    `detector`: another than the model's at vision's defaults (testkit/golden.py's, which rounds what it finds)."""
     import cv2
 
     from services.vision.core import VisionPipeline
     from services.vision.yolo import YoloDetector
 
-    pipeline = VisionPipeline(YoloDetector(str(model)))
+    pipeline = VisionPipeline(detector or YoloDetector(str(model)))
 
     def see(path: Path) -> Seen:
         img = read_image(str(path))

@@ -9,10 +9,13 @@ Nothing of shared/ is copied: photos are read where they are.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from common.schema import DetectedObject, ImageQuality
 from testkit.scenarios import Expect, Scenario, Step, by_time, detections_at, pointing, say
+
+if TYPE_CHECKING:
+    from services.vision.yolo import YoloDetector
 
 # The nano model's scores are moderate (a real cup at 0.30-0.32 in these photos); 0.25 keeps them with margin.
 MIN_SCORE = 0.25
@@ -20,14 +23,15 @@ NMS_IOU = 0.45
 Found = list[tuple[str, float, list[float]]]  # (COCO label, score, [x, y, w, h] px)
 
 
-def yolox_detector(model: Path) -> Callable[[Path], tuple[Found, int, int]]:
+def yolox_detector(model: Path, detector: YoloDetector | None = None) -> Callable[[Path], tuple[Found, int, int]]:
     """A function photo -> (detections, width, height): the vision service's own ONNX backend
-    (services/vision/yolo.py, which reads the YOLOX family from the model's output) on the CPU."""
+    (services/vision/yolo.py, which reads the YOLOX family from the model's output) on the CPU, at MIN_SCORE and
+    NMS_IOU; or `detector` (testkit/golden.py's, which rounds what it finds)."""
     import cv2
 
     from services.vision.yolo import YoloDetector
 
-    detector = YoloDetector(str(model), conf_threshold=MIN_SCORE, iou_threshold=NMS_IOU)
+    detector = detector or YoloDetector(str(model), conf_threshold=MIN_SCORE, iou_threshold=NMS_IOU)
     assert detector.family == "yolox", detector.describe()
 
     def detect(path: Path) -> tuple[Found, int, int]:
