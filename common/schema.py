@@ -806,6 +806,15 @@ class Transcript(Sample, kw_only=True):
                 )
 
 
+class SpeechDecoding(Sample, kw_only=True):
+    """v1 extension (issue #42): speech's recogniser started (`decoding` true) or finished (false) decoding an
+    utterance; the video services ease their heavy stages meanwhile, so the decode that every word waits for gets
+    the cores."""
+
+    mic: Annotated[NonEmpty, described("microphone id")]
+    decoding: Annotated[bool, described("true when a decode starts, false when it ends")]
+
+
 def make_transcript(
     text: str, *, mic: str, end: float, confidence: float, source: str, seconds_per_word: float = 0.3
 ) -> Transcript:
@@ -993,4 +1002,5 @@ ALL_SAMPLES: tuple[type[Sample], ...] = (
     Stats,
     RobotProfile,
     RobotState,
+    SpeechDecoding,
 )

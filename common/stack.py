@@ -33,6 +33,7 @@ from common.schema import (
     RobotProfile,
     RobotState,
     Sample,
+    SpeechDecoding,
     Stats,
     Transcript,
 )
@@ -69,6 +70,7 @@ TOPICS: tuple[Topic, ...] = (
     Topic("faces", "gesture/{cam}/faces", Faces, "faces: mouth opening and head orientation"),
     Topic("persons", "gesture/{cam}/persons", Persons, "people in view with stable ids"),
     Topic("transcript", "speech/{mic}/transcript", Transcript, "recognised utterances"),
+    Topic("decoding", "speech/{mic}/decoding", SpeechDecoding, "speech is decoding an utterance: video eases"),
     Topic("command", "fusion/command", FusedCommand, "grounded commands"),
     Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
     Topic("stats", "stats/{service}/{instance}", Stats, "every node's counters (answered on query)"),
@@ -178,6 +180,7 @@ NODES: tuple[Node, ...] = (
         inputs=(
             Input("depth", "latest", monotonic=True),  # the camera sends depth just before colour
             Input("frame", "latest", monotonic=True),
+            Input("decoding", "fifo", maxlen=10),  # speech first (issue #42): served before the frames
         ),
         outputs=("objects",),
         reads_images=True,
@@ -193,7 +196,11 @@ NODES: tuple[Node, ...] = (
     Node(
         "gesture",
         "hands, bodies, pointing rays and gesture events",
-        inputs=(Input("frame", "latest", monotonic=True), Input("depth", "fifo", maxlen=4)),
+        inputs=(
+            Input("frame", "latest", monotonic=True),
+            Input("depth", "fifo", maxlen=4),
+            Input("decoding", "fifo", maxlen=10),  # speech first (issue #42): served before the frames
+        ),
         outputs=("hands", "bodies", "event", "faces", "persons"),
         reads_images=True,
         nice=FRAME_NICE,
@@ -202,7 +209,7 @@ NODES: tuple[Node, ...] = (
         "speech",
         "voice activity -> Whisper -> transcripts with times and confidence",
         inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
-        outputs=("transcript",),
+        outputs=("transcript", "decoding"),
         nice=SPEECH_NICE,
         container=Container(
             "--input zenoh",

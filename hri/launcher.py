@@ -20,6 +20,8 @@ from typing import IO, Callable
 import zenoh
 
 from common import stack
+from common.budget import COLOR_VISION_MS, Budget, budget_flags, plan_budget
+from common.cpu import available_cores
 from common.keys import Keys
 from common.robot import ProfileError, load_profile
 from common.stack import module_of
@@ -138,9 +140,38 @@ def services_from_args(args: argparse.Namespace) -> list[ServiceSpec]:
         spec = translate(args) if translate else ServiceSpec(node.name, [node.module])
         if spec is None:
             continue
-        spec.argv += getattr(args, f"{node.name}_arg", None) or []  # --<name>-arg, after the translated flags
         specs.append(spec)
+    budgeted = budget_of(args, {s.name for s in select(specs, getattr(args, "only", None))})
+    flags = budget_flags(budgeted, camera_fps(args)) if budgeted is not None else {}
+    for spec in specs:
+        spec.argv += flags.get(spec.name, [])  # the budget's rates (issue #42), before the user's own flags
+        spec.argv += getattr(args, f"{spec.name}_arg", None) or []  # --<name>-arg, after the translated flags
     return specs
+
+
+def camera_fps(args: argparse.Namespace) -> float:
+    """The rate frames come at: --fps, else 30 (a webcam's, and the most a video stage is planned for)."""
+    return float(getattr(args, "fps", None) or 30.0)
+
+
+def budget_of(args: argparse.Namespace, services: set[str]) -> Budget | None:
+    """The CPU budget of the services this `hri up` starts on this machine (--budget auto), None when off."""
+    if getattr(args, "budget", "auto") == "off":
+        return None
+    cores = float(args.cores) if getattr(args, "cores", None) else float(available_cores())
+    costs = {"vision": COLOR_VISION_MS} if getattr(args, "vision_backend", "color") != "onnx" else None
+    return plan_budget(cores, services | {"router"}, camera_fps(args), costs)
+
+
+def budget_lines(budget: Budget) -> list[str]:
+    """What `hri up` says of the budget: the rate of each stage and why."""
+    lines = [
+        f"[hri up ] budget for {budget.cores:g} cores: video stages {budget.needed_cores:.2f} of "
+        f"{budget.video_cores:.2f} cores (common/budget.py; --budget off: every stage at its default)"
+    ]
+    lines += [f"[hri up ]   {stage}: {why}" for stage, why in budget.why.items()]
+    lines += [f"[hri up ]   {note}" for note in budget.notes]
+    return lines
 
 
 class Child:
@@ -356,6 +387,16 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
         f"{DEFAULT_ENDPOINT})",
     )
     p.add_argument("--live-timeout", type=float, default=90.0, help="seconds to wait for each service to come up")
+    p.add_argument(
+        "--budget",
+        choices=("auto", "off"),
+        default="auto",
+        help="auto (default): rates of the video stages chosen for this machine's cores, vision's lowered first, "
+        "then persons and faces, then pose, hands never (common/budget.py; said at start-up); off: the defaults",
+    )
+    p.add_argument(
+        "--cores", type=float, default=None, help="plan the budget for this many cores (default: those this may use)"
+    )
 
 
 def only_list(text: str) -> list[str]:
@@ -398,6 +439,9 @@ def cmd_up(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     code = 0
+    budget = budget_of(args, {s.name for s in specs})
+    for line in budget_lines(budget) if budget is not None else []:
+        launcher.say(line)
     try:
         launcher.start(specs, args.live_timeout)
         launcher.say(

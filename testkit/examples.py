@@ -31,6 +31,7 @@ from common.schema import (
     RobotProfile,
     RobotState,
     Speaker,
+    SpeechDecoding,
     Stats,
     Target,
     Transcript,
@@ -263,6 +264,7 @@ def examples():
             intent="bring",
             holding=HeldObject(label="cup", id="o3", color="red"),
         ),
+        SpeechDecoding(stamp=T, source="speech/a", mic="mic0", decoding=True),
         DepthFrame(
             stamp=T,
             source="camera/a",

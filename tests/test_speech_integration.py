@@ -67,7 +67,9 @@ def test_audio_chunks_over_zenoh_become_transcripts_and_bad_chunks_are_counted(g
                 break
             assert time.time() < deadline, stats
             time.sleep(0.2)
-        assert stats["published"] == 1 and speech.alive()
+        # one transcript; besides it, the notices of each decode's start and end (speech first, issue #42)
+        notices = stats["other"].get("decoding_notices", 0)
+        assert notices >= 2 and stats["published"] == 1 + notices and speech.alive()
     finally:
         client.close()
     code, _ = speech.terminate()
@@ -178,7 +180,8 @@ def test_the_default_whisper_service_publishes_what_was_said_and_survives_non_sp
         time.sleep(2.0)
         assert len(transcripts.drain()) == 1  # nothing for the tones
         stats = client.stats("speech")
-        assert stats["rejected"].get("unsupported_rate") == 1 and stats["published"] == 1 and speech.alive()
+        notices = stats["other"].get("decoding_notices", 0)  # each decode's start and end (issue #42)
+        assert stats["rejected"].get("unsupported_rate") == 1 and stats["published"] == 1 + notices and speech.alive()
         assert "clock_resync" not in stats["other"], stats
     finally:
         client.close()

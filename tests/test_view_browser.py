@@ -45,7 +45,8 @@ def live(tmp_path_factory):
     try:
         group.router()
         group.service("camera", "--source", str(TABLE), "--cam", "table", "--fps", "10", "--loop")
-        group.service("vision", "--labels", str(DATA / "demo" / "labels.json"))
+        # --max-rate at the camera's rate: nothing skipped, the rate shown in the services table (issue #42)
+        group.service("vision", "--labels", str(DATA / "demo" / "labels.json"), "--max-rate", "10")
         group.service("fusion")
         recording = tmp_path_factory.mktemp("view") / "session.mcap"
         recorder = group.start("record", "hri.cli", "record", "-o", str(recording), "hri/**")
@@ -111,6 +112,10 @@ def test_page_shows_the_transcript_the_command_and_highlights_the_target(live):
         "fusion's clock offsets",
     )
     assert "vision/" in clocks and " ms" in clocks, clocks
+    rates = tab.wait_for(
+        "(document.querySelector('#services tr[data-service=vision] td.rates') || {}).innerText", 30, "vision's rate"
+    )
+    assert rates == "model ≤ 10.0 Hz", rates
 
     target = tab.wait_for("hriView.state.cameras.table.target", 10, "the target in the overlay")
     assert target["color"] == "red"

@@ -10,13 +10,24 @@ import numpy as np
 
 from common.image import frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import DepthFrame, Frame, GestureEvent, GestureName, GesturePhase, Handedness, Ray3D
+from common.schema import (
+    DepthFrame,
+    Frame,
+    GestureEvent,
+    GestureName,
+    GesturePhase,
+    Handedness,
+    Ray3D,
+    SpeechDecoding,
+)
 from common.settings import add_option, add_settings, from_args
+from common.speech_first import SpeechFirst
 from common.stack import node
 from services.gesture.core import CameraGraphs, GestureCore, GestureSettings, build_graphs, to_ray
 from services.gesture.faces import FaceConfig
 from services.gesture.landmarks import LandmarkError
 from services.gesture.people_stage import PeopleOfFrame, event_person
+from services.gesture.pose_rotation import MAX_POSES
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event
 from services.gesture.warm import GraphSupply
@@ -100,6 +111,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_option(
         parser,
+        "--persons-max-poses",
+        MAX_POSES,
+        "the person stage poses at most N persons' regions per run, in turn (the longest unposed first, a new "
+        "face first of all); the others keep their last skeleton (Body.pose_age_ms says how old); 0 = no cap",
+        at_least=0,
+        metavar="N",
+    )
+    add_option(
+        parser,
         "--hands-idle-every",
         2,
         "while no hand is in view, look for hands on every Nth frame only (a hand coming into view is found at "
@@ -113,6 +133,13 @@ def build_parser() -> argparse.ArgumentParser:
         True,
         "spread the paced stages over frames: the face stage, the idle hand search and the person stage, when due on "
         "a frame full pose runs on, move to the next frame (each keeps its rate; --no-stagger: each runs when due)",
+    )
+    add_option(
+        parser,
+        "--speech-first",
+        True,
+        "while speech decodes an utterance (its SpeechDecoding samples), skip full pose, the face stage and the "
+        "person stage (hands and stop palms keep running), so that the decode gets the cores (issue #42)",
     )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     add_option(
@@ -148,6 +175,7 @@ def settings_of(args: argparse.Namespace) -> GestureSettings:
         body=args.body,
         pose_max_rate=args.pose_max_rate,
         persons_every=args.persons_every,
+        persons_max_poses=args.persons_max_poses,
         hands_idle_every=args.hands_idle_every,
         faces=args.faces,
         face=from_args(FaceConfig, args),
@@ -166,6 +194,7 @@ class GestureApp(App):
         self.args = args
         self.settings = settings_of(args)
         self.last_frame: dict[str, tuple[float, Frame]] = {}  # cam -> (monotonic time it was done, latest frame)
+        self.speech_first = SpeechFirst()
 
     def open(self, service: Service) -> None:
         """The graphs of the cameras --cams names (with a wildcard: of the first camera, and --spare-graphs more) are
@@ -185,12 +214,18 @@ class GestureApp(App):
         except LandmarkError as exc:  # fail now, with the reason
             raise StartupError(str(exc)) from None
         service.log.info("graphs of %d camera(s) built and warmed", self.supply.built)
+        # the rates its paced stages run at (`hri up` sets them from the machine's cores: common/budget.py)
+        service.counters.set("pose_max_rate_mhz", round(1000 * s.pose_max_rate))
+        service.counters.set("faces_max_rate_mhz", round(1000 * s.face.faces_max_rate))
+        service.counters.set("persons_every", s.persons_every)
         self.core = GestureCore(s, service.source, DEPTH_KEPT)
         service.on_close(self.core.close)
         service.on_close(self.supply.close)
         self.tick = self.end_idle_streams
 
     def wire(self, service: Service) -> None:
+        if self.args.speech_first:
+            service.subscribe_input("decoding", self.on_decoding)
         for cam in self.args.cams.split(","):
             service.subscribe_input("frame", frame_handler(service, self.on_image), cam=cam.strip())
             # a camera without depth sends none: nothing changes (2-D rays only)
@@ -216,12 +251,21 @@ class GestureApp(App):
         self.service.counters.set("graph_sets_built", built)
         self.service.counters.set("graph_sets_ready", ready)
 
+    def on_decoding(self, delivery: Delivery) -> None:
+        notice = delivery.sample
+        assert isinstance(notice, SpeechDecoding)  # the runner validated it as the topic's schema
+        self.speech_first.heard(notice.mic, notice.decoding, time.monotonic())
+
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         if not self.has_graphs(frame.cam):  # a new camera whose graphs are being built: no frame waits for them
             self.service.counters.add("skipped_building_graphs")
             return
         service, unmatched = self.service, self.core.depth_unmatched
-        result = self.core.process(frame, img, fresh=frame.cam not in self.last_frame)
+        ease = self.speech_first.easing(time.monotonic())
+        result = self.core.process(frame, img, fresh=frame.cam not in self.last_frame, ease=ease)
+        if ease:
+            self.speech_first.eased += 1
+            service.counters.set("eased_for_speech", self.speech_first.eased)
         if self.core.depth_unmatched > unmatched:
             service.counters.add("depth_unmatched")
         if result.persons is not None:  # the person stage ran on this frame: its Persons

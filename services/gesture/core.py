@@ -37,8 +37,9 @@ from services.gesture.people_stage import (
     other_skeletons,
 )
 from services.gesture.persons import Box
+from services.gesture.pose_rotation import MAX_POSES
 from services.gesture.pose_track import PoseRun, carried, hands_on_arms
-from services.gesture.schedule import Due, FramePlan, RatePace, StageScheduler
+from services.gesture.schedule import Due, FramePlan, RatePace, StageScheduler, eased
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event, GestureTracker, Observation, TrackedHand
 
@@ -83,6 +84,7 @@ class GestureSettings:
     body: bool = True
     pose_max_rate: float = 10.0  # full pose at most this many times per second of source time (0: every frame)
     persons_every: int = 2  # the person stage on every Nth frame (issue #33; 0: off)
+    persons_max_poses: int = MAX_POSES  # region poses per person-stage run at most, in turn (issue #42; 0: no cap)
     hands_idle_every: int = 2  # while no hand is in view, look for hands on every Nth frame only (1: every frame)
     faces: bool = True  # the face stage: Faces for who is speaking (issue #33)
     face: FaceConfig = FaceConfig()
@@ -267,7 +269,8 @@ class GestureCore:
         self.depth_kept = depth_kept
         self.last_stamp: dict[str, float] = {}
         self.depth_unmatched = 0  # frames of a camera with depth whose own depth had not come (yet)
-        self.people = CameraPeople(settings.persons_every)  # issue #33: Persons, a body per person, whose hand
+        # issue #33: Persons, a body per person, whose hand; issue #42: at most N region poses per run, in turn
+        self.people = CameraPeople(settings.persons_every, settings.persons_max_poses)
         self.faces = FaceStages(settings.face, enabled=settings.faces)  # issue #33: who is speaking
         self.engagement: dict[str, EngagementTracker] = {}  # cam -> REP-155 engagement of its persons (issue #40)
 
@@ -310,12 +313,15 @@ class GestureCore:
             return None
         return FrameRays(depth, skeleton, world)  # decoded only when a body is seen
 
-    def process(self, frame: Frame, img: np.ndarray, fresh: bool) -> FrameResult:
-        """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids)."""
+    def process(self, frame: Frame, img: np.ndarray, fresh: bool, ease: bool = False) -> FrameResult:
+        """One frame of a camera; `fresh`: its stream is new or came back after going quiet (new person ids);
+        `ease`: speech is decoding, the heavy stages skip this frame (schedule.eased)."""
         cam = self.camera(frame)
         if fresh:
             cam.schedule.restart()
         plan = cam.plan(frame.stamp, self.faces.due(frame), self.people.due(frame, fresh))
+        if ease:
+            plan = eased(plan)
         observations = cam.find_hands(img, plan.hand_search)
         skeleton, world, pose_age = cam.find_body(frame.stamp, img, observations, plan.pose)
         rays3d = self.frame_rays(frame, skeleton, world)
@@ -385,7 +391,7 @@ def people_bodies(
         [(p.id, p.body) for p in seen.persons if p.id != seen.main_person and p.body is not None] if seen.ran else []
     )
     for pid, b in others:  # their own arms, this frame's; no 3-D rays (FrameRays lifts the full-frame skeleton)
-        main.append(to_body(b, other_arms(b, frame.width, frame.height)))
+        main.append(to_body(b, other_arms(b, frame.width, frame.height), age_s=seen.pose_ages.get(pid, 0.0)))
         main[-1].person = pid
     return main
 

@@ -20,6 +20,7 @@ from common.schema import Frame, Handedness, Person, Persons
 from services.gesture.body import Arm, arm
 from services.gesture.landmarks import FaceDetector, RegionPose
 from services.gesture.persons import Box, PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
+from services.gesture.pose_rotation import PoseRotation, planned_regions
 from services.gesture.space import FrameRays, torso_point
 from services.gesture.temporal import Observation, Ray as TrackedRay
 
@@ -35,6 +36,7 @@ class PeopleOfFrame:
     main_person: str | None  # the person of the full-frame skeleton (the gesture tracker's arms)
     positions: dict[str, list[float]] = field(default_factory=dict)  # id -> torso centre, metres (with depth)
     frame_id: str | None = None
+    pose_ages: dict[str, float] = field(default_factory=dict)  # id -> s since its skeleton was posed (carried: > 0)
 
 
 def hand_person(seen: PeopleOfFrame | None, k: int) -> str | None:
@@ -62,9 +64,10 @@ def event_person(seen: PeopleOfFrame | None, hand: str, ray: TrackedRay | None) 
 class PeopleStage:
     """One camera's person stage: its face detector, its pose-per-region graph and its person tracker."""
 
-    def __init__(self, every: int = 2, keep_s: float = 1.0):
+    def __init__(self, every: int = 2, keep_s: float = 1.0, max_poses: int = 0):
         self.every = every
         self.keep_s = keep_s
+        self.max_poses = max_poses  # region poses per run at most, in turn over the persons (pose_rotation.py)
         self.faces = FaceDetector()
         self.regions = RegionPose()
         self.restart()
@@ -73,6 +76,7 @@ class PeopleStage:
         """A new stream: new person ids. The models are kept: neither holds state between frames (single-image
         detection), and building MediaPipe graphs again on every restart costs time and memory."""
         self.tracker = PersonTracker(keep_s=self.keep_s)
+        self.rotation = PoseRotation(self.max_poses)
         self.frames = 0  # frames counted by `due`
         self.last: list[PersonTrack] = []
         self.main: str | None = None
@@ -97,12 +101,16 @@ class PeopleStage:
             if faces is None:
                 faces = [(box, None) for box, _ in self.faces.detect(img)]
             seen = Seen(w, h, faces, skeleton, previous)
-            found = observe_people(seen, lambda r: self.regions.detect(img, crop_int(r)))
+            regions = planned_regions(lambda pose_in: observe_people(seen, pose_in))
+            turn = self.rotation.turn(self.tracker.tracks, regions, lambda r: self.regions.detect(img, crop_int(r)))
+            found = observe_people(seen, turn)
             self.last = self.tracker.update(stamp, found)
+            self.rotation.done(turn, stamp, self.last)
             # the full-frame skeleton's person: the tracker's arms (pointing, raised palms) are theirs
             self.main = next((p.id for p in self.last if skeleton is not None and p.body is skeleton), None)
         owners = assign_hands([(o.hand, o.landmarks) for o in hands], self.last)
         out = PeopleOfFrame(ran, self.last, owners, [o.hand for o in hands], self.main)
+        out.pose_ages = {p.id: self.rotation.age(p.id, stamp) for p in self.last if p.body is not None}
         view = rays3d.view if rays3d is not None and ran else None
         if view is not None:
             out.frame_id = view.frame_id
@@ -162,8 +170,9 @@ class CameraPeople:
     """The person stage of every camera (`every` 0: off). A camera whose stream restarts (`fresh`: new, or gone
     quiet and back) restarts its tracker: new ids (the models are kept)."""
 
-    def __init__(self, every: int):
+    def __init__(self, every: int, max_poses: int = 0):
         self.every = every
+        self.max_poses = max_poses
         self.stages: dict[str, PeopleStage] = {}
         self.persons: dict[str, Persons] = {}  # cam -> the Persons of the stage's last run (the face stage links to)
 
@@ -173,7 +182,7 @@ class CameraPeople:
         if not self.every:
             return False
         if frame.cam not in self.stages:
-            self.stages[frame.cam] = PeopleStage(every=self.every)
+            self.stages[frame.cam] = PeopleStage(every=self.every, max_poses=self.max_poses)
         elif fresh:
             self.stages[frame.cam].restart()
         return self.stages[frame.cam].due()
@@ -196,7 +205,7 @@ class CameraPeople:
             return None
         ran = self.due(frame, fresh) if run is None else run
         if frame.cam not in self.stages:  # `run` given without `due` asked first
-            self.stages[frame.cam] = PeopleStage(every=self.every)
+            self.stages[frame.cam] = PeopleStage(every=self.every, max_poses=self.max_poses)
         return self.stages[frame.cam].update(frame.stamp, img, skeleton, hands, rays3d, faces, run=ran)
 
     def sample(self, frame: Frame, seen: PeopleOfFrame, source: str) -> Persons:

@@ -118,3 +118,15 @@ class StageScheduler:
             self.owed[stage] = owed
         self.first = False
         return FramePlan(due.pose, runs["faces"], runs["hand_search"], runs["persons"], cost, tuple(deferred))
+
+
+def eased(plan: FramePlan) -> FramePlan:
+    """The plan of a frame while speech decodes an utterance (common/speech_first.py, issue #42): full pose, the
+    face stage and the person stage skipped (the skeleton is carried, the last persons stand), the hand search and
+    the tracked hands kept (a stop palm is never eased). Skipped runs are not owed: each stage's pacer goes on."""
+    skipped = tuple(s for s in ("pose", "faces", "persons") if getattr(plan, s))
+    if not skipped:
+        return plan
+    costs = StageCosts()
+    cost = plan.cost - sum(costs.pose if s == "pose" else costs.of(s) for s in skipped)
+    return FramePlan(False, False, plan.hand_search, False, max(0.0, cost), plan.deferred)

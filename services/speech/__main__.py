@@ -15,12 +15,12 @@ import numpy as np
 
 from common.counters import SpeechCounter
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import AudioChunk, make_transcript
+from common.schema import AudioChunk, SpeechDecoding, make_transcript
 from common.settings import add_option
 from common.transport import live_tokens
 from services.speech.audio import RATE, AudioError, WavAudio, pcm_to_mono, read_wav, wav_files
 from services.speech.grammar import normalise
-from services.speech.pipeline import Heard, MicStream, Recogniser
+from services.speech.pipeline import Heard, MicStream, Recogniser, worker_for
 from services.speech.recognizers import BackendError, PocketsphinxRecognizer
 from services.speech.vad import VadConfig, make_segmenter
 from services.speech.whisper import MAX_COMMAND_COPIES, MODEL_ENV, PROMPTS, WhisperRecognizer, WhisperSettings
@@ -203,6 +203,13 @@ def build_parser():
     )
     add_option(
         parser,
+        "--speech-first",
+        True,
+        "publish SpeechDecoding on speech/{mic}/decoding when a decode starts and ends, so that vision and gesture "
+        "ease their heavy stages meanwhile (issue #42; their --speech-first); --no-speech-first: publish none",
+    )
+    add_option(
+        parser,
         "--min-silence",
         VadConfig.min_silence,
         "seconds of silence that end an utterance",
@@ -239,6 +246,7 @@ class SpeechApp(App):
         self.vad = VadConfig(min_silence=args.min_silence, post_pad=min(VadConfig.post_pad, args.min_silence))
         self.streams: dict[str, MicStream] = {}  # --input zenoh: one per microphone
         self.last_seen: dict[str, float] = {}
+        self.notices = 0  # SpeechDecoding samples published (the recogniser's thread only)
 
     def open(self, service: Service) -> None:
         self.service = service
@@ -250,6 +258,8 @@ class SpeechApp(App):
             self.recogniser = make_recogniser(args, service)
         except BackendError as exc:
             raise StartupError(str(exc)) from None
+        if args.speech_first:
+            worker_for(self.recogniser).on_busy = self.tell_decoding
         if args.input == "wav":
             self.loop = lambda stop: play_wavs(service, args, self.new_stream(args.mic), self.publish, stop)
         elif args.input == "mic":
@@ -285,6 +295,17 @@ class SpeechApp(App):
                 service.log.info("heard %r (confidence %.2f, %.2f–%.2f)", t.text, t.confidence, t.start, t.end)
             else:
                 service.log.debug("hearing %r (partial)", t.text)
+
+    def tell_decoding(self, decoding: bool, mic: str) -> None:
+        """On the recogniser's thread: a decode of `mic`'s utterance starts or ends (common/speech_first.py)."""
+        mic = mic or self.args.mic
+        sample = SpeechDecoding(stamp=time.time(), source=self.service.source, mic=mic, decoding=decoding)
+        try:
+            self.service.publish_output("decoding", sample, realtime=True, mic=mic)
+            self.notices += 1
+            self.service.counters.set("decoding_notices", self.notices)  # besides the transcripts in `published`
+        except Exception as exc:  # a lost notice costs only speed (the subscribers' hold ends it): never the decode
+            self.service.log.warning("could not publish the decoding notice: %s", exc)
 
     def on_chunk(self, delivery: Delivery) -> None:
         chunk = delivery.sample

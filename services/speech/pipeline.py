@@ -51,9 +51,22 @@ class RecognitionWorker:
     def __init__(self, recogniser: Recogniser):
         self.recogniser = recogniser
         self._executor = ThreadPoolExecutor(1, thread_name_prefix=f"recognise-{recogniser.name}")
+        # told (True, mic) when a decode starts and (False, mic) when it ends, on the worker's thread (the shell
+        # publishes it: speech first, issue #42)
+        self.on_busy: Callable[[bool, str], None] | None = None
 
-    def submit(self, audio: np.ndarray) -> Future:
-        return self._executor.submit(self.recogniser.recognise, audio)
+    def submit(self, audio: np.ndarray, mic: str = "") -> Future:
+        return self._executor.submit(self._recognise, audio, mic)
+
+    def _recognise(self, audio: np.ndarray, mic: str) -> Recognition | None:
+        tell = self.on_busy
+        if tell is not None:
+            tell(True, mic)
+        try:
+            return self.recogniser.recognise(audio)
+        finally:
+            if tell is not None:
+                tell(False, mic)
 
     def close(self) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)
@@ -204,7 +217,7 @@ class MicStream:
             and self.segmenter.position - self._partial_at >= every * RATE
         ):
             self._partial_at = self.segmenter.position
-            self._partial = (so_far, self.worker.submit(so_far.audio))
+            self._partial = (so_far, self.worker.submit(so_far.audio, self.mic))
         return out
 
     def _speculate(self, tentative: VoicedSegment) -> None:
@@ -213,7 +226,7 @@ class MicStream:
         if self._speculation is not None:
             self._speculation[2].cancel()  # the person spoke again before it started: not needed any more
             self.count("speculation_wasted", "")
-        self._speculation = (tentative.audio_start, tentative.speech_end, self.worker.submit(tentative.audio))
+        self._speculation = (tentative.audio_start, tentative.speech_end, self.worker.submit(tentative.audio, self.mic))
 
     def _decode(self, utt: VoicedSegment) -> Recognition | None:
         spec, self._speculation = self._speculation, None
@@ -223,7 +236,7 @@ class MicStream:
         if spec is not None:
             spec[2].cancel()
             self.count("speculation_wasted", "")
-        return self.worker.submit(utt.audio).result()
+        return self.worker.submit(utt.audio, self.mic).result()
 
     def _recognise(self, utt: VoicedSegment) -> Heard | None:
         if self._partial is not None:  # the final result supersedes it

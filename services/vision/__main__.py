@@ -5,15 +5,18 @@ from __future__ import annotations
 
 import argparse
 import logging
+import time
 
 import numpy as np
 
+from common.budget import MaxRate
 from common.depth import UndecodableDepth
 from common.image import frame_fields, frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import DepthFrame, Detections, Frame
+from common.schema import DepthFrame, Detections, Frame, SpeechDecoding
 from common.settings import add_option
-from services.vision.colour_memory import REUSE_FRAMES, REUSE_IOU
+from common.speech_first import EASED_PERIOD_S, EasedRate, SpeechFirst
+from services.vision.colour_memory import MAX_MEASURED, REUSE_FRAMES, REUSE_IOU
 from services.vision.core import VisionPipeline
 from services.vision.depth import DepthImage, DepthMatcher
 from services.vision.segment import ColorSegmenter, read_labels
@@ -111,6 +114,40 @@ def build_parser() -> argparse.ArgumentParser:
         at_least=0,
         metavar="N",
     )
+    add_option(
+        parser,
+        "--color-max",
+        MAX_MEASURED,
+        "onnx: measure at most N objects' colours per frame (the ones with none first, then the longest "
+        "unmeasured); the others keep the colour of their box on the last frame (issue #42: a frame's cost "
+        "bounded whatever the scene holds); 0: no cap",
+        at_least=0,
+        metavar="N",
+    )
+    add_option(
+        parser,
+        "--max-rate",
+        0.0,
+        "run the model on at most this many frames per second of source time per camera, the others skipped "
+        "(`hri up` sets it from the machine's cores: common/budget.py); 0: every frame it can",
+        at_least=0,
+        metavar="HZ",
+    )
+    add_option(
+        parser,
+        "--speech-first",
+        True,
+        "while speech decodes an utterance (its SpeechDecoding samples), run the model on at most one frame every "
+        "--speech-first-period, the others skipped, so that the decode gets the cores (issue #42)",
+    )
+    add_option(
+        parser,
+        "--speech-first-period",
+        EASED_PERIOD_S,
+        "while speech decodes: at most one frame every S seconds (a watermark for fusion's join)",
+        above=0,
+        metavar="S",
+    )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     return parser
 
@@ -153,15 +190,25 @@ class VisionApp(App):
     def __init__(self, args: argparse.Namespace) -> None:
         self.args = args
         self.depths = DepthMatcher()
+        self.speech_first = SpeechFirst()
+        self.eased_rate = EasedRate(args.speech_first_period)
+        self.max_rates: dict[str, MaxRate] = {}  # cam -> its pace (--max-rate)
+        self.rate_skipped = 0
 
     def open(self, service: Service) -> None:
+        if self.args.max_rate > 0:
+            service.counters.set("max_rate_mhz", round(1000 * self.args.max_rate))  # the rate it runs at, in stats
         try:
-            self.pipeline = VisionPipeline(make_detector(self.args, service.log), self.args.color_reuse)
+            self.pipeline = VisionPipeline(
+                make_detector(self.args, service.log), self.args.color_reuse, self.args.color_max
+            )
         except (ModelError, OSError, ValueError) as exc:
             raise StartupError(str(exc)) from None
         self.service = service
 
     def wire(self, service: Service) -> None:
+        if self.args.speech_first:
+            service.subscribe_input("decoding", self.on_decoding)
         for cam in self.args.cams.split(","):
             # the camera sends depth just before colour, so its slot is usually served first
             service.subscribe_input("depth", self.on_depth, cam=cam.strip())
@@ -193,6 +240,8 @@ class VisionApp(App):
             frame_id=depth.camera_info.frame_id if depth is not None else None,
         )
         self.service.publish_output("objects", detections, cam=frame.cam)
+        for name, count in self.pipeline.colour_counts().items():
+            self.service.counters.set(name, count)
 
     def on_depth(self, delivery: Delivery) -> None:
         depth = delivery.sample
@@ -202,8 +251,24 @@ class VisionApp(App):
             frame, img = ready
             self.process(frame, img, self.depth_image(frame, depth))
 
+    def on_decoding(self, delivery: Delivery) -> None:
+        notice = delivery.sample
+        assert isinstance(notice, SpeechDecoding)  # the runner validated it as the topic's schema
+        self.speech_first.heard(notice.mic, notice.decoding, time.monotonic())
+
     def on_image(self, frame: Frame, img: np.ndarray) -> None:
         depths, counters = self.depths, self.service.counters
+        if not self.max_rates.setdefault(frame.cam, MaxRate(self.args.max_rate)).take(frame.stamp):
+            counters.add("skipped")  # the budget's rate (--max-rate): this frame is not due
+            self.rate_skipped += 1
+            counters.set("skipped_by_max_rate", self.rate_skipped)
+            return
+        now = time.monotonic()
+        if not self.eased_rate.take(now, self.speech_first.easing(now)):
+            counters.add("skipped")  # speech first: this frame gives its CPU to the decode
+            self.speech_first.eased += 1
+            counters.set("eased_for_speech", self.speech_first.eased)
+            return
         depth = depths.match(frame.cam, frame.seq, frame.stamp)
         if depth is None and depths.expects(frame.cam, frame.seq, frame.stamp):
             if depths.wait(frame, img) is not None:

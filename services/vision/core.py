@@ -141,11 +141,18 @@ def mixed_names(groups: list[tuple[tuple[float, float, float], float]], top: int
 
 class VisionPipeline:
     """Per camera: detect, name colours, keep ids stable. Not thread-safe: one worker calls it.
-    `colour_reuse_frames`: a still object's colour is reused for up to this many frames (colour_memory.py)."""
+    `colour_reuse_frames`: a still object's colour is reused for up to this many frames; `colour_max`: at most this
+    many objects' colours are measured per frame, the others carry theirs (0: no cap; colour_memory.py)."""
 
-    def __init__(self, detector: ColorSegmenter | YoloDetector, colour_reuse_frames: int = REUSE_FRAMES):
+    def __init__(
+        self,
+        detector: ColorSegmenter | YoloDetector,
+        colour_reuse_frames: int = REUSE_FRAMES,
+        colour_max: int = 0,
+    ):
         self.detector = detector
         self.colour_reuse_frames = colour_reuse_frames
+        self.colour_max = colour_max
         self.trackers: dict[str, Tracker] = {}
         self.colours: dict[str, ColourMemory] = {}
 
@@ -154,12 +161,22 @@ class VisionPipeline:
         self.trackers.clear()
         self.colours.clear()
 
+    def colour_counts(self) -> dict[str, int]:
+        """Objects whose colour was measured, carried under the cap, or left without one, over every camera so far
+        (the service's stats)."""
+        memories = self.colours.values()
+        return {
+            "colour_measured": sum(m.measured for m in memories),
+            "colour_carried": sum(m.carried for m in memories),
+            "colour_uncoloured": sum(m.uncoloured for m in memories),
+        }
+
     def detections(self, bgr: np.ndarray, cam: str = "") -> list[Detection]:
         if isinstance(self.detector, ColorSegmenter):
             return self.detector.detect(bgr)  # colours come from the segmentation itself
         # labels as the language's classes where one fits ("mug" -> "cup")
         found = [(canonical_label(label), score, box) for label, score, box in self.detector.detect(bgr)]
-        memory = self.colours.setdefault(cam, ColourMemory(self.colour_reuse_frames))
+        memory = self.colours.setdefault(cam, ColourMemory(self.colour_reuse_frames, max_measured=self.colour_max))
         gains: list[np.ndarray] = []  # the scene's light, estimated once per frame, and only if a box is measured
 
         def measure(label: str, box: tuple[float, float, float, float]) -> Colour:

@@ -307,8 +307,19 @@ function updateServices(services) {
     return el("tr", { "data-service": s.service }, el("td", {}, s.service), el("td", {}, s.instance),
       el("td", {}, live), el("td", {}, st.received ?? ""), el("td", {}, st.published ?? ""),
       el("td", {}, st.skipped ?? ""), el("td", { title: JSON.stringify(st.rejected || {}) }, s.stats ? rejected : ""),
-      el("td", { class: "clocks" }, clockOffsets(st.other || {})));
+      el("td", { class: "clocks" }, clockOffsets(st.other || {})),
+      el("td", { class: "rates" }, stageRates(st.other || {})));
   }));
+}
+
+// the rates a service's stages run at (issue #42: `hri up`'s budget, docs/foundation.md) and what speech first eased
+const RATE_GAUGES = [["max_rate_mhz", "model"], ["pose_max_rate_mhz", "pose"], ["faces_max_rate_mhz", "faces"]];
+function stageRates(other) {
+  const out = RATE_GAUGES.filter(([k]) => k in other && other[k] > 0)
+    .map(([k, name]) => `${name} ≤ ${(other[k] / 1000).toFixed(1)} Hz`);
+  if (other.persons_every) out.push(`persons every ${other.persons_every}`);
+  if (other.eased_for_speech) out.push(`eased for speech ${other.eased_for_speech}`);
+  return out.join(", ");
 }
 
 // fusion's estimate of each source's clock against its own (other["clock_offset_ms:SOURCE"]; docs/foundation.md)
