@@ -11,7 +11,10 @@ Prints ms per frame (median and p90) of each, the stage's ratio to the bare loop
 what `--persons-every 2` (the default) costs per frame on average; and the stage given the face stage's faces, with
 the full-range face detection it runs since issue #40 (#34 had dropped it on those frames) timed alone.
 
-Usage: python -m benchmarks.persons [--frames 150] [--clip comp_turns_bbaf2n_lbbc2a.mp4]
+`--photos` instead: the people found on ../shared/data/people_multi through the service's path
+(testkit/people_photos.py), per photo, development and held back apart (issue #40).
+
+Usage: python -m benchmarks.persons [--frames 150] [--clip comp_turns_bbaf2n_lbbc2a.mp4] [--photos]
 """
 
 from __future__ import annotations
@@ -54,7 +57,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=150)
     parser.add_argument("--clip", default="comp_turns_bbaf2n_lbbc2a.mp4")
+    parser.add_argument("--photos", action="store_true", help="people found on the people_multi photos instead")
     args = parser.parse_args()
+    if args.photos:
+        print_photos()
+        return
     clip = SHARED / "data" / "talking" / args.clip
     if not clip.exists():
         raise SystemExit(f"{clip} not found (../shared/ beside the checkout, or HRI_SHARED)")
@@ -113,6 +120,21 @@ def main() -> None:
 
     summary("for scale: the frame's hands + full-frame pose (bare)", timed(frames, rest))
     print(f"stage / bare frames/s: {bare_ms / stage_ms:.2f}x (goal >= 0.9x)")
+
+
+def print_photos() -> None:
+    from testkit.people_photos import HELD_BACK, evaluate, totals
+
+    folder = SHARED / "data" / "people_multi"
+    if not folder.is_dir():
+        raise SystemExit(f"{folder} not found (../shared/ beside the checkout, or HRI_SHARED)")
+    results = evaluate(folder)
+    for r in results:
+        kept = " (held back)" if r.file in HELD_BACK else ""
+        print(f"{r.file:40s} {len(r.found)} of {r.people} found {r.found}, {r.tracks} persons{kept}")
+    for name, held_back in (("development", False), ("held back", True)):
+        found, people = totals(results, held_back)
+        print(f"{name}: {found} of {people} people found")
 
 
 if __name__ == "__main__":
