@@ -30,7 +30,7 @@ import numpy as np
 
 from services.gesture.landmarks import FaceDetector, HandLandmarker, PoseLandmarker, RegionPose
 from services.gesture.people_stage import PeopleStage
-from services.gesture.persons import body_fits_face, crop_int, face_region
+from services.gesture.persons import Box, body_fits_face, crop_int, face_region
 from testkit.frames import read_frames
 from testkit.harness import ROOT
 
@@ -100,7 +100,9 @@ def main() -> None:
     # issue #40: the stage runs its full-range face detection even on the frames the face stage gave it faces
     # (#34 skipped it there; Face Mesh misses faces beyond ~2 m); the face stage's boxes stood in for by the
     # detector's own, computed before timing
-    given = {id(img): [(b, None) for b, _ in faces.detect(img)] for img in frames}
+    given: dict[int, list[tuple[Box, str | None]]] = {
+        id(img): [(b, None) for b, _ in faces.detect(img)] for img in frames
+    }
     stage_given = PeopleStage(every=1)
     detector_times: list[float] = []
     given_times: list[float] = []

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import pytest
 
 from services.gesture.body import held_at_body, held_up
 from services.gesture.rules import classify
@@ -30,7 +29,8 @@ PALM = 42.0  # px: a hand large enough to be read (HAND_RAY_MIN_PALM 40)
 def _starts(observations: list[Observation], pose: np.ndarray) -> list[str]:
     tracker, out = GestureTracker(), []
     for i in range(6):
-        out += [e.gesture for e in tracker.update(100 + i / 30, observations, pose, (640, 480))[1] if e.phase == "start"]
+        events = tracker.update(100 + i / 30, observations, pose, (640, 480))[1]
+        out += [e.gesture for e in events if e.phase == "start"]
     return out
 
 

@@ -13,7 +13,8 @@ from testkit.shared import shared_path
 def test_a_face_both_found_keeps_the_face_stages_box_and_id_and_a_far_face_is_added() -> None:
     mesh = [((100.0, 50.0, 40.0, 48.0), "cam0/face-1")]
     detected = [(98.0, 56.0, 44.0, 44.0), (400.0, 90.0, 14.0, 14.0)]  # the same face, and one at room distance
-    assert merge_faces(mesh, detected) == [((100.0, 50.0, 40.0, 48.0), "cam0/face-1"), ((400.0, 90.0, 14.0, 14.0), None)]
+    far = ((400.0, 90.0, 14.0, 14.0), None)
+    assert merge_faces(mesh, detected) == [((100.0, 50.0, 40.0, 48.0), "cam0/face-1"), far]
 
 
 def test_without_the_face_stage_the_detections_are_the_faces_left_to_right() -> None:

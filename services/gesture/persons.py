@@ -28,7 +28,7 @@ box holds its wrist; else it is nobody's (nil on the wire: unknown).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -308,7 +308,7 @@ def _centre_in(box: Box, other: Box) -> bool:
     return ox <= x + w / 2 <= ox + ow and oy <= y + h / 2 <= oy + oh
 
 
-def merge_faces(tracked: list[tuple[Box, str | None]], detected: list[Box]) -> list[tuple[Box, str | None]]:
+def merge_faces(tracked: Sequence[tuple[Box, str | None]], detected: Sequence[Box]) -> list[tuple[Box, str | None]]:
     """The person stage's faces of a frame (issue #40): the face stage's (Face Mesh: box and face id, but a
     short-range detector that misses faces beyond ~2 m) and every face the full-range detector finds that none of
     them is (neither box's centre inside the other's), left to right. A face both found keeps the face stage's box
