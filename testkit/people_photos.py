@@ -1,7 +1,7 @@
 """Persons on the real several-people photos (../shared/data/people_multi, people_multi.json there) through the
 gesture service's whole per-frame path (`GestureCore` with its default settings: the face stage, the person stage
 every 2nd frame, pose, hands), each photo shown for a few frames like a camera holding still; shared by
-tests/test_gesture_persons.py and `python -m benchmarks.persons --photos` (issue #40).
+tests/test_gesture_persons_range.py and `python -m benchmarks.persons --photos` (issue #40).
 
 A labelled person is **found** when a person of the stage's last run has a skeleton whose nose lies in that
 person's labelled head box (grown by a fifth each side), or, without a skeleton, a face box whose centre does; each

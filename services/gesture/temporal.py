@@ -110,6 +110,11 @@ def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float 
     return "extended" not in finger_states(landmarks)[1:]
 
 
+def same_hand(a: Observation, b: Observation, palm: float) -> bool:
+    """Are these one hand found twice: mean landmark distance below `SAME_HAND_PALMS` x `palm`?"""
+    return float(np.mean(np.linalg.norm(a.landmarks - b.landmarks, axis=1))) < SAME_HAND_PALMS * palm
+
+
 def hands_together(observations: list[Observation], palms: list[float]) -> set[int]:
     """Indices of hands held together with another (wrists within `TOGETHER_PALMS` palm sizes: clasped at the chest
     or in the lap, holding one thing): neither a point nor a grasp. One hand found twice is not two hands."""
@@ -118,7 +123,7 @@ def hands_together(observations: list[Observation], palms: list[float]) -> set[i
         for b in range(a + 1, len(observations)):
             palm = max(palms[a], palms[b], 1.0)
             la, lb = observations[a].landmarks, observations[b].landmarks
-            if float(np.mean(np.linalg.norm(la - lb, axis=1))) < SAME_HAND_PALMS * palm:
+            if same_hand(observations[a], observations[b], palm):
                 continue
             if float(np.linalg.norm(la[0] - lb[0])) <= TOGETHER_PALMS * palm:
                 out |= {a, b}
@@ -134,8 +139,7 @@ def found_twice(observations: list[Observation], palms: list[float]) -> set[int]
     out = set()
     for b in range(len(observations)):
         for a in range(b):
-            gap = float(np.mean(np.linalg.norm(observations[a].landmarks - observations[b].landmarks, axis=1)))
-            if a not in out and gap < SAME_HAND_PALMS * max(palms[a], palms[b], 1.0):
+            if a not in out and same_hand(observations[a], observations[b], max(palms[a], palms[b], 1.0)):
                 out.add(a if classes[a] is None and classes[b] is not None else b)
     return out
 
@@ -290,7 +294,8 @@ def _own_arm(obs: Observation, palm: float, others: Sequence[np.ndarray]) -> _Ow
 def _at_rest_on_own_arm(raw: str | None, hand: _HandSeen, own: _OwnArm) -> bool:
     """The resting rules of a hand on its own person's arm: held at the body (`shown`), or a palm not raised."""
     side, wrist = own.arm.side, hand.obs.landmarks[0]
-    if not shown(raw, own.body, side, wrist, None, deliberate_point(hand, own.body, side)):
+    deliberate = raw == "point" and deliberate_point(hand, own.body, side)
+    if not shown(raw, own.body, side, wrist, None, deliberate):
         return True
     return raw == "open_palm" and arm_judged(own.body, side) and not raised_palm(own.body, side, hand.obs.landmarks)
 
@@ -313,7 +318,7 @@ def _arm_hand_cue(
     palm from a resting one, and tells a hand shown from one held at the body."""
     obs, palm = hand.obs, hand.palm
     raw = hand_class = classify(obs.landmarks)
-    deliberate = body is not None and deliberate_point(hand, body, match.side, hand_ray_min_palm)
+    deliberate = raw == "point" and body is not None and deliberate_point(hand, body, match.side, hand_ray_min_palm)
     if hand.held(raw) or not shown(raw, body, match.side, obs.landmarks[0], joints3d, deliberate):
         raw = hand_class = None  # held at the body; and then no arm makes it a point either
     elif raw == "open_palm":
