@@ -19,7 +19,9 @@ wall behind the wrist) is not trusted: the image decides.
 **A hand held at the body is shown to nobody** (issue #31, `held_at_body`): hands at the chest or in the lap with
 the elbow folded (< `FOLDED_DEG`, judged in 3-D, or in the image when both arm segments are plainly long there:
 a foreshortened arm's image angle means nothing), and a wrist at a knee or on a thigh (seated, a hand on the
-knee, the lap, or hanging along the leg) are neither a point nor a grasp; a pointing arm is neither.
+knee, the lap, or hanging along the leg) are neither a point nor a grasp; a pointing arm is neither. A hand lifted
+on a folded arm (`held_up`: above the middle of the torso, the forearm rising) may still be shown on purpose: the
+gesture tracker lets a clear point made so count (issue #40, temporal.py `deliberate_point`).
 
 Pose landmarks are the person's own left/right (11/13/15/19 left shoulder/elbow/wrist/index), not mirrored.
 """
@@ -55,6 +57,8 @@ ON_KNEE = 0.6  # x shoulder width: a wrist this near a knee rests on it (seated:
 ON_THIGH = 0.35  # x shoulder width: a wrist this near the hip -> knee segment lies on the thigh or the lap
 ON_LEG_M = 0.12  # m: the same in 3-D (a hand is ~0.1 m thick, the lifted points are on the surfaces)
 HEAD = tuple(range(11))  # pose landmarks of the face: nose, eyes, ears, mouth
+FOREARM_RISE_DEG = 30.0  # elbow -> wrist at least this above the image's horizontal: the hand is lifted (issue #40;
+# a forearm lying across the belly or in the lap is within ~15 deg of horizontal: none_00c84257 -3 deg)
 UPPER_ARM_M = (0.12, 0.5)  # plausible lifted lengths, m (adults and children, with depth noise)
 FOREARM_M = (0.1, 0.45)
 
@@ -234,6 +238,17 @@ def lowered(landmarks: np.ndarray | list, side: str, wrist: np.ndarray | tuple) 
     p = np.asarray(landmarks, dtype=float).reshape(33, 3)
     shoulder, hip, _ = torso(p, side)
     return bool(wrist[1] >= (shoulder[1] + hip[1]) / 2)
+
+
+def held_up(landmarks: np.ndarray | list, side: str, wrist: np.ndarray | tuple) -> bool:
+    """Is this hand lifted in front of the body, as a hand is held up to show it (issue #40): the wrist (px) above
+    the middle of the torso (not `lowered`) and the forearm (elbow -> wrist) rising at least `FOREARM_RISE_DEG` above
+    the image's horizontal? A forearm folded across the belly, a hand in the lap or on a hip lies flat or hangs."""
+    p = np.asarray(landmarks, dtype=float).reshape(33, 3)
+    e = ARMS[side][1]
+    rise = p[e, 1] - float(wrist[1])  # image y grows downwards
+    run = abs(float(wrist[0]) - p[e, 0])
+    return bool(not lowered(p, side, wrist) and math.degrees(math.atan2(rise, run)) >= FOREARM_RISE_DEG)
 
 
 def arm_ray(

@@ -2,10 +2,11 @@
 person region feeding the pure tracker (services/gesture/persons.py), turned into the wire's `Person` list, each
 hand's and skeleton's person id, and a body for every person.
 
-Its faces are the face stage's on the frames that stage ran on (GestureCore passes them: no second face model),
-else its own MediaPipe face detection. It runs on every `every`-th frame of a camera (`--persons-every`: pose per
-extra person costs a full pose run, ~35 ms on this machine); on the frames between, hands are given to the persons
-of the last run (their boxes and wrists are at most `every - 1` frames old).
+Its faces are MediaPipe's full-range face detection on every run (faces at room distance, which the face stage's
+Face Mesh misses beyond ~2 m) merged with the face stage's on the frames that stage ran on (their boxes and ids win
+where both found a face; `persons.merge_faces`, issue #40). It runs on every `every`-th frame of a camera
+(`--persons-every`: pose per extra person costs a full pose run, ~35 ms on this machine); on the frames between,
+hands are given to the persons of the last run (their boxes and wrists are at most `every - 1` frames old).
 """
 
 from __future__ import annotations
@@ -19,7 +20,16 @@ from common.image import frame_fields
 from common.schema import Frame, Handedness, Person, Persons
 from services.gesture.body import Arm, arm
 from services.gesture.landmarks import FaceDetector, RegionPose
-from services.gesture.persons import Box, PersonTrack, PersonTracker, Seen, assign_hands, crop_int, observe_people
+from services.gesture.persons import (
+    Box,
+    PersonTrack,
+    PersonTracker,
+    Seen,
+    assign_hands,
+    crop_int,
+    merge_faces,
+    observe_people,
+)
 from services.gesture.pose_rotation import PoseRotation, planned_regions
 from services.gesture.space import FrameRays, torso_point
 from services.gesture.temporal import Observation, Ray as TrackedRay
@@ -91,16 +101,15 @@ class PeopleStage:
         faces: list[tuple[Box, str | None]] | None = None,
         run: bool | None = None,
     ) -> PeopleOfFrame:
-        """`faces`: the face stage's faces of this frame (box, `Face.id`) when it runs; else the stage finds the
-        faces itself (MediaPipe face detection, boxes without ids). `run`: whether the stage runs on this frame (the
-        gesture core's schedule, which asked `due`); None: it runs when `due`."""
+        """`faces`: the face stage's faces of this frame (box, `Face.id`) when it ran on it; the stage's own
+        full-range face detection adds the faces they miss (boxes without ids). `run`: whether the stage runs on this
+        frame (the gesture core's schedule, which asked `due`); None: it runs when `due`."""
         ran = self.due() if run is None else run
         if ran:
             h, w = img.shape[:2]
             previous = [b for _, b in self.tracker.bodies()]
-            if faces is None:
-                faces = [(box, None) for box, _ in self.faces.detect(img)]
-            seen = Seen(w, h, faces, skeleton, previous)
+            detected = [box for box, _ in self.faces.detect(img)]  # full range: faces at room distance too
+            seen = Seen(w, h, merge_faces(faces or [], detected), skeleton, previous)
             regions = planned_regions(lambda pose_in: observe_people(seen, pose_in))
             turn = self.rotation.turn(self.tracker.tracks, regions, lambda r: self.regions.detect(img, crop_int(r)))
             found = observe_people(seen, turn)

@@ -28,7 +28,7 @@ box holds its wrist; else it is nobody's (nil on the wire: unknown).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -300,3 +300,19 @@ def observe_people(seen: Seen, pose_in: PoseIn) -> list[PersonObs]:
 def _in_a_face(body: np.ndarray, faces: list[Box]) -> bool:
     """A body whose nose is at a face already listed belongs to that face's person (its own pose missed)."""
     return any(body_fits_face(body, f) for f in faces)
+
+
+def _centre_in(box: Box, other: Box) -> bool:
+    x, y, w, h = box
+    ox, oy, ow, oh = other
+    return ox <= x + w / 2 <= ox + ow and oy <= y + h / 2 <= oy + oh
+
+
+def merge_faces(tracked: Sequence[tuple[Box, str | None]], detected: Sequence[Box]) -> list[tuple[Box, str | None]]:
+    """The person stage's faces of a frame (issue #40): the face stage's (Face Mesh: box and face id, but a
+    short-range detector that misses faces beyond ~2 m) and every face the full-range detector finds that none of
+    them is (neither box's centre inside the other's), left to right. A face both found keeps the face stage's box
+    and id, so persons near the camera are as with the face stage alone; a face at room distance still seeds its
+    person's region."""
+    extra = [(d, None) for d in detected if not any(_centre_in(d, t) or _centre_in(t, d) for t, _ in tracked)]
+    return sorted([*tracked, *extra], key=lambda f: f[0][0])

@@ -34,6 +34,7 @@ from services.gesture.body import (
     at_head,
     body_scale as _body_scale,
     held_at_body,
+    held_up,
     lowered,
     raised_hand,
     raised_palm,
@@ -109,6 +110,11 @@ def body_may_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float 
     return "extended" not in finger_states(landmarks)[1:]
 
 
+def same_hand(a: Observation, b: Observation, palm: float) -> bool:
+    """Are these one hand found twice: mean landmark distance below `SAME_HAND_PALMS` x `palm`?"""
+    return float(np.mean(np.linalg.norm(a.landmarks - b.landmarks, axis=1))) < SAME_HAND_PALMS * palm
+
+
 def hands_together(observations: list[Observation], palms: list[float]) -> set[int]:
     """Indices of hands held together with another (wrists within `TOGETHER_PALMS` palm sizes: clasped at the chest
     or in the lap, holding one thing): neither a point nor a grasp. One hand found twice is not two hands."""
@@ -117,22 +123,75 @@ def hands_together(observations: list[Observation], palms: list[float]) -> set[i
         for b in range(a + 1, len(observations)):
             palm = max(palms[a], palms[b], 1.0)
             la, lb = observations[a].landmarks, observations[b].landmarks
-            if float(np.mean(np.linalg.norm(la - lb, axis=1))) < SAME_HAND_PALMS * palm:
+            if same_hand(observations[a], observations[b], palm):
                 continue
             if float(np.linalg.norm(la[0] - lb[0])) <= TOGETHER_PALMS * palm:
                 out |= {a, b}
     return out
 
 
-def shown(raw: str | None, body: np.ndarray | None, side: str, wrist: np.ndarray, joints3d: np.ndarray | None) -> bool:
+def found_twice(observations: list[Observation], palms: list[float]) -> set[int]:
+    """Indices of hands that repeat another hand of the frame (mean landmark distance below `SAME_HAND_PALMS` palm
+    sizes): MediaPipe's video mode sometimes finds a tracked hand again beside itself. The repeat shows nothing, so
+    one hand starts one gesture stream, not two; of the two copies the one the hand stage reads a class from is
+    kept (the other is the blurred or half-found copy), else the first."""
+    classes = [classify(o.landmarks) for o in observations]
+    out = set()
+    for b in range(len(observations)):
+        for a in range(b):
+            if a not in out and same_hand(observations[a], observations[b], max(palms[a], palms[b], 1.0)):
+                out.add(a if classes[a] is None and classes[b] is not None else b)
+    return out
+
+
+def shown(
+    raw: str | None,
+    body: np.ndarray | None,
+    side: str,
+    wrist: np.ndarray,
+    joints3d: np.ndarray | None,
+    deliberate: bool = False,
+) -> bool:
     """Is this point or fist shown to someone, not a hand held at the body? A point needs an arm that is neither
-    folded nor resting on a leg (`held_at_body`); a grasp sign (fist) also a hand held up, above the middle of the
-    torso, like a stop. Other classes, or a body that cannot judge the arm, are not questioned here."""
+    folded nor resting on a leg (`held_at_body`) — or, on a folded arm, a `deliberate` point (`deliberate_point`:
+    the robot's-eye point, a finger aimed at the camera from in front of the chest); a grasp sign (fist) also a hand
+    held up, above the middle of the torso, like a stop. Other classes, or a body that cannot judge the arm, are not
+    questioned here."""
     if raw not in ("point", "fist") or body is None or not arm_judged(body, side):
         return True
-    if held_at_body(body, side, joints3d) is not None:
+    held = held_at_body(body, side, joints3d)
+    if held == "folded" and raw == "point" and deliberate:
+        return True
+    if held is not None:
         return False
     return raw == "point" or not lowered(body, side, wrist)
+
+
+def clear_point(landmarks: np.ndarray, palm: float, hand_ray_min_palm: float = HAND_RAY_MIN_PALM) -> bool:
+    """A point the hand stage reads beyond doubt: the `point` class on a hand large enough for its fingers to be
+    read (palm >= `hand_ray_min_palm` px) with the middle, ring and little finger clearly curled. The index may be
+    foreshortened (aimed at the camera: `rules.index_out`), so it is not asked to be clearly extended."""
+    return (
+        palm >= hand_ray_min_palm
+        and classify(landmarks) == "point"
+        and all(s == "curled" for s in finger_states(landmarks)[1:])
+    )
+
+
+def deliberate_point(
+    hand: _HandSeen, body: np.ndarray, side: str, hand_ray_min_palm: float = HAND_RAY_MIN_PALM
+) -> bool:
+    """A point held up on purpose although the elbow is folded (issue #40: the robot's-eye point, the index aimed
+    at the camera from in front of the chest, or raised beside the face): a `clear_point`, lifted (`held_up`: above
+    the middle of the torso, the forearm rising), not held together with the other hand and not at a head (a finger
+    on the lips, the temple, the chin). Hands folded at the belly, in the lap or on a knee are not lifted."""
+    wrist = hand.obs.landmarks[0]
+    return (
+        not hand.together
+        and not hand.at_head
+        and clear_point(hand.obs.landmarks, hand.palm, hand_ray_min_palm)
+        and held_up(body, side, wrist)
+    )
 
 
 def fuse_arms(
@@ -160,9 +219,13 @@ def fuse_arms(
     free = [a for a in arms if a.visibility >= MIN_VISIBILITY]  # an arm pose cannot see has no wrist to match
     palms = [palm_size(obs.landmarks) for obs in observations]
     together = hands_together(observations, palms)
+    repeats = found_twice(observations, palms)
     bodies = [*([] if body is None else [body]), *others]
     cues = []
     for k, obs in enumerate(observations):
+        if k in repeats:  # one hand found twice: the repeat shows nothing and takes no arm
+            cues.append(Cue(obs.hand, obs.score, obs.landmarks[0].copy(), palms[k], None, None, "hand", observation=k))
+            continue
         near = [a for a in free if _wrist_gap(a, obs) <= max(1.5 * palms[k], 0.5 * a.forearm)]
         match = min(near, key=lambda a: _wrist_gap(a, obs), default=None)
         if match is not None:
@@ -231,7 +294,8 @@ def _own_arm(obs: Observation, palm: float, others: Sequence[np.ndarray]) -> _Ow
 def _at_rest_on_own_arm(raw: str | None, hand: _HandSeen, own: _OwnArm) -> bool:
     """The resting rules of a hand on its own person's arm: held at the body (`shown`), or a palm not raised."""
     side, wrist = own.arm.side, hand.obs.landmarks[0]
-    if not shown(raw, own.body, side, wrist, None):
+    deliberate = raw == "point" and deliberate_point(hand, own.body, side)
+    if not shown(raw, own.body, side, wrist, None, deliberate):
         return True
     return raw == "open_palm" and arm_judged(own.body, side) and not raised_palm(own.body, side, hand.obs.landmarks)
 
@@ -254,7 +318,8 @@ def _arm_hand_cue(
     palm from a resting one, and tells a hand shown from one held at the body."""
     obs, palm = hand.obs, hand.palm
     raw = hand_class = classify(obs.landmarks)
-    if hand.held(raw) or not shown(raw, body, match.side, obs.landmarks[0], joints3d):
+    deliberate = raw == "point" and body is not None and deliberate_point(hand, body, match.side, hand_ray_min_palm)
+    if hand.held(raw) or not shown(raw, body, match.side, obs.landmarks[0], joints3d, deliberate):
         raw = hand_class = None  # held at the body; and then no arm makes it a point either
     elif raw == "open_palm":
         # (an arm is judged only on a body: `body is not None` is said for the type checker)
