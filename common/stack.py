@@ -31,6 +31,7 @@ from common.schema import (
     Hands,
     Persons,
     Sample,
+    Spoken,
     Stats,
     Transcript,
 )
@@ -69,6 +70,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("transcript", "speech/{mic}/transcript", Transcript, "recognised utterances"),
     Topic("command", "fusion/command", FusedCommand, "grounded commands"),
     Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
+    Topic("spoken", "voice/{speaker}/spoken", Spoken, "what the robot's voice says and when"),
+    Topic("voice_audio", "voice/{speaker}/pcm", AudioChunk, "the robot's voice as audio, for a speaker and echo"),
     Topic("stats", "stats/{service}/{instance}", Stats, "every node's counters (answered on query)"),
 )
 
@@ -196,7 +199,12 @@ NODES: tuple[Node, ...] = (
     Node(
         "speech",
         "voice activity -> Whisper -> transcripts with times and confidence",
-        inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
+        inputs=(
+            Input("audio", "fifo", maxlen=2000, monotonic=True),
+            # the robot's own voice: when it speaks (masked) and what it played (the echo to cancel; docs/voice.md)
+            Input("spoken", "fifo", maxlen=100),
+            Input("voice_audio", "fifo", maxlen=2000, monotonic=True),
+        ),
         outputs=("transcript",),
         nice=SPEECH_NICE,
         container=Container(
@@ -230,6 +238,7 @@ NODES: tuple[Node, ...] = (
             Input("objects", "latest"),
             Input("command", "fifo", maxlen=100),
             Input("clarification", "fifo", maxlen=100),
+            Input("spoken", "fifo", maxlen=100),  # what the robot's voice says, as text (~/robot_speech)
             Input("frame", "latest"),  # for the camera's intrinsics (sensor_msgs/CameraInfo), on change
         ),
         outputs=("frame", "depth"),  # a ROS 2 camera as the stack's camera
@@ -241,6 +250,17 @@ NODES: tuple[Node, ...] = (
         opt_in=True,
         # typed commands from a ROS std_msgs/String topic, as `hri say` sends them (not a speech modality)
         fixed_keys=("speech/ros/transcript",),
+    ),
+    Node(
+        "voice",
+        "speaks fusion's questions and refusals (piper, offline) to a WAV, a sound device or the wire",
+        inputs=(Input("clarification", "fifo", maxlen=100), Input("command", "fifo", maxlen=100)),
+        outputs=("spoken", "voice_audio"),
+        container=Container(
+            note="The robot's voice: `docker compose --profile voice up -d`; its audio goes out as AudioChunks on\n"
+            'hri/voice/robot/pcm (a container has no sound card); HRI_VOICE_ARGS="--confirm" also confirms commands.',
+        ),
+        opt_in=True,
     ),
 )
 CLIENTS: tuple[Client, ...] = (

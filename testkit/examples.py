@@ -26,6 +26,7 @@ from common.schema import (
     Ray,
     Ray3D,
     Speaker,
+    Spoken,
     Stats,
     Target,
     Transcript,
@@ -231,6 +232,18 @@ def examples():
                     engaged=True,
                 )
             ],
+        ),
+        Spoken(
+            stamp=T,
+            source="voice/a",
+            id="question-q1",
+            text="Which cup: the red one on the left or the blue one on the right?",
+            kind="question",
+            answers="q1",
+            start=T,
+            end=T + 3.2,
+            speaker="robot",
+            voice="piper:joe",
         ),
         DepthFrame(
             stamp=T,
