@@ -234,7 +234,8 @@ class MicStream:
             pos = end
             if self.stamp_of(base + pos) >= span.until:
                 heard += self._end_mask()
-            elif span.samples - span.checked >= CHECK_SECONDS * RATE:
+            elif span.samples - span.checked >= CHECK_SECONDS * RATE and self._canceller.path is not None:
+                # (before the echo path is first learnt, what is left is the robot's whole voice: checked at the end)
                 heard += self._check_span(span, final=False)
         return out, heard
 
