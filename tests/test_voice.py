@@ -127,3 +127,77 @@ def test_own_voice_masks_the_announced_spans_plus_the_tail_and_a_cut_shortens_th
     own.add_reference(T, np.full(320, 0.5, np.float32))
     ref = own.reference(T - 0.01, 1000)
     assert ref[:160].sum() == 0 and ref[160:480].max() == 0.5 and ref[480:800].min() == 1.0 and ref[800:].sum() == 0
+
+
+# -- the speech pipeline with the robot's voice on its microphone (real models, real recordings) ------------------
+
+
+@pytest.fixture(scope="module")
+def spoken_questions() -> list[np.ndarray]:
+    from services.voice.synth import PiperVoice
+
+    voice = PiperVoice()
+    return [voice.speak(q) for q in PIPELINE_QUESTIONS]
+
+
+@pytest.fixture(scope="module")
+def whisper():  # noqa: ANN201
+    from services.speech.whisper import WhisperRecognizer
+
+    recogniser = WhisperRecognizer()
+    recogniser.recognise(np.zeros(8000, np.float32))
+    return recogniser
+
+
+PIPELINE_QUESTIONS = ("Which cup: the red one or the blue one?", "I can't pick up a chair.")
+
+
+def robot_ears(whisper):  # noqa: ANN001, ANN201
+    from services.speech.pipeline import MicStream
+    from services.speech.vad import make_segmenter
+
+    own = OwnVoice()
+    counted: list[str] = []
+    stream = MicStream(
+        "mic0", "test", whisper, make_segmenter, lambda name, detail: counted.append(name), own_voice=own
+    )
+    return stream, own, counted
+
+
+def test_the_robot_hears_neither_its_question_nor_its_refusal_but_a_stop_said_over_it(spoken_questions, whisper):
+    from testkit.room import hear, scene
+    from testkit.shared import shared_path
+
+    stop = read_clip(shared_path("data/speech_commands/stop_2c6d3924_nohash_0.wav"))
+    stream, own, counted = robot_ears(whisper)
+    ir = room_response()
+    question, refusal = spoken_questions
+    assert hear(stream, own, scene(question, None, 0, 0, ir), question, T, PIPELINE_QUESTIONS[0], 0) == []
+    assert hear(stream, own, scene(refusal, None, 0, 0, ir), refusal, T + 20, PIPELINE_QUESTIONS[1], 1) == []
+    assert counted.count("own_voice_spans") == 2 and "barge_in" not in counted
+    # a person says "stop" over the question, as loud as the robot's echo
+    heard = hear(stream, own, scene(question, stop, 0.5, 0.0, ir), question, T + 40, PIPELINE_QUESTIONS[0], 2)
+    assert [t.text for t in heard] == ["stop"] and counted.count("barge_in") == 1
+    assert T + 40 + 0.5 + 0.3 < heard[0].end < T + 40 + 0.5 + 0.5 + 1.3  # stamped when it was said (LEAD 0.5)
+
+
+def test_an_answer_after_the_question_is_heard_as_usual(spoken_questions, whisper, tmp_path):
+    from testkit.room import LEAD, hear, scene
+    from testkit.synth import PIPER_VOICE, synthesize
+
+    answer = read_clip(synthesize("the red one", tmp_path / "a.wav", voice=PIPER_VOICE, lead_silence=0))
+    stream, own, _ = robot_ears(whisper)
+    question = spoken_questions[0]
+    seconds = len(question) / RATE
+    mic = scene(question, None, 0, 0, room_response())
+    mic = np.concatenate([mic, np.zeros(3 * RATE)])
+    at = int((LEAD + seconds + 0.8) * RATE)  # 0.8 s after the robot finished (0.5 s past the masked tail)
+    mic[at : at + len(answer)] += 0.5 * answer
+    heard = hear(stream, own, mic, question, T, PIPELINE_QUESTIONS[0], 0)
+    assert [t.text for t in heard] == ["the red one"]
+
+
+def read_clip(path) -> np.ndarray:  # noqa: ANN001
+    from testkit.synth import read_wav_int16
+
+    return read_wav_int16(path).astype(np.float64) / 32768.0
