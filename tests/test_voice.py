@@ -201,3 +201,19 @@ def read_clip(path) -> np.ndarray:  # noqa: ANN001
     from testkit.synth import read_wav_int16
 
     return read_wav_int16(path).astype(np.float64) / 32768.0
+
+
+def test_a_sound_device_that_cannot_be_used_stops_the_voice_with_a_clear_error():
+    import subprocess
+    import sys
+
+    try:
+        import sounddevice  # noqa: F401
+
+        pytest.skip("PortAudio is installed here: the device may well work")
+    except (ImportError, OSError):
+        pass  # no sounddevice, or it without PortAudio: what this test is about
+    res = subprocess.run(
+        [sys.executable, "-m", "services.voice", "--device", "default"], capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 2 and "libportaudio2" in res.stderr and "--wav-dir" in res.stderr, res.stderr

@@ -105,14 +105,14 @@ class VoiceApp(App):
 
     def open(self, service: Service) -> None:
         self.service = service
+        if self.args.device is not None:  # before the voice loads: a missing device fails at once
+            self.device = Device(self.args.device)
         started = time.monotonic()
         try:
             self.voice = PiperVoice(self.args.length_scale)
             self.voice.speak("Ready.")  # the first synthesis allocates; not on a person's time
         except VoiceError as exc:
             raise StartupError(str(exc)) from None
-        if self.args.device is not None:
-            self.device = Device(self.args.device)
         if self.args.wav_dir:
             Path(self.args.wav_dir).mkdir(parents=True, exist_ok=True)
         service.log.info("voice %s ready in %.1f s", self.voice.name, time.monotonic() - started)
