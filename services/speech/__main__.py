@@ -43,6 +43,7 @@ examples:
 
 CHUNK_SECONDS = 0.02  # WAV and mic audio enter the pipeline in 20 ms chunks, like a live source
 IDLE_FLUSH_SECONDS = 1.0  # a zenoh mic silent this long has ended its utterance
+MAX_SPOKEN_SECONDS = 60.0  # the longest utterance of the robot's that masks the microphones
 
 
 def build_parser():
@@ -296,6 +297,10 @@ class SpeechApp(App):
     def on_spoken(self, delivery: Delivery) -> None:
         spoken = delivery.sample
         assert isinstance(spoken, Spoken) and self.own_voice is not None
+        if spoken.end - spoken.start > MAX_SPOKEN_SECONDS:  # would deafen the robot for that long
+            detail = f"a Spoken span of {spoken.end - spoken.start:.0f} s (at most {MAX_SPOKEN_SECONDS:g} s is masked)"
+            self.service.counters.reject("bad_value", detail, delivery.key)
+            return
         self.own_voice.announce(spoken.id, spoken.text, spoken.start, spoken.end)
 
     def on_voice_audio(self, delivery: Delivery) -> None:
