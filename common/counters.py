@@ -32,6 +32,10 @@ SpeechCounter = Literal[
     "low_confidence",
     "mic_overflow",
     "empty_line",
+    # the robot's own voice (issue #43, docs/voice.md): spans masked, what was heard in them and dropped, stops kept
+    "own_voice_spans",
+    "own_voice_dropped",
+    "barge_in",
 ]
 # what a recogniser may give as the reason an utterance has no text (Recognition.dropped)
 NoTextReason = Literal["no_speech", "no_words"]
@@ -98,4 +102,7 @@ CLARIFICATION_COUNTER: dict[ClarificationReason, FusionCounter] = {
     "low_confidence": "clarification_low_confidence",
 }
 
-CounterName = RunnerCounter | SpeechCounter | GestureCounter | FusionCounter | Ros2Counter
+# voice (services/voice): utterances synthesised, played to the end, cut short by a stop
+VoiceCounter = Literal["synthesised", "spoken", "interrupted"]
+
+CounterName = RunnerCounter | SpeechCounter | GestureCounter | FusionCounter | Ros2Counter | VoiceCounter

@@ -902,6 +902,32 @@ class Clarification(Sample, kw_only=True):
     )
 
 
+SpokenKind = Literal["question", "refusal", "confirmation", "text"]
+
+
+class Spoken(Sample, kw_only=True):
+    """v1 extension (issue #43): what the robot's voice says and when, published as its audio starts playing
+    (`stamp` = `start`). The speech service masks its microphones over [`start`, `end`] plus an echo tail, so the
+    robot never hears itself (docs/voice.md)."""
+
+    id: Annotated[NonEmpty, described("this utterance of the robot's (deterministic from what it answers)")]
+    text: Annotated[NonEmpty, described("the words spoken")]
+    kind: Annotated[
+        SpokenKind,
+        described("`question` (a clarification), `refusal`, `confirmation` (of a command) or `text` (asked to say)"),
+    ]
+    answers: Annotated[
+        Optional[str], described("the id of the Clarification or FusedCommand it speaks, nil for free text")
+    ] = None
+    start: Annotated[Finite, described("source time of its first audio sample")]
+    end: Annotated[Finite, described("source time just after its last audio sample")]
+    speaker: Annotated[NonEmpty, described("the voice's output id: its audio is on `voice/{speaker}/pcm`")]
+    voice: Annotated[NonEmpty, described('the synthesiser and voice ("piper:joe")')]
+
+    def _check_sample(self) -> None:
+        _check_span(self.start, self.end)
+
+
 class Stats(Sample, kw_only=True):
     """Reply of a service's stats queryable."""
 
@@ -999,6 +1025,7 @@ ALL_SAMPLES: tuple[type[Sample], ...] = (
     Transcript,
     FusedCommand,
     Clarification,
+    Spoken,
     Stats,
     RobotProfile,
     RobotState,

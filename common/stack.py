@@ -34,6 +34,7 @@ from common.schema import (
     RobotState,
     Sample,
     SpeechDecoding,
+    Spoken,
     Stats,
     Transcript,
 )
@@ -73,6 +74,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("decoding", "speech/{mic}/decoding", SpeechDecoding, "speech is decoding an utterance: video eases"),
     Topic("command", "fusion/command", FusedCommand, "grounded commands"),
     Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
+    Topic("spoken", "voice/{speaker}/spoken", Spoken, "what the robot's voice says and when"),
+    Topic("voice_audio", "voice/{speaker}/pcm", AudioChunk, "the robot's voice as audio, for a speaker and echo"),
     Topic("stats", "stats/{service}/{instance}", Stats, "every node's counters (answered on query)"),
     Topic("robot_profile", "robot/profile", RobotProfile, "what the robot can do (also answered on query)"),
     Topic("robot_state", "robot/state", RobotState, "what the robot is doing, from the robot"),
@@ -208,7 +211,12 @@ NODES: tuple[Node, ...] = (
     Node(
         "speech",
         "voice activity -> Whisper -> transcripts with times and confidence",
-        inputs=(Input("audio", "fifo", maxlen=2000, monotonic=True),),
+        inputs=(
+            Input("audio", "fifo", maxlen=2000, monotonic=True),
+            # the robot's own voice: when it speaks (masked) and what it played (the echo to cancel; docs/voice.md)
+            Input("spoken", "fifo", maxlen=100),
+            Input("voice_audio", "fifo", maxlen=2000, monotonic=True),
+        ),
         outputs=("transcript", "decoding"),
         nice=SPEECH_NICE,
         container=Container(
@@ -243,6 +251,7 @@ NODES: tuple[Node, ...] = (
             Input("objects", "latest"),
             Input("command", "fifo", maxlen=100),
             Input("clarification", "fifo", maxlen=100),
+            Input("spoken", "fifo", maxlen=100),  # what the robot's voice says, as text (~/robot_speech)
             Input("frame", "latest"),  # for the camera's intrinsics (sensor_msgs/CameraInfo), on change
             Input("robot_profile", "latest"),  # the robot's profile from fusion, latched on ROS (docs/robot.md)
         ),
@@ -255,6 +264,17 @@ NODES: tuple[Node, ...] = (
         opt_in=True,
         # typed commands from a ROS std_msgs/String topic, as `hri say` sends them (not a speech modality)
         fixed_keys=("speech/ros/transcript",),
+    ),
+    Node(
+        "voice",
+        "speaks fusion's questions and refusals (piper, offline) to a WAV, a sound device or the wire",
+        inputs=(Input("clarification", "fifo", maxlen=100), Input("command", "fifo", maxlen=100)),
+        outputs=("spoken", "voice_audio"),
+        container=Container(
+            note="The robot's voice: `docker compose --profile voice up -d`; its audio goes out as AudioChunks on\n"
+            'hri/voice/robot/pcm (a container has no sound card); HRI_VOICE_ARGS="--confirm" also confirms commands.',
+        ),
+        opt_in=True,
     ),
 )
 CLIENTS: tuple[Client, ...] = (

@@ -6,7 +6,9 @@ It starts the router and every service of the stack (common/stack.py) but the ca
 AudioChunks over Zenoh, as a remote microphone would — with `hri up`'s launcher, then plays a script: for
 each step a camera service shows a real photo, the step's sentence — spoken by a neural voice (piper) into a
 WAV — streams in real time to the speech service, and the fused command or clarification question that comes
-back is printed. It ends with a summary and exits 1 if any step did not give what it should.
+back is printed. When the robot asks a question, the voice service (services/voice) says it aloud with the same
+neural voice: written to var/demo/voice/ and played on the machine's sound device when it has one; the person
+answers after the robot has finished. It ends with a summary and exits 1 if any step did not give what it should.
 """
 
 from __future__ import annotations
@@ -28,13 +30,14 @@ import zenoh
 from common import stack
 from common.codec import decode
 from common.runner import SamplePublisher
-from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands
+from common.schema import AudioChunk, Clarification, Detections, FusedCommand, Hands, Spoken
 from common.stack import module_of
 from hri.launcher import Child, Launcher, ServiceSpec
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "data" / "demo"
 AUDIO_CACHE = ROOT / "var" / "demo" / "audio"
+VOICE_OUT = ROOT / "var" / "demo" / "voice"  # what the robot said, one WAV per utterance
 MIC = "demo"
 CAM = "table"
 CHUNK_S = 0.02
@@ -128,13 +131,32 @@ def camera_spec(scene: str) -> ServiceSpec:
     )
 
 
-def demo_services() -> list[ServiceSpec]:
-    """Every node of the stack but the camera and the opt-in ones (ros2), in the stack's order."""
-    return [
+def voice_flags() -> list[str]:
+    """The robot's voice writes what it says under var/demo/voice, and plays it when a sound device is there."""
+    flags = ["--wav-dir", str(VOICE_OUT)]
+    for old in VOICE_OUT.glob("*.wav"):  # a run's files only
+        old.unlink()
+    try:
+        import sounddevice
+
+        sounddevice.check_output_settings(samplerate=16000, channels=1, dtype="int16")
+        flags += ["--device", "default"]
+    except Exception:  # no PortAudio or no output device: the WAVs only
+        pass
+    return flags
+
+
+def demo_services(with_voice: bool = False) -> list[ServiceSpec]:
+    """Every node of the stack but the camera and the opt-in ones (ros2), in the stack's order; the voice when
+    piper is installed."""
+    services = [
         ServiceSpec(n.name, [module_of(n.name), *DEMO_FLAGS.get(n.name, [])])
         for n in stack.NODES
         if n.name != CAMERA and not n.opt_in
     ]
+    if with_voice:
+        services.append(ServiceSpec("voice", [module_of("voice"), *voice_flags()]))
+    return services
 
 
 def play_wav(publisher: SamplePublisher, path: Path, source: str) -> None:
@@ -225,9 +247,13 @@ class Watch:
         self.results: queue.Queue[tuple[str, Result]] = queue.Queue()
         self.latest_detections: dict[str, Detections] = {}
         self.hands_seen = threading.Event()
+        self.spoken: queue.Queue[Spoken] = queue.Queue()
 
     def subscribe(self, session: zenoh.Session) -> list[zenoh.Subscriber]:
         return [
+            session.declare_subscriber(
+                "hri/voice/*/spoken", lambda s: self.spoken.put(decode(s.payload.to_bytes(), Spoken))
+            ),
             session.declare_subscriber("hri/fusion/**", self._on_result),
             session.declare_subscriber(f"hri/vision/{CAM}/objects", self._on_detections),
             session.declare_subscriber(f"hri/gesture/{CAM}/hands", self._on_hands),
@@ -274,6 +300,7 @@ class Player:
     timeout: float
     camera: Child | None = None
     shown: str | None = None
+    voice: bool = False  # the voice service runs: a question is heard before it is answered
 
     def show(self, step: Step) -> None:
         """The step's scene in front of the camera (a new camera service when the scene changes)."""
@@ -302,6 +329,8 @@ class Player:
         sample = self.watch.next_result(self.timeout)
         if sample is not None:
             print(describe(sample))
+        if isinstance(sample, Clarification) and self.voice:
+            self.hear_the_robot()
         detections = next(iter(self.watch.latest_detections.values()), None)
         problem = check(step, sample, detections)
         if problem:
@@ -309,10 +338,23 @@ class Player:
         print(flush=True)
         return problem is None
 
+    def hear_the_robot(self) -> None:
+        """The robot says its question aloud; the person answers once it has finished."""
+        try:
+            said = self.watch.spoken.get(timeout=self.timeout)
+        except queue.Empty:
+            print("  (the voice said nothing)")
+            return
+        wavs = sorted(VOICE_OUT.glob("*.wav"))
+        print(
+            f'  🔊 the robot says "{said.text}" ({said.end - said.start:.1f} s{", " + str(wavs[-1]) if wavs else ""})'
+        )
+        time.sleep(max(0.0, said.end - time.time()) + 0.5)
 
-def run_script(launcher: Launcher, endpoint: str, audio: dict[str, Path], timeout: float) -> int:
+
+def run_script(launcher: Launcher, endpoint: str, audio: dict[str, Path], timeout: float, voice: bool) -> int:
     """Starts the stack (its router on `endpoint`), plays every step; the number of steps that failed."""
-    services = demo_services()
+    services = demo_services(with_voice=voice)
     print(f"starting router ({endpoint}), {', '.join(s.name for s in services)} ...", flush=True)
     launcher.start(services, live_timeout=120)
     session = launcher.session
@@ -321,7 +363,7 @@ def run_script(launcher: Launcher, endpoint: str, audio: dict[str, Path], timeou
     watch = Watch()
     subs = watch.subscribe(session)
     mic = SamplePublisher(session, f"hri/audio/{MIC}/pcm", lossless=True)
-    player = Player(launcher, watch, mic, audio, timeout)
+    player = Player(launcher, watch, mic, audio, timeout, voice=voice)
     failures = sum(not player.play(n, step) for n, step in enumerate(SCRIPT, 1))
     mic.undeclare()
     for sub in subs:
@@ -348,7 +390,7 @@ def main() -> int:
     endpoint = free_endpoint()
     launcher = Launcher(endpoint, "hri", start_router=True, out=out)
     try:
-        failures = run_script(launcher, endpoint, audio, args.timeout)
+        failures = run_script(launcher, endpoint, audio, args.timeout, voice.startswith("piper"))
     except (RuntimeError, KeyboardInterrupt) as exc:
         print(f"demo stopped: {exc}")
         failures = 1

@@ -32,6 +32,7 @@ from common.schema import (
     RobotState,
     Speaker,
     SpeechDecoding,
+    Spoken,
     Stats,
     Target,
     Transcript,
@@ -239,6 +240,18 @@ def examples():
                     engagement="engaged",
                 )
             ],
+        ),
+        Spoken(
+            stamp=T,
+            source="voice/a",
+            id="question-q1",
+            text="Which cup: the red one on the left or the blue one on the right?",
+            kind="question",
+            answers="q1",
+            start=T,
+            end=T + 3.2,
+            speaker="robot",
+            voice="piper:joe",
         ),
         RobotProfile(
             stamp=T,

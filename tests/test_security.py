@@ -20,7 +20,7 @@ def test_init_writes_private_files_and_keeps_existing_passwords(tmp_path):
     sec = init_secrets(tmp_path / "s")
     assert stat.S_IMODE(os.stat(sec.passwords_file).st_mode) == 0o600
     first = read_passwords(sec.passwords_file)
-    assert set(first) == {"camera", "vision", "gesture", "speech", "fusion", "ros2", "mic", "cli"}
+    assert set(first) == {"camera", "vision", "gesture", "speech", "fusion", "ros2", "voice", "mic", "cli"}
     assert len(set(first.values())) == len(first) and all(len(p) >= 24 for p in first.values())
     sec = init_secrets(tmp_path / "s", {"operator": ["reader", "keyboard"]})
     again = read_passwords(sec.passwords_file)

@@ -155,7 +155,8 @@ def test_the_demo_starts_the_stack_with_flags_every_service_accepts(monkeypatch)
     with pytest.raises(Started):
         demo.main()
     cameras = [demo.camera_spec(scene) for scene in dict.fromkeys(step.scene for step in demo.SCRIPT)]
-    assert {s.name for s in started} | {"camera"} == {n.name for n in stack.NODES if not n.opt_in}
+    # every node but the opt-in ones, and the robot's voice (the demo's questions are said aloud)
+    assert {s.name for s in started} | {"camera"} == {n.name for n in stack.NODES if not n.opt_in} | {"voice"}
     check_specs(started, "demo")
     for spec in cameras:
         check_specs([spec], "demo camera")
@@ -195,7 +196,7 @@ def up_args(*flags: str) -> argparse.Namespace:
 def test_a_node_declared_once_is_in_compose_hri_up_and_the_demo(stack_with_echo, monkeypatch):
     text = compose_text()
     services = yaml.safe_load(text)["services"]
-    assert list(services) == ["router", "camera", "vision", "gesture", "speech", "fusion", "ros2", "echo"]
+    assert list(services) == ["router", "camera", "vision", "gesture", "speech", "fusion", "ros2", "voice", "echo"]
     echo = services["echo"]
     assert compose_argv(echo["command"]) == ["python", "-m", "services.echo", "--times", "2"]
     assert echo["command"].endswith("${HRI_ECHO_ARGS:---times 2}")  # replaceable like the others'

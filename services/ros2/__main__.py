@@ -249,6 +249,7 @@ class Ros2App(App):
         service.subscribe_input("objects", self.publishing(lambda s: core.detections_messages(s, config)))
         service.subscribe_input("command", self.on_command)
         service.subscribe_input("clarification", self.publishing(lambda s: core.clarification_messages(s, config)))
+        service.subscribe_input("spoken", self.publishing(lambda s: core.spoken_messages(s, config)))
         service.subscribe_input("frame", self.publishing(lambda s: core.camera_info_messages(s, config, latch)))
         profile = self.publishing(lambda s: core.profile_messages(s, config, latch))
         service.subscribe_input("robot_profile", profile)  # the robot's profile, from fusion (docs/robot.md)

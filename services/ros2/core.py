@@ -34,6 +34,7 @@ from common.schema import (
     RobotProfile,
     RobotState,
     Speaker,
+    Spoken,
     Target,
     Transcript,
     make_transcript,
@@ -478,6 +479,14 @@ def clarification_messages(question: Clarification, config: Ros2Config) -> list[
     )
     out = [Outgoing(config.own("clarification"), CLARIFICATION, message)]
     return out + voice_speech(question.stamp, question.text, question.speaker, config)
+
+
+def spoken_messages(spoken: Spoken, config: Ros2Config) -> list[Outgoing]:
+    """What the robot's voice says (services/voice), as std_msgs/String on ~/robot_speech, once per utterance: the
+    same Spoken again (stamped after its start: cut short by a stop) is not said again."""
+    if spoken.stamp > spoken.start:
+        return []
+    return [Outgoing(config.own("robot_speech"), STRING, string(spoken.text))]
 
 
 # -- incoming: a ROS camera and text ----------------------------------------------------------------------------

@@ -15,10 +15,11 @@ import numpy as np
 
 from common.counters import SpeechCounter
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import AudioChunk, SpeechDecoding, make_transcript
+from common.schema import AudioChunk, SpeechDecoding, Spoken, make_transcript
 from common.settings import add_option
 from common.transport import live_tokens
-from services.speech.audio import RATE, AudioError, WavAudio, pcm_to_mono, read_wav, wav_files
+from services.speech.audio import RATE, AudioError, Resampler, WavAudio, pcm_to_mono, read_wav, wav_files
+from services.speech.echo import BARGE_IN_PRIOR, ECHO_TAIL, OwnVoice
 from services.speech.grammar import normalise
 from services.speech.pipeline import Heard, MicStream, Recogniser, worker_for
 from services.speech.recognizers import BackendError, PocketsphinxRecognizer
@@ -42,6 +43,7 @@ examples:
 
 CHUNK_SECONDS = 0.02  # WAV and mic audio enter the pipeline in 20 ms chunks, like a live source
 IDLE_FLUSH_SECONDS = 1.0  # a zenoh mic silent this long has ended its utterance
+MAX_SPOKEN_SECONDS = 60.0  # the longest utterance of the robot's that masks the microphones
 
 
 def build_parser():
@@ -210,6 +212,30 @@ def build_parser():
     )
     add_option(
         parser,
+        "--own-voice",
+        True,
+        "mask the robot's own voice (the voice service's Spoken spans) from recognition; under it only a stop is "
+        "heard, from the microphone with the robot's echo cancelled (docs/voice.md)",
+    )
+    add_option(
+        parser,
+        "--echo-tail",
+        ECHO_TAIL,
+        "seconds after the robot's voice ends that stay masked (the room's echo, the output's latency)",
+        at_least=0,
+        metavar="S",
+    )
+    add_option(
+        parser,
+        "--barge-in-prior",
+        BARGE_IN_PRIOR,
+        "under the robot's voice, one word heard becomes a stop word when its probability times F is at least "
+        "the heard word's (docs/voice.md)",
+        at_least=0,
+        metavar="F",
+    )
+    add_option(
+        parser,
         "--min-silence",
         VadConfig.min_silence,
         "seconds of silence that end an utterance",
@@ -230,6 +256,8 @@ EXPLAINED_COUNTERS: tuple[SpeechCounter, ...] = (
     "no_speech",
     "no_words",
     "repeats_removed",
+    "own_voice_dropped",
+    "barge_in",
 )
 
 Publish = Callable[[list[Heard]], None]
@@ -247,6 +275,8 @@ class SpeechApp(App):
         self.streams: dict[str, MicStream] = {}  # --input zenoh: one per microphone
         self.last_seen: dict[str, float] = {}
         self.notices = 0  # SpeechDecoding samples published (the recogniser's thread only)
+        # the robot's own voice: what it said when, and the audio it played (docs/voice.md)
+        self.own_voice = OwnVoice(tail=args.echo_tail, prior=args.barge_in_prior) if args.own_voice else None
 
     def open(self, service: Service) -> None:
         self.service = service
@@ -268,8 +298,32 @@ class SpeechApp(App):
             self.tick, self.tick_interval = self.flush_idle, 0.1
 
     def wire(self, service: Service) -> None:
+        if self.args.backend != "text" and self.own_voice is not None:
+            service.subscribe_input("spoken", self.on_spoken)
+            service.subscribe_input("voice_audio", self.on_voice_audio)
         if self.args.backend != "text" and self.args.input == "zenoh":
             service.subscribe_input("audio", self.on_chunk)
+
+    def on_spoken(self, delivery: Delivery) -> None:
+        spoken = delivery.sample
+        assert isinstance(spoken, Spoken) and self.own_voice is not None
+        if spoken.end - spoken.start > MAX_SPOKEN_SECONDS:  # would deafen the robot for that long
+            detail = f"a Spoken span of {spoken.end - spoken.start:.0f} s (at most {MAX_SPOKEN_SECONDS:g} s is masked)"
+            self.service.counters.reject("bad_value", detail, delivery.key)
+            return
+        self.own_voice.announce(spoken.id, spoken.text, spoken.start, spoken.end)
+
+    def on_voice_audio(self, delivery: Delivery) -> None:
+        chunk = delivery.sample
+        assert isinstance(chunk, AudioChunk) and self.own_voice is not None
+        try:
+            samples = pcm_to_mono(chunk.data, chunk.channels)
+        except AudioError as exc:
+            self.service.counters.reject(exc.reason, str(exc), delivery.key)
+            return
+        if chunk.rate != RATE:
+            samples = Resampler(chunk.rate, RATE).process(samples, final=True)
+        self.own_voice.add_reference(chunk.stamp, samples)
 
     def count(self, name: SpeechCounter, detail: str) -> None:
         if name in EXPLAINED_COUNTERS and detail:
@@ -284,6 +338,7 @@ class SpeechApp(App):
             lambda: make_segmenter(self.vad),
             self.count,
             partial_every=self.args.partials,
+            own_voice=self.own_voice,
         )
 
     def publish(self, heard: list[Heard]) -> None:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
 import numpy as np
@@ -28,6 +28,7 @@ import numpy as np
 from common.counters import SpeechCounter
 from common.schema import Transcript, Word
 from services.speech.audio import RATE, AudioError, Resampler, check_rate
+from services.speech.echo import EchoCanceller, OwnVoice, barge_in
 from services.speech.loudness import loudness_of
 from services.speech.recognizers import Recognition
 from services.speech.vad import Segmenter, VoicedSegment
@@ -88,6 +89,20 @@ def worker_for(recogniser: Recogniser) -> RecognitionWorker:
 
 Count = Callable[[SpeechCounter, str], None]  # (counter name, detail for the log)
 
+CHECK_SECONDS = 0.5  # under the robot's voice, the masked audio is checked for a stop every this many seconds
+
+
+@dataclass
+class MaskedSpan:
+    """Microphone audio under the robot's voice: from stream index `first` until source time `until`."""
+
+    first: int
+    until: float
+    parts: list[np.ndarray] = field(default_factory=list)
+    samples: int = 0
+    checked: int = 0  # samples of the span at its last check
+    decided_until: int = 0  # span index up to which its cuts have been decided
+
 
 @dataclass
 class Heard:
@@ -106,8 +121,14 @@ class MicStream:
         count: Count,
         resync_after: float = 0.25,
         partial_every: float | None = None,
+        own_voice: OwnVoice | None = None,
     ):
         self.mic, self.source = mic, source
+        # the robot's own voice: masked from the VAD; the masked audio, echo cancelled, is checked for a stop
+        self.own_voice = own_voice
+        self._make_segmenter = make_segmenter
+        self._canceller = EchoCanceller()
+        self._masking: MaskedSpan | None = None  # the span of the robot's voice being heard
         self.recogniser = recogniser
         self.worker = worker_for(recogniser)
         self.segmenter = make_segmenter()
@@ -167,6 +188,8 @@ class MicStream:
         heard: list[Heard] = []
         if self._resampler is not None:
             heard += self._segment(self._resampler.process(np.zeros(0, dtype=np.float32), final=True))
+        if self._masking is not None:
+            heard += self._end_mask()
         for utt in self.segmenter.flush():
             h = self._recognise(utt)
             if h is not None:
@@ -184,7 +207,9 @@ class MicStream:
         self._t0, self._in_samples, self._out_samples = stamp, 0, 0
 
     def _segment(self, samples16k: np.ndarray) -> list[Heard]:
-        heard = []
+        heard: list[Heard] = []
+        if self.own_voice is not None:
+            samples16k, heard = self._mask(samples16k)
         self._out_samples += len(samples16k)
         before = self.segmenter.too_short
         for utt in self.segmenter.feed(samples16k):
@@ -195,6 +220,73 @@ class MicStream:
             self.count("too_short", f"{self.mic}: a burst shorter than the minimum utterance was ignored")
         if self.partial_every:
             heard += self._partials()
+        return heard
+
+    def _mask(self, samples: np.ndarray) -> tuple[np.ndarray, list[Heard]]:
+        """The chunk with the robot's own voice (its announced spans plus the echo tail) silenced for the VAD; the
+        silenced audio is kept and checked for a person's stop as it comes (`_check_span`)."""
+        assert self.own_voice is not None
+        heard: list[Heard] = []
+        out = samples.copy()
+        pos, n, base = 0, len(samples), self._out_samples
+        while pos < n:
+            t = self.stamp_of(base + pos)
+            until = self.own_voice.masked_until(t)
+            if self._masking is None and until is None:
+                nxt = self.own_voice.next_start(t)
+                pos = n if nxt is None else max(pos + 1, min(n, int(np.ceil((nxt - self._t0) * RATE)) - base))
+                continue
+            if self._masking is None:
+                assert until is not None
+                self._masking = MaskedSpan(base + pos, until)
+            span = self._masking
+            span.until = max(span.until, until or span.until)  # an utterance that follows within the tail
+            end = min(n, max(pos + 1, int(np.ceil((span.until - self._t0) * RATE)) - base))
+            span.parts.append(samples[pos:end].copy())
+            span.samples += end - pos
+            out[pos:end] = 0.0
+            pos = end
+            if self.stamp_of(base + pos) >= span.until:
+                heard += self._end_mask()
+            elif span.samples - span.checked >= CHECK_SECONDS * RATE and self._canceller.path is not None:
+                # (before the echo path is first learnt, what is left is the robot's whole voice: checked at the end)
+                heard += self._check_span(span, final=False)
+        return out, heard
+
+    def _end_mask(self) -> list[Heard]:
+        assert self._masking is not None
+        span, self._masking = self._masking, None
+        self.count("own_voice_spans", "")
+        return self._check_span(span, final=True)
+
+    def _check_span(self, span: MaskedSpan, final: bool) -> list[Heard]:
+        """The robot's echo taken out of the masked audio so far (with the echo path known from before; refitted
+        when the span ends), cut by the VAD; each new cut is decoded and published only if it is a stop."""
+        assert self.own_voice is not None
+        mic = np.concatenate(span.parts)
+        span.parts, span.checked = [mic], len(mic)
+        start = self.stamp_of(span.first)
+        reference = self.own_voice.reference(start, len(mic))
+        residual = self._canceller.cancel(mic, reference) if final else self._canceller.apply(mic, reference)
+        own_texts = self.own_voice.texts(start, start + len(mic) / RATE)
+        segmenter = self._make_segmenter()
+        heard: list[Heard] = []
+        for utt in segmenter.feed(residual) + (segmenter.flush() if final else []):
+            if utt.speech_start < span.decided_until:
+                continue  # decided at an earlier check
+            span.decided_until = utt.speech_end
+            result = self.worker.submit(utt.audio).result()
+            stop = barge_in(result, utt.audio, self.recogniser, own_texts, self.own_voice.prior)
+            at = f"{self.stamp_of(span.first + utt.speech_start):.2f}"
+            if stop is None:
+                said = result.text if result is not None else ""
+                self.count("own_voice_dropped", f"{self.mic}: over the robot's voice at {at}: {said!r} (not a stop)")
+                continue
+            self.count("barge_in", f"{self.mic}: a stop over the robot's voice at {at} ({stop.detail})")
+            shifted = VoicedSegment(
+                utt.audio, span.first + utt.audio_start, span.first + utt.speech_start, span.first + utt.speech_end
+            )
+            heard.append(self._heard(shifted, stop, final=True))
         return heard
 
     def _partials(self) -> list[Heard]:
