@@ -2,8 +2,10 @@
 
 `engaged` is the ONE place fusion's gesture rules ask whether a person faces the robot: REP-155 engagement on
 `Persons` (`Person.engaged`) when the gesture service fills it, else the person's face turned to the camera
-(`Face.looking_at_camera`, most of the face's frames in the last `LOOK_BACK_S`), else the body's orientation
-(services/fusion/space.py `Facing`); None when nothing tells. `speaking`: `Person.speaking` when filled, else the
+(`Face.looking_at_camera`, most of the face's frames in the last `LOOK_BACK_S`); None when nothing tells. Not the
+body's orientation (services/fusion/space.py `Facing`): around a hand close to the camera MediaPipe guesses a
+skeleton turned away (intent/cat1_palm_closeup_phone: a stop held to a phone was taken for one turned away).
+`speaking`: `Person.speaking` when filled, else the
 person's mouth moving (the mean change of `mouth_open` per second over the last `LOOK_BACK_S`, the speaker
 attribution's `speaker_still` threshold, services/fusion/speaker.py).
 
@@ -45,18 +47,14 @@ def face_track(faces: Sequence[Faces], person: str | None, stamp: float) -> Trac
     return only if only is not None and (person is None or not only.people) else None
 
 
-def engaged(
-    persons: Sequence[Persons], faces: Sequence[Faces], facing: bool | None, person: str | None, stamp: float
-) -> bool | None:
-    """Does `person` face the robot at `stamp`? (`facing`: the body's orientation then, None when not seen.)"""
+def engaged(persons: Sequence[Persons], faces: Sequence[Faces], person: str | None, stamp: float) -> bool | None:
+    """Does `person` face the robot at `stamp`? None when nothing tells."""
     said = _persons_field(persons, person, stamp, "engaged")
     if isinstance(said, bool):
         return said
     track = face_track(faces, person, stamp)
     looks = [v for v in track.looking if v is not None] if track is not None else []
-    if looks:
-        return sum(looks) * 2 >= len(looks)
-    return facing
+    return sum(looks) * 2 >= len(looks) if looks else None
 
 
 def speaking(

@@ -30,7 +30,9 @@ MEMORY = 64  # stops / waves / episodes remembered
 # A stop shown to the robot is held still for a moment; a co-speech beat or a sweep is not (0.3 s: the quickest
 # deliberate stop on the intent clips held 0.5 s, docs/gesture.md "Deliberate gestures").
 STOP_STILL_S = 0.3
-SPEAKING_STILL_S = 1.0  # while the person making it is speaking (a talker's palm held 0.8 s on the intent clips)
+# while the person making it is speaking: a talker's open palm, fingers up, was held still 0.8-1.07 s (by the frames
+# processed) on the intent clips; one who speaks can say "stop", which stops at once
+SPEAKING_STILL_S = 1.5
 # A wave is recognised from 2 side-to-side reversals within 1.5 s (services/gesture/temporal.py), which hands that
 # gesture while talking also make; a wave that goes on for a second more is meant. Seconds from the wave's first
 # turn (the event's `start`) to its latest frame (`end`).
