@@ -59,6 +59,7 @@ def _testkit(code: Path) -> ModuleType:
     spec = importlib.util.spec_from_file_location("intent_kit", ROOT / "testkit" / "intent.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # (its dataclasses look their module up)
     spec.loader.exec_module(module)
     return module
 

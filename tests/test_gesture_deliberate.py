@@ -128,6 +128,6 @@ def test_the_tracker_puts_the_hold_on_its_open_palm_events() -> None:
         events += tracker.update(t, [Observation("right", 0.9, p)])[1]
     events += tracker.update(1.1, [])[1] + tracker.update(1.2, [])[1] + tracker.update(1.3, [])[1]
     palms = [e for e in events if e.gesture == "open_palm"]
-    holds = [e.still for e in palms if e.phase == "hold"]
-    assert holds and holds == sorted(holds) and holds[-1] > 0.8  # type: ignore[type-var]
+    holds = [e.still if e.still is not None else -1.0 for e in palms if e.phase == "hold"]
+    assert holds and holds == sorted(holds) and holds[0] >= 0.0 and holds[-1] > 0.8
     assert palms[-1].phase == "end" and palms[-1].still == 0.0
