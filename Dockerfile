@@ -30,6 +30,8 @@ COPY services/ services/
 COPY hri/ hri/
 # the ROS 2 message definitions the ros2 service (compose profile ros2) reads
 COPY ros2/ ros2/
+# the example robot profiles (hri-fusion --profile /app/profiles/NAME.toml, docs/robot.md)
+COPY profiles/ profiles/
 COPY docker/healthcheck.py docker/
 RUN touch README.md && pip install --no-deps --no-build-isolation --no-index -q . \
     && python -c "import hri.cli, services" \

@@ -76,6 +76,14 @@ FusionCounter = Literal[
     "speaker_only_face",
     "speaker_unknown",
     "unaddressed_confirm",
+    # the robot (issue #43, docs/robot.md)
+    "refused_ability",
+    "refused_not_holding",
+    "asked_while_busy",
+    "queued_while_busy",
+    "released_after_busy",
+    "queue_dropped_by_stop",
+    "robot_failure_announced",
 ]
 GestureIntent = Literal["stop", "come_here"]  # the commands a gesture alone gives
 GESTURE_COMMAND_COUNTER: dict[GestureIntent, FusionCounter] = {"stop": "gesture_stop", "come_here": "gesture_come_here"}

@@ -88,6 +88,12 @@ class Keys:
     def clarification(self) -> str:
         return self.key("clarification")
 
+    def robot_state(self) -> str:
+        return self.key("robot_state")
+
+    def robot_profile(self) -> str:
+        return self.key("robot_profile")
+
     def alive(self, service: str = "*", instance: str = "*") -> str:
         return self._k("alive", check_chunk(service, "service"), check_chunk(instance, "instance"))
 

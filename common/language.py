@@ -38,18 +38,19 @@ INTENT_AFFORDANCES: dict[str, Affordance] = {
     "look_at": "anything",  # also "point at"
     "follow": "person",
 }
-# The detector's classes (COCO) no robot arm lifts: people and animals (living beings are never "picked up"), vehicles,
-# furniture, appliances, fixtures, big sports gear. Everything else is graspable by class, then limited by size.
-NOT_GRASPABLE: frozenset[str] = frozenset(
-    {
-        "person",
-        *("bird", "cat", "dog", "horse", "sheep", "cow", "elephant", "bear", "zebra", "giraffe"),
-        *("bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat"),
-        *("traffic light", "fire hydrant", "stop sign", "parking meter", "bench"),
-        *("chair", "couch", "bed", "dining table", "toilet", "tv", "microwave", "oven", "sink", "refrigerator"),
-        *("surfboard", "skis", "snowboard"),
-    }
-)
+# The detector's classes (COCO) no robot arm lifts, by kind (the kind names the reason in a refusal: "I can't pick up a
+# couch: I don't lift furniture."): people and animals (living beings are never "picked up"), vehicles, furniture,
+# appliances, fixtures, big sports gear. Everything else is graspable by class, then limited by size. The default
+# robot profile (common/robot.py, docs/robot.md); a profile file may name its own.
+NEVER_GRASPED: dict[str, tuple[str, ...]] = {
+    "living beings": ("person", "bird", "cat", "dog", "horse", "sheep", "cow", "elephant", "bear", "zebra", "giraffe"),
+    "vehicles": ("bicycle", "car", "motorcycle", "airplane", "bus", "train", "truck", "boat"),
+    "fixtures": ("traffic light", "fire hydrant", "stop sign", "parking meter"),
+    "furniture": ("bench", "chair", "couch", "bed", "dining table", "toilet", "sink"),
+    "appliances": ("tv", "microwave", "oven", "refrigerator"),
+    "big sports gear": ("surfboard", "skis", "snowboard"),
+}
+NOT_GRASPABLE: frozenset[str] = frozenset(label for labels in NEVER_GRASPED.values() for label in labels)
 # The largest visible size (width or height, metres; depth's own spread is a surface's, not the object's) of a
 # graspable object: about what one arm with a parallel gripper handles (a laptop 0.35 m, a backpack 0.5 m); a
 # suitcase or a floor lamp measured over it is not picked up.

@@ -38,6 +38,11 @@ DepthCompression = Literal["none", "png"]
 MotionDirection = Literal["forward", "back", "left", "right", "around"]
 # v1 extension (people, issue #33): how an utterance's speaker was found (REP-155's person <-> voice link).
 SpeakerMethod = Literal["mouth_motion", "only_face", "unknown"]
+# v1 extension (the robot, issue #43): what the robot is doing, and what fusion does with a command meanwhile.
+RobotStatus = Literal["idle", "busy", "done", "failed"]
+WhileBusy = Literal["ask", "queue"]
+# v1 extension (issue #40): REP-155's engagement levels (hri_msgs/EngagementLevel, lower-case).
+EngagementLevel = Literal["unknown", "disengaged", "engaging", "engaged", "disengaging"]
 # The modalities fusion weighs (Weights' fields, the keys of FusedCommand.inputs), each named after the service
 # that feeds it (common/stack.py; tests/test_stack_declaration.py checks they are among fusion's input services).
 # Code names them by these constants, so a misspelt one fails the type check.
@@ -502,6 +507,13 @@ class Person(Struct, kw_only=True):
     engaged: Annotated[
         Optional[bool], described("facing the robot (REP-155 engagement: engaged / disengaged), nil when unknown")
     ] = None
+    engagement: Annotated[
+        Optional[EngagementLevel],
+        described(
+            '**v1 extension**: the REP-155 engagement level over the last seconds (docs/people.md "Engagement"); '
+            "`engaged` is true at `engaged` and `disengaging`"
+        ),
+    ] = None
 
 
 class Word(Struct, kw_only=True):
@@ -767,6 +779,18 @@ class GestureEvent(Sample, kw_only=True):
 WORD_TIME_SLACK = 0.05
 
 
+class Loudness(Struct, kw_only=True):
+    """v1 extension (issue #40): the utterance's sound level over time, for telling which visible mouth spoke."""
+
+    start: Annotated[Finite, described("source time of the start of the first step")]
+    step: Annotated[float, Meta(gt=0.0, le=0.1), described("seconds per value")]
+    db: Annotated[
+        list[Annotated[int, Meta(ge=-120, le=0)]],
+        Meta(max_length=6000),
+        described("RMS level of each step in dB full scale, rounded (-120 = silence)"),
+    ]
+
+
 class Transcript(Sample, kw_only=True):
     mic: Annotated[NonEmpty, described("microphone id")]
     start: Annotated[Finite, described("utterance start, source time (audio clock)")]
@@ -776,6 +800,10 @@ class Transcript(Sample, kw_only=True):
     words: Annotated[list[Word], described("empty when the backend has no word times")]
     final: Annotated[bool, described("false for a partial result while the person is still speaking")]
     backend: Annotated[NonEmpty, described("the recogniser that produced it")]
+    loudness: Annotated[
+        Optional[Loudness],
+        described("**v1 extension**: the utterance's audio level every `step` s; absent or nil when not measured"),
+    ] = None
 
     def _check_sample(self) -> None:
         _check_span(self.start, self.end)
@@ -891,6 +919,75 @@ class Stats(Sample, kw_only=True):
     ] = msgspec.field(default_factory=dict)
 
 
+# ---------------------------------------------------------------------------
+# v1 extension (the robot, issue #43): its profile (published by fusion) and its state (published by the robot)
+# ---------------------------------------------------------------------------
+Kilograms = Annotated[float, Meta(gt=0.0, le=_MAX_FLOAT)]
+
+
+class CameraMount(Struct, kw_only=True):
+    """Where the camera sits on the robot: its optical frame in the robot's base frame."""
+
+    parent: Annotated[NonEmpty, described("the robot's frame the camera is fixed to (`base_link`)")]
+    frame_id: Annotated[NonEmpty, described("the camera's optical frame (Detections' `frame_id`)")]
+    xyz: Annotated[Point3, described("metres: the optical frame's origin in `parent` (REP-103: x forward, z up)")]
+    rpy: Annotated[
+        Point3,
+        described("radians: roll, pitch, yaw of the optical frame in `parent` (a level camera: [-pi/2, 0, -pi/2])"),
+    ]
+
+
+class RobotProfile(Sample, kw_only=True):
+    """v1 extension: what this robot can do (docs/robot.md). Fusion publishes it at start and answers queries."""
+
+    name: Annotated[NonEmpty, described("the profile's name (`default`, `tabletop-arm`, …)")]
+    description: Annotated[str, described("one line for people")] = ""
+    never_grasp: Annotated[
+        dict[str, list[NonEmpty]],
+        described('classes it never grasps, by the kind a refusal names ("furniture": [`chair`, …])'),
+    ]
+    max_weight_kg: Annotated[
+        Optional[Kilograms], described("the most it lifts; nil = no weight limit (classes and size only)")
+    ] = None
+    max_size_m: Annotated[Metres, described("the largest visible size it grasps (measured with depth)")]
+    weights_kg: Annotated[
+        dict[str, Kilograms], described("typical weight of each class (an assumption, docs/robot.md)")
+    ] = msgspec.field(default_factory=dict)
+    carries: Annotated[bool, described("it can hold an object and hand it over (`bring`)")]
+    navigates: Annotated[bool, described("it can move its base (`go_to come_here follow move turn`)")]
+    speaks: Annotated[bool, described("it has a voice (questions and refusals are said aloud)")]
+    while_busy: Annotated[
+        WhileBusy, described("a command while busy: `ask` whether to do it now, or `queue` it until the robot is idle")
+    ]
+    camera: Annotated[Optional[CameraMount], described("where the camera sits; nil = not said")] = None
+
+
+class HeldObject(Struct, kw_only=True):
+    """What the robot holds."""
+
+    label: Annotated[NonEmpty, described("its class (`cup`)")]
+    id: Annotated[Optional[str], described("its object id when it was a command's target (`Target.id`)")] = None
+    color: Annotated[Optional[str], described("its colour name, nil = not known")] = None
+
+
+class RobotState(Sample, kw_only=True):
+    """v1 extension: what the robot is doing, published by the robot (or the ROS 2 bridge) when it changes."""
+
+    status: Annotated[RobotStatus, described("`idle`, `busy` (with `command`), `done` or `failed` (with `reason`)")]
+    command: Annotated[
+        Optional[str], described("the FusedCommand id it works on (busy), finished (done) or gave up (failed)")
+    ] = None
+    intent: Annotated[Optional[str], described("what it is doing, one of FusedCommand's intents; nil = not said")] = (
+        None
+    )
+    holding: Annotated[Optional[HeldObject], described("what is in its gripper now; nil = nothing")] = None
+    reason: Annotated[Optional[str], described('why it failed, in words ("couldn\'t reach it")')] = None
+
+    def _check_sample(self) -> None:
+        if self.status == "failed" and not (self.reason or "").strip():
+            raise InvalidSample("bad_value", "reason: a failed state says why")
+
+
 ALL_SAMPLES: tuple[type[Sample], ...] = (
     Frame,
     DepthFrame,
@@ -905,4 +1002,6 @@ ALL_SAMPLES: tuple[type[Sample], ...] = (
     FusedCommand,
     Clarification,
     Stats,
+    RobotProfile,
+    RobotState,
 )

@@ -30,6 +30,8 @@ from common.schema import (
     GestureEvent,
     Hands,
     Persons,
+    RobotProfile,
+    RobotState,
     Sample,
     Stats,
     Transcript,
@@ -70,6 +72,8 @@ TOPICS: tuple[Topic, ...] = (
     Topic("command", "fusion/command", FusedCommand, "grounded commands"),
     Topic("clarification", "fusion/clarification", Clarification, "questions back to the person"),
     Topic("stats", "stats/{service}/{instance}", Stats, "every node's counters (answered on query)"),
+    Topic("robot_profile", "robot/profile", RobotProfile, "what the robot can do (also answered on query)"),
+    Topic("robot_state", "robot/state", RobotState, "what the robot is doing, from the robot"),
 )
 
 
@@ -80,6 +84,7 @@ class Input:
     maxlen: int = 1000
     monotonic: bool = False  # stamps must not go back (a camera or microphone stream)
     joined: bool = False  # fusion's join waits for the publisher's watermark on this input
+    modality: bool = True  # its publisher is a modality fusion weighs (the robot's own state is not)
 
 
 @dataclass(frozen=True)
@@ -217,8 +222,9 @@ NODES: tuple[Node, ...] = (
             Input("bodies", "fifo", maxlen=50),  # which way the speaker faces
             Input("faces", "fifo", maxlen=600),  # mouths over time: who is speaking (issue #33)
             Input("persons", "fifo", maxlen=300),  # people in view with stable ids
+            Input("robot_state", "fifo", maxlen=50, modality=False),  # the robot's own state (docs/robot.md)
         ),
-        outputs=("command", "clarification"),
+        outputs=("command", "clarification", "robot_profile"),
     ),
     Node(
         "ros2",
@@ -231,8 +237,9 @@ NODES: tuple[Node, ...] = (
             Input("command", "fifo", maxlen=100),
             Input("clarification", "fifo", maxlen=100),
             Input("frame", "latest"),  # for the camera's intrinsics (sensor_msgs/CameraInfo), on change
+            Input("robot_profile", "latest"),  # the robot's profile from fusion, latched on ROS (docs/robot.md)
         ),
-        outputs=("frame", "depth"),  # a ROS 2 camera as the stack's camera
+        outputs=("frame", "depth", "robot_state"),  # a ROS 2 camera as the stack's camera; the robot's state
         reads_images=True,
         container=Container(
             note="ROS 2 (rmw_zenoh) beside the stack: `docker compose --profile ros2 up -d`; ROS nodes with\n"
@@ -246,6 +253,7 @@ NODES: tuple[Node, ...] = (
 CLIENTS: tuple[Client, ...] = (
     Client("mic", "a microphone elsewhere sending AudioChunks", outputs=("audio",), user="mic"),
     Client("keyboard", "hri say (typed commands)", fixed_keys=("speech/kbd/transcript",)),
+    Client("robot", "the robot's own controller, saying what it is doing", outputs=("robot_state",)),
     Client(
         "replay",
         "hri replay: puts recorded samples back",

@@ -21,6 +21,7 @@ import zenoh
 
 from common import stack
 from common.keys import Keys
+from common.robot import ProfileError, load_profile
 from common.stack import module_of
 from common.transport import DEFAULT_ENDPOINT, live_tokens, open_client
 
@@ -113,11 +114,17 @@ def _speech(args: argparse.Namespace) -> ServiceSpec | None:
     return ServiceSpec("speech", ["services.speech", *speech], stdin=stdin)
 
 
+def _fusion(args: argparse.Namespace) -> ServiceSpec | None:
+    profile = getattr(args, "profile", None)  # the robot's profile (docs/robot.md); the ros2 node relays fusion's
+    return ServiceSpec("fusion", ["services.fusion", *(["--profile", profile] if profile else [])])
+
+
 SPECIAL_FLAGS: dict[str, Callable[[argparse.Namespace], ServiceSpec | None]] = {
     "camera": _camera,
     "vision": _vision,
     "gesture": _gesture,
     "speech": _speech,
+    "fusion": _fusion,
 }
 
 
@@ -318,6 +325,13 @@ def add_up_arguments(p: argparse.ArgumentParser) -> None:
         help="speech recogniser: whisper (the default: Whisper tiny.en, offline, from a package) or "
         "pocketsphinx (a grammar decoder for small machines)",
     )
+    p.add_argument(
+        "--profile",
+        default=None,
+        metavar="FILE",
+        help="the robot's profile (TOML, docs/robot.md; e.g. profiles/mobile_manipulator.toml): what it may grasp, "
+        "carry, whether it navigates; given to fusion, which puts it on the wire (robot/profile) for the ros2 node",
+    )
     for node in stack_nodes():  # every node, a new one too: --<name>-arg and --no-<name>
         p.add_argument(
             f"--{node.name}-arg",
@@ -367,6 +381,13 @@ def starts_router(args: argparse.Namespace) -> bool:
 def cmd_up(args: argparse.Namespace) -> int:
     if args.camera == "none":
         args.camera = None
+    profile = getattr(args, "profile", None)
+    if profile:
+        try:  # refused before anything starts (fusion would refuse it too, after the others came up)
+            load_profile(profile)
+        except ProfileError as exc:
+            print(f"hri up: {exc}", file=sys.stderr)
+            return 2
     specs = select(services_from_args(args), getattr(args, "only", None))
     # --connect: use a router that already runs; else start one on --listen (default tcp/127.0.0.1:7447)
     endpoint = (args.connect or args.listen or [DEFAULT_ENDPOINT])[0]

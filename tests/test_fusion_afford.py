@@ -127,7 +127,7 @@ def test_pick_up_a_couch_a_bed_a_table_or_a_person_is_refused_plainly(label: str
     out = only(run(objects, f"pick up {said}"))
     assert isinstance(out, Clarification) and out.reason == "not_found" and out.candidates == [], out
     noun = "dining table" if label == "dining table" else label
-    assert out.question.startswith(f"I can't pick up a {noun}."), out.question
+    assert out.question.startswith(f"I can't pick up a {noun}: I don't lift "), out.question  # with the reason
     assert "?" not in out.question  # an answer, not a question
 
 

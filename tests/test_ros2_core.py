@@ -64,9 +64,10 @@ def test_persons_tracked_links_engagement_and_voices():
         person("p-1", face="f-1", has_body=True, speaking=0.7, engaged=True),
         person("p-2", speaking=0.2, engaged=False),
         person("p-3"),
+        person("p-4", engaged=True, engagement="disengaging"),  # the REP-155 level, when given, is published
     )
     outs = by_topic(core.persons_messages(sample, CONFIG, latch))
-    assert list(outs["/humans/persons/tracked"].message.ids) == ["p_1", "p_2", "p_3"]
+    assert list(outs["/humans/persons/tracked"].message.ids) == ["p_1", "p_2", "p_3", "p_4"]
     assert list(outs["/humans/voices/tracked"].message.ids) == ["p_1", "p_2"]  # speaking measured: a voice
     assert outs["/humans/persons/p_1/face_id"].message.data == "f_1"
     assert outs["/humans/persons/p_1/body_id"].message.data == "p_1"
@@ -74,7 +75,7 @@ def test_persons_tracked_links_engagement_and_voices():
     assert outs["/humans/persons/p_1/voice_id"].message.data == "p_1"
     assert all(o.latched for t, o in outs.items() if t.endswith("_id"))
     levels = {t.split("/")[3]: o.message.level for t, o in outs.items() if t.endswith("engagement_status")}
-    assert levels == {"p_1": 3, "p_2": 1, "p_3": 0}  # ENGAGED, DISENGAGED, UNKNOWN
+    assert levels == {"p_1": 3, "p_2": 1, "p_3": 0, "p_4": 4}  # ENGAGED, DISENGAGED, UNKNOWN, DISENGAGING
     assert outs["/humans/voices/p_1/is_speaking"].message.data is True
     assert outs["/humans/voices/p_2/is_speaking"].message.data is False
     assert "/humans/voices/p_3/is_speaking" not in outs
@@ -357,3 +358,63 @@ def test_per_id_topics_of_people_no_camera_tracks_are_gone():
     tracked.update("persons", "cam1", ["p_2"])  # another camera still sees p_2
     assert tracked.gone("persons", topics, CONFIG) == []
     assert tracked.gone("faces", topics, CONFIG) == ["/humans/faces/f_1/roi"]  # no camera reported faces
+
+
+def test_the_robots_state_from_ros_json_and_the_profile_to_ros():
+    """docs/robot.md: a std_msgs/String of JSON -> RobotState (stamp: the JSON's, else now); anything else is refused
+    with the contract's reasons; the profile goes out once as latched JSON, again only when it changes."""
+    from common.robot import DEFAULT
+    from common.schema import InvalidSample as Invalid
+
+    state = core.robot_state('{"status": "failed", "reason": "couldn\'t reach it", "command": "c1"}', 5.0, "ros2/x")
+    assert (state.status, state.reason, state.command, state.stamp, state.source) == (
+        "failed",
+        "couldn't reach it",
+        "c1",
+        5.0,
+        "ros2/x",
+    )
+    assert core.robot_state('{"status": "idle", "stamp": 7.5}', 9.0, "ros2/x").stamp == 7.5
+    for text, reason in [
+        ("not json", "bad_value"),
+        ("[1, 2]", "not_a_map"),
+        ('{"status": "asleep"}', "bad_value"),
+        ('{"status": "failed"}', "bad_value"),
+        ('{"status": "idle", "holding": {"id": "x"}}', "missing_field"),
+    ]:
+        with pytest.raises(Invalid) as err:
+            core.robot_state(text, 5.0, "ros2/x")
+        assert err.value.reason == reason, (text, err.value)
+    latch = core.Latch()
+    (out,) = core.profile_messages(DEFAULT.sample(5.0, "fusion/x"), CONFIG, latch)
+    assert out.topic == "/hri_fusion/robot_profile" and out.latched and '"name": "default"' in out.message.data
+    assert core.profile_messages(DEFAULT.sample(6.0, "fusion/x"), CONFIG, latch) == []  # unchanged: not sent again
+
+
+def test_the_camera_mount_goes_on_tf_static():
+    """A level camera 1.2 m up (rpy [-pi/2, 0, -pi/2]): the optical z axis (forward) is the base's x, optical x (right)
+    the base's -y, optical y (down) the base's -z."""
+    from common.robot import parse_profile
+
+    text = 'name = "r"\n[camera]\nframe_id = "cam0_optical"\nxyz = [0.1, 0, 1.2]\nrpy = [-1.5707963, 0, -1.5707963]\n'
+    outs = core.profile_messages(parse_profile(text).sample(5.0, "fusion/x"), CONFIG, core.Latch())
+    (tf,) = [o for o in outs if o.topic == "/tf_static"]
+    assert tf.latched and tf.type == core.TF_MESSAGE
+    (t,) = tf.message.transforms
+    assert (t.header.frame_id, t.child_frame_id) == ("base_link", "cam0_optical")
+    assert (t.transform.translation.x, t.transform.translation.z) == (0.1, 1.2)
+    q = t.transform.rotation
+    w, x, y, z = q.w, q.x, q.y, q.z
+    rotation = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    assert np.allclose(rotation @ [0, 0, 1], [1, 0, 0], atol=1e-6)  # optical forward = base forward
+    assert np.allclose(rotation @ [1, 0, 0], [0, -1, 0], atol=1e-6)  # optical right = base -y (right)
+    assert np.allclose(rotation @ [0, 1, 0], [0, 0, -1], atol=1e-6)  # optical down = base down
+    from services.ros2.types import serialize
+
+    assert serialize(tf.message, tf.type)  # CDR of the shipped definition

@@ -29,6 +29,7 @@ def test_every_package_the_service_speaks_is_shipped():
         "vision_msgs",
         "hri_msgs",
         "hri_fusion_msgs",
+        "tf2_msgs",
     }
     assert {"hri_msgs/msg/IdsList", "hri_msgs/msg/Skeleton2D", "hri_msgs/msg/LiveSpeech"} <= set(SHIPPED)
     assert {"vision_msgs/msg/Detection2DArray", "vision_msgs/msg/Detection3DArray"} <= set(SHIPPED)
@@ -47,7 +48,9 @@ def test_standard_definitions_hash_as_ros_jazzy_ships_them():
     """The std/sensor/geometry texts we ship hash like rosbags' built-in Jazzy definitions (taken from ROS)."""
     jazzy = get_typestore(Stores.ROS2_JAZZY)
     standard = [
-        n for n in SHIPPED if n.split("/")[0] in ("builtin_interfaces", "std_msgs", "sensor_msgs", "geometry_msgs")
+        n
+        for n in SHIPPED
+        if n.split("/")[0] in ("builtin_interfaces", "std_msgs", "sensor_msgs", "geometry_msgs", "tf2_msgs")
     ]
     assert len(standard) >= 15
     for name in standard:

@@ -58,7 +58,11 @@ def test_each_user_publishes_only_its_own_keys(tmp_path):
     acl = access_control(sec, "lab/robot7")
     assert acl["default_permission"] == "deny"
     puts = {r["id"]: r["key_exprs"] for r in acl["rules"] if "put" in r["messages"] and r["flows"] == ["ingress"]}
-    assert puts["fusion-publish"] == ["lab/robot7/fusion/command", "lab/robot7/fusion/clarification"]
+    assert puts["fusion-publish"] == [
+        "lab/robot7/fusion/command",
+        "lab/robot7/fusion/clarification",
+        "lab/robot7/robot/profile",
+    ]
     assert "reader-publish" not in puts
     subjects = {s["id"]: s["usernames"] for s in acl["subjects"]}
     assert subjects["role-fusion"] == ["fusion"] and subjects["role-reader"] == ["cli", "operator"]

@@ -323,3 +323,25 @@ def test_partials_come_while_the_person_speaks_and_never_after_the_final_result(
     ]
     alone += plain.flush()
     assert [h.transcript.final for h in alone] == [True]
+
+
+def test_the_final_transcript_carries_the_sound_level_on_the_audio_clock():
+    """Transcript.loudness (issue #40): the level of the decoded audio every 20 ms from its first sample, so fusion
+    can match it against the mouths in view; partials carry none."""
+    t = np.arange(int(1.0 * 16000)) / 16000
+    tone = (0.2 * np.sin(2 * np.pi * 300 * t)).astype(np.float32)  # RMS 0.141: -17 dBFS
+    audio = np.concatenate([np.zeros(8000, np.float32), tone, np.zeros(16000, np.float32)])
+    stream = MicStream("mic0", "speech/test", SpeculativeRecogniser(), energy_segmenter, lambda n, d: None)
+    heard = [
+        h for off in range(0, len(audio), 320) for h in stream.feed(audio[off : off + 320], 16000, 100.0 + off / 16000)
+    ]
+    heard += stream.flush()
+    (final,) = [h.transcript for h in heard if h.transcript.final]
+    loud = final.loudness
+    assert loud is not None and loud.step == 0.02 and loud.start <= final.start
+    centres = [loud.start + (k + 0.5) * loud.step for k in range(len(loud.db))]
+    inside = [db for c, db in zip(centres, loud.db) if 100.55 <= c <= 101.45]
+    outside = [db for c, db in zip(centres, loud.db) if c < 100.48 or c > 101.52]
+    assert inside and set(inside) == {-17}
+    assert outside and max(outside) <= -100  # the padding around the tone: silence
+    assert centres[-1] >= 101.45  # the level covers the whole tone

@@ -7,13 +7,17 @@ import gc
 import queue
 import time
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
 import zenoh
 
-from common.runner import App, Delivery, RateLimitedLog, Service, serve, service_parser
+from common.codec import ENCODING, encode
+from common.engagement import EngagementConfig
+from common.robot import DEFAULT, Profile, ProfileError, load_profile
+from common.runner import App, Delivery, RateLimitedLog, Service, StartupError, serve, service_parser
 from common.schema import Clarification, FusedCommand
-from common.settings import add_settings, from_args
+from common.settings import add_settings, from_args, setting
 from services.fusion.core import Config, FusionCore
 from services.fusion.join import ClockOffsets, clock_verdict
 from services.fusion.outputs import Output
@@ -25,6 +29,7 @@ examples:
   hri-fusion                                   # adaptive weights, defaults below
   hri-fusion --weights fixed                   # constant modality weights (for comparison)
   hri-fusion --window-before 1.5 --max-wait 0.8
+  hri-fusion --profile profiles/mobile_manipulator.toml   # what this robot can do (docs/robot.md)
   hri echo 'hri/fusion/**'                     # watch its commands and questions
 
 defaults: window [start - {DEFAULTS.window_before:g} s, end + {DEFAULTS.window_after:g} s] of source time,
@@ -54,6 +59,18 @@ def collector_after_output() -> Iterator[None]:
             gc.enable()
 
 
+@dataclass(frozen=True)
+class RobotSettings:
+    """Which robot fusion serves (docs/robot.md)."""
+
+    profile: str | None = setting(
+        None,
+        "the robot's profile (TOML): what it may grasp, weight and size limits, whether it carries, navigates, "
+        "speaks, what a command while busy does; none: the built-in default (profiles/default.toml)",
+        metavar="FILE",
+    )
+
+
 CLOCK_WARN_SHARE = 0.5  # warn when a source's clock offset uses more than this share of the window's margin
 
 
@@ -66,6 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     add_settings(parser.add_argument_group("fusion (docs/fusion.md, Settings)"), Config)
     add_settings(parser.add_argument_group("who is speaking (docs/people.md)"), SpeakerConfig)
+    add_settings(parser.add_argument_group("the robot (docs/robot.md)"), RobotSettings)
+    add_settings(parser.add_argument_group("engagement: said to the robot? (docs/people.md)"), EngagementConfig)
     return parser
 
 
@@ -148,13 +167,26 @@ class FusionApp(App):
     def __init__(self, args: argparse.Namespace) -> None:
         self.config = from_args(Config, args)
         self.speaker = from_args(SpeakerConfig, args)
+        self.profile_path = from_args(RobotSettings, args).profile
+        self.profile: Profile = DEFAULT
+        self.engagement = from_args(EngagementConfig, args)
         # Liveliness callbacks run on zenoh threads; the core belongs to the worker: hand over via a queue.
         self.liveliness_events: queue.SimpleQueue[tuple[str, str, bool]] = queue.SimpleQueue()
 
     def open(self, service: Service) -> None:
         self.service = service
+        try:
+            self.profile = load_profile(self.profile_path)
+        except ProfileError as exc:  # refused at start: nothing runs with a profile that says something else
+            raise StartupError(str(exc)) from None
         self.core = FusionCore(
-            self.config, service.source, count=service.counters.add, log=service.log, speaker=self.speaker
+            self.config,
+            service.source,
+            count=service.counters.add,
+            log=service.log,
+            speaker=self.speaker,
+            profile=self.profile,
+            engagement=self.engagement,
         )
         self.clocks = ClockReport(service, self.config)
         self.command_key = service.output_key("command")
@@ -175,6 +207,8 @@ class FusionApp(App):
         service.subscribe_input("bodies", self.handler(core.on_bodies))  # which way the speaker faces
         service.subscribe_input("faces", self.handler(core.on_faces))  # who is speaking
         service.subscribe_input("persons", self.handler(core.on_persons))  # people in view: "bring it to me"
+        service.subscribe_input("robot_state", self.handler(core.on_robot_state))  # what the robot is doing
+        self.announce_profile(service)
         config = self.config
         service.log.info(
             "fusion: window [start-%.2f, end+%.2f] s, max wait %.2f s, %s weights%s",
@@ -188,6 +222,30 @@ class FusionApp(App):
         # the cyclic collector's reach, a full collection during a decision walks only what came since (issue #34:
         # a decision over 1000 objects allocates enough to trigger one; benchmarks/fusion.py does the same)
         gc.freeze()
+
+    def announce_profile(self, service: Service) -> None:
+        """The robot's profile on the wire: published once now, and answered to every query of its key (Zenoh keeps
+        no last value: a consumer that starts later asks, docs/robot.md)."""
+        assert service.session is not None
+        key = service.output_key("robot_profile")
+        sample = self.profile.sample(time.time(), service.source)
+        payload = encode(sample)
+
+        def answer(query: zenoh.Query) -> None:
+            try:
+                query.reply(key, payload, encoding=ENCODING)
+            except Exception as exc:  # a reply must never take the service down
+                service.log.warning("could not answer a profile query: %s", exc)
+
+        queryable = service.session.declare_queryable(key, answer)
+        service.on_close(queryable.undeclare)
+        service.publish(key, sample)
+        service.log.info(
+            "robot profile %s%s: %s",
+            self.profile.name,
+            f" ({self.profile.path})" if self.profile.path else "",
+            self.profile.words(),
+        )
 
     def on_token(self, sample: zenoh.Sample) -> None:
         parsed = self.service.keys.parse_alive(str(sample.key_expr))

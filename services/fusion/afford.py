@@ -8,26 +8,21 @@ ray, relation, colour, the words) can propose what they leave out, and no questi
    and so is what is on them: a detection centred on the pointing hand, and what they wear (a tie, a backpack, a
    handbag) inside their box.
 2. **Affordances** (`common.language.INTENT_AFFORDANCES`, declared beside the action words): pick up / bring / put
-   need something graspable (by class, and with depth by its measured size); go to / look at take anything; give to /
-   follow / look at someone take a person (other people are targets of person actions only).
+   need something graspable by this robot (its profile, common/robot.py: by class, by the class's typical weight, and
+   with depth by its measured size); go to / look at take anything; give to / follow / look at someone take a person
+   (other people are targets of person actions only).
 
 `applicable` says what is left and why each other object was removed; `refusal` turns a command whose words name
-only what the action cannot apply to ("pick up the couch") into a plain answer ("I can't pick up a couch.").
+only what the action cannot apply to ("pick up the couch") into a plain answer with the reason ("I can't pick up a
+couch: I don't lift furniture.", "I can't bring a chair: it weighs about 5 kg, over my 2 kg.").
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from common.language import (
-    ANY_OBJECT,
-    GRASP_MAX_EXTENT_M,
-    OBJECT_CATEGORIES,
-    Affordance,
-    affordance,
-    graspable_class,
-    label_matches,
-)
+from common.language import ANY_OBJECT, OBJECT_CATEGORIES, Affordance, affordance, label_matches
+from common.robot import DEFAULT, Profile
 from services.fusion import space
 from services.fusion.evidence import Pointing
 from services.fusion.ground import SceneObject, on_the_hand, ray_score
@@ -111,17 +106,20 @@ def size_m(o: SceneObject) -> float | None:
     return max(o.extent[0], o.extent[1])
 
 
-def _not_afforded(kind: Affordance | None, verb: str, o: SceneObject) -> str | None:
+def _not_afforded(kind: Affordance | None, verb: str, o: SceneObject, profile: Profile) -> str | None:
     """Why `intent`'s affordance excludes `o` (None: it does not)."""
     if kind == "person" and o.label != "person":
         return f"not a person (one can only {verb} a person)"
     if kind != "graspable":
         return None
-    if not graspable_class(o.label):
+    if profile.never_kind(o.label) is not None:
         return f"{article(o.label)} is not something I can {verb}"
+    heavy = profile.class_reason(o.label)
+    if heavy is not None:
+        return f"too heavy to {verb}: {heavy}"
     size = size_m(o)
-    if size is not None and size > GRASP_MAX_EXTENT_M:
-        return f"{size:.2f} m across: too big to {verb} (at most {GRASP_MAX_EXTENT_M:.1f} m)"
+    if profile.size_reason(size) is not None:
+        return f"{size:.2f} m across: too big to {verb} (at most {profile.max_size_m:.1f} m)"
     return None
 
 
@@ -130,10 +128,14 @@ def article(noun: str) -> str:
 
 
 def applicable(
-    intent: str | None, phrase: ObjectPhrase, objects: list[SceneObject], pointing: Pointing | None
+    intent: str | None,
+    phrase: ObjectPhrase,
+    objects: list[SceneObject],
+    pointing: Pointing | None,
+    profile: Profile = DEFAULT,
 ) -> Applicable:
     """The objects `intent` (with the words `phrase`) may act on: never the commanding person or what is on them;
-    only what the intent's affordance allows."""
+    only what the intent's affordance allows this robot (`profile`)."""
     kind = affordance(intent, phrase.label)
     verb = VERBS.get(intent or "", "act on")
     commander = commanding_person(pointing, objects)
@@ -147,7 +149,7 @@ def applicable(
         if why is None:
             kind_of = (o.label, o.extent)
             if kind_of not in not_afforded:
-                not_afforded[kind_of] = _not_afforded(kind, verb, o)
+                not_afforded[kind_of] = _not_afforded(kind, verb, o, profile)
             why = not_afforded[kind_of]
         if why is None:
             kept.append(o)
@@ -163,14 +165,16 @@ def _said_labels(phrase: ObjectPhrase) -> tuple[str, ...]:
     return OBJECT_CATEGORIES.get(phrase.label, (phrase.label,))
 
 
-def refusal(intent: str | None, phrase: ObjectPhrase, found: Applicable) -> str | None:
-    """A plain answer when the words name only what `intent` cannot apply to: "I can't pick up a couch." (by class,
-    whether one is in view or not), "I can't pick up the chair: 0.92 m across …" (every one in view that fits the
-    words is too big), "I can only follow a person." None: the words leave something to act on."""
+def refusal(intent: str | None, phrase: ObjectPhrase, found: Applicable, profile: Profile = DEFAULT) -> str | None:
+    """A plain answer when the words name only what `intent` cannot apply to: "I can't pick up a couch: I don't lift
+    furniture." (by class or its typical weight, whether one is in view or not; the reason from `profile`), "I can't
+    pick up the chair: 0.92 m across …" (every one in view that fits the words is too big), "I can only follow a
+    person." None: the words leave something to act on."""
     verb = VERBS.get(intent or "", "do that to")
     labels = _said_labels(phrase)
-    if found.kind == "graspable" and labels and not any(graspable_class(label) for label in labels):
-        return f"I can't {verb} {article(phrase.label or labels[0])}."
+    reasons = [profile.class_reason(label) for label in labels] if found.kind == "graspable" else []
+    if labels and reasons and all(reasons):
+        return f"I can't {verb} {article(phrase.label or labels[0])}: {reasons[0]}."
     if found.kind == "person" and labels and "person" not in labels:
         return f"I can only {verb} a person."
     if not labels or any(label_matches(phrase.label, o.label) for o in found.kept):
@@ -185,6 +189,13 @@ def refusal(intent: str | None, phrase: ObjectPhrase, found: Applicable) -> str 
 
 def _key(o: SceneObject | None) -> tuple[str, str] | None:
     return None if o is None else o.key
+
+
+def unable(intent: str | None, profile: Profile = DEFAULT) -> str | None:
+    """A plain answer when this robot cannot do `intent` at all ("go to the kitchen" without a base: "I can't do that:
+    I can't move from where I stand."); None: it can."""
+    why = profile.missing_ability(intent)
+    return None if why is None else f"I can't do that: {why}."
 
 
 def relevant_removals(found: Applicable, phrase: ObjectPhrase, pointing: Pointing | None) -> list[Removed]:

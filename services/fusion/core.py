@@ -18,7 +18,9 @@ from typing import Callable
 import msgspec
 
 from common.counters import GESTURE_COMMAND_COUNTER, SPEAKER_COUNTER, FusionCounter
+from common.engagement import EngagementConfig
 from common.language import ANY_OBJECT, PLACE_AS_OBJECT
+from common.robot import DEFAULT, Profile
 from common.schema import (
     GESTURE,
     SPEECH,
@@ -32,13 +34,14 @@ from common.schema import (
     Intent,
     Location,
     Persons,
+    RobotState,
     Speaker,
     Transcript,
 )
 from common.settings import setting
 from common.stack import node, publishers_of
-from services.fusion import attention, describe, people, space
-from services.fusion.afford import Applicable, applicable, refusal, removed_words
+from services.fusion import attention, describe, people, robot, space
+from services.fusion.afford import Applicable, applicable, refusal, removed_words, unable
 from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore, Refuse
 from services.fusion.dialogue import Dialogue
 from services.fusion.gestures import CONTRARY_TO_STOP, Gestures, Person
@@ -124,9 +127,9 @@ class Config:
 
 
 def input_services(fusion: str = "fusion") -> tuple[str, ...]:
-    """The services that publish one of the fusion node's inputs (common/stack.py): speech, vision, gesture.
+    """The services that publish one of the fusion node's modality inputs (common/stack.py): speech, vision, gesture.
     Each is a modality, named after its service, whose liveliness token counts."""
-    return tuple(dict.fromkeys(p for i in node(fusion).inputs for p in publishers_of(i.topic)))
+    return tuple(dict.fromkeys(p for i in node(fusion).inputs if i.modality for p in publishers_of(i.topic)))
 
 
 MODALITIES = input_services()
@@ -180,9 +183,14 @@ class FusionCore:
         count: Callable[[FusionCounter], None] = lambda name: None,
         log: logging.Logger | None = None,
         speaker: SpeakerConfig | None = None,
+        profile: Profile = DEFAULT,
+        engagement: EngagementConfig | None = None,
     ):
         self.cfg = config
+        self.profile = profile  # what this robot can do (common/robot.py, docs/robot.md)
+        self.robot = robot.RobotNow()  # what it is doing: unknown until a RobotState arrives
         self.speaker_cfg = speaker or SpeakerConfig()
+        self.engagement_cfg = engagement or EngagementConfig()
         self.faces = FaceHistory(config.horizon)  # who is speaking: mouths over time (issue #33)
         self.source = source
         self.count = count
@@ -192,6 +200,7 @@ class FusionCore:
         )
         self.gestures = Gestures(config.gesture_min_score, config.episode_gap, config.horizon)
         self.outputs = Outputs(source)
+        self.outputs.robot = self._robot_lines()
         self.dialogue = Dialogue(
             self.outputs, config.dialogue_timeout, self.count, self.log, doubt=config.low_speech_confidence
         )
@@ -241,6 +250,39 @@ class FusionCore:
         self.persons = [s for s in self.persons if s.stamp >= persons.stamp - self.cfg.horizon][-299:] + [persons]
         return []
 
+    def on_robot_state(self, key: str, state: RobotState, wall: float) -> list[Output]:
+        """The robot's state: kept for the next commands; a failure is announced; a queued command goes out once the
+        robot is idle or done (services/fusion/robot.py)."""
+        if not self.robot.update(state):
+            self.count("late")
+            return []
+        self.outputs.robot = self._robot_lines()
+        out: list[Output] = []
+        failed = self.robot.failure()
+        if failed is not None:
+            self.count("robot_failure_announced")
+            out.append(self.outputs.announcement(state, failed, self.robot.command(state)))
+        queued = self.robot.release()
+        if queued is not None:
+            self.count("released_after_busy")
+            self.log.info("robot %s: queued command %s %s goes out", state.status, queued.id, queued.intent)
+            self.robot.remember(queued)
+            out.append(Output(queued))
+        return out
+
+    def _drop_queued(self) -> None:
+        """A stop also cancels what waits for the robot to be free (a stop never means "later")."""
+        dropped = self.robot.drop_queued()
+        if dropped:
+            self.count("queue_dropped_by_stop")
+            self.log.info("stop: %d command(s) queued while busy dropped", dropped)
+
+    def _robot_lines(self) -> list[str]:
+        """The planner prompt's lines about the robot: none for the default profile and no state heard (as before)."""
+        lines = [] if self.profile.is_default else [f"Robot: {self.profile.words()}"]
+        state = self.robot.words()
+        return lines + ([f"Robot state: {state}"] if state else [])
+
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
         if not self._add(GESTURE, key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
             return []
@@ -249,6 +291,11 @@ class FusionCore:
             return []
         if command.intent == "stop":
             self.dialogue.close()
+            self._drop_queued()
+        elif self.profile.missing_ability(command.intent) is not None:  # a wave to a robot that cannot come
+            self.count("refused_ability")
+            self.log.info("%s by gesture: %s", command.intent, self.profile.missing_ability(command.intent))
+            return []
         self.count(GESTURE_COMMAND_COUNTER[command.intent])
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
 
@@ -275,6 +322,7 @@ class FusionCore:
         )
         if u.intent == "stop" or near:  # no window to wait for: stop now
             self.dialogue.close()
+            self._drop_queued()
             why = f"'{t.text}' asks to stop (speech confidence {t.confidence:.2f}); stopping never waits"
             if near:
                 why += f"; '{near[0]}' was doubted by the recogniser and taken as '{near[1]}'"
@@ -297,6 +345,9 @@ class FusionCore:
             self.deciding = (window, speaker)
             out.extend(self.with_speaker(window.transcript, self.decide(window, how, speaker), speaker))
         self.deciding = None
+        for o in out:
+            if isinstance(o.sample, FusedCommand):
+                self.robot.remember(o.sample)
         return out
 
     # -- who is speaking (services/fusion/speaker.py) -------------------------------
@@ -311,7 +362,8 @@ class FusionCore:
         if not len(self.faces):
             return None
         margin = self.speaker_cfg.speaker_guard + self.speaker_cfg.speaker_context
-        speaker = attribute(t, self.faces.around(t.start - margin, t.end + margin), self.speaker_cfg)
+        around = self.faces.around(t.start - margin, t.end + margin)
+        speaker = attribute(t, around, self.speaker_cfg, self.engagement_cfg, self.persons)
         self.count(SPEAKER_COUNTER[speaker.method])
         return speaker
 
@@ -373,7 +425,26 @@ class FusionCore:
         out = self.render(t, decided)
         if recipient is not None and decided.to_recipient:
             out = [self._to_recipient(o, recipient, p, ctx) for o in out]
-        return self.confirm_unaddressed(t, ctx, speaker, out)
+        return self.hold_while_busy(t, ctx, self.confirm_unaddressed(t, ctx, speaker, out))
+
+    def hold_while_busy(self, t: Transcript, ctx: Context, outs: list[Output]) -> list[Output]:
+        """A new command while the robot is busy: asked about or queued, as the profile says (stop always passes)."""
+        state = self.robot.state
+        kept: list[Output] = []
+        for out in outs:
+            cmd = out.sample
+            action = robot.while_busy(state, self.profile, cmd.intent) if isinstance(cmd, FusedCommand) else "act"
+            if action == "act" or state is None or not isinstance(cmd, FusedCommand):
+                kept.append(out)
+            elif action == "queue":
+                self.count("queued_while_busy")
+                self.log.info("robot busy: %s %s queued until it is idle", cmd.intent, cmd.id)
+                self.robot.queue(cmd)
+            else:
+                self.count("asked_while_busy")
+                question = robot.busy_question(state, self.robot.command(state), cmd)
+                kept.append(self.dialogue.confirm(t, cmd, ctx.objects, question))
+        return kept
 
     def decide_utterance(self, p: PendingTranscript, ctx: Context) -> tuple[list[Output] | None, Decided | None]:
         """What to do with an utterance whose window is due: (the dialogue's own reply to an answer, None) or
@@ -445,16 +516,38 @@ class FusionCore:
 
     def command(self, t: Transcript, u: Utterance, ctx: Context) -> Decided:
         """A command utterance: its words about sides turned into the camera's, a place that is a thing said as
-        the thing, the window narrowed to what the action may apply to (services/fusion/afford.py); then decided."""
+        the thing, the window narrowed to what the action may apply to for this robot (services/fusion/afford.py);
+        refused when the robot cannot do it at all; then decided, "put it down" on what the robot holds."""
         u = self._in_camera_words(t, u, ctx)
         intent = u.intent
         assert intent is not None
         if intent in TARGET_INTENTS and u.place in PLACE_AS_OBJECT and u.obj.label is None and not u.obj.deictic:
             # "pick up the table": what is picked up is the thing, not a place
             u = replace(u, obj=replace(u.obj, label=PLACE_AS_OBJECT[u.place]), place=None)
-        found = applicable(intent, u.obj, ctx.objects, ctx.pointing)
+        found = applicable(intent, u.obj, ctx.objects, ctx.pointing, self.profile)
         ctx = replace(ctx, candidates=found.kept)  # nothing else is ever proposed (services/fusion/afford.py)
-        return Decided(u, self.decide_command(t, u, ctx, found), ctx, found)
+        cannot = unable(intent, self.profile)
+        if cannot is not None:  # this robot cannot do it at all (its profile: no base, no carrying)
+            self.count("refused_ability")
+            return Decided(u, Refuse(cannot, Draft(intent, t.text, place=u.place)), ctx, found)
+        decision = self.decide_command(t, u, ctx, found)
+        if intent == "put_down":
+            decision = self._put_down(t, u, ctx, decision)
+        return Decided(u, decision, ctx, found)
+
+    def _put_down(self, t: Transcript, u: Utterance, ctx: Context, decision: Decision) -> Decision:
+        """ "Put it down there" with the robot's state known: what it holds (refused when it holds nothing)."""
+        check = robot.put_down_check(self.robot.state, u.obj.label, ctx.objects)
+        if check is None or isinstance(decision, (Ignore, Refuse)):
+            return decision
+        if check.refuse is not None:
+            self.count("refused_not_holding")
+            return Refuse(check.refuse, Draft("put_down", t.text, place=u.place))
+        if not isinstance(decision, Act) or decision.target is not None or check.held is None:
+            return decision
+        target = check.in_view
+        why = f"; it is {robot.held_words(check.held)}, which I hold" + ("" if target else " (out of view)")
+        return replace(decision, target=target, explanation=decision.explanation + why)
 
     def decide_command(self, t: Transcript, u: Utterance, ctx: Context, found: Applicable) -> Decision:
         """A command utterance, grounded in its window: act, refuse, ask which / where / whether heard right."""
@@ -524,7 +617,7 @@ class FusionCore:
         --fallback-most-confident command."""
         intent = u.intent
         assert intent is not None
-        no = refusal(intent, u.obj, found)
+        no = refusal(intent, u.obj, found, self.profile)
         if no is not None:
             self.count("refused_affordance")
             return Refuse(no, Draft(intent, t.text, place=u.place))
@@ -602,7 +695,7 @@ class FusionCore:
             intent, phrase = last.intent, last.phrase
         else:
             return ctx
-        return replace(ctx, candidates=applicable(intent, phrase, ctx.objects, ctx.pointing).kept)
+        return replace(ctx, candidates=applicable(intent, phrase, ctx.objects, ctx.pointing, self.profile).kept)
 
     def _choose(self, phrase: ObjectPhrase, ctx: Context) -> Choice:
         return ctx.choose(phrase, ctx.pool, ctx.pointing, ctx.ref)

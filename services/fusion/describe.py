@@ -282,6 +282,7 @@ class PromptScene:
     gesture: str | None = None
     objects: Sequence[SceneObject] = ()
     missing: Sequence[str] = ()
+    robot: Sequence[str] = ()  # what the robot can do and is doing (none: the default profile, no state heard)
 
 
 def most_confident(objects: Sequence[SceneObject], n: int) -> list[SceneObject]:
@@ -345,5 +346,6 @@ def planner_prompt(act: Act, text: str | None, scene: PromptScene) -> str:
         lines.append("Objects in view: none reported")
     if missing:
         lines.append("Missing inputs: " + ", ".join(missing))
+    lines.extend(scene.robot)
     lines.append(f"Why: {act.explanation}")
     return "\n".join(lines)

@@ -124,12 +124,15 @@ class Dialogue:
 
     def confirm_addressed(self, t: Transcript, cmd: FusedCommand, scene: list[SceneObject]) -> Output:
         """A command said while facing away from the robot: "Did you say that to me?" A yes acts on it."""
+        return self.confirm(t, cmd, scene, f'You were facing away from me. Did you say that to me: "{t.text}"?')
+
+    def confirm(self, t: Transcript, cmd: FusedCommand, scene: list[SceneObject], question: str) -> Output:
+        """Ask `question` (yes or no) before `cmd` is published: a yes publishes it (a `low_confidence` question)."""
         target = next(
             (o for o in scene if cmd.target is not None and (o.id, o.cam) == (cmd.target.id, cmd.target.cam)), None
         )
         intent = as_intent(cmd.intent)  # a command fusion built: one of the contract's intents
         draft = Draft(intent, t.text, target=target, location=cmd.location, place=cmd.place, motion=cmd.motion)
-        question = f'You were facing away from me. Did you say that to me: "{t.text}"?'
         self.last = None  # nothing was acted on: there is no command to correct
         shown = [target] if target is not None else []
         return self._ask(t, "low_confidence", draft, ObjectPhrase(), shown, shown, question)

@@ -15,6 +15,7 @@ from common.schema import (
     ClarificationReason,
     FusedCommand,
     GestureEvent,
+    RobotState,
     Transcript,
     Weights,
 )
@@ -44,12 +45,13 @@ def unit(x: float) -> float:
 class Outputs:
     def __init__(self, source: str):
         self.source = source
+        self.robot: list[str] = []  # what the planner prompt says of the robot (its profile, its state; docs/robot.md)
 
     def command(self, t: Transcript, act: Act, ctx: Context | None) -> Output:
         """A command on an utterance, with the window's weights, inputs and scene (`ctx`); without a window
         (a spoken stop, decided on arrival) speech alone."""
         text = act.text if act.text is not None else t.text
-        scene = PromptScene(ctx.pointing, None, ctx.objects, ctx.missing) if ctx else PromptScene()
+        scene = PromptScene(ctx.pointing, None, ctx.objects, ctx.missing, self.robot) if ctx else PromptScene()
         cmd = FusedCommand(
             stamp=t.stamp,
             source=self.source,
@@ -102,7 +104,9 @@ class Outputs:
             weights=Weights(speech=0.0, vision=0.0, gesture=1.0),
             inputs={SPEECH: None, VISION: None, GESTURE: ev.stamp},
             explanation=why,
-            prompt=describe.planner_prompt(act, None, PromptScene(gesture=f"{ev.gesture} ({ev.hand} hand)")),
+            prompt=describe.planner_prompt(
+                act, None, PromptScene(gesture=f"{ev.gesture} ({ev.hand} hand)", robot=self.robot)
+            ),
         )
         return Output(cmd, realtime=realtime)
 
@@ -118,5 +122,20 @@ class Outputs:
                 reason=reason,
                 question=question,
                 candidates=[o.to_target() for o in candidates[:MAX_CANDIDATES]],
+            )
+        )
+
+    def announcement(self, state: RobotState, words: str, cmd: FusedCommand | None) -> Output:
+        """What the robot says of its own state ("I couldn't bring the red cup: couldn't reach it."): a `not_found`
+        Clarification without candidates (v1: no new reason value, docs/robot.md), about the command's words."""
+        return Output(
+            Clarification(
+                stamp=state.stamp,
+                source=self.source,
+                id=stable_id("clr", state.source, state.stamp, state.command),
+                text=cmd.text if cmd is not None else None,
+                reason="not_found",
+                question=words,
+                candidates=[],
             )
         )

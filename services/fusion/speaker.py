@@ -14,8 +14,15 @@ in view, whose mouth is not still) is the speaker; when two or more move with it
 `margin`, the speaker is unknown ("dub": two mouths move over one voice, and no timing tells them apart) —
 never a silent person. A face's person id is `Face.person`, else its face id (persons may be absent).
 
-`addressed`: the speaker's face looked at the camera (the robot) for at least `addressed_share` of its frames
-in the utterance; nil when the speaker or their head's orientation is unknown.
+THE SOUND (issue #40), when the transcript carries its `loudness`: with two or more mouths moving (not still)
+during the utterance, the one that opens and closes with the rise and fall of the sound is the speaker:
+`sound_match` is the correlation of each mouth's frame-to-frame change with the sound's; the best must reach
+`sound_min_match` and lead the next moving mouth by `sound_margin`, else the speaker is unknown (a voice no
+visible mouth matches is nobody's in view, never a silent person's). Without loudness, timing decides as above.
+
+`addressed`: the speaker was engaged with the robot over the utterance and at its end (common/engagement.py:
+head turned to the camera, in its field of view, within reach); nil when the speaker or their head's orientation
+is unknown.
 """
 
 from __future__ import annotations
@@ -24,7 +31,10 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import Iterable, Sequence
 
-from common.schema import Faces, Speaker, Transcript
+import numpy as np
+
+from common.engagement import EngagementConfig, engaged_over
+from common.schema import Faces, Loudness, Persons, Speaker, Transcript
 from common.settings import setting
 
 
@@ -65,12 +75,20 @@ class SpeakerConfig:
     speaker_coverage: float = setting(
         0.5, "share of the utterance a face's mouth must be seen in to be judged", above=0, at_most=1, metavar="P"
     )
-    addressed_share: float = setting(
-        0.5,
-        "share of the speaker's frames in the utterance looking at the camera for it to count as said to the robot",
-        above=0,
+    sound_min_match: float = setting(
+        0.3,
+        "correlation of a mouth's opening and closing with the sound's rise and fall it needs to be the voice's mouth "
+        "(two mouths moving)",
+        at_least=-1,
         at_most=1,
-        metavar="P",
+        metavar="R",
+    )
+    sound_margin: float = setting(
+        0.1,
+        "the lead in that correlation the best mouth needs over a second moving mouth; less: unknown",
+        at_least=0,
+        at_most=2,
+        metavar="R",
     )
 
 
@@ -157,11 +175,63 @@ def judge(track: Track, start: float, end: float, stream_frames: int, cfg: Speak
     return Judged(track.person, during, around, (during - around) / total if total > 0 else 0.0)
 
 
-def addressed(track: Track, start: float, end: float, cfg: SpeakerConfig) -> bool | None:
-    looks = [lk for s, lk in zip(track.stamps, track.looking) if start <= s <= end and lk is not None]
-    if not looks:
+def addressed(
+    faces: Sequence[Faces],
+    person: str,
+    t: Transcript,
+    engagement: EngagementConfig | None = None,
+    persons: Sequence[Persons] = (),
+) -> bool | None:
+    """Said to the robot: the speaker engaged with it over the utterance and at its end (common/engagement.py)."""
+    return engaged_over(faces, person, t.start, t.end, engagement, persons).engaged
+
+
+MIN_SOUND_FRAMES = 8  # frames of a mouth inside the utterance needed to correlate it with the sound
+
+
+def sound_match(track: Track, loudness: Loudness, start: float, end: float) -> float | None:
+    """How well the mouth moves with the sound over [start, end]: the correlation of the mouth's opening and closing
+    from frame to frame with the rise and fall of the sound's amplitude (RMS, from the dB values, averaged within
+    one frame spacing of each frame) between the same frames. Changes, not levels: lips open into a syllable and
+    close after it, while a mouth left ajar or a slowly changing level only adds a trend that a short window turns
+    into correlation; and amplitude, not dB, whose log would blow up the noise of the quiet stretches. None: too few
+    frames in a row, or either series flat."""
+    rows = [(s, m) for s, m in zip(track.stamps, track.mouth) if start <= s <= end and m is not None]
+    if len(rows) < MIN_SOUND_FRAMES or not loudness.db:
         return None
-    return sum(looks) / len(looks) >= cfg.addressed_share
+    stamps = np.array([r[0] for r in rows])
+    mouth = np.array([r[1] for r in rows])
+    amplitude = 10.0 ** (np.asarray(loudness.db, dtype=float) / 20.0)
+    centres = loudness.start + (np.arange(len(amplitude)) + 0.5) * loudness.step
+    reach = max(float(np.median(np.diff(stamps))), loudness.step / 2)
+    heard = np.array(
+        [float(near.mean()) if len(near := amplitude[np.abs(centres - s) <= reach]) else np.nan for s in stamps]
+    )
+    d_mouth, d_sound = np.diff(mouth), np.diff(heard)
+    keep = ~np.isnan(d_sound)
+    if keep.sum() < MIN_SOUND_FRAMES - 1 or np.std(d_mouth[keep]) < 1e-9 or np.std(d_sound[keep]) < 1e-12:
+        return None
+    return float(np.corrcoef(d_mouth[keep], d_sound[keep])[0, 1])
+
+
+def _by_sound(moving: list[tuple[Judged, float | None]], cfg: SpeakerConfig) -> Speaker | None:
+    """Of two or more moving mouths, the one that moves with the sound; None when no correlation could be made."""
+    scored = sorted(((j, r) for j, r in moving if r is not None), key=lambda jr: -jr[1])
+    if not scored:
+        return None
+    best, r = scored[0]
+    listing = ", ".join(f"{j.person} {v:.2f}" for j, v in scored)
+    if r < cfg.sound_min_match:
+        return _unknown(f"mouths moved but none with the sound (correlation {listing}): not anyone in view")
+    if len(scored) > 1 and r - scored[1][1] < cfg.sound_margin:
+        return _unknown(f"{best.person} and {scored[1][0].person} both moved with the sound ({listing})")
+    lead = r - scored[1][1] if len(scored) > 1 else r
+    return Speaker(
+        person=best.person,
+        confidence=round(0.5 + 0.5 * min(1.0, lead), 3),
+        method="mouth_motion",
+        reason=f"{best.person}'s mouth moved with the sound (correlation {listing})",
+    )
 
 
 def _unknown(reason: str) -> Speaker:
@@ -216,8 +286,24 @@ def _several(judged: list[Judged], cfg: SpeakerConfig) -> Speaker:
     )
 
 
-def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None = None) -> Speaker:
-    """Who said `t`, from the faces around it (source time), with a confidence; unknown says why."""
+def _with_sound(t: Transcript, tracks: dict[str, Track], seen: list[Judged], cfg: SpeakerConfig) -> Speaker | None:
+    """With the utterance's loudness and two or more mouths moving: the one that moves with the sound decides."""
+    if t.loudness is None:
+        return None
+    by_person = {tr.person: tr for tr in tracks.values()}
+    moving = [(j, sound_match(by_person[j.person], t.loudness, t.start, t.end)) for j in seen if j.moves(cfg)]
+    return _by_sound(moving, cfg) if len(moving) > 1 else None
+
+
+def attribute(
+    t: Transcript,
+    faces: Iterable[Faces],
+    cfg: SpeakerConfig | None = None,
+    engagement: EngagementConfig | None = None,
+    persons: Sequence[Persons] = (),
+) -> Speaker:
+    """Who said `t`, from the faces around it (source time), with a confidence; unknown says why. `persons`: the
+    `Persons` around it, whose depth positions tell the speaker's distance for `addressed`."""
     cfg = cfg or SpeakerConfig()
     samples = list(faces)
     tracks = tracks_of(samples)
@@ -240,10 +326,9 @@ def attribute(t: Transcript, faces: Iterable[Faces], cfg: SpeakerConfig | None =
             f"{cfg.speaker_min_rate:g} needed)"
         )
     else:
-        speaker = _several(seen, cfg)
+        speaker = _with_sound(t, {f: tracks[f] for f in present}, seen, cfg) or _several(seen, cfg)
     if speaker.person is not None:
-        track = next(tracks[f] for f in sorted(present) if tracks[f].person == speaker.person)
-        speaker.addressed = addressed(track, t.start, t.end, cfg)
+        speaker.addressed = addressed(samples, speaker.person, t, engagement, persons)
     return speaker
 
 

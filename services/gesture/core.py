@@ -10,6 +10,7 @@ from typing import Any, cast
 
 import numpy as np
 
+from common.engagement import EngagementTracker, mark_engagement
 from common.image import frame_fields
 from common.schema import (
     Bodies,
@@ -217,6 +218,7 @@ class GestureCore:
         self.depth_unmatched = 0  # frames of a camera with depth whose own depth had not come (yet)
         self.people = CameraPeople(settings.persons_every)  # issue #33: Persons, a body per person, whose hand
         self.faces = FaceStages(settings.face, enabled=settings.faces)  # issue #33: who is speaking
+        self.engagement: dict[str, EngagementTracker] = {}  # cam -> REP-155 engagement of its persons (issue #40)
 
     def close(self) -> None:
         for cam in self.cameras.values():
@@ -285,10 +287,16 @@ class GestureCore:
 
     def link(self, frame: Frame, faces: Faces | None, seen: PeopleOfFrame | None, persons: Persons | None) -> None:
         """The face stage's Faces of this frame tied to the persons both ways (`link_faces`: a face's person, a
-        person's face); the persons of the stage's last run stand for the frames between its runs."""
+        person's face); the persons of the stage's last run stand for the frames between its runs. The faces feed
+        the camera's engagement tracker, whose levels the persons carry (`Person.engagement`)."""
         if persons is not None:
             self.people.persons[frame.cam] = persons
         link_faces(faces, self.people.persons.get(frame.cam) if seen is not None else None)
+        tracker = self.engagement.setdefault(frame.cam, EngagementTracker())
+        if faces is not None:
+            tracker.update(faces, self.people.persons.get(frame.cam))
+        if persons is not None:
+            mark_engagement(persons, tracker)
 
 
 def face_boxes(faces: Faces | None, max_faces: int) -> list[tuple[Box, str | None]] | None:

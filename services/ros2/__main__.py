@@ -20,9 +20,10 @@ from typing import Any, Callable
 import zenoh
 from zenoh import ext
 
+from common.codec import decode
 from common.image import jpeg_size, png_size
 from common.runner import App, Delivery, Service, serve, service_parser
-from common.schema import Frame, InvalidSample
+from common.schema import Frame, InvalidSample, RobotProfile
 from common.settings import add_settings, from_args
 from services.ros2 import core
 from services.ros2.config import Ros2Config
@@ -161,6 +162,7 @@ class RosInputs:
             (c.depth_topic, core.IMAGE, self.on_depth),
             (own(c.text_topic) if c.text_topic else "", core.STRING, self.on_text),
             (own(c.busy_topic) if c.busy_topic else "", core.BOOL, self.on_busy),
+            (own(c.state_topic) if c.state_topic else "", core.STRING, self.on_state),
         ]
         for topic, type_name, handle in wanted:
             if topic:
@@ -210,6 +212,11 @@ class RosInputs:
     def on_busy(self, message: Any) -> None:
         self.busy = bool(message.data)
 
+    def on_state(self, message: Any) -> None:
+        state = core.robot_state(message.data, time.time(), self.service.source)
+        self.service.publish_output("robot_state", state)
+        self.service.log.info("robot state from ROS: %s%s", state.status, f" ({state.reason})" if state.reason else "")
+
 
 class Ros2App(App):
     """The stack's persons, bodies, faces, objects, commands, questions and camera intrinsics -> ROS 2 messages
@@ -237,7 +244,17 @@ class Ros2App(App):
         service.subscribe_input("command", self.on_command)
         service.subscribe_input("clarification", self.publishing(lambda s: core.clarification_messages(s, config)))
         service.subscribe_input("frame", self.publishing(lambda s: core.camera_info_messages(s, config, latch)))
+        profile = self.publishing(lambda s: core.profile_messages(s, config, latch))
+        service.subscribe_input("robot_profile", profile)  # the robot's profile, from fusion (docs/robot.md)
         self.inputs.subscribe_all()
+        for reply in service.session.get(service.keys.robot_profile(), timeout=2.0):  # fusion started first
+            if reply.ok is not None:
+                try:
+                    sample = decode(reply.ok.payload.to_bytes(), RobotProfile)
+                except InvalidSample as exc:
+                    service.counters.reject(exc.reason, exc.detail, "robot/profile")
+                    continue
+                self.ros.publish(core.profile_messages(sample, config, latch))
         service.log.info(
             "ROS 2 node %s%s on domain %d (rmw_zenoh)",
             config.namespace.rstrip("/") + "/",

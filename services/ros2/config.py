@@ -34,6 +34,9 @@ class Ros2Config:
     )
     text_topic: str = setting("text_command", "std_msgs/String commands typed or said by the robot's own stack")
     busy_topic: str = setting("", "std_msgs/Bool, true while the robot is busy (only stop passes then); '' = none")
+    state_topic: str = setting(
+        "", "std_msgs/String, the robot's state as JSON (docs/robot.md): RobotState on the stack for fusion; '' = none"
+    )
     cam: str = setting("ros0", "the camera id the ROS camera's frames get on the stack")
 
     def own(self, name: str) -> str:

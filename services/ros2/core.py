@@ -9,6 +9,7 @@ becomes a typed Transcript. docs/ros2.md has the topic table.
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -30,6 +31,8 @@ from common.schema import (
     ImageEncoding,
     InvalidSample,
     Persons,
+    RobotProfile,
+    RobotState,
     Speaker,
     Target,
     Transcript,
@@ -51,6 +54,7 @@ CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 FUSED_COMMAND = "hri_fusion_msgs/msg/FusedCommand"
 CLARIFICATION = "hri_fusion_msgs/msg/Clarification"
 
@@ -176,7 +180,14 @@ def tracked_ids(outs: list[Outgoing], config: Ros2Config) -> dict[str, list[str]
     return found
 
 
-def engagement_level(engaged: bool | None) -> int:
+REP155_LEVELS = {"unknown": 0, "disengaged": 1, "engaging": 2, "engaged": 3, "disengaging": 4}  # EngagementLevel
+
+
+def engagement_level(engaged: bool | None, level: str | None = None) -> int:
+    """hri_msgs/EngagementLevel's number: the person's REP-155 level when the sender gives it (`Person.engagement`),
+    else from `engaged` alone."""
+    if level is not None:
+        return REP155_LEVELS[level]
     if engaged is None:
         return 0  # UNKNOWN
     return 3 if engaged else 1  # ENGAGED, DISENGAGED
@@ -203,7 +214,7 @@ def persons_messages(sample: Persons, config: Ros2Config, latch: Latch) -> list[
             topic = config.human("persons", pid, link)
             if latch.changed(topic, value):
                 out.append(Outgoing(topic, STRING, string(value), latched=True))
-        level = msg(ENGAGEMENT, header=header(sample.stamp), level=engagement_level(person.engaged))
+        level = msg(ENGAGEMENT, header=header(sample.stamp), level=engagement_level(person.engaged, person.engagement))
         out.append(Outgoing(config.human("persons", pid, "engagement_status"), ENGAGEMENT, level))
     for person in voices:
         speaking = msg(BOOL, data=bool(person.speaking is not None and person.speaking >= SPEAKING_AT))
@@ -595,6 +606,57 @@ def text_transcript(text: str, now: float, source: str) -> Transcript | None:
     if not text.strip():
         return None
     return make_transcript(text.strip(), mic=TEXT_MIC, end=now, confidence=1.0, source=source)
+
+
+def robot_state(text: str, now: float, source: str) -> RobotState:
+    """The robot's state from the JSON of a std_msgs/String (docs/robot.md): `status` (idle, busy, done, failed),
+    optional `command`, `intent`, `holding` ({label, id, color}), `reason`, and `stamp` (seconds; absent: now)."""
+    try:
+        data = json.loads(text)
+    except ValueError as exc:
+        raise InvalidSample("bad_value", f"robot state is not JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise InvalidSample("not_a_map", f"robot state: expected a JSON object, got {type(data).__name__}")
+    return RobotState.from_dict({"stamp": now, **data, "source": source, "v": 1})
+
+
+def quaternion(rpy: list[float]) -> Any:
+    """Roll, pitch, yaw (radians, fixed axes x, y, z: REP-103) as a geometry_msgs/Quaternion."""
+    (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a / 2), math.sin(a / 2)) for a in rpy)
+    return msg(
+        "geometry_msgs/msg/Quaternion",
+        x=sr * cp * cy - cr * sp * sy,
+        y=cr * sp * cy + sr * cp * sy,
+        z=cr * cp * sy - sr * sp * cy,
+        w=cr * cp * cy + sr * sp * sy,
+    )
+
+
+def camera_mount_message(sample: RobotProfile) -> Any:
+    """The profile's camera mount as tf2 transforms (one: the camera's optical frame in its parent)."""
+    mount = sample.camera
+    if mount is None:
+        return msg(TF_MESSAGE, transforms=[])
+    transform = msg("geometry_msgs/msg/Transform", translation=vector3(mount.xyz), rotation=quaternion(mount.rpy))
+    stamped = msg(
+        "geometry_msgs/msg/TransformStamped",
+        header=header(sample.stamp, mount.parent),
+        child_frame_id=mount.frame_id,
+        transform=transform,
+    )
+    return msg(TF_MESSAGE, transforms=[stamped])
+
+
+def profile_messages(sample: RobotProfile, config: Ros2Config, latch: Latch) -> list[Outgoing]:
+    """The robot's profile as JSON on a latched std_msgs/String, and where its camera sits on the static transform
+    tree (/tf_static, latched, as a static_transform_publisher would); sent when the profile changes."""
+    text = json.dumps({k: v for k, v in sample.to_dict().items() if k not in ("v", "stamp")}, sort_keys=True)
+    if not latch.changed("robot_profile", text):
+        return []
+    out = [Outgoing(config.own("robot_profile"), STRING, string(text), latched=True)]
+    if sample.camera is not None:
+        out.append(Outgoing("/tf_static", TF_MESSAGE, camera_mount_message(sample), latched=True))
+    return out
 
 
 def passes_while_busy(cmd: FusedCommand, busy: bool) -> bool:

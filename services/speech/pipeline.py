@@ -28,6 +28,7 @@ import numpy as np
 from common.counters import SpeechCounter
 from common.schema import Transcript, Word
 from services.speech.audio import RATE, AudioError, Resampler, check_rate
+from services.speech.loudness import loudness_of
 from services.speech.recognizers import Recognition
 from services.speech.vad import Segmenter, VoicedSegment
 
@@ -285,6 +286,8 @@ class MicStream:
             words=words,
             final=final,
             backend=self.recogniser.name,
+            # the sound over time, for fusion to match against the mouths in view (issue #40): final ones only
+            loudness=loudness_of(utt.audio, RATE, audio_t0) if final else None,
         )
         return Heard(transcript, utt.speech_end, result)
 

@@ -32,6 +32,7 @@ from common.schema import (
     Hands,
     ImageQuality,
     Ray,
+    RobotState,
     Sample,
     Transcript,
     Word,
@@ -379,18 +380,26 @@ def deliver(core: FusionCore, key: str, sample: Sample, wall: float) -> list[Out
         return core.on_gesture_event(key, sample, wall)
     if isinstance(sample, Bodies):
         return core.on_bodies(key, sample, wall)
+    if isinstance(sample, RobotState):
+        return core.on_robot_state(key, sample, wall)
     raise TypeError(f"fusion takes no {type(sample).__name__}")
 
 
 def run_in_process(
-    scenario: Scenario, config: Any = None, base: float = BASE_STAMP, order: list[int] | None = None
+    scenario: Scenario,
+    config: Any = None,
+    base: float = BASE_STAMP,
+    order: list[int] | None = None,
+    profile: Any = None,
 ) -> list[Sample]:
     """Feed the steps (in `order` if given) with 2 ms of wall time between arrivals, ticking after each
-    like the service's worker; then let every deadline expire. Returns the published samples."""
+    like the service's worker; then let every deadline expire. Returns the published samples. `profile`: the robot's
+    (common/robot.py; None: the default)."""
+    from common.robot import DEFAULT
     from services.fusion.core import Config, FusionCore
 
     cfg = config or Config(**scenario.config)
-    core = FusionCore(cfg, "fusion/test")
+    core = FusionCore(cfg, "fusion/test", profile=profile or DEFAULT)
     out: list[Sample] = []
     wall = 1000.0
     for modality in ("vision", "gesture"):  # the services are running, as in a deployment (liveliness tokens)
