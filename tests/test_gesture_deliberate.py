@@ -48,6 +48,9 @@ def test_the_real_stop_palm_is_shaped_and_turned_hands_are_not() -> None:
     assert not palm_shaped(_rotated(PALM, 80.0))  # fingers sideways: a hand held out explaining, not a stop
     assert not palm_shaped(_rotated(PALM, 180.0))  # fingers down
     assert not palm_shaped(_edge_on(PALM, 0.3))  # edge-on: the karate-chop beat of co-speech gesture
+    tucked = PALM.copy()
+    tucked[4] = PALM[9] + 0.3 * (PALM[5] - PALM[9])  # the thumb folded across the palm: four fingers counted
+    assert classify(tucked) == "open_palm" and not palm_shaped(tucked)
 
 
 def _series(motion, seconds: float, fps: float, jitter: float = 0.02, seed: int = 0) -> list[tuple[float, np.ndarray]]:

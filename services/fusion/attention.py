@@ -1,8 +1,9 @@
 """Is the person making a gesture engaged with the robot, and are they speaking, at a moment (issue #40) — pure.
 
 `engaged` is the ONE place fusion's gesture rules ask whether a person faces the robot: REP-155 engagement on
-`Persons` (`Person.engaged`) when the gesture service fills it, else the person's face turned to the camera
-(`Face.looking_at_camera`, most of the face's frames in the last `LOOK_BACK_S`); None when nothing tells. Not the
+`Persons` (`Person.engaged`, the gesture service's engagement tracker, common/engagement.py) when it is known, else
+the same rule over the person's face frames of the last `LOOK_BACK_S` (`engaged_over`: facing the robot, in its
+field, within reach); None when nothing tells. Not the
 body's orientation (services/fusion/space.py `Facing`): around a hand close to the camera MediaPipe guesses a
 skeleton turned away (intent/cat1_palm_closeup_phone: a stop held to a phone was taken for one turned away).
 `speaking`: `Person.speaking` when filled, else the
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from common.engagement import EngagementConfig, engaged_over
 from common.schema import Faces, Persons
 from services.fusion.speaker import Track, tracks_of
 
@@ -47,14 +49,21 @@ def face_track(faces: Sequence[Faces], person: str | None, stamp: float) -> Trac
     return only if only is not None and (person is None or not only.people) else None
 
 
-def engaged(persons: Sequence[Persons], faces: Sequence[Faces], person: str | None, stamp: float) -> bool | None:
+def engaged(
+    persons: Sequence[Persons],
+    faces: Sequence[Faces],
+    person: str | None,
+    stamp: float,
+    cfg: EngagementConfig | None = None,
+) -> bool | None:
     """Does `person` face the robot at `stamp`? None when nothing tells."""
     said = _persons_field(persons, person, stamp, "engaged")
     if isinstance(said, bool):
         return said
     track = face_track(faces, person, stamp)
-    looks = [v for v in track.looking if v is not None] if track is not None else []
-    return sum(looks) * 2 >= len(looks) if looks else None
+    if track is None:
+        return None
+    return engaged_over(faces, track.person, stamp - LOOK_BACK_S, stamp, cfg, persons).engaged
 
 
 def speaking(

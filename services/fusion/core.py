@@ -302,7 +302,7 @@ class FusionCore:
     def gesturer(self, ev: GestureEvent) -> Person:
         """What fusion knows of the person making a gesture at its time (services/fusion/attention.py)."""
         faces = self.faces.around(ev.stamp - attention.LOOK_BACK_S, ev.stamp)
-        engaged = attention.engaged(self.persons, faces, ev.person, ev.stamp)
+        engaged = attention.engaged(self.persons, faces, ev.person, ev.stamp, self.engagement_cfg)
         still = self.speaker_cfg.speaker_still
         return Person(engaged, attention.speaking(self.persons, faces, ev.person, ev.stamp, still))
 

@@ -2,9 +2,11 @@
 
 People talking move their hands: open-palm beats, sweeps, a hand raised while explaining. A stop shown to the robot
 differs in three marks the hand stage can see, and a wave in one more the body stage can:
-- **shape**: an open palm with the fingers up (wrist -> middle knuckle within `FINGERS_UP_DEG` of image-up) and the
+- **shape**: an open palm with the fingers up (wrist -> middle knuckle within `FINGERS_UP_DEG` of image-up), the
   palm turned to the camera (its width x 1.45 at least `FACE_ON` of its length; a palm seen edge-on, the usual
-  beat, is narrow). An arm seen only by pose (`raised_hand`: above the shoulder, forearm up) has this shape;
+  beat, is narrow) and the thumb out, not folded across the palm (its tip `THUMB_OUT_PALMS` palm sizes from the
+  middle knuckle: four fingers counted, HaGRID's "four", read 0.17-0.37, stop palms 0.82-1.11). An arm seen only
+  by pose (`raised_hand`: above the shoulder, forearm up) has this shape;
 - **still**: the palm's centre moves less than `STILL_SPEED` palm sizes per second, measured over at least
   `SPEED_BASELINE_S` of source time (not frame to frame: the figure does not depend on the frame rate or on which
   frames a paced stage processed);
@@ -26,12 +28,13 @@ from services.gesture.body import ARMS, MIN_VISIBILITY, torso
 
 FINGERS_UP_DEG = 45.0
 FACE_ON = 0.55
+THUMB_OUT_PALMS = 0.6  # the thumb's tip at least this far (x palm size) from the middle knuckle: not tucked in
 STILL_SPEED = 1.0  # palm sizes per second
 SPEED_BASELINE_S = 0.15  # s of source time the palm's displacement is measured over, at least...
 SPEED_GAP_S = 0.5  # ...and at most (a hand missing longer than this starts afresh)
 RAISED_BELOW_SHOULDER = 0.25  # torso lengths: a wrist no lower than this below the shoulder is raised
 PALM_POINTS = (0, 5, 9, 13, 17)  # wrist and knuckles: the palm's centre, not the moving fingertips
-MIDDLE_MCP, INDEX_MCP, LITTLE_MCP = 9, 5, 17
+THUMB_TIP, MIDDLE_MCP, INDEX_MCP, LITTLE_MCP = 4, 9, 5, 17
 PALM_LENGTH_PER_WIDTH = 1.45
 
 
@@ -44,7 +47,8 @@ def palm_shaped(landmarks: np.ndarray) -> bool:
         return False
     up = math.degrees(math.acos(max(-1.0, min(1.0, -d[1] / length))))  # image y grows downwards
     width = float(np.linalg.norm(p[LITTLE_MCP] - p[INDEX_MCP]))
-    return up <= FINGERS_UP_DEG and PALM_LENGTH_PER_WIDTH * width / length >= FACE_ON
+    thumb = float(np.linalg.norm(p[THUMB_TIP] - p[MIDDLE_MCP])) / max(length, PALM_LENGTH_PER_WIDTH * width)
+    return up <= FINGERS_UP_DEG and PALM_LENGTH_PER_WIDTH * width / length >= FACE_ON and thumb >= THUMB_OUT_PALMS
 
 
 def palm_centre(landmarks: np.ndarray) -> np.ndarray:
