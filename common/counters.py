@@ -63,6 +63,8 @@ FusionCounter = Literal[
     "person_target",
     "recipient_unknown",
     "cancelled_by_stop_gesture",
+    "stop_gesture_conflict",
+    "palm_during_utterance",
     "gesture_stop",
     "gesture_come_here",
     "clarification_ambiguous",

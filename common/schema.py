@@ -759,6 +759,17 @@ class GestureEvent(Sample, kw_only=True):
     person: Annotated[Optional[str], described("**v1 extension**: the id of the person making it, nil = unknown")] = (
         None
     )
+    still: Annotated[
+        Optional[Annotated[float, Meta(ge=0.0, le=_MAX_FLOAT)]],
+        described(
+            "**v1 extension**, `open_palm` and `wave`: seconds the hand has been held still with the fingers up and "
+            "the palm to the camera, up to this event (0 = not now); nil = not measured"
+        ),
+    ] = None
+    raised: Annotated[
+        Optional[bool],
+        described("**v1 extension**, `open_palm` and `wave`: the wrist is raised to the shoulder; nil = no skeleton"),
+    ] = None
 
     def _check_sample(self) -> None:
         _check_span(self.start, self.end)

@@ -53,7 +53,7 @@ PHOTOS = (
 
 def hands_on_photo(img: Any, frames: int = FRAMES) -> list[Hands]:
     """The Hands the gesture service publishes while the photo is shown `frames` times (stamps 0, 0.1, …)."""
-    from services.gesture.__main__ import to_ray
+    from services.gesture.core import to_ray
     from services.gesture.landmarks import HandLandmarker, PoseLandmarker
     from services.gesture.temporal import GestureTracker
 

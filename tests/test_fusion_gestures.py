@@ -5,16 +5,24 @@ from __future__ import annotations
 import math
 
 import cv2
+import msgspec
 import pytest
 
-from common.schema import GestureEvent, Handedness
+from common.schema import GestureEvent, GestureName, Handedness
 from services.fusion.core import Config, FusionCore
-from services.fusion.gestures import OPEN_PALM_FRAMES, WAVE_HOLD_S, Gestures
+from services.fusion.gestures import (
+    OPEN_PALM_FRAMES,
+    SPEAKING_STILL_S,
+    STOP_STILL_S,
+    WAVE_HOLD_S,
+    Gestures,
+    Person,
+)
 from services.gesture.landmarks import HandLandmarker
 from services.gesture.temporal import GestureTracker
 from testkit.harness import DATA
 from testkit.images import read_image
-from testkit.scenarios import BASE_STAMP, gesture, hands
+from testkit.scenarios import BASE_STAMP, deliver, gesture, hands, say
 
 
 def test_gesture_episode_gives_one_stop_and_a_new_episode_another():
@@ -31,15 +39,19 @@ def test_gesture_episode_gives_one_stop_and_a_new_episode_another():
     assert outs[0].sample.id != outs[1].sample.id
 
 
-def test_an_open_palm_during_an_utterance_is_seen_from_the_event_or_from_enough_hand_frames():
+def test_a_palm_seen_during_an_utterance_is_only_seen_and_a_deliberate_stop_is_remembered():
+    """Issue #40: hand frames with an open palm during an utterance are counted (enough of them), never a stop; a
+    stop event given (deliberate) is remembered over its span, from its start to when it went out."""
     gestures = Gestures(min_score=0.5, episode_gap=1.5, horizon=30.0)
     _, palm = hands(0.5, show="open_palm").build(BASE_STAMP)
-    assert not gestures.stop_shown(BASE_STAMP, BASE_STAMP + 2.0, [palm] * (OPEN_PALM_FRAMES - 1))  # may be noise
-    assert gestures.stop_shown(BASE_STAMP, BASE_STAMP + 2.0, [palm] * OPEN_PALM_FRAMES)
-    key, ev = gesture(1.0, "open_palm", "start").build(BASE_STAMP)
+    assert not gestures.palm_seen([palm] * (OPEN_PALM_FRAMES - 1))  # may be noise
+    assert gestures.palm_seen([palm] * OPEN_PALM_FRAMES)
+    assert not gestures.stop_given(BASE_STAMP, BASE_STAMP + 2.0)
+    key, ev = gesture(1.0, "open_palm", "start", duration=0.4).build(BASE_STAMP)
     assert gestures.on_event(key, ev).intent == "stop"
-    assert gestures.stop_shown(BASE_STAMP, BASE_STAMP + 2.0, [])
-    assert not gestures.stop_shown(BASE_STAMP + 3.0, BASE_STAMP + 5.0, [])
+    assert gestures.stop_given(BASE_STAMP, BASE_STAMP + 2.0)
+    assert gestures.stop_given(BASE_STAMP + 0.7, BASE_STAMP + 0.8)  # said while the palm was held
+    assert not gestures.stop_given(BASE_STAMP + 3.0, BASE_STAMP + 5.0)
     key, ev = gesture(1.0, "wave", "start", duration=WAVE_HOLD_S).build(BASE_STAMP)
     assert gestures.on_event(key, ev).intent == "come_here" and gestures.waved(BASE_STAMP, BASE_STAMP + 2.0)
     key, weak = gesture(4.0, "wave", "start", score=0.3, duration=WAVE_HOLD_S).build(BASE_STAMP)
@@ -62,7 +74,7 @@ def _commands(
 ) -> list[tuple[str, object]]:
     out: list[tuple[str, object]] = []
     for key, ev in events:
-        command = gestures.on_event(key, ev, facing=facing)
+        command = gestures.on_event(key, ev, Person(engaged=facing))
         if command is not None:
             out.append((command.intent, ev.stamp - BASE_STAMP))
     return out
@@ -82,11 +94,12 @@ def test_a_wave_calls_the_robot_only_when_held_and_not_turned_away() -> None:
     assert [intent for intent, _ in again] == ["come_here", "come_here"]
 
 
-def test_a_stop_is_never_held_back() -> None:
+def test_a_stop_without_the_marks_of_issue_40_is_never_held_back() -> None:
+    """An open palm from a gesture service that does not measure the hold (`still` nil) stops at once, as before."""
     gestures = Gestures(0.5, 1.5, 30.0)
     key, palm = gesture(1.0, "open_palm", "start", duration=0.1).build(BASE_STAMP)
-    assert isinstance(palm, GestureEvent)
-    command = gestures.on_event(key, palm, facing=False)
+    assert isinstance(palm, GestureEvent) and palm.still is None
+    command = gestures.on_event(key, palm, Person(engaged=False))
     assert command is not None and command.intent == "stop" and command.realtime
 
 
@@ -138,3 +151,74 @@ def test_a_real_palm_waved_briefly_gives_no_command_and_waved_on_calls_the_robot
     gestures = Gestures(0.5, 1.5, 30.0)
     calls = [c for e in held if (c := gestures.on_event("k", e)) and c.intent == "come_here"]
     assert len(calls) == 1, calls
+
+
+UNKNOWN = Person()  # nothing known of the person making the gesture
+
+
+def _marked(
+    t: float, name: GestureName, still: float, raised: bool | None = True, duration: float = 0.4
+) -> tuple[str, GestureEvent]:
+    """A gesture event of a gesture service that measures the marks of issue #40."""
+    key, ev = gesture(t, name, "hold", duration=duration).build(BASE_STAMP)
+    assert isinstance(ev, GestureEvent)
+    return key, msgspec.structs.replace(ev, still=still, raised=raised)
+
+
+def test_a_stop_needs_a_palm_held_still_longer_while_its_person_speaks_and_not_turned_away() -> None:
+    """Issue #40: a beat or a sweep (not held) is no stop; a palm held `STOP_STILL_S` is, `SPEAKING_STILL_S` while
+    its person speaks; a person seen turned away gives none."""
+
+    def stop(still: float, person: Person = UNKNOWN) -> bool:
+        command = Gestures(0.5, 1.5, 30.0).on_event(*_marked(1.0, "open_palm", still), person)
+        return command is not None and command.intent == "stop" and command.realtime
+
+    assert not stop(0.0) and not stop(STOP_STILL_S - 0.05)
+    assert stop(STOP_STILL_S)
+    assert not stop(STOP_STILL_S, Person(speaking=True)) and stop(SPEAKING_STILL_S, Person(speaking=True))
+    assert stop(STOP_STILL_S, Person(engaged=True)) and not stop(1.0, Person(engaged=False))
+
+
+def test_a_wave_calls_only_with_the_arm_raised_and_its_person_not_speaking() -> None:
+    def calls(raised: bool | None, person: Person = UNKNOWN, duration: float = WAVE_HOLD_S) -> bool:
+        command = Gestures(0.5, 1.5, 30.0).on_event(*_marked(2.0, "wave", 0.0, raised, duration), person)
+        return command is not None and command.intent == "come_here"
+
+    assert calls(True) and calls(True, Person(engaged=True))
+    assert not calls(False) and not calls(None)  # at the chest, or no skeleton to tell
+    assert not calls(True, Person(speaking=True))  # hands swing while people talk; their words are heard
+    assert not calls(True, duration=WAVE_HOLD_S - 0.2) and not calls(True, Person(engaged=False))
+
+
+def _decide(text: str, palm_still: float | None, given_at: float = 0.8) -> tuple[list, dict]:
+    """`text` said over [0, 1.5] s while an open palm is seen in the hand frames and (if `palm_still` is not None)
+    an open palm event held still that long is sent; fusion's outputs and counters."""
+    counts: dict = {}
+    core = FusionCore(Config(), "fusion/test", count=lambda name: counts.__setitem__(name, counts.get(name, 0) + 1))
+    core.on_liveliness("gesture", "test", True)
+    steps = [hands(0.1 * i, show="open_palm").build(BASE_STAMP) for i in range(1, 20)]
+    if palm_still is not None:
+        steps.append(_marked(given_at, "open_palm", palm_still, duration=0.5))
+    steps.append(say(0.0, 1.5, text).build(BASE_STAMP))
+    out = []
+    for key, sample in sorted(steps, key=lambda ks: ks[1].stamp):
+        out += [o.sample for o in deliver(core, key, sample, 1000.0 + sample.stamp - BASE_STAMP)]
+        out += [o.sample for o in core.tick(1000.0 + sample.stamp - BASE_STAMP)]
+    out += [o.sample for o in core.tick(2000.0)]
+    return out, counts
+
+
+def test_a_command_said_while_a_palm_is_seen_is_answered_and_the_palm_counted() -> None:
+    """Issue #40: "turn left" said while an open palm moves (a beat, not held: no stop) is decided as usual."""
+    for still in (None, 0.1):
+        out, counts = _decide("turn left", still)
+        assert [(type(o).__name__, o.intent) for o in out] == [("FusedCommand", "turn")], still
+        assert counts.get("palm_during_utterance") == 1 and "cancelled_by_stop_gesture" not in counts
+
+
+def test_a_deliberate_stop_during_a_command_cancels_it_and_during_come_here_asks() -> None:
+    out, counts = _decide("turn left", STOP_STILL_S)
+    assert [(o.intent, o.text) for o in out] == [("stop", None)] and counts["cancelled_by_stop_gesture"] == 1
+    out, counts = _decide("come here", STOP_STILL_S)
+    assert [type(o).__name__ for o in out] == ["FusedCommand", "Clarification"]
+    assert out[0].intent == "stop" and out[1].reason == "conflict" and counts["stop_gesture_conflict"] == 1

@@ -3,11 +3,12 @@ pointing with the speaker unknown, a stop palm from anyone, and "bring it to me"
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 from common.schema import (
     Clarification,
     FusedCommand,
+    GestureEvent,
     GestureName,
     Hand,
     Handedness,
@@ -68,19 +69,21 @@ def _frames(make: list[Hand]) -> list[tuple[str, Sample]]:
     return out
 
 
-def run(text: str, hands: list[Hand], speaker: str | None) -> list[Sample]:
-    """One utterance over a scene of two cups and two people, their hands as given, the speaker as the attribution
-    would say (None = unknown)."""
+def run(text: str, hands: list[Hand], speaker: str | None, events: Sequence[GestureEvent] = ()) -> list[Sample]:
+    """One utterance over a scene of two cups and two people, their hands (and gesture events) as given, the speaker
+    as the attribution would say (None = unknown)."""
     core = FusionCore(Config(), "fusion/test")
     core.speaker_of = lambda p: speaker
     for modality in ("vision", "gesture"):
         core.on_liveliness(modality, "test", True)
     steps = [s.build(BASE_STAMP) for s in scene([RED, BLUE])] + _frames(hands) + [say(0.0, 1.5, text).build(BASE_STAMP)]
+    steps += [("hri/gesture/cam0/event", ev) for ev in events]
     feed: dict[str, Callable[..., Any]] = {
         "Detections": core.on_detections,
         "Hands": core.on_hands,
         "Persons": core.on_persons,
         "Transcript": core.on_transcript,
+        "GestureEvent": core.on_gesture_event,
     }
     out: list[Sample] = []
     wall = 1000.0
@@ -119,10 +122,30 @@ def test_another_persons_pointing_alone_is_no_evidence_for_the_speaker() -> None
 
 
 def test_a_stop_palm_from_someone_who_is_not_the_speaker_still_stops() -> None:
+    """Bob holds a stop to the robot while Alice speaks: the robot stops and her command is cancelled. Bob's palm
+    seen without a stop shown (issue #40: a palm that is not held still, a beat) cancels nothing."""
     palm = _hand("person-2", BOB_HAND, None, show="open_palm")
-    assert run("Pick up the red cup.", [palm], "person-1") == []  # the utterance is cancelled
-    (out,) = run("Pick up the red cup.", [], "person-1")
-    assert isinstance(out, FusedCommand) and out.target is not None and out.target.id == "cup_red"
+    stop = GestureEvent(
+        stamp=BASE_STAMP + 0.6,
+        source="gesture/cam0",
+        cam="cam0",
+        width=W,
+        height=H,
+        gesture="open_palm",
+        phase="hold",
+        start=BASE_STAMP + 0.1,
+        end=BASE_STAMP + 0.6,
+        score=0.95,
+        hand="left",
+        person="person-2",
+        still=0.5,
+        raised=True,
+    )
+    (out,) = run("Pick up the red cup.", [palm], "person-1", [stop])  # the stop; the utterance is cancelled
+    assert isinstance(out, FusedCommand) and out.intent == "stop" and out.text is None
+    for hands in ([palm], []):
+        (out,) = run("Pick up the red cup.", hands, "person-1")
+        assert isinstance(out, FusedCommand) and out.target is not None and out.target.id == "cup_red"
 
 
 def test_bring_it_to_me_goes_to_the_speaker() -> None:

@@ -40,11 +40,11 @@ from common.schema import (
 )
 from common.settings import setting
 from common.stack import node, publishers_of
-from services.fusion import describe, people, robot, space
+from services.fusion import attention, describe, people, robot, space
 from services.fusion.afford import Applicable, applicable, refusal, removed_words, unable
 from services.fusion.decision import Act, ActOnTarget, Ask, Decision, Draft, Grounded, Ignore, Refuse
 from services.fusion.dialogue import Dialogue
-from services.fusion.gestures import Gestures
+from services.fusion.gestures import CONTRARY_TO_STOP, Gestures, Person
 from services.fusion.ground import DEFAULT_MARGIN, Choice, Scored, pointed_location, score
 from services.fusion.join import Join, Ready, SeenOnce
 from services.fusion.outputs import Output, Outputs
@@ -286,7 +286,7 @@ class FusionCore:
     def on_gesture_event(self, key: str, ev: GestureEvent, wall: float) -> list[Output]:
         if not self._add(GESTURE, key, ev.stamp, ev, wall, ident=(ev.gesture, ev.phase, ev.hand)):
             return []
-        command = self.gestures.on_event(key, ev, facing=self.facing.at(ev.stamp))
+        command = self.gestures.on_event(key, ev, self.gesturer(ev))
         if command is None:
             return []
         if command.intent == "stop":
@@ -298,6 +298,13 @@ class FusionCore:
             return []
         self.count(GESTURE_COMMAND_COUNTER[command.intent])
         return [self.outputs.gesture_command(ev, command.intent, command.why, command.realtime)]
+
+    def gesturer(self, ev: GestureEvent) -> Person:
+        """What fusion knows of the person making a gesture at its time (services/fusion/attention.py)."""
+        faces = self.faces.around(ev.stamp - attention.LOOK_BACK_S, ev.stamp)
+        engaged = attention.engaged(self.persons, faces, ev.person, ev.stamp, self.engagement_cfg)
+        still = self.speaker_cfg.speaker_still
+        return Person(engaged, attention.speaking(self.persons, faces, ev.person, ev.stamp, still))
 
     def on_transcript(self, key: str, t: Transcript, wall: float) -> list[Output]:
         self.join.liveness.arrived(SPEECH, wall)
@@ -401,10 +408,14 @@ class FusionCore:
         """The window of an utterance is due: decide what to do (one Decision), then render it; a command said
         facing away (`speaker`, decided once per window in `tick`) is asked about first."""
         t = p.transcript
-        hand_frames = (item for _, item in self.join.streams.between(GESTURE, t.start, p.hi))
-        if self.gestures.stop_shown(t.start, p.hi, hand_frames):
-            why = f"'{t.text}' dropped: an open palm (stop) was shown while it was said"
+        if self.gestures.stop_given(t.start, p.hi):  # a deliberate stop while it was said (the robot stopped)
+            if p.utterance.intent in CONTRARY_TO_STOP:
+                self.count("stop_gesture_conflict")
+                return [self.dialogue.confirm_over_stop(t, p.utterance.intent)]
+            why = f"'{t.text}' cancelled: a stop was shown to the robot while it was said"
             return self.ignore(Ignore("cancelled_by_stop_gesture", why))
+        if self.gestures.palm_seen(item for _, item in self.join.streams.between(GESTURE, t.start, p.hi)):
+            self.count("palm_during_utterance")  # an open palm, not a stop shown to the robot: decided as usual
         ctx = self._with_persons(p.utterance, self.context(p, how))
         recipient = people.split_recipient(t.text)[1]  # "bring it to me": where it goes (the parse keeps "her")
         replied, decided = self.decide_utterance(p, ctx)

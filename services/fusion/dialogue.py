@@ -137,6 +137,12 @@ class Dialogue:
         shown = [target] if target is not None else []
         return self._ask(t, "low_confidence", draft, ObjectPhrase(), shown, shown, question)
 
+    def confirm_over_stop(self, t: Transcript, intent: Intent) -> Output:
+        """A stop shown to the robot while "come here" was said (issue #40): the robot stopped; ask before coming."""
+        question = f'You showed me a stop sign while saying "{t.text}". Should I do it?'
+        self.last = None
+        return self._ask(t, "conflict", Draft(intent, t.text), ObjectPhrase(), [], [], question)
+
     def refuse(self, t: Transcript, u: Utterance, answer: str, draft: Draft) -> Output:
         """ "I can't pick up a couch.": the words name only what the action cannot apply to (services/fusion/afford.py).
         On the wire a `not_found` Clarification without candidates (v1: no new reason value, docs/fusion.md); it stays

@@ -4,29 +4,19 @@ from __future__ import annotations
 
 import argparse
 import time
-from typing import cast
 
 import numpy as np
 
 from common.image import frame_handler
 from common.runner import App, Delivery, Service, StartupError, serve, service_parser
-from common.schema import (
-    DepthFrame,
-    Frame,
-    GestureEvent,
-    GestureName,
-    GesturePhase,
-    Handedness,
-    Ray3D,
-    SpeechDecoding,
-)
+from common.schema import DepthFrame, Frame, Ray3D, SpeechDecoding
 from common.settings import add_option, add_settings, from_args
 from common.speech_first import SpeechFirst
 from common.stack import node
-from services.gesture.core import CameraGraphs, GestureCore, GestureSettings, build_graphs, to_ray
+from services.gesture.core import CameraGraphs, GestureCore, GestureSettings, build_graphs, event_sample
 from services.gesture.faces import FaceConfig
 from services.gesture.landmarks import LandmarkError
-from services.gesture.people_stage import PeopleOfFrame, event_person
+from services.gesture.people_stage import PeopleOfFrame
 from services.gesture.pose_rotation import MAX_POSES
 from services.gesture.space import FrameRays
 from services.gesture.temporal import Event
@@ -291,24 +281,7 @@ class GestureApp(App):
     ) -> None:
         service = self.service
         for ev in events:
-            ray3d = None
-            if ev.ray is not None and rays3d is not None:
-                ray3d = rays3d.arm(ev.hand) if ev.ray.source == "body" else (hand_rays3d or {}).get(ev.hand)
-            event = GestureEvent(
-                stamp=frame.stamp,
-                source=service.source,
-                cam=frame.cam,
-                width=frame.width,
-                height=frame.height,
-                gesture=cast(GestureName, ev.gesture),
-                phase=cast(GesturePhase, ev.phase),
-                start=ev.start,
-                end=ev.end,
-                score=ev.score,
-                hand=cast(Handedness, ev.hand),
-                ray=to_ray(ev.ray, ray3d),
-                person=event_person(seen, ev.hand, ev.ray),
-            )
+            event = event_sample(frame, ev, service.source, rays3d, hand_rays3d, seen)
             service.publish_output("event", event, lossless=True, realtime=ev.gesture == "open_palm", cam=frame.cam)
             if ev.phase != "hold":
                 service.log.info("%s %s (%s hand) on %s", ev.gesture, ev.phase, ev.hand, frame.cam)

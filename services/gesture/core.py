@@ -18,7 +18,9 @@ from common.schema import (
     DepthFrame,
     Faces,
     Frame,
+    GestureEvent,
     GestureName,
+    GesturePhase,
     Hand,
     Handedness,
     Hands,
@@ -32,6 +34,7 @@ from services.gesture.people_stage import (
     CameraPeople,
     PeopleOfFrame,
     PeopleStage,
+    event_person,
     hand_person,
     other_arms,
     other_skeletons,
@@ -405,4 +408,36 @@ def to_hand(o: Observation, t: TrackedHand, ray3d: Ray3D | None, person: str | N
         gesture=cast(GestureName | None, t.gesture),
         ray=to_ray(t.ray, ray3d),
         person=person,
+    )
+
+
+def event_sample(
+    frame: Frame,
+    ev: Event,
+    source: str,
+    rays3d: FrameRays | None = None,
+    hand_rays3d: dict[str, Ray3D | None] | None = None,
+    seen: PeopleOfFrame | None = None,
+) -> GestureEvent:
+    """A tracker event of `frame` as the wire's GestureEvent (the shell publishes it; tests and benchmarks feed it
+    to fusion): its 3-D ray when depth is known, its person when the person stage runs."""
+    ray3d = None
+    if ev.ray is not None and rays3d is not None:
+        ray3d = rays3d.arm(ev.hand) if ev.ray.source == "body" else (hand_rays3d or {}).get(ev.hand)
+    return GestureEvent(
+        stamp=frame.stamp,
+        source=source,
+        cam=frame.cam,
+        width=frame.width,
+        height=frame.height,
+        gesture=cast(GestureName, ev.gesture),
+        phase=cast(GesturePhase, ev.phase),
+        start=ev.start,
+        end=ev.end,
+        score=ev.score,
+        hand=cast(Handedness, ev.hand),
+        ray=to_ray(ev.ray, ray3d),
+        person=event_person(seen, ev.hand, ev.ray),
+        still=ev.still,
+        raised=ev.raised,
     )

@@ -39,6 +39,7 @@ from services.gesture.body import (
     raised_hand,
     raised_palm,
 )
+from services.gesture.deliberate import HoldMeter, arm_raised, palm_centre, palm_shaped
 from services.gesture.rules import classify, finger_states, palm_size, pointing_ray
 
 HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
@@ -360,6 +361,9 @@ class Event:
     score: float
     hand: str
     ray: Ray | None
+    # the marks of a gesture made to the robot (services/gesture/deliberate.py), on open_palm and wave events
+    still: float | None = None  # s the hand has been held still in a stop's shape
+    raised: bool | None = None  # the wrist raised on the person's skeleton (None: no skeleton)
 
 
 @dataclass
@@ -390,6 +394,8 @@ class _Track:
     wrist_x: deque = field(default_factory=lambda: deque(maxlen=90))  # (stamp, x / palm)
     rays: deque = field(default_factory=lambda: deque(maxlen=5))  # (origin, direction)
     ray_source: str = "hand"
+    hold: HoldMeter = field(default_factory=HoldMeter)
+    raised: bool | None = None
 
 
 @dataclass
@@ -427,6 +433,7 @@ class GestureTracker:
         resting rules of their own arms."""
         arms = self._judge_arms(body, size, joints3d)
         cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm, joints3d, others)
+        cues += self._waving_arms(arms, cues)
         self.last_arms = [(a, None) for a in arms]
         events: list[Event] = []
         assigned = self._associate(cues)
@@ -447,16 +454,16 @@ class GestureTracker:
                 ray = self._steady_ray(track, cue.source, cue.ray_confidence)
             else:
                 track.rays.clear()
-            if raw == "open_palm" and self._waving(track, stamp):
-                raw = "wave"
-            events += self._step(track, stamp, raw, ray)
+            raw = self._wave_or(track, stamp, raw)
+            self._measure(track, stamp, cue, observations, body)
+            events += self._marked(track, stamp, self._step(track, stamp, raw, ray))
             if cue.observation is not None:
                 tracked[cue.observation] = TrackedHand(track.id, raw, ray)
             if cue.arm is not None and ray is not None and ray.source == "body":
                 self.last_arms = [(a, ray if a is cue.arm else r) for a, r in self.last_arms]
         for track in self.tracks:
             if track.id not in seen_ids:
-                events += self._step(track, stamp, None, None)
+                events += self._marked(track, stamp, self._step(track, stamp, None, None))
         self.tracks = [t for t in self.tracks if stamp - t.last_seen <= self.forget_after or t.active]
         return cast("list[TrackedHand]", tracked), events  # every observation made a cue (fuse_arms): no None
 
@@ -520,6 +527,52 @@ class GestureTracker:
                 extreme = x
         return reversals >= self.wave_reversals
 
+    def _wave_or(self, track: _Track, stamp: float, raw: str | None) -> str | None:
+        """This frame's class, or "wave": an open palm whose wrist swings side to side starts a wave; a wave goes on
+        while the wrist keeps swinging, whatever the blurred hand shows on a frame (issue #40: a fast wave seen as
+        a palm, nothing, a palm again made short waves and stops, never a wave long enough to call)."""
+        if raw == "open_palm" or (track.active == "wave" and raw != "point"):
+            return "wave" if self._waving(track, stamp) else raw
+        return raw
+
+    def _measure(
+        self, track: _Track, stamp: float, cue: Cue, observations: list[Observation], body: np.ndarray | None
+    ) -> None:
+        """The marks of a deliberate gesture (deliberate.py) on this frame: the palm's hold, the arm raised."""
+        if cue.observation is not None:
+            landmarks = observations[cue.observation].landmarks
+            centre, shaped = palm_centre(landmarks), cue.raw == "open_palm" and palm_shaped(landmarks)
+        else:  # an arm seen by pose alone: raised above the shoulder, forearm up (`raised_hand`)
+            centre, shaped = cue.wrist, cue.raw == "open_palm"
+        track.hold.add(stamp, centre, cue.size, shaped)
+        track.raised = arm_raised(body, cue.arm.side if cue.arm is not None else cue.hand, cue.wrist)
+
+    def _marked(self, track: _Track, stamp: float, events: list[Event]) -> list[Event]:
+        """The marks of a deliberate gesture on this track's stop and wave events."""
+        for ev in events:
+            if ev.gesture in ("open_palm", "wave"):  # an ended gesture is not held now
+                ev.still = 0.0 if ev.phase == "end" else round(track.hold.still_for(stamp), 3)
+                ev.raised = track.raised
+        return events
+
+    def _waving_arms(self, arms: list[Arm], cues: list[Cue]) -> list[Cue]:
+        """An arm whose hand the hand stage lost, at the wrist of a hand that is waving: the arm goes on with the
+        wave (a fast wave at room distance blurs the hand on most frames; issue #40), its wrist in the hand's place."""
+        used = {id(c.arm) for c in cues if c.arm is not None}
+        out = []
+        for a in arms:
+            if id(a) in used or a.visibility < MIN_VISIBILITY:
+                continue
+            wrist = np.array(a.wrist, dtype=float)
+            near = [
+                t
+                for t in self.tracks
+                if t.active == "wave" and float(np.linalg.norm(t.wrist - wrist)) <= self.match_palms * 2 * t.palm
+            ]
+            if near:
+                out.append(Cue(a.side, a.visibility, wrist, near[0].palm, None, None, "body", 1.0, None, a))
+        return out
+
     def _step(self, track: _Track, stamp: float, raw: str | None, ray: Ray | None) -> list[Event]:
         events = []
         score = round(float(np.mean(track.scores)) if track.scores else 0.0, 4)
@@ -568,6 +621,7 @@ class GestureTracker:
                 round(float(np.mean(t.scores)) if t.scores else 0.0, 4),
                 t.hand,
                 None,
+                still=0.0 if t.active in ("open_palm", "wave") else None,
             )
             for t in self.tracks
             if t.active is not None
