@@ -1,6 +1,8 @@
 """The contract's example samples: one valid instance of every schema, small and hand-written (the codec tests
 round-trip and break them; testkit/payloads.py makes the benchmarks' realistic samples from them)."""
 
+import common.stack as stack
+from common.keys import Keys
 from common.schema import (
     AudioChunk,
     Bodies,
@@ -30,6 +32,7 @@ from common.schema import (
     Ray3D,
     RobotProfile,
     RobotState,
+    Sample,
     Speaker,
     SpeechDecoding,
     Spoken,
@@ -291,3 +294,11 @@ def examples():
             data=bytes(8),
         ),
     ]
+
+
+def example_key(sample: Sample, keys: Keys | None = None) -> str:
+    """The key the stack publishes `sample` on: the first topic of common/stack.py whose schema is the sample's
+    type (the microphone's audio before the robot's voice), its placeholders filled from the sample's fields."""
+    topic = next(t for t in stack.TOPICS if t.schema is type(sample))
+    chunks = {name: str(getattr(sample, name)) for name in topic.placeholders()}
+    return (keys or Keys()).key(topic.name, **chunks)

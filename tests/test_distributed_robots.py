@@ -28,7 +28,7 @@ def test_each_robot_has_its_own_users_bound_to_its_prefix(tmp_path):
     assert not may_publish(sec, "robot2-speech", "robot1/speech/kbd/transcript", "hri")
     acl = access_control(sec, "hri")
     rules = {r["id"]: r for r in acl["rules"]}
-    assert rules["speech-publish@robot2"]["key_exprs"] == ["robot2/speech/*/transcript"]
+    assert rules["speech-publish@robot2"]["key_exprs"] == ["robot2/speech/*/transcript", "robot2/speech/*/decoding"]
     assert rules["learn-subscribers@robot1"]["key_exprs"] == ["robot1/**"]
     subjects = {s["id"]: s["usernames"] for s in acl["subjects"]}
     assert subjects["role-fusion@robot1"] == ["robot1-fusion"] and subjects["role-fusion@robot2"] == ["robot2-fusion"]

@@ -17,6 +17,7 @@ from common.keys import Keys
 from common.schema import DetectedObject, Detections, GestureEvent, ImageQuality, Ray, Sample, Transcript
 from hri.cli import make_transcript
 from hri.recording import NS, Progress, ReplayClock, SessionReader, SessionWriter, raw_payload
+from testkit.examples import example_key
 from testkit.harness import Client
 
 KEYS = Keys("hri")
@@ -113,19 +114,6 @@ def test_writer_makes_one_raw_sample_channel_per_key_with_stamp_as_publish_time(
 # what Foxglove decodes: message encoding -> the schema encoding it reads the schema as (it also reads ros2msg/CDR,
 # flatbuffer, cbor and schemaless JSON; a recording uses these two); msgpack is not among them
 FOXGLOVE_DECODES = {"protobuf": "protobuf", "json": "jsonschema"}
-
-
-def example_key(sample: Sample) -> str:
-    """The key the stack publishes one of testkit/examples.py's samples on."""
-    kind = type(sample).__name__
-    if kind in ("FusedCommand", "Clarification"):
-        return KEYS.command() if kind == "FusedCommand" else KEYS.clarification()
-    if kind == "Stats":
-        return KEYS.stats(sample.service, sample.instance)  # type: ignore[attr-defined]
-    topic = {"Frame": "frame", "DepthFrame": "depth", "AudioChunk": "audio", "Detections": "objects"}.get(kind)
-    topic = topic or {"GestureEvent": "event"}.get(kind, kind.lower())
-    chunk = {"mic": sample.mic} if hasattr(sample, "mic") else {"cam": sample.cam}  # type: ignore[attr-defined]
-    return KEYS.key(topic, **chunk)
 
 
 def test_every_channel_decodes_in_foxglove_and_replays_the_payloads_byte_for_byte(tmp_path):

@@ -32,7 +32,7 @@ from common.schema import (
 )
 from hri.recording import SessionReader, SessionWriter, read_samples
 from hri.viewers.foxglove_msgs import FoxgloveConverter, speaking_person
-from testkit.examples import T, examples
+from testkit.examples import T, example_key, examples
 from testkit.shared import shared_path
 
 pytest.importorskip("foxglove", reason="foxglove-sdk (the foxglove extra) is not installed")
@@ -46,23 +46,7 @@ YCB_DEPTH_SCALE = 0.0001  # 1 unit = 0.1 mm
 
 def key_of(sample: Sample) -> str:
     """The key the stack publishes `sample` on."""
-    by_type: dict[str, Any] = {
-        "Frame": lambda s: KEYS.frame(s.cam),
-        "DepthFrame": lambda s: KEYS.depth(s.cam),
-        "AudioChunk": lambda s: KEYS.audio(s.mic),
-        "Detections": lambda s: KEYS.objects(s.cam),
-        "Hands": lambda s: KEYS.hands(s.cam),
-        "GestureEvent": lambda s: KEYS.gesture_event(s.cam),
-        "Bodies": lambda s: KEYS.bodies(s.cam),
-        "Faces": lambda s: KEYS.faces(s.cam),
-        "Persons": lambda s: KEYS.persons(s.cam),
-        "Transcript": lambda s: KEYS.transcript(s.mic),
-        "FusedCommand": lambda s: KEYS.command(),
-        "Clarification": lambda s: KEYS.clarification(),
-        "Stats": lambda s: KEYS.stats(s.service, s.instance),
-    }
-    key: str = by_type[type(sample).__name__](sample)
-    return key
+    return example_key(sample, KEYS)
 
 
 def ycb_depth_units() -> np.ndarray:
