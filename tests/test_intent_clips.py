@@ -1,7 +1,8 @@
 """Only what is meant for the robot (issue #40), on real clips of ../shared/data/intent/ through the gesture core and
 fusion as the services run them (testkit/intent.py; MediaPipe runs in the test, nothing of shared/ is kept):
 people talking with their hands or just moving give no gesture command; the close-up deliberate stop stops, the
-same whichever frames a loaded service happened to process; a command said over gesturing hands is answered.
+same whichever frames a loaded service happened to process; an arm waved at room distance calls; a command said
+over gesturing hands is answered.
 Frames are windows of the clips (their labelled stretches, intent.json) to keep the run short."""
 
 from __future__ import annotations
@@ -68,3 +69,14 @@ def test_a_command_said_over_talking_hands_is_answered() -> None:
         o for o in outputs if isinstance(o, (FusedCommand, Clarification)) and o.stamp in {t.stamp for t in said}
     ]
     assert [getattr(o, "intent", None) for o in answered] == ["turn", "turn", "come_here"]
+
+
+def test_an_arm_waved_at_room_distance_calls_once_whichever_frames_were_processed() -> None:
+    """The KARD clip (intent.json: an arm held out and swept across at the camera at ~3 m, 0.5-2.0 s): the hand is
+    ~15 px and blurred, MediaPipe Hands sees it on a few frames; the skeleton's lifted, sweeping arm is the wave
+    (services/gesture/deliberate.py `ArmSwing`). One come_here within the labelled wave (+ 0.5 s), with every frame,
+    every 2nd frame from 0 or 1, or 70 % at random; no stop."""
+    for keep in ("all", "every2+0", "every2+1", "random70/1"):
+        commands = _commands("cat2_kard_horizontal_arm_wave_s05.mp4", 0.0, 3.0, keep)
+        assert [i for i, _ in commands] == ["come_here"], (keep, commands)
+        assert 0.5 <= commands[0][1] <= 2.0 + 0.5, (keep, commands)

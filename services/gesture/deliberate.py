@@ -13,7 +13,9 @@ differs in three marks the hand stage can see, and a wave in one more the body s
 - **held**: `still_for` = source time since the shaped, still palm was first at that place (0: not now). Fusion
   decides how long is enough (services/fusion/gestures.py); the gesture service only measures;
 - **raised** (for a wave): the wrist at or above `RAISED_BELOW_SHOULDER` torso lengths below the shoulder, on the
-  person's skeleton (None: no skeleton to judge by).
+  person's skeleton (None: no skeleton to judge by);
+- **an arm wave** (`ArmSwing`): the skeleton's arm lifted (at the shoulder, or held out sideways) and its wrist
+  swinging side to side by a stated number of body scales over source time: a wave the hand stage barely sees.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from services.gesture.body import ARMS, MIN_VISIBILITY, torso
+from services.gesture.body import ARMS, MIN_VISIBILITY, body_scale, torso
 
 FINGERS_UP_DEG = 45.0
 FACE_ON = 0.55
@@ -107,3 +109,72 @@ class HoldMeter:
 def _speed(b: _Sample, stamp: float, centre: np.ndarray, size: float) -> float:
     """Palm sizes per second from the baseline sample `b` to now."""
     return float(np.linalg.norm(np.asarray(centre) - b.centre)) / (stamp - b.stamp) / ((size + b.size) / 2)
+
+
+# A wave seen by the body alone (issue #40: at ~3 m the waving hand is ~15 px and blurred, MediaPipe Hands finds it
+# on a few frames; Pose follows the arm throughout). Lengths in body scales (`body_scale`: the shoulder width).
+HELD_OUT_SCALES = 1.0  # a wrist this far sideways from its shoulder, no lower than mid-torso, is held out
+HELD_OUT_BELOW_SHOULDER = 0.5  # torso lengths
+SWING_REVERSAL_SCALES = 0.5  # a turn of the wrist's sideways path counts past this much back
+SWING_MIN_SCALES = 1.0  # a swing with a turn covers at least this much sideways...
+SWEEP_MIN_SCALES = 2.0  # ...one without a turn (a sustained sweep) at least this much
+SWING_WINDOW_S = 3.0  # s of source time the raised arm's path is looked at, at most
+
+
+def arm_lifted(body: np.ndarray, side: str) -> bool:
+    """Is this arm raised for a wave on the skeleton alone: the wrist at the shoulder (`arm_raised`) or held out
+    sideways, away from the torso (`HELD_OUT_SCALES` from the shoulder, no lower than mid-torso)? False when the
+    shoulder or wrist is not seen."""
+    p = np.asarray(body, dtype=float).reshape(33, 3)
+    s, _, w, _, _ = ARMS[side]
+    if min(p[s, 2], p[w, 2]) < MIN_VISIBILITY:
+        return False
+    if arm_raised(p, side, p[w, :2]):
+        return True
+    shoulder, _, length = torso(p, side)
+    out = abs(float(p[w, 0] - shoulder[0])) >= HELD_OUT_SCALES * body_scale(p)
+    return out and bool(p[w, 1] <= shoulder[1] + HELD_OUT_BELOW_SHOULDER * length)
+
+
+@dataclass
+class ArmSwing:
+    """One arm's sideways path while it is lifted (`arm_lifted`), in body scales over source time: `waving` is the
+    source time the lifted arm has been swinging side to side (a turn after `SWING_MIN_SCALES`, or a sweep of
+    `SWEEP_MIN_SCALES`), else None."""
+
+    path: collections.deque = field(default_factory=lambda: collections.deque(maxlen=128))  # (stamp, x / scale)
+    scale: float = 1.0  # px, the person's latest body scale
+
+    def add(self, stamp: float, body: np.ndarray | None, side: str) -> None:
+        p = None if body is None else np.asarray(body, dtype=float).reshape(33, 3)
+        if p is None or not arm_lifted(p, side) or (self.path and stamp - self.path[-1][0] > SPEED_GAP_S):
+            self.path.clear()  # lowered, unseen or lost a while: a new swing starts afresh
+        if p is not None and arm_lifted(p, side):
+            self.scale = body_scale(p)
+            self.path.append((stamp, float(p[ARMS[side][2], 0]) / self.scale))
+        while self.path and stamp - self.path[0][0] > SWING_WINDOW_S:
+            self.path.popleft()
+
+    def waving(self) -> float | None:
+        """The stamp since which the lifted arm has been swinging (None: it is not)."""
+        xs = [x for _, x in self.path]
+        if len(xs) < 2:
+            return None
+        reach = max(xs) - min(xs)
+        if reach >= SWEEP_MIN_SCALES or (reach >= SWING_MIN_SCALES and _turned(xs)):
+            return float(self.path[0][0])
+        return None
+
+
+def _turned(xs: list[float]) -> bool:
+    """Did the path go `SWING_REVERSAL_SCALES` one way, then as far back?"""
+    direction, extreme = 0.0, xs[0]
+    for x in xs[1:]:
+        if direction == 0.0:
+            if abs(x - xs[0]) >= SWING_REVERSAL_SCALES:
+                direction, extreme = math.copysign(1.0, x - xs[0]), x
+        elif (x - extreme) * direction > 0:
+            extreme = x
+        elif abs(x - extreme) >= SWING_REVERSAL_SCALES:
+            return True
+    return False

@@ -11,7 +11,9 @@ each observation's track (with the steadied ray when the hand points) and the Ge
   `flush()` says the stream stopped (no frames come to show it is gone);
 - **wave**: an open palm whose wrist moved side to side with at least `wave_reversals` direction changes,
   each swing at least `wave_amplitude` palm sizes, within the last `wave_window` seconds. A wave replaces the
-  open palm it grew out of (the open palm ends, the wave starts).
+  open palm it grew out of (the open palm ends, the wave starts). With the body stage, an arm lifted on the
+  skeleton whose wrist swings side to side (deliberate.py `ArmSwing`) is a wave too, whatever the hand stage shows
+  (a hand at room distance is too small and blurred to see), dated from the arm's lifting.
 Hands are tracked by wrist position (nearest within `match_palms` palm sizes, same handedness first), so two
 hands do not flicker into each other.
 """
@@ -39,7 +41,7 @@ from services.gesture.body import (
     raised_hand,
     raised_palm,
 )
-from services.gesture.deliberate import HoldMeter, arm_raised, palm_centre, palm_shaped
+from services.gesture.deliberate import ArmSwing, HoldMeter, arm_raised, palm_centre, palm_shaped
 from services.gesture.rules import classify, finger_states, palm_size, pointing_ray
 
 HAND_RAY_MIN_PALM = 40.0  # px: a smaller hand's finger ray is less reliable than the arm's (a 30-50 px hand)
@@ -396,6 +398,7 @@ class _Track:
     ray_source: str = "hand"
     hold: HoldMeter = field(default_factory=HoldMeter)
     raised: bool | None = None
+    wave_since: float | None = None  # the start of the lifted arm's swing, when the body sees a wave
 
 
 @dataclass
@@ -415,6 +418,7 @@ class GestureTracker:
     tracks: list[_Track] = field(default_factory=list)
     last_arms: list = field(default_factory=list)  # [(Arm, steadied Ray | None)] of the last frame's body
     _arm_pointing: dict = field(default_factory=dict)
+    _swings: dict = field(default_factory=lambda: {"left": ArmSwing(), "right": ArmSwing()})  # side -> its path
     _next_id: int = 1
 
     def update(
@@ -432,6 +436,8 @@ class GestureTracker:
         become one cue (fuse_arms). `others`: the other persons' skeletons (the person stage's), whose hands keep the
         resting rules of their own arms."""
         arms = self._judge_arms(body, size, joints3d)
+        for side, swing in self._swings.items():
+            swing.add(stamp, body, side)
         cues = fuse_arms(observations, arms, body, self.hand_ray_min_palm, joints3d, others)
         cues += self._waving_arms(arms, cues)
         self.last_arms = [(a, None) for a in arms]
@@ -454,8 +460,9 @@ class GestureTracker:
                 ray = self._steady_ray(track, cue.source, cue.ray_confidence)
             else:
                 track.rays.clear()
-            raw = self._wave_or(track, stamp, raw)
+            raw = self._body_wave(track, cue, self._wave_or(track, stamp, raw))
             self._measure(track, stamp, cue, observations, body)
+            track.raised = True if track.wave_since is not None else track.raised  # lifted: at or out of the shoulder
             events += self._marked(track, stamp, self._step(track, stamp, raw, ray))
             if cue.observation is not None:
                 tracked[cue.observation] = TrackedHand(track.id, raw, ray)
@@ -485,9 +492,11 @@ class GestureTracker:
         out = []
         for cue in cues:
             best, best_d = None, float("inf")
+            reach = self._swing_reach(cue)
             for t in free:
-                d = float(np.linalg.norm(t.wrist - cue.wrist)) / max(cue.size, t.palm)
+                d = float(np.linalg.norm(t.wrist - cue.wrist)) / max(reach or cue.size, t.palm)
                 d += 0.0 if t.hand == cue.hand else 0.5  # prefer the same hand, do not insist (labels flicker)
+                d -= self.match_palms if reach and t.active == "wave" else 0.0  # a swinging arm goes on waving
                 if d < best_d and d <= self.match_palms:
                     best, best_d = t, d
             if best is None:
@@ -498,6 +507,12 @@ class GestureTracker:
                 free.remove(best)
             out.append(best)
         return out
+
+    def _swing_reach(self, cue: Cue) -> float:
+        """px: the body scale of the cue's arm while it swings (its wrist moves a body scale in a few frames, and
+        is followed at that scale), else 0."""
+        swing = self._swings[cue.arm.side] if cue.arm is not None else None
+        return max(cue.size, swing.scale) if swing is not None and swing.waving() is not None else 0.0
 
     def _steady_ray(self, track: _Track, source: str = "hand", weight: float = 1.0) -> Ray:
         origins = np.array([o for o, _ in track.rays])
@@ -535,6 +550,19 @@ class GestureTracker:
             return "wave" if self._waving(track, stamp) else raw
         return raw
 
+    def _body_wave(self, track: _Track, cue: Cue, raw: str | None) -> str | None:
+        """This frame's class, or "wave" when the cue's lifted arm swings (`_arm_waving`); the wave then dates from
+        the swing's start (`track.wave_since`), so that its hold counts the whole swing."""
+        track.wave_since = self._arm_waving(cue)
+        return "wave" if track.wave_since is not None else raw
+
+    def _arm_waving(self, cue: Cue) -> float | None:
+        """Since when this cue's arm, lifted, has been swinging side to side (deliberate.py `ArmSwing`): a wave the
+        skeleton sees when the hand stage barely does (issue #40); None: not swinging, or a point."""
+        if cue.arm is None or (cue.raw == "point" and cue.source == "hand"):
+            return None  # a point the hand shows is a point; an arm's point that sweeps is a wave
+        return self._swings[cue.arm.side].waving()
+
     def _measure(
         self, track: _Track, stamp: float, cue: Cue, observations: list[Observation], body: np.ndarray | None
     ) -> None:
@@ -569,8 +597,9 @@ class GestureTracker:
                 for t in self.tracks
                 if t.active == "wave" and float(np.linalg.norm(t.wrist - wrist)) <= self.match_palms * 2 * t.palm
             ]
-            if near:
-                out.append(Cue(a.side, a.visibility, wrist, near[0].palm, None, None, "body", 1.0, None, a))
+            if near or self._swings[a.side].waving() is not None:  # the body sees a wave
+                size = near[0].palm if near else max(0.5 * a.forearm, 1.0)
+                out.append(Cue(a.side, a.visibility, wrist, size, None, None, "body", 1.0, None, a))
         return out
 
     def _step(self, track: _Track, stamp: float, raw: str | None, ray: Ray | None) -> list[Event]:
@@ -595,9 +624,12 @@ class GestureTracker:
                     )
                     track.active = None
         if track.active is None and raw is not None and (self._held(track, stamp) or raw == "wave"):
-            track.active, track.active_start, track.active_last = raw, track.run_start, stamp
+            start = track.run_start
+            if raw == "wave" and track.wave_since is not None:  # a body wave dates from its swing's start
+                start = min(start, track.wave_since)
+            track.active, track.active_start, track.active_last = raw, start, stamp
             track.misses, track.last_emit = 0, stamp
-            events.append(Event(raw, "start", track.run_start, stamp, score, track.hand, ray))
+            events.append(Event(raw, "start", start, stamp, score, track.hand, ray))
         return events
 
     def _held(self, track: _Track, stamp: float) -> bool:
@@ -627,6 +659,7 @@ class GestureTracker:
             if t.active is not None
         ]
         self.tracks, self.last_arms, self._arm_pointing = [], [], {}
+        self._swings = {"left": ArmSwing(), "right": ArmSwing()}
         return events
 
 
