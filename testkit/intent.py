@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from common.schema import Bodies, Faces, Frame, FusedCommand, GestureEvent, Hands, Persons, Sample, Transcript, Word
+from testkit.frames import bgr_frame, read_frames
 
 if TYPE_CHECKING:  # MediaPipe loads with the gesture core: only for callers that run it
     from services.fusion.core import Config
@@ -33,16 +34,8 @@ def clip_frames(path: Path, limit: int = 10_000) -> tuple[list[np.ndarray], floa
     """A clip's frames (BGR, at most `limit`) and its frame rate as OpenCV reads it (GIFs: 0 -> caller's)."""
     cap = cv2.VideoCapture(str(path))
     fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
-    frames: list[np.ndarray] = []
-    try:
-        while len(frames) < limit:
-            ok, img = cap.read()
-            if not ok:
-                break
-            frames.append(np.asarray(img))
-    finally:
-        cap.release()
-    return frames, fps
+    cap.release()
+    return read_frames(path, limit), fps
 
 
 def subset(n: int, kind: str) -> list[int]:
@@ -64,7 +57,6 @@ def gesture_samples(
     """The frames `keep` (default: all) of a clip through the gesture core as one camera's stream: every sample
     the service publishes (Faces, Persons, Hands, Bodies, then the frame's GestureEvents), in order."""
     from services.gesture.core import GestureCore
-    from testkit.frames import bgr_frame
 
     event_sample = _event_sample()
 
