@@ -7,8 +7,9 @@ shares a core by weight but cannot stop a video thread from running on the other
 from filling the memory bandwidth both use: in issue #42's run (a busy scene, 2 cores, the niceness in place) the
 last word -> command p50 went from 417 ms to 797 ms. So
 for the decode's length the video services do less: vision runs its model on at most one frame every
-`EASED_PERIOD_S` (fusion still gets a watermark from it), gesture skips full pose, the face stage and the person
-stage (the skeleton is carried, pose_track.py); hands and their stop palms keep running on every frame.
+`EASED_PERIOD_S` (fusion still gets a watermark from it), gesture skips full pose and the person stage (the
+skeleton is carried, pose_track.py); hands, their stop palms and the face stage keep running (the next utterance
+often starts while the last one decodes: its speaker is read from the mouths seen while it is said).
 
 A decode is eased from its `decoding: true` sample until its `false` sample, and at most `HOLD_S` after the true:
 a lost `false` (or a speech service that died) never keeps video eased.

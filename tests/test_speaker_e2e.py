@@ -15,11 +15,13 @@ from __future__ import annotations
 import collections
 import json
 import time
+import warnings
 from pathlib import Path
 
 import pytest
 
 from common.schema import Clarification, FusedCommand
+from services.fusion.speaker import SpeakerConfig
 from testkit.harness import Client, Proc, ProcessGroup, requires_services
 from testkit.shared import shared_path
 from testkit.talking import TALKING, spoken_commands, talking_json
@@ -50,6 +52,7 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
             client.wait_alive("gesture", timeout=60)
             results = client.collect("hri/fusion/**")
             faces = client.collect("hri/gesture/*/faces")
+            transcripts = client.collect("hri/speech/*/transcript")
             echo = group.start("echo", "hri.cli", "echo", "hri/fusion/**", "--count", "2")  # what a user sees
             start = time.time() + LEAD
             group.service("camera", "--source", str(video), "--fps", "25", "--start-at", f"{start:.3f}")
@@ -57,6 +60,7 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
             got = results.wait(2, timeout=LEAD + 60)
             assert time.time() > start, "the outputs came before the clip played"
             faces.drain()
+            transcripts.drain()
         finally:
             client.close()
         outputs = [sample for _, sample in got]
@@ -65,14 +69,31 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
         assert all(i.startswith("cam0/face-") for i in ids), ids  # no person stage: the face ids stand for them
         intents = [o.intent for o in outputs if isinstance(o, FusedCommand)]
         assert intents == ["turn", "come_here"], (outputs, group.logs())
-        seen_in_clip = [s for _, s in faces.seen if start <= s.stamp <= start + clip["duration_s"]]
-        rate = f"face stage at {len(seen_in_clip) / clip['duration_s']:.1f} frames/s of the clip's 25"
         speakers = [o.speaker for o in outputs]
         assert all(s is not None for s in speakers), group.logs()
-        assert [s.person for s in speakers if s is not None] == ids, (rate, speakers, ids, group.logs())
-        assert all(s.method == "mouth_motion" and s.addressed is True for s in speakers if s is not None)
+        heard = [t for _, t in transcripts.seen]
+        assert len(heard) == 2, heard
+        # who said each command is only told from a mouth followed at speaker_min_rate frames/s while it was said; a
+        # machine too busy for that must say "unknown" and why, never name anyone (the face stage's rate is the
+        # machine's: 25 frames/s on a quiet 2-core machine, 3 with two busy loops beside the stack)
+        need = SpeakerConfig().speaker_min_rate
+        for said, speaker, person in zip(heard, speakers, ids):
+            assert speaker is not None
+            rate = face_rate(faces.seen, said.start, said.end)
+            if rate >= need + 2:  # a margin: fusion's own count of the frames may differ by a frame or two
+                assert speaker.person == person, (said.text, f"faces at {rate:.1f}/s", speaker.reason, group.logs())
+                assert speaker.method == "mouth_motion" and speaker.addressed is True, speaker
+            elif rate < need - 2:
+                assert speaker.person is None and "seen well enough" in speaker.reason, (said.text, rate, speaker)
+                warnings.warn(
+                    f"{said.text!r}: the face stage ran at {rate:.1f} frames/s while it was said (a busy "
+                    f"machine; {need:g} needed): its speaker was rightly unknown, not checked against the label",
+                    stacklevel=1,
+                )
+            else:  # at the edge: named rightly or unknown, never someone else
+                assert speaker.person in (person, None), (said.text, rate, speaker.reason)
         echoed = [json.loads(line) for line in wait_lines(echo, 2)]
-        assert [line["speaker"]["person"] for line in echoed] == ids, echo.output()
+        assert [line["speaker"]["person"] for line in echoed] == [s.person for s in speakers if s], echo.output()
     finally:
         group.close()
 
@@ -85,6 +106,11 @@ def wait_lines(proc: Proc, n: int, timeout: float = 30.0) -> list[str]:
         if len(lines) >= n or time.monotonic() > deadline:
             return lines[:n]
         time.sleep(0.1)
+
+
+def face_rate(seen: list, start: float, end: float) -> float:
+    """Faces samples per second the gesture service published over [start, end] of source time."""
+    return sum(1 for _, f in seen if start <= f.stamp <= end) / max(end - start, 1e-3)
 
 
 def people_left_to_right(samples: list) -> list[str]:

@@ -53,18 +53,19 @@ def test_vision_takes_one_frame_a_period_while_easing_and_every_frame_otherwise(
     assert all(b - a >= EASED_PERIOD_S for a, b in zip(taken, taken[1:]))
 
 
-def test_the_eased_plan_keeps_hands_and_drops_the_heavy_stages() -> None:
+def test_the_eased_plan_keeps_hands_and_faces_and_drops_the_heavy_stages() -> None:
     costs = StageCosts()
     plan = FramePlan(True, True, True, True, costs.pose + costs.faces + costs.hands + costs.persons)
     out = eased(plan)
-    assert (out.pose, out.faces, out.hand_search, out.persons) == (False, False, True, False)
-    assert out.cost == costs.hands
-    light = FramePlan(False, False, True, False, costs.hands)
+    # the face stage is kept: the mouths of whoever speaks next are read while the last utterance decodes
+    assert (out.pose, out.faces, out.hand_search, out.persons) == (False, True, True, False)
+    assert out.cost == costs.hands + costs.faces
+    light = FramePlan(False, True, True, False, costs.hands + costs.faces)
     assert eased(light) is light
     # from the scheduler: a frame every stage is due on
     scheduler = StageScheduler()
     planned = scheduler.plan(Due(pose=True, hands_tracked=True, faces=True, hand_search=True, persons=True))
-    assert not eased(planned).pose and not eased(planned).faces and not eased(planned).persons
+    assert not eased(planned).pose and eased(planned).faces and not eased(planned).persons
 
 
 class SlowRecogniser:

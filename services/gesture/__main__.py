@@ -128,8 +128,9 @@ def build_parser() -> argparse.ArgumentParser:
         parser,
         "--speech-first",
         True,
-        "while speech decodes an utterance (its SpeechDecoding samples), skip full pose, the face stage and the "
-        "person stage (hands and stop palms keep running), so that the decode gets the cores (issue #42)",
+        "while speech decodes an utterance (its SpeechDecoding samples), skip full pose and the person stage "
+        "(hands, stop palms and the face stage keep running: whoever speaks next is read from the mouths), so that "
+        "the decode gets the cores (issue #42)",
     )
     add_option(parser, "--cams", "*", "comma-separated camera ids to process (* for all)", metavar="IDS")
     add_option(
