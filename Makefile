@@ -13,11 +13,12 @@ demo: setup
 	@$(PY) -m demo $(DEMO_ARGS)
 
 # lint (complexity <= 12 and at most 8 arguments included, [tool.ruff.lint] in pyproject.toml), format and types
-# are checked first: a finding fails the run before the (slow) tests start
+# are checked first: a finding fails the run before the (slow) tests start; the 30 slowest tests are listed at the end
+# (where CI time goes)
 test:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _lint
-	@$(PY) -m pytest -q $(PYTEST_ARGS)
+	@$(PY) -m pytest -q --durations=30 $(PYTEST_ARGS)
 
 test-fast:
 	@bash scripts/setup.sh --test

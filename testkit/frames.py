@@ -45,3 +45,16 @@ def run_gesture(settings: GestureSettings, images: list[np.ndarray], fps: float)
         return [core.process(bgr_frame(img, k, k / fps), img, fresh=k == 0) for k, img in enumerate(images)]
     finally:
         core.close()
+
+
+_CLIP_RUNS: dict[tuple[str, int, float, str], list[FrameResult]] = {}
+
+
+def run_gesture_on_clip(settings: GestureSettings, path: Path, frames: int, fps: float) -> list[FrameResult]:
+    """`run_gesture` over the first `frames` frames of the clip at `path`, run once per test session for the same
+    settings: tests that compare two paths on one clip often share one of them (an every-frame reference), and the
+    gesture core on a clip is seconds of CPU. The results are shared: read them, do not change them."""
+    key = (str(path), frames, fps, repr(settings))
+    if key not in _CLIP_RUNS:
+        _CLIP_RUNS[key] = run_gesture(settings, read_frames(path, frames), fps)
+    return _CLIP_RUNS[key]

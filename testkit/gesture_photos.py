@@ -8,7 +8,7 @@ shown for 6 frames like a camera holding still; what gesture *starts* is judged 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from services.gesture.landmarks import HandLandmarker, PoseLandmarker
 from services.gesture.people_stage import PeopleStage, other_skeletons
@@ -104,13 +104,15 @@ def judge(starts: list[tuple[str, str]], expected: str | None, side: str | None)
     }
 
 
-def evaluate(photos: Any) -> dict[str, tuple[list[tuple[str, str]], dict[str, bool]]]:
-    """name -> (starts, judgement) over photos whose file exists."""
+def evaluate(
+    photos: Any, starts_of: Callable[[Path], list[tuple[str, str]]] = starts_on_photo
+) -> dict[str, tuple[list[tuple[str, str]], dict[str, bool]]]:
+    """name -> (starts, judgement) over photos whose file exists (`starts_of`: how a photo's starts are found)."""
     results = {}
     for where, name, expected, side in photos:
         path = photo_path(where, name)
         if path.exists():
-            starts = starts_on_photo(path)
+            starts = starts_of(path)
             results[name] = (starts, judge(starts, expected, side))
     return results
 

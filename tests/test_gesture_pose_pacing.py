@@ -17,7 +17,7 @@ from common.schema import Body
 from services.gesture.core import FrameResult, GestureSettings
 from services.gesture.pose_track import HAND_END, PoseRun, carried, hands_on_arms
 from services.gesture.temporal import Observation
-from testkit.frames import read_frames, run_gesture
+from testkit.frames import read_frames, run_gesture, run_gesture_on_clip
 from testkit.shared import shared_path
 
 ARM_JOINTS = (11, 12, 13, 14, 15, 16, 19, 20)  # shoulders, elbows, wrists, index fingertips
@@ -77,7 +77,11 @@ def test_an_arm_whose_hand_is_gone_or_jumped_away_keeps_its_last_place_and_no_ru
 
 
 def _run(pose_max_rate: float, images: list[np.ndarray], fps: float) -> list[FrameResult]:
-    return run_gesture(GestureSettings(pose_max_rate=pose_max_rate, persons_every=0, faces=False), images, fps)
+    return run_gesture(_without_people(pose_max_rate), images, fps)
+
+
+def _without_people(pose_max_rate: float) -> GestureSettings:
+    return GestureSettings(pose_max_rate=pose_max_rate, persons_every=0, faces=False)
 
 
 def _body(result: FrameResult) -> Body | None:
@@ -129,7 +133,9 @@ def test_on_real_talking_clips_the_paced_skeleton_follows_the_every_frame_one(na
     head-and-shoulders composites, are as large on the frames pose ran on (the graph run at its own rate tracks a
     little differently), not the carrying's."""
     images = _clip(name, 100)
-    full, paced = _run(0.0, images, 25.0), _run(rate, images, 25.0)
+    # the every-frame path of a clip is the same for both rates: run once (testkit.frames.run_gesture_on_clip)
+    full = run_gesture_on_clip(_without_people(0.0), shared_path(f"data/talking/{name}"), 100, 25.0)
+    paced = _run(rate, images, 25.0)
     ages = []
     for a, b in zip(full, paced):
         body_full, body_paced = _body(a), _body(b)
@@ -229,11 +235,13 @@ def test_an_arm_moving_between_real_photos_starts_the_same_points_at_most_one_po
             assert _angle(rays_full[f[0], f[3]], rays_paced[p[0], p[3]]) <= 2.0
 
 
-def _run_stages(pose_max_rate: float, images: list[np.ndarray]) -> list[FrameResult]:
+def _run_stages(pose_max_rate: float, name: str) -> list[FrameResult]:
     """The service's whole path as shipped (person stage on every 2nd frame, face stage), at this pose rate, the
     stages each on the frames they are due (not staggered: the Persons of both rates then come on the same frames;
-    the staggered path against this one: tests/test_gesture_stagger.py)."""
-    return run_gesture(GestureSettings(pose_max_rate=pose_max_rate, stagger=False), images, 25.0)
+    the staggered path against this one: tests/test_gesture_stagger.py, which shares the run at 10/s), on the
+    clip's first 75 frames."""
+    settings = GestureSettings(pose_max_rate=pose_max_rate, stagger=False)
+    return run_gesture_on_clip(settings, shared_path(f"data/talking/{name}"), 75, 25.0)
 
 
 @pytest.mark.parametrize("name", ["comp_turns_bbaf2n_lbbc2a.mp4", "comp_dub_brbk7n_lbax4n_audioL.mp4"])
@@ -242,8 +250,8 @@ def test_the_person_stage_on_carried_skeletons_finds_the_same_people(name: str) 
     which then often reads a carried full-frame skeleton): with pose at 10/s the Persons come on the same frames
     with the same ids, bodies and faces, the boxes overlapping the every-frame path's (IoU >= 0.6; measured: at
     least 0.97 and 0.70), and the bodies name the same persons."""
-    images = _clip(name, 75)
-    full, paced = _run_stages(0.0, images), _run_stages(DEFAULT_RATE, images)
+    full, paced = _run_stages(0.0, name), _run_stages(DEFAULT_RATE, name)
+    assert len(full) >= 75, name
     ran = 0
     for a, b in zip(full, paced):
         assert (a.persons is None) == (b.persons is None)

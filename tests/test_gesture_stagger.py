@@ -5,26 +5,21 @@ after the first runs pose together with another paced stage."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from common.boxes import iou
 from services.gesture.core import FrameResult, GestureSettings
 from services.gesture.schedule import FramePlan
-from testkit.frames import read_frames, run_gesture
+from testkit.frames import run_gesture_on_clip
 from testkit.shared import shared_path
 
 FPS = 25.0  # the clips' own rate
 
 
-def _clip(name: str, frames: int) -> list[np.ndarray]:
-    images = read_frames(shared_path(f"data/talking/{name}"), frames)
-    assert len(images) == frames, name
-    return images
-
-
-def _run(stagger: bool, images: list[np.ndarray]) -> list[FrameResult]:
-    return run_gesture(GestureSettings(stagger=stagger), images, FPS)
+def _run(stagger: bool, name: str) -> list[FrameResult]:
+    """The clip's first 75 frames through the whole path; not staggered, the same run as
+    tests/test_gesture_pose_pacing.py's at 10/s (shared: testkit.frames.run_gesture_on_clip)."""
+    return run_gesture_on_clip(GestureSettings(stagger=stagger), shared_path(f"data/talking/{name}"), 75, FPS)
 
 
 def _pairs(before: list[int], after: list[int]) -> list[tuple[int, int]]:
@@ -41,8 +36,8 @@ def test_staggered_stages_find_the_same_people_and_faces_on_two_person_clips(nam
         most one frame later) with the same ids, bodies and faces and boxes overlapping (IoU >= 0.6), the Faces as
         often with the same ids; pose runs on the same frames and, after the first, never with the hand search or the
     person stage."""
-    images = _clip(name, 75)
-    before, after = _run(False, images), _run(True, images)
+    before, after = _run(False, name), _run(True, name)
+    assert len(before) == 75, name  # the clip has the frames
     persons_before = [k for k, r in enumerate(before) if r.persons is not None]
     persons_after = [k for k, r in enumerate(after) if r.persons is not None]
     assert len(persons_before) >= 35

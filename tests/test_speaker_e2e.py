@@ -16,13 +16,14 @@ import collections
 import json
 import time
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 from common.schema import Clarification, FusedCommand
 from services.fusion.speaker import SpeakerConfig
-from testkit.harness import Client, Proc, ProcessGroup, requires_services
+from testkit.harness import Client, Collector, Proc, ProcessGroup, requires_services
 from testkit.shared import shared_path
 from testkit.talking import TALKING, spoken_commands, talking_json
 
@@ -30,7 +31,10 @@ pytestmark = pytest.mark.integration
 
 CLIP = "comp_turns_bbaf2n_lbbc2a.mp4"
 COMMANDS = ["please turn left", "come over here please"]  # said in the left, then the right person's turn
-LEAD = 25.0  # s from launching camera and speech to playing: Whisper and MediaPipe load first, on a busy machine
+# s from launching camera and speech to the clip playing: each loads what it needs (the video, Whisper) before it
+# declares itself live, ~3 s on a quiet 2-core machine. A run in which either was not live by then says nothing (the
+# clip started without it) and is played again from the start, with a lead of twice the time they took
+LEAD = 8.0
 
 
 @requires_services("camera", "gesture", "speech", "fusion")
@@ -38,31 +42,12 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
     video = shared_path(f"{TALKING}/{CLIP}")
     clip = next(c for c in talking_json()["clips"] if c["clip"] == CLIP)
     wav = spoken_commands(clip, COMMANDS, tmp_path / "commands.wav")
-    group = ProcessGroup()
+    run = play_the_clip(video, wav, LEAD)
+    while run.again is not None:  # camera or speech was not live when the clip started: nothing to judge
+        run.group.close()
+        run = play_the_clip(video, wav, run.again)
+    group, got, faces, transcripts, echo = run.group, run.outputs, run.faces, run.transcripts, run.echo
     try:
-        group.router()
-        group.service("fusion")
-        # hands and faces. Not the person stage (a pose per person): on 2 shared cores under load it held the
-        # gesture service to 3.5 frames/s, too slow to follow a mouth (attribution then says unknown, rightly);
-        # without persons a face's person is its face id (docs/people.md)
-        group.service("gesture", "--no-body", "--persons-every", "0")
-        client = Client(group.endpoint)
-        try:
-            client.wait_alive("fusion", timeout=60)
-            client.wait_alive("gesture", timeout=60)
-            results = client.collect("hri/fusion/**")
-            faces = client.collect("hri/gesture/*/faces")
-            transcripts = client.collect("hri/speech/*/transcript")
-            echo = group.start("echo", "hri.cli", "echo", "hri/fusion/**", "--count", "2")  # what a user sees
-            start = time.time() + LEAD
-            group.service("camera", "--source", str(video), "--fps", "25", "--start-at", f"{start:.3f}")
-            group.service("speech", "--input", "wav", "--wav", str(wav), "--realtime", "--start-at", f"{start:.3f}")
-            got = results.wait(2, timeout=LEAD + 60)
-            assert time.time() > start, "the outputs came before the clip played"
-            faces.drain()
-            transcripts.drain()
-        finally:
-            client.close()
         outputs = [sample for _, sample in got]
         assert all(isinstance(o, (FusedCommand, Clarification)) for o in outputs)
         ids = people_left_to_right([s for _, s in faces.seen])
@@ -96,6 +81,59 @@ def test_each_utterance_carries_the_person_who_said_it(tmp_path: Path) -> None:
         assert [line["speaker"]["person"] for line in echoed] == [s.person for s in speakers if s], echo.output()
     finally:
         group.close()
+
+
+@dataclass
+class Played:
+    """One run of the stack over the clip: its processes (still running), what was collected, and `again`: the
+    lead to play it again with when camera or speech was not live before the clip started (None: they were)."""
+
+    group: ProcessGroup
+    outputs: list
+    faces: Collector
+    transcripts: Collector
+    echo: Proc
+    again: float | None
+
+
+def play_the_clip(video: Path, wav: Path, lead: float) -> Played:
+    """Fusion and gesture started and live, then camera and speech launched to play the clip `lead` s later; waits
+    for fusion's two outputs unless camera or speech was not live a second before the clip started."""
+    group = ProcessGroup()
+    try:
+        group.router()
+        group.service("fusion")
+        # hands and faces. Not the person stage (a pose per person): on 2 shared cores under load it held the
+        # gesture service to 3.5 frames/s, too slow to follow a mouth (attribution then says unknown, rightly);
+        # without persons a face's person is its face id (docs/people.md)
+        group.service("gesture", "--no-body", "--persons-every", "0")
+        client = Client(group.endpoint)
+        try:
+            client.wait_alive("fusion", timeout=60)
+            client.wait_alive("gesture", timeout=60)
+            results = client.collect("hri/fusion/**")
+            faces = client.collect("hri/gesture/*/faces")
+            transcripts = client.collect("hri/speech/*/transcript")
+            echo = group.start("echo", "hri.cli", "echo", "hri/fusion/**", "--count", "2")  # what a user sees
+            launched = time.time()
+            start = launched + lead
+            group.service("camera", "--source", str(video), "--fps", "25", "--start-at", f"{start:.3f}")
+            group.service("speech", "--input", "wav", "--wav", str(wav), "--realtime", "--start-at", f"{start:.3f}")
+            for name in ("camera", "speech"):
+                client.wait_alive(name, timeout=lead + 60)
+            took = time.time() - launched
+            if took > lead - 1.0:
+                return Played(group, [], faces, transcripts, echo, again=2 * took)
+            got = results.wait(2, timeout=start - time.time() + 60)
+            assert time.time() > start, "the outputs came before the clip played"
+            faces.drain()
+            transcripts.drain()
+        finally:
+            client.close()
+    except BaseException:
+        group.close()
+        raise
+    return Played(group, got, faces, transcripts, echo, again=None)
 
 
 def wait_lines(proc: Proc, n: int, timeout: float = 30.0) -> list[str]:
