@@ -22,8 +22,9 @@ import cv2
 import numpy as np
 import pytest
 
-from common.schema import FusedCommand, Hand, Hands, Ray, Ray3D
+from common.schema import Detections, FusedCommand, Hand, Hands, Ray, Ray3D, Transcript
 from hri.cli import make_transcript
+from services.fusion.core import Config as FusionConfig
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client
 from testkit.images import read_image
@@ -65,32 +66,49 @@ def two_bottles(folder) -> tuple[np.ndarray, np.ndarray]:
 
 
 def say(client: Client, text: str, end: float | None = None) -> None:
-    client.publish(
-        "hri/speech/kbd/transcript",
-        make_transcript(text, mic="kbd", end=time.time() if end is None else end, confidence=0.95, source="test/kbd"),
-    )
+    client.publish("hri/speech/kbd/transcript", said(text, time.time() if end is None else end))
 
 
-def wait_for_bottles(client: Client, in_a_row: int = 2) -> tuple[list, float]:
-    """The two bottles with positions, once `in_a_row` samples in a row have them (the first frames may come
-    before their depth), and the capture stamp of the last of those."""
+def said(text: str, end: float) -> Transcript:
+    return make_transcript(text, mic="kbd", end=end, confidence=0.95, source="test/kbd")
+
+
+def two_positions(det: Detections) -> list:
+    return [o for o in det.objects if o.label == "bottle" and o.position is not None]
+
+
+def wait_for_bottles(client: Client, text: str = "") -> tuple[list, float]:
+    """The two bottles with positions, and a moment for the words `text` to end at so that every sample vision
+    published over fusion's window for them (window_before s before their start to window_after s after their end)
+    has both positions: a colour frame served before the first depth has none (on a loaded machine vision's first
+    samples, seconds behind the clock, fell in the window and fusion took the nearest bottle by its box, issue #41).
+    Returns once a sample after that window has arrived (it is closed)."""
     objects = client.collect("hri/vision/cam0/objects")
+    cfg = FusionConfig()
     deadline = time.monotonic() + 90
     while time.monotonic() < deadline:
-        recent = [det for _, det in objects.drain(0.5)][-in_a_row:]
-        found = [[o for o in det.objects if o.label == "bottle" and o.position is not None] for det in recent]
-        if len(found) == in_a_row and all(len(bottles) == 2 for bottles in found):
-            return found[-1], recent[-1].stamp
-    raise AssertionError("vision never reported two bottles with positions")
+        samples = [det for _, det in objects.drain(0.5)]
+        for det in reversed(samples):
+            words = said(text or "bottle", det.stamp)
+            lo, hi = words.start - cfg.window_before, det.stamp + cfg.window_after
+            window = [d for d in samples if lo <= d.stamp <= hi]
+            closed = samples[-1].stamp > hi
+            if closed and all(len(two_positions(d)) == 2 for d in window):
+                return two_positions(det), det.stamp
+    seen = [(round(d.stamp, 2), [(o.label, o.position is not None) for o in d.objects]) for _, d in objects.seen]
+    raise AssertionError(
+        f"vision never reported two bottles with positions over a word window: {len(seen)} samples, the last "
+        f"{seen[-3:]}; vision's stats {client.stats('vision', timeout=10)}"
+    )
 
 
 def test_the_nearest_bottle_is_chosen_by_depth_not_by_the_lowest_box(group, tmp_path):
     two_bottles(tmp_path / "scene")
     client = start(group, tmp_path / "scene")
     try:
-        bottles, seen_at = wait_for_bottles(client)
+        bottles, seen_at = wait_for_bottles(client, "pick up the nearest bottle")
         results = client.collect("hri/fusion/command")
-        # the words end as a frame with both positions was captured: fusion's window holds frames with depth
+        # the words end as a frame with both positions was captured: fusion's window holds only frames with depth
         # however far vision lags the clock (seconds on a loaded machine: fusion then saw no camera input)
         say(client, "pick up the nearest bottle", end=seen_at)
         cmd = results.wait(1, timeout=30)[0][1]
