@@ -125,14 +125,26 @@ def rss_mb(pid: int) -> tuple[float, float]:
 
 
 def wait_received(client: Client, service: str, n: int, timeout: float) -> dict:
+    """The service's stats once it has received `n` samples. A stats query it leaves unanswered is a count not read
+    yet: its queryable shares the Zenoh callback threads with the flood it is validating (on a loaded 2-core machine
+    a query went unanswered for 2 s while gesture took in the flood), so only the deadline fails the wait."""
     deadline = time.monotonic() + timeout
+    stats: dict | None = None
     while True:
-        stats = client.stats(service)
-        if stats["received"] >= n:
+        stats = answered_stats(client, service) or stats
+        if stats is not None and stats["received"] >= n:
             return stats
         if time.monotonic() > deadline:
-            raise AssertionError(f"{service} received {stats['received']} of {n} samples in {timeout} s: {stats}")
+            raise AssertionError(f"{service} did not receive {n} samples in {timeout} s; its last stats: {stats}")
         time.sleep(0.2)
+
+
+def answered_stats(client: Client, service: str) -> dict | None:
+    """The service's stats, or None if it did not answer within 2 s."""
+    try:
+        return client.stats(service)
+    except AssertionError:  # Client.stats: "did not answer a stats query"
+        return None
 
 
 def say_and_time(client: Client, transcripts, samples) -> float:
