@@ -5,7 +5,8 @@ What runs: `hri up` (router, camera, vision with YOLOX-Nano ONNX, gesture, speec
 - speech playing, in real time (`--realtime`), the clip's own audio looped for the run's length, with spoken
   COMMAND sentences (piper's neural voice, testkit/synth.py; espeak-ng if piper is missing) put in at known times
   between the clip's sentences: the clip's people talk but give no command, so every command the stack emits
-  beyond the spoken ones is one "nobody gave".
+  beyond the spoken ones is one "nobody gave" — except, on an intent clip (../shared/data/intent), a gesture
+  command inside one of the clip's labelled deliberate gestures (intent.json; `labelled_gestures`), which was given.
 
 What it reports, over the measured window (from the moment every service is live):
 - per service: CPU share of the machine (/proc/<pid>/stat utime+stime of the service and its children, divided
@@ -359,15 +360,68 @@ def lag_figures(arrivals: list[Arrival], seconds: float) -> dict[str, Any]:
     }
 
 
-def command_figures(recorder: Recorder, audio: Audio) -> dict[str, Any]:
-    """Every command emitted; for the spoken ones, last recognised word -> command arrival."""
+LABEL_TOLERANCE_S = 0.5  # intent.json's times are by eye, about +-0.3 s; a wave's call comes at its end
+
+
+def labelled_gestures(clip: Path) -> tuple[list[tuple[float, float, str]], float, int]:
+    """An intent clip's labelled deliberate gestures (../shared/data/intent/intent.json): (start, end, intent) for
+    each event of a clip that expects that intent, a wave for come_here/greet, a palm or stop for stop; with the
+    clip's frame rate and frame count. ([], 0, 0): not an intent clip."""
+    import cv2
+
+    labels = clip.parent / "intent.json"
+    if clip.parent.name != "intent" or not labels.exists():
+        return [], 0.0, 0
+    meta = next((c for c in json.loads(labels.read_text())["clips"] if c["file"] == clip.name), None)
+    if meta is None:
+        return [], 0.0, 0
+    expected = {i for e in meta["expect"] for i in e.split(" ")[0].split("|")}
+    words = {"come_here": ("wave",), "greet": ("wave",), "stop": ("palm", "stop")}
+    given = [
+        (float(start), float(end), intent)
+        for start, end, text in meta["events"]
+        for intent in sorted(expected)
+        if any(w in text.lower() for w in words.get(intent, ()))
+    ]
+    cap = cv2.VideoCapture(str(clip))
+    fps, frames = float(cap.get(cv2.CAP_PROP_FPS) or 0.0), int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    cap.release()
+    return given, fps, frames
+
+
+def clip_time(stamp: float | None, seqs: dict[float, int], fps: float, frames: int) -> float | None:
+    """Source time in the (looped) clip of the frame stamped `stamp`: its seq (from the gesture stage's per-frame
+    samples) modulo the clip's frames, over its frame rate. None when unknown."""
+    if stamp is None or not seqs or fps <= 0 or frames <= 0:
+        return None
+    nearest = min(seqs, key=lambda s: abs(s - stamp))
+    return (seqs[nearest] % frames) / fps if abs(nearest - stamp) < 0.1 else None
+
+
+def gesture_given(intent: str, at: float | None, labelled: list[tuple[float, float, str]]) -> bool:
+    """Was a gesture command of `intent` at clip time `at` given: inside a labelled deliberate gesture of that intent
+    (+- LABEL_TOLERANCE_S)?"""
+    return at is not None and any(
+        meant == intent and start - LABEL_TOLERANCE_S <= at <= end + LABEL_TOLERANCE_S for start, end, meant in labelled
+    )
+
+
+def command_figures(recorder: Recorder, audio: Audio, clip: Path | None = None) -> dict[str, Any]:
+    """Every command emitted; for the spoken ones, last recognised word -> command arrival. On an intent clip, a
+    gesture command inside one of its labelled deliberate gestures was given (`labelled_gestures`); any other
+    command without speech is one nobody gave."""
     transcripts = {a.sample.stamp: a for a in recorder.arrivals["speech transcript"]}
+    labelled, fps, frames = labelled_gestures(clip) if clip is not None else ([], 0.0, 0)
+    seqs = {a.sample.stamp: a.sample.seq for a in recorder.arrivals["gesture hands"]} if labelled else {}
     commands: list[dict[str, Any]] = []
     latencies: list[float] = []
     for a in recorder.arrivals["fusion command"]:
         cmd: FusedCommand = a.sample
         heard = transcripts.get(cmd.inputs.get("speech") or -1.0)
         entry: dict[str, Any] = {"intent": cmd.intent, "text": cmd.text, "gesture": cmd.gesture}
+        if cmd.gesture and not cmd.text and labelled:
+            entry["clip_s"] = clip_time(cmd.inputs.get("gesture"), seqs, fps, frames)
+            entry["given"] = gesture_given(cmd.intent, entry["clip_s"], labelled)
         if heard is not None:
             tr: Transcript = heard.sample
             last_word = tr.words[-1].end if tr.words else tr.end
@@ -378,7 +432,8 @@ def command_figures(recorder: Recorder, audio: Audio) -> dict[str, Any]:
     return {
         "spoken": [s.text for s in audio.spoken],
         "emitted": commands,
-        "emitted_without_speech": sum(1 for c in commands if not c["text"]),
+        "emitted_without_speech": sum(1 for c in commands if not c["text"] and not c.get("given")),
+        "gestures_given": sum(1 for c in commands if c.get("given")),
         "last_word_to_command_p50_ms": _percentile(latencies, 50),
         "last_word_to_command_max_ms": max(latencies) if latencies else None,
     }
@@ -527,7 +582,7 @@ def run_stack(cfg: RunConfig) -> dict[str, Any]:
             "seconds": seconds,
             "services": service_figures(first, last, os.cpu_count() or 1),
             "outputs": {label: lag_figures(arr, seconds) for label, arr in recorder.arrivals.items()},
-            "commands": command_figures(recorder, cfg.audio),
+            "commands": command_figures(recorder, cfg.audio, cfg.clip),
         }
     finally:
         if client is not None:
@@ -675,10 +730,18 @@ def print_run(result: dict[str, Any], cores: int) -> None:
     print(f"spoken commands: {len(cmds['spoken'])} ({', '.join(cmds['spoken'])})")
     for c in cmds["emitted"]:
         lat = c.get("last_word_to_command_ms")
-        print(f"  emitted {c['intent']:10s} text={c['text']!r} gesture={c['gesture']} last word->command {_ms(lat)} ms")
+        given = ""
+        if "given" in c:
+            at = "?" if c["clip_s"] is None else f"{c['clip_s']:.2f} s"
+            given = f" at clip {at}: {'given (labelled)' if c['given'] else 'nobody gave'}"
+        print(
+            f"  emitted {c['intent']:10s} text={c['text']!r} gesture={c['gesture']} last word->command {_ms(lat)} ms"
+            + given
+        )
     print(
         f"last word -> command p50 {_ms(cmds['last_word_to_command_p50_ms'])} ms, max "
-        f"{_ms(cmds['last_word_to_command_max_ms'])} ms; commands without speech: {cmds['emitted_without_speech']}"
+        f"{_ms(cmds['last_word_to_command_max_ms'])} ms; commands nobody gave: {cmds['emitted_without_speech']}; "
+        f"gesture commands inside the clip's labelled gestures: {cmds.get('gestures_given', 0)}"
     )
 
 

@@ -39,12 +39,13 @@ def clip_frames(path: Path, limit: int = 10_000) -> tuple[list[np.ndarray], floa
 
 
 def subset(n: int, kind: str) -> list[int]:
-    """The frame indices of a named subset of n frames: `all`, `every2+0`/`every2+1` (every 2nd frame from 0 or 1),
-    `random70/S` (70 % of the frames drawn with seed S, in order)."""
+    """The frame indices of a named subset of n frames: `all`, `everyK+O` (every K-th frame from O: `every2+0`,
+    `every2+1`, `every3+0`), `random70/S` (70 % of the frames drawn with seed S, in order)."""
     if kind == "all":
         return list(range(n))
-    if kind.startswith("every2+"):
-        return list(range(int(kind[-1]), n, 2))
+    if kind.startswith("every"):  # everyK+O: every K-th frame from O
+        step, first = (int(v) for v in kind.removeprefix("every").split("+"))
+        return list(range(first, n, step))
     if kind.startswith("random70/"):
         rng = random.Random(int(kind.split("/")[1]))
         return sorted(rng.sample(range(n), round(0.7 * n)))

@@ -119,6 +119,11 @@ SWING_REVERSAL_SCALES = 0.5  # a turn of the wrist's sideways path counts past t
 SWING_MIN_SCALES = 1.0  # a swing with a turn covers at least this much sideways...
 SWEEP_MIN_SCALES = 2.0  # ...one without a turn (a sustained sweep) at least this much
 SWING_WINDOW_S = 3.0  # s of source time the raised arm's path is looked at, at most
+# One arm of one person: a wrist that moves faster than a human arm can (~6 m/s at a 0.4 m shoulder width), or a
+# skeleton whose size changes by more than this factor, is another person or a skeleton that jumped (a slide
+# change, two people's arms mixed): the swing starts afresh.
+MAX_WRIST_SPEED_SCALES = 15.0  # body scales per second of source time
+MAX_SCALE_CHANGE = 1.5
 
 
 def arm_lifted(body: np.ndarray, side: str) -> bool:
@@ -138,32 +143,47 @@ def arm_lifted(body: np.ndarray, side: str) -> bool:
 
 @dataclass
 class ArmSwing:
-    """One arm's sideways path while it is lifted (`arm_lifted`), in body scales over source time: `waving` is the
-    source time the lifted arm has been swinging side to side (a turn after `SWING_MIN_SCALES`, or a sweep of
-    `SWEEP_MIN_SCALES`), else None."""
+    """One arm's sideways path while it is lifted (`arm_lifted`), over source time: `waving` is the source time the
+    lifted arm has been swinging side to side (a turn after `SWING_MIN_SCALES`, or a sweep of `SWEEP_MIN_SCALES`),
+    else None. The path is kept in px and judged at one scale (the largest body scale seen along it): dividing each
+    frame's x by that frame's scale made a jittering skeleton on a still photo swing (issue #40)."""
 
-    path: collections.deque = field(default_factory=lambda: collections.deque(maxlen=128))  # (stamp, x / scale)
+    path: collections.deque = field(default_factory=lambda: collections.deque(maxlen=128))  # (stamp, x px, scale px)
     scale: float = 1.0  # px, the person's latest body scale
 
     def add(self, stamp: float, body: np.ndarray | None, side: str) -> None:
         p = None if body is None else np.asarray(body, dtype=float).reshape(33, 3)
-        if p is None or not arm_lifted(p, side) or (self.path and stamp - self.path[-1][0] > SPEED_GAP_S):
+        lifted = p is not None and arm_lifted(p, side)
+        if not lifted or (self.path and stamp - self.path[-1][0] > SPEED_GAP_S):
             self.path.clear()  # lowered, unseen or lost a while: a new swing starts afresh
-        if p is not None and arm_lifted(p, side):
+        if p is not None and lifted:
             self.scale = body_scale(p)
-            self.path.append((stamp, float(p[ARMS[side][2], 0]) / self.scale))
+            x = float(p[ARMS[side][2], 0])
+            if self.path and not _same_arm(self.path[-1], stamp, x, self.scale):
+                self.path.clear()
+            self.path.append((stamp, x, self.scale))
         while self.path and stamp - self.path[0][0] > SWING_WINDOW_S:
             self.path.popleft()
 
     def waving(self) -> float | None:
         """The stamp since which the lifted arm has been swinging (None: it is not)."""
-        xs = [x for _, x in self.path]
-        if len(xs) < 2:
+        if len(self.path) < 2:
             return None
+        scale = max(s for _, _, s in self.path)
+        xs = [x / scale for _, x, _ in self.path]
         reach = max(xs) - min(xs)
         if reach >= SWEEP_MIN_SCALES or (reach >= SWING_MIN_SCALES and _turned(xs)):
             return float(self.path[0][0])
         return None
+
+
+def _same_arm(last: tuple[float, float, float], stamp: float, x: float, scale: float) -> bool:
+    """Can this wrist (x px, on a skeleton of `scale` px) be the same arm as the path's `last` sample: no faster than
+    `MAX_WRIST_SPEED_SCALES`, the skeleton's size within `MAX_SCALE_CHANGE`?"""
+    t, x0, s0 = last
+    big, small = max(scale, s0), max(min(scale, s0), 1e-6)
+    speed = abs(x - x0) / big / max(stamp - t, 1e-3)
+    return big / small <= MAX_SCALE_CHANGE and speed <= MAX_WRIST_SPEED_SCALES
 
 
 def _turned(xs: list[float]) -> bool:

@@ -377,6 +377,9 @@ class TrackedHand:
     ray: Ray | None
 
 
+MAX_WRIST_SPEED_PALMS = 60.0  # palm sizes per second of source time: ~6 m/s, faster than a waving hand moves
+
+
 @dataclass
 class _Track:
     id: int
@@ -527,7 +530,16 @@ class GestureTracker:
         return Ray((float(o[0]), float(o[1])), (float(direction[0]), float(direction[1])), round(confidence, 4), source)
 
     def _waving(self, track: _Track, stamp: float) -> bool:
-        xs = [x for t, x in track.wrist_x if stamp - t <= self.wave_window]
+        """Has this hand's wrist swung side to side (`wave_reversals` turns of `wave_amplitude` palms) within the
+        last `wave_window` s, since its last jump (faster than a hand moves: another hand, a slide change)?"""
+        xs: list[float] = []
+        last = None
+        for t, x in track.wrist_x:
+            if last is not None and abs(x - last[1]) > MAX_WRIST_SPEED_PALMS * max(t - last[0], 1e-3):
+                xs = []  # not the same hand's motion: the swing starts afresh
+            last = (t, x)
+            if stamp - t <= self.wave_window:
+                xs.append(x)
         if len(xs) < 4:
             return False
         reversals, direction, extreme = 0, 0, xs[0]
