@@ -24,11 +24,10 @@ import pytest
 
 from common.schema import Detections, FusedCommand, Hand, Hands, Ray, Ray3D, Transcript
 from hri.cli import make_transcript
-from services.fusion.core import Config as FusionConfig
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client
 from testkit.images import read_image
-from testkit.rgbd import start
+from testkit.rgbd import start, words_end_over
 from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
@@ -77,29 +76,11 @@ def two_positions(det: Detections) -> list:
     return [o for o in det.objects if o.label == "bottle" and o.position is not None]
 
 
-def wait_for_bottles(client: Client, text: str = "") -> tuple[list, float]:
-    """The two bottles with positions, and a moment for the words `text` to end at so that every sample vision
-    published over fusion's window for them (window_before s before their start to window_after s after their end)
-    has both positions: a colour frame served before the first depth has none (on a loaded machine vision's first
-    samples, seconds behind the clock, fell in the window and fusion took the nearest bottle by its box, issue #41).
-    Returns once a sample after that window has arrived (it is closed)."""
-    objects = client.collect("hri/vision/cam0/objects")
-    cfg = FusionConfig()
-    deadline = time.monotonic() + 90
-    while time.monotonic() < deadline:
-        samples = [det for _, det in objects.drain(0.5)]
-        for det in reversed(samples):
-            words = said(text or "bottle", det.stamp)
-            lo, hi = words.start - cfg.window_before, det.stamp + cfg.window_after
-            window = [d for d in samples if lo <= d.stamp <= hi]
-            closed = samples[-1].stamp > hi
-            if closed and all(len(two_positions(d)) == 2 for d in window):
-                return two_positions(det), det.stamp
-    seen = [(round(d.stamp, 2), [(o.label, o.position is not None) for o in d.objects]) for _, d in objects.seen]
-    raise AssertionError(
-        f"vision never reported two bottles with positions over a word window: {len(seen)} samples, the last "
-        f"{seen[-3:]}; vision's stats {client.stats('vision', timeout=10)}"
-    )
+def wait_for_bottles(client: Client, text: str) -> tuple[list, float]:
+    """The two bottles with positions, and a moment for the words `text` to end at so that fusion's whole window for
+    them holds only samples with both positions (testkit.rgbd.words_end_over)."""
+    det = words_end_over(client, text, lambda d: len(two_positions(d)) == 2, "two bottles with positions")
+    return two_positions(det), det.stamp
 
 
 def test_the_nearest_bottle_is_chosen_by_depth_not_by_the_lowest_box(group, tmp_path):
@@ -146,9 +127,8 @@ def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):
     )
     client = start(group, tmp_path / "scene")
     try:
-        wait_for_bottles(client)
+        _, t0 = wait_for_bottles(client, "go there")  # the words end there: fusion's window holds frames with depth
         results = client.collect("hri/fusion/command")
-        t0 = time.time()
         for i in range(12):  # pointing for the 1.1 s up to the end of the words
             tip_list = [float(c) for c in tip_px]
             client.publish(
