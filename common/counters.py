@@ -81,6 +81,7 @@ FusionCounter = Literal[
     "speaker_unknown",
     "unaddressed_confirm",
     # the robot (issue #43, docs/robot.md)
+    "robot_states",
     "refused_ability",
     "refused_not_holding",
     "asked_while_busy",

@@ -182,6 +182,20 @@ class Client:
                 return decode(reply.ok.payload.to_bytes(), Stats).to_dict()
         raise AssertionError(f"service {service!r} did not answer a stats query")
 
+    def wait_stats(
+        self, service: str, until: Callable[[dict[str, Any]], bool], what: str, timeout: float = 20.0
+    ) -> dict[str, Any]:
+        """Poll `service`'s stats until `until(stats)` holds (the state a test needs, instead of a fixed sleep);
+        the last stats read are in the failure."""
+        deadline = time.monotonic() + timeout
+        while True:
+            stats = self.stats(service)
+            if until(stats):
+                return stats
+            if time.monotonic() > deadline:
+                raise AssertionError(f"{service}: {what} not seen within {timeout} s; its stats {stats}")
+            time.sleep(0.05)
+
     def alive(self, timeout: float = 1.0) -> list[tuple[str, str]]:
         return live_tokens(self.session, self.keys, timeout=timeout)
 

@@ -98,8 +98,11 @@ def said(client: Client, results: Any, text: str, timeout: float = 20.0) -> Any:
 
 
 def robot_state(client: Client, status: RobotStatus, **fields: Any) -> None:
+    """Publish a state and return once fusion has taken it (its `robot_states` count went up): the next words are
+    decided with it."""
+    taken = client.stats("fusion")["other"].get("robot_states", 0)
     client.publish("hri/robot/state", RobotState(stamp=time.time(), source="robot/test", status=status, **fields))
-    time.sleep(0.3)  # the state is in before the next words
+    client.wait_stats("fusion", lambda s: s["other"].get("robot_states", 0) > taken, f"the robot state {status!r}")
 
 
 @pytest.mark.integration
@@ -121,8 +124,9 @@ def test_the_robots_state_changes_what_fusion_does():
         client.put_raw(
             "hri/robot/state", encode_map({"v": 1, "stamp": time.time(), "source": "r/1", "status": "failed"})
         )
-        time.sleep(1.0)
-        rejected = client.stats("fusion")["rejected"]
+        # both bad states counted, and the table seen (two detections besides them): the words will meet the table
+        ready = client.wait_stats("fusion", lambda s: len(s["rejected"]) >= 2 and s["received"] >= 4, "the table")
+        rejected = ready["rejected"]
         assert rejected.get("not_msgpack") == 1 and rejected.get("bad_value") == 1, rejected  # a failure says why
         first = said(client, results, "bring me the bowl")
         assert isinstance(first, FusedCommand) and first.target is not None and first.target.id == "bowl_1", first
@@ -169,7 +173,7 @@ def test_a_profile_given_to_fusion_is_on_the_wire_and_decides():
         assert replies[0].camera is not None and replies[0].camera.frame_id == "cam0_optical"
         results = client.collect("hri/fusion/**")
         table = Table(client)
-        time.sleep(1.0)
+        client.wait_stats("fusion", lambda s: s["received"] >= 2, "the table")  # the words will meet it
         no = said(client, results, "go to the kitchen")
         assert isinstance(no, Clarification) and no.question == "I can't do that: I can't move from where I stand."
         first = said(client, results, "pick up the bowl")
@@ -177,7 +181,7 @@ def test_a_profile_given_to_fusion_is_on_the_wire_and_decides():
         robot_state(client, "busy", command=first.id, intent="pick_up")
         before = len(results.drain())
         type_command(client, "pick up the cup")  # queued (the profile's while_busy), published once done
-        time.sleep(2.0)
+        client.wait_stats("fusion", lambda s: s["other"].get("queued_while_busy") == 1, "the command queued")
         assert len(results.drain()) == before  # nothing published while busy
         robot_state(client, "done", command=first.id)
         released = results.wait(before + 1, timeout=10)[-1][1]

@@ -256,6 +256,7 @@ class FusionCore:
         if not self.robot.update(state):
             self.count("late")
             return []
+        self.count("robot_states")
         self.outputs.robot = self._robot_lines()
         out: list[Output] = []
         failed = self.robot.failure()
