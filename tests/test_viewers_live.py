@@ -20,8 +20,10 @@ import cv2
 import numpy as np
 import pytest
 
+from hri.cli import make_transcript
 from testkit.browser import Browser, require_chromium
 from testkit.harness import DATA, Client, Proc, ProcessGroup, requires_services
+from testkit.words import words_end_over
 
 pytestmark = [pytest.mark.integration, requires_services("camera", "vision", "fusion")]
 pytest.importorskip("foxglove", reason="foxglove-sdk (the foxglove extra) is not installed")
@@ -196,9 +198,17 @@ def test_hri_rerun_writes_an_rrd_of_the_live_stack_with_the_expected_entities(
     out = tmp_path / "live.rrd"
     rerun = stack.start("rerun", "hri.cli", "rerun", "--save", str(out), "--duration", "12")
     printed(rerun, "logging the live stack")
-    time.sleep(2)  # a few frames and boxes first
-    res = stack.hri("say", "pick up the red one")
-    assert res.returncode == 0, res.stderr
+    client = Client(stack.endpoint)
+    try:
+        # a few frames and boxes logged first; the words end where vision saw the table over their whole window
+        seen = client.collect(f"hri/vision/{CAM}/objects")
+        said = words_end_over("pick up the red one", seen, lambda d: bool(d.objects), "the table's objects")
+        client.publish(
+            "hri/speech/kbd/transcript",
+            make_transcript("pick up the red one", mic="kbd", end=said.stamp, confidence=0.95, source="test/kbd"),
+        )
+    finally:
+        client.close()
     deadline = time.monotonic() + 60
     while rerun.alive() and time.monotonic() < deadline:
         time.sleep(0.2)
