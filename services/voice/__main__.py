@@ -21,7 +21,7 @@ from common.runner import App, Delivery, Service, StartupError, serve, service_p
 from common.schema import Clarification, FusedCommand, Spoken
 from common.settings import add_option
 from services.speech.audio import RATE
-from services.voice.core import Say, Schedule, audio_chunks, to_pcm16, utterance_for
+from services.voice.core import SEND_AHEAD_SECONDS, Say, Schedule, audio_chunks, to_pcm16, utterance_for
 from services.voice.synth import PiperVoice, VoiceError
 
 EPILOG = """\
@@ -172,17 +172,33 @@ class VoiceApp(App):
         service.log.info("saying %s %r (%.2f-%.2f)", u.say.kind, u.say.text, start, end)
         if self.args.wav_dir:
             write_wav(Path(self.args.wav_dir) / f"{self.said:03d}-{u.say.kind}.wav", pcm)
-        first = True
+        playing = self.device is None  # a local device starts at the announced start, the wire runs ahead of it
         for chunk in audio_chunks(pcm, RATE, start, speaker, service.source):
-            delay = chunk.stamp - time.time()
-            if (delay > 0 and self.interrupt.wait(delay)) or self.interrupt.is_set() or service.stop_event.is_set():
+            delay = chunk.stamp - SEND_AHEAD_SECONDS - time.time()
+            if not self.wait(delay):
                 self.cut(announced, time.time())
                 return
-            if first and self.device is not None:
-                self.device.play(pcm)
-            first = False
+            playing = playing or self.start_device(pcm, start)
             service.publish_output("voice_audio", chunk, speaker=speaker)
+        if not playing and self.device is not None:  # every chunk sent before the start: the device starts on time
+            if not self.wait(start - time.time()):
+                self.cut(announced, time.time())
+                return
+            self.device.play(pcm)
         service.counters.add("spoken")
+
+    def wait(self, delay: float) -> bool:
+        """Wait `delay` s; False when interrupted (a stop) or the service stops."""
+        if delay > 0 and self.interrupt.wait(delay):
+            return False
+        return not (self.interrupt.is_set() or self.service.stop_event.is_set())
+
+    def start_device(self, pcm: np.ndarray, start: float) -> bool:
+        """Start the local device once the utterance's start has come (True: it plays)."""
+        if self.device is None or time.time() < start:
+            return False
+        self.device.play(pcm)
+        return True
 
     def cut(self, announced: Spoken, at: float) -> None:
         """Stopped before the end: the same Spoken again with the end it had, so speech unmasks at once."""

@@ -17,6 +17,10 @@ from common.schema import AudioChunk, Clarification, FusedCommand, SpokenKind
 CHUNK_SECONDS = 0.02  # 20 ms chunks, as the speech service's own WAV and microphone input
 LEAD_SECONDS = 0.1  # the first chunk is stamped this far ahead: the Spoken sample reaches speech before the audio
 GAP_SECONDS = 0.3  # silence between two utterances of the robot's
+# each chunk is sent this long before its play time (its stamp): a speaker on the wire buffers it and plays it on
+# time, and speech has its echo reference before the microphone hears it, though the sender is descheduled for a
+# moment (sent at its play time, on a loaded machine the reference came >0.1 s after the microphone's audio)
+SEND_AHEAD_SECONDS = 0.25
 
 # How the robot confirms a command (--confirm): the verb in the progressive ("Picking up the red candy.")
 CONFIRM_VERBS = {
