@@ -313,7 +313,7 @@ def test_record_then_replay_round_trip(group, tmp_path):
             client.publish(key, sample)
             time.sleep(GAP)
         client.put_raw("hri/test/raw", b"\xc1 outside the contract")
-        time.sleep(0.5)
+        wait_for_text(recorder, "recording: 5 samples")  # its progress line (once a second): all five are written
         after_ns = time.time_ns()
         code, _ = recorder.terminate(timeout=5.0)
         assert code == 0, recorder.output()
