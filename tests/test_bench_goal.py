@@ -54,6 +54,8 @@ def test_each_missed_figure_is_named_with_its_service() -> None:
     assert len(misses) == 2
     assert misses[0].startswith("gesture hands 15.1 Hz < 20") and "gesture 30 % of the machine" in misses[0]
     assert misses[1].startswith("gesture hands lag p99 175 ms > 120")
+    # why: 0.3 of 2 cores at 15.1 Hz is 40 ms of CPU a frame; 20 Hz needs 0.79 cores
+    assert "; 40 ms of CPU a frame: 20 Hz needs 0.79 cores, it had 0.60" in misses[0]
 
 
 def test_the_stack_the_speech_and_the_unasked_commands() -> None:
@@ -62,6 +64,10 @@ def test_the_stack_the_speech_and_the_unasked_commands() -> None:
     misses = goal_misses(run(services=services, commands=commands), 2)
     assert misses[0].startswith("stack 1.91 of 2 cores > 1.8 (the most: vision")
     assert misses[1].startswith("last word -> command p50 797 ms > 450")
+    commands |= {"last_word_to_transcript_p50_ms": 616.0, "transcript_to_command_p50_ms": 181.0}
+    why = goal_misses(run(commands=commands), 2)[0]
+    assert "speech: the transcript p50 616 ms after the last word (300 ms of it the end-of-utterance silence" in why
+    assert "fusion: p50 181 ms from the transcript to the command (a window ends 300 ms after" in why
     assert misses[2] == "1 command(s) nobody gave"
     assert goal_misses(run(services=services), 4) == []  # 1.91 of 4 cores is within 3.6
 
