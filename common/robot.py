@@ -5,7 +5,7 @@ Fusion's affordances and refusals, its planner prompt and the ROS 2 node read it
 are never grasped, nothing measured over `GRASP_MAX_EXTENT_M` is, there is no weight limit, and the robot carries,
 navigates and speaks. A file that is not a valid profile is refused with what is wrong and where (`ProfileError`).
 
-Standard library only (tomllib), beside the contract it fills (`common.schema.RobotProfile`).
+Standard library (tomllib) and msgspec, beside the contract it fills (`common.schema.RobotProfile`).
 """
 
 from __future__ import annotations
@@ -14,10 +14,12 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, get_args
+from typing import Any, TypeVar, get_args
+
+import msgspec
 
 from common.language import COCO_LABELS, EXTRA_LABELS, GRASP_MAX_EXTENT_M, NEVER_GRASPED, canonical_label
-from common.schema import CameraMount, RobotProfile, WhileBusy
+from common.schema import CameraMount, Location, RobotProfile, Target, WhileBusy
 
 # Typical weight of one object of each class, kg: an ASSUMPTION written down (an everyday household example of each,
 # rounded: a full 0.5-1 l bottle, a ceramic mug, a 13" laptop, a dining chair or stool), not a measurement of any
@@ -259,6 +261,40 @@ class _Reader:
             camera=self.camera(),
             path=self.path,
         )
+
+
+# -- where a point seen by the camera is on the robot (the profile's camera mount) -----------------------------------
+def mount_rotation(rpy: list[float]) -> tuple[tuple[float, float, float], ...]:
+    """The rotation matrix (rows) of roll, pitch, yaw in radians, fixed axes x, y, z (REP-103, URDF, tf2's
+    static_transform_publisher): R = Rz(yaw) Ry(pitch) Rx(roll), the child's axes in the parent's frame."""
+    (cr, sr), (cp, sp), (cy, sy) = ((math.cos(a), math.sin(a)) for a in rpy)
+    return (
+        (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+        (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+        (-sp, cp * sr, cp * cr),
+    )
+
+
+def in_base(mount: CameraMount | None, frame_id: str | None, position: list[float] | None) -> list[float] | None:
+    """`position` (metres in the camera frame `frame_id`, REP-103 optical: x right, y down, z forward) in the robot's
+    base frame `mount.parent` (REP-103 body: x forward, y left, z up): p_base = R(rpy) p + xyz. None when there is
+    no position, no mount, or the mount places another frame: a base position is never guessed."""
+    if mount is None or position is None or frame_id != mount.frame_id:
+        return None
+    rotation = mount_rotation(mount.rpy)
+    return [round(sum(r * p for r, p in zip(row, position)) + t, 4) for row, t in zip(rotation, mount.xyz)]
+
+
+Placed = TypeVar("Placed", Target, Location)
+
+
+def with_base(where: Placed, mount: CameraMount | None) -> Placed:
+    """A command's Target or Location with its position also in the robot's base frame (`base`, `base_frame_id`),
+    when the mount places its camera frame; unchanged otherwise."""
+    base = in_base(mount, where.frame_id, where.position)
+    if base is None or mount is None:
+        return where
+    return msgspec.structs.replace(where, base=base, base_frame_id=mount.parent)
 
 
 def parse_profile(text: str, path: str = "<text>") -> Profile:

@@ -539,6 +539,16 @@ class Target(Struct, kw_only=True):
     ] = None
     extent: Annotated[Optional[Point3], described("**v1 extension**: [width, height, depth] metres")] = None
     frame_id: Annotated[Optional[str], described("**v1 extension**: the frame of `position`")] = None
+    base: Annotated[
+        Optional[Point3],
+        described(
+            "**v1 extension**: `position` in the robot's base frame `base_frame_id` (REP-103: x forward, y left, "
+            "z up), from the robot profile's camera mount; nil when the profile places no camera of `frame_id`"
+        ),
+    ] = None
+    base_frame_id: Annotated[
+        Optional[str], described("**v1 extension**: the frame of `base` (the mount's `parent`, e.g. `base_link`)")
+    ] = None
 
 
 class Location(Struct, kw_only=True):
@@ -553,6 +563,16 @@ class Location(Struct, kw_only=True):
         ),
     ] = None
     frame_id: Annotated[Optional[str], described("**v1 extension**: the frame of `position`")] = None
+    base: Annotated[
+        Optional[Point3],
+        described(
+            "**v1 extension**: `position` in the robot's base frame `base_frame_id` (REP-103: x forward, y left, "
+            "z up), from the robot profile's camera mount; nil when the profile places no camera of `frame_id`"
+        ),
+    ] = None
+    base_frame_id: Annotated[
+        Optional[str], described("**v1 extension**: the frame of `base` (the mount's `parent`, e.g. `base_link`)")
+    ] = None
 
 
 class Motion(Struct, kw_only=True):

@@ -12,11 +12,12 @@ from testkit.harness import Client, ProcessGroup
 from testkit.shared import yolox_model
 
 
-def start(group: ProcessGroup, folder: Path) -> Client:
-    """Start camera -> vision -> fusion on `folder` (5 frames a second, looped) and return a connected client."""
+def start(group: ProcessGroup, folder: Path, *fusion_args: str) -> Client:
+    """Start camera -> vision -> fusion (with `fusion_args`) on `folder` (5 frames a second, looped) and return a
+    connected client."""
     group.router()
     group.service("vision", "--backend", "onnx", "--model", str(yolox_model()))
-    group.service("fusion")
+    group.service("fusion", *fusion_args)
     client = Client(group.endpoint)
     client.wait_alive("vision", timeout=90)
     client.wait_alive("fusion", timeout=60)

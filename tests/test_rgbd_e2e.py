@@ -83,9 +83,19 @@ def wait_for_bottles(client: Client, text: str) -> tuple[list, float]:
     return two_positions(det), det.stamp
 
 
+# a level head camera 1.2 m above the base origin, 0.1 m ahead of it, placing the scene's optical frame (docs/robot.md)
+HEAD_CAMERA = f"""name = "head-camera"
+[camera]
+frame_id = "{K["frame_id"]}"
+xyz = [0.1, 0.0, 1.2]
+rpy = [-1.5707963267948966, 0.0, -1.5707963267948966]
+"""
+
+
 def test_the_nearest_bottle_is_chosen_by_depth_not_by_the_lowest_box(group, tmp_path):
     two_bottles(tmp_path / "scene")
-    client = start(group, tmp_path / "scene")
+    (tmp_path / "head.toml").write_text(HEAD_CAMERA)
+    client = start(group, tmp_path / "scene", "--profile", str(tmp_path / "head.toml"))
     try:
         bottles, seen_at = wait_for_bottles(client, "pick up the nearest bottle")
         results = client.collect("hri/fusion/command")
@@ -103,6 +113,12 @@ def test_the_nearest_bottle_is_chosen_by_depth_not_by_the_lowest_box(group, tmp_
     assert cmd.target.id == nearest.id, cmd.explanation
     assert cmd.target.position == nearest.position and cmd.target.frame_id == K["frame_id"]
     assert cmd.target.extent == nearest.extent
+    # the profile's mount places the camera: the same point in the robot's base frame (forward = optical z + 0.1 m,
+    # left = -optical x, up = 1.2 m - optical y)
+    x, y, z = nearest.position
+    assert (
+        cmd.target.base == pytest.approx([z + 0.1, -x, 1.2 - y], abs=1e-3) and cmd.target.base_frame_id == "base_link"
+    )
 
 
 def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):

@@ -20,7 +20,7 @@ import msgspec
 from common.counters import GESTURE_COMMAND_COUNTER, SPEAKER_COUNTER, FusionCounter
 from common.engagement import EngagementConfig
 from common.language import ANY_OBJECT, PLACE_AS_OBJECT
-from common.robot import DEFAULT, Profile
+from common.robot import DEFAULT, Profile, with_base
 from common.schema import (
     GESTURE,
     SPEECH,
@@ -201,6 +201,7 @@ class FusionCore:
         self.gestures = Gestures(config.gesture_min_score, config.episode_gap, config.horizon)
         self.outputs = Outputs(source)
         self.outputs.robot = self._robot_lines()
+        self.outputs.mount = profile.camera  # targets and locations also in the robot's base frame (docs/robot.md)
         self.dialogue = Dialogue(
             self.outputs, config.dialogue_timeout, self.count, self.log, doubt=config.low_speech_confidence
         )
@@ -511,7 +512,9 @@ class FusionCore:
             return out
         why = f"; to {person.id} ('{ref.said}')" + (" at their torso in metres" if person.position else "")
         located = msgspec.structs.replace(
-            sample, location=people.location_of(person, seen.cam), explanation=sample.explanation + why
+            sample,
+            location=with_base(people.location_of(person, seen.cam), self.profile.camera),
+            explanation=sample.explanation + why,
         )
         return replace(out, sample=located)
 

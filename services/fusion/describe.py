@@ -8,7 +8,8 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from common.language import ANY_OBJECT, OBJECT_CATEGORIES, label_matches, plural
-from common.schema import GESTURE, SPEECH, Location, Motion
+from common.robot import in_base
+from common.schema import GESTURE, SPEECH, CameraMount, Location, Motion
 from services.fusion import space
 from services.fusion.decision import Act
 from services.fusion.evidence import Pointing
@@ -283,6 +284,15 @@ class PromptScene:
     objects: Sequence[SceneObject] = ()
     missing: Sequence[str] = ()
     robot: Sequence[str] = ()  # what the robot can do and is doing (none: the default profile, no state heard)
+    mount: CameraMount | None = None  # where the camera sits on the robot (the profile's): positions in its base frame
+
+
+def base_words(mount: CameraMount | None, frame_id: str | None, position: Sequence[float] | None) -> str:
+    """ "; (x, y, z) m in base_link (x forward, y left, z up)" when the profile's mount places the camera frame."""
+    base = in_base(mount, frame_id, None if position is None else list(position))
+    if base is None or mount is None:
+        return ""
+    return f"; ({base[0]:.2f}, {base[1]:.2f}, {base[2]:.2f}) m in {mount.parent} (x forward, y left, z up)"
 
 
 def most_confident(objects: Sequence[SceneObject], n: int) -> list[SceneObject]:
@@ -311,11 +321,13 @@ def planner_prompt(act: Act, text: str | None, scene: PromptScene) -> str:
             f"Target: {target.id}, a {target.name()} at pixel ({target.center[0]:.0f}, "
             f"{target.center[1]:.0f}) in camera {target.cam}, {region(target)}"
             + space.metres_words(target.position, target.frame_id, target.extent)
+            + base_words(scene.mount, target.frame_id, target.position)
         )
     if location is not None:
         lines.append(
             f"Location: pixel ({location.x:.0f}, {location.y:.0f}) in camera {location.cam}"
             + space.metres_words(location.position, location.frame_id)
+            + base_words(scene.mount, location.frame_id, location.position)
         )
     if place:
         lines.append(f"Place: {place}")

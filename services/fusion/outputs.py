@@ -7,10 +7,12 @@ import hashlib
 from dataclasses import dataclass
 
 from common.counters import GestureIntent
+from common.robot import with_base
 from common.schema import (
     GESTURE,
     SPEECH,
     VISION,
+    CameraMount,
     Clarification,
     ClarificationReason,
     FusedCommand,
@@ -46,20 +48,24 @@ class Outputs:
     def __init__(self, source: str):
         self.source = source
         self.robot: list[str] = []  # what the planner prompt says of the robot (its profile, its state; docs/robot.md)
+        # where the camera sits on the robot (the profile's mount): targets and locations also in its base frame
+        self.mount: CameraMount | None = None
 
     def command(self, t: Transcript, act: Act, ctx: Context | None) -> Output:
         """A command on an utterance, with the window's weights, inputs and scene (`ctx`); without a window
         (a spoken stop, decided on arrival) speech alone."""
         text = act.text if act.text is not None else t.text
-        scene = PromptScene(ctx.pointing, None, ctx.objects, ctx.missing, self.robot) if ctx else PromptScene()
+        scene = (
+            PromptScene(ctx.pointing, None, ctx.objects, ctx.missing, self.robot, self.mount) if ctx else PromptScene()
+        )
         cmd = FusedCommand(
             stamp=t.stamp,
             source=self.source,
             id=stable_id("cmd", t.source, t.stamp, t.mic),
             intent=act.intent,
             text=text,
-            target=act.target.to_target() if act.target else None,
-            location=act.location,
+            target=with_base(act.target.to_target(), self.mount) if act.target else None,
+            location=with_base(act.location, self.mount) if act.location else None,
             place=act.place,
             gesture=act.gesture,
             confidence=unit(act.confidence),
@@ -121,7 +127,7 @@ class Outputs:
                 text=t.text,
                 reason=reason,
                 question=question,
-                candidates=[o.to_target() for o in candidates[:MAX_CANDIDATES]],
+                candidates=[with_base(o.to_target(), self.mount) for o in candidates[:MAX_CANDIDATES]],
             )
         )
 
