@@ -89,6 +89,8 @@ FusionCounter = Literal[
     "released_after_busy",
     "queue_dropped_by_stop",
     "robot_failure_announced",
+    "question_spoken",  # the voice said the open question: its answer window counts from its end (docs/voice.md)
+    "answer_before_spoken",  # words begun before the robot finished asking: not taken as the answer
 ]
 GestureIntent = Literal["stop", "come_here"]  # the commands a gesture alone gives
 GESTURE_COMMAND_COUNTER: dict[GestureIntent, FusionCounter] = {"stop": "gesture_stop", "come_here": "gesture_come_here"}

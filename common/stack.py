@@ -238,6 +238,7 @@ NODES: tuple[Node, ...] = (
             Input("faces", "fifo", maxlen=600),  # mouths over time: who is speaking (issue #33)
             Input("persons", "fifo", maxlen=300),  # people in view with stable ids
             Input("robot_state", "fifo", maxlen=50, modality=False),  # the robot's own state (docs/robot.md)
+            Input("spoken", "fifo", maxlen=100, modality=False),  # a question said aloud: its answer window (voice.md)
         ),
         outputs=("command", "clarification", "robot_profile"),
     ),

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import logging
 
-from common.schema import Clarification, FusedCommand
+from common.schema import Clarification, FusedCommand, Spoken
 from services.fusion.decision import Draft
 from services.fusion.dialogue import Dialogue
 from services.fusion.ground import Choice
@@ -90,3 +90,104 @@ def test_a_doubted_yes_does_not_confirm_a_command_it_asks_again():
     (done,) = dialogue.reply(*utterance(3.0, "yes"), window(scene_of(TWO_CUPS), speech=0.6))
     assert isinstance(done.sample, FusedCommand) and done.sample.target.id == "cup_red"
     assert counts == ["clarification_low_confidence", "dialogue_doubted_confirm", "dialogue_unresolved"]
+
+
+# ---------------------------------------------------------------------------
+# A question said aloud (the voice's Spoken, docs/voice.md): answered by what is said after the robot finished it
+# ---------------------------------------------------------------------------
+def said_aloud(asked: Clarification, start: float, end: float, answers: str | None = None) -> Spoken:
+    """The voice's Spoken for `asked`, said from `start` to `end` s after the base stamp."""
+    return Spoken(
+        stamp=BASE_STAMP + start,
+        source="voice/robot",
+        id="spk-1",
+        text=asked.question,
+        kind="question",
+        answers=asked.id if answers is None else answers,
+        start=BASE_STAMP + start,
+        end=BASE_STAMP + end,
+        speaker="robot",
+        voice="piper:joe",
+    )
+
+
+def test_an_answer_begun_while_the_robot_still_asks_is_not_taken_one_after_it_is():
+    counts: list[str] = []
+    dialogue, ctx, asked = asked_which_cup(counts)  # the words end at 1.0 s
+    assert dialogue.spoken(said_aloud(asked, 3.0, 6.0))  # a slow synthesis: said from 3 to 6 s
+    assert dialogue.reply(*utterance(5.5, "the blue one"), ctx) == []  # begun before the question ended
+    assert dialogue.question is not None and dialogue.question.clarification_id == asked.id  # still open
+    (out,) = dialogue.reply(*utterance(6.2, "the blue one"), ctx)
+    assert isinstance(out.sample, FusedCommand) and out.sample.target.id == "cup_blue"
+    assert counts == ["clarification_ambiguous", "answer_before_spoken"]
+
+
+def test_the_question_stays_open_for_the_timeout_from_the_end_of_its_spoken_words():
+    counts: list[str] = []
+    dialogue, ctx, asked = asked_which_cup(counts)
+    dialogue.spoken(said_aloud(asked, 3.0, 6.0))
+    dialogue.expire(BASE_STAMP + 12.0)  # 11 s after the words that raised it (closed without a voice), 6 s after said
+    assert dialogue.question is not None
+    (out,) = dialogue.reply(*utterance(15.5, "the red one"), ctx)
+    assert out.sample.target.id == "cup_red"
+    dialogue, ctx, asked = asked_which_cup(counts)
+    dialogue.spoken(said_aloud(asked, 3.0, 6.0))
+    dialogue.expire(BASE_STAMP + 16.5)  # more than 10 s after the robot finished asking
+    assert dialogue.question is None and counts[-1] == "dialogue_expired"
+
+
+def test_a_question_cut_short_opens_its_window_at_the_cut():
+    dialogue, ctx, asked = asked_which_cup([])
+    dialogue.spoken(said_aloud(asked, 3.0, 6.0))
+    dialogue.spoken(said_aloud(asked, 3.0, 4.0))  # the voice stopped at 4 s and said so (the same Spoken, new end)
+    (out,) = dialogue.reply(*utterance(4.5, "the blue one"), ctx)
+    assert out.sample.target.id == "cup_blue"
+
+
+def test_without_its_own_spoken_the_question_is_open_from_when_it_was_asked():
+    """Another utterance's Spoken, or free text (no `answers`), says nothing of this question: as without a voice."""
+    counts: list[str] = []
+    dialogue, ctx, asked = asked_which_cup(counts)
+    assert not dialogue.spoken(said_aloud(asked, 3.0, 6.0, answers="clr-another"))
+    free = said_aloud(asked, 3.0, 6.0)
+    free.answers = None
+    assert not dialogue.spoken(free)
+    assert dialogue.question.opens is None
+    (out,) = dialogue.reply(*utterance(2.0, "the blue one"), ctx)  # taken, as before
+    assert out.sample.target.id == "cup_blue"
+    dialogue, ctx, asked = asked_which_cup(counts)
+    dialogue.expire(BASE_STAMP + 12.0)  # 11 s after the words that raised it
+    assert dialogue.question is None
+
+
+def test_fusion_takes_the_spoken_question_from_the_wire_sample():
+    """Through the core (as the service's worker feeds it): the voice's Spoken for fusion's own Clarification."""
+    from services.fusion.core import Config, FusionCore
+    from testkit.scenarios import KEYS, Step, deliver, say, see
+    from testkit.scenarios.suite import TWO_CUPS
+
+    counts: list[str] = []
+    core = FusionCore(Config(), "fusion/test", count=counts.append)
+    for modality in ("vision", "gesture"):
+        core.on_liveliness(modality, "test", True)
+    wall = 1000.0
+
+    def feed(*steps: Step) -> list:
+        nonlocal wall
+        out: list = []
+        for one in steps:
+            key, sample = one.build(BASE_STAMP)
+            out += [o.sample for o in deliver(core, key, sample, wall)]
+            wall += 0.002
+        wall += 100.0
+        return out + [o.sample for o in core.tick(wall)]
+
+    scene = [see(t / 10, TWO_CUPS) for t in range(-10, 100, 5)]
+    (asked,) = feed(*scene[:6], say(0.0, 0.9, "pick up the cup"))
+    assert isinstance(asked, Clarification)
+    assert core.on_spoken(KEYS.key("spoken", speaker="robot"), said_aloud(asked, 2.0, 5.0), wall) == []
+    assert counts.count("question_spoken") == 1
+    assert feed(*scene[6:12], say(4.0, 4.8, "the blue one")) == []  # said over the robot's question
+    assert counts.count("answer_before_spoken") == 1
+    (cmd,) = feed(*scene[12:], say(5.3, 6.0, "the blue one"))
+    assert isinstance(cmd, FusedCommand) and cmd.target.id == "cup_blue" and asked.id in cmd.explanation

@@ -208,6 +208,9 @@ class FusionApp(App):
         service.subscribe_input("faces", self.handler(core.on_faces))  # who is speaking
         service.subscribe_input("persons", self.handler(core.on_persons))  # people in view: "bring it to me"
         service.subscribe_input("robot_state", self.handler(core.on_robot_state))  # what the robot is doing
+        # what the robot said and when: a question's answer window opens when it was said (stamped at its start, sent
+        # before it plays: no clock estimate from it)
+        service.subscribe_input("spoken", self.handler(core.on_spoken, clocked=False))
         self.announce_profile(service)
         config = self.config
         service.log.info(
@@ -252,14 +255,15 @@ class FusionApp(App):
         if parsed:
             self.liveliness_events.put((*parsed, sample.kind == zenoh.SampleKind.PUT))
 
-    def handler(self, feed: Feed, delayed: bool = False) -> Callable[[Delivery], None]:
+    def handler(self, feed: Feed, delayed: bool = False, clocked: bool = True) -> Callable[[Delivery], None]:
         def handle(d: Delivery) -> None:
             self.service.log.debug("in %s %.3f", d.key, d.sample.stamp)
             # a transcript is stamped at the utterance's end and published after recognition (0.2-2 s later): late
             # by design, so that delay is reported as such (delay_ms:SOURCE), never read as the clock running behind
-            self.clocks.estimates.add(
-                d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed
-            )
+            if clocked:
+                self.clocks.estimates.add(
+                    d.sample.source, d.sample.stamp, d.zenoh_time, d.received_at, late_by_design=delayed
+                )
             with collector_after_output():
                 self.emit(feed(d.key, d.sample, d.received_at))
 

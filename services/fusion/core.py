@@ -36,6 +36,7 @@ from common.schema import (
     Persons,
     RobotState,
     Speaker,
+    Spoken,
     Transcript,
 )
 from common.settings import setting
@@ -271,6 +272,13 @@ class FusionCore:
             self.robot.remember(queued)
             out.append(Output(queued))
         return out
+
+    def on_spoken(self, key: str, said: Spoken, wall: float) -> list[Output]:
+        """What the robot's voice said and when: a question said aloud is answered by what the person says after it
+        ended (services/fusion/dialogue.py `Dialogue.spoken`). Not a modality: nothing is weighed or waited for."""
+        if self.dialogue.spoken(said):
+            self.count("question_spoken")
+        return []
 
     def _drop_queued(self) -> None:
         """A stop also cancels what waits for the robot to be free (a stop never means "later")."""

@@ -1,7 +1,8 @@
 """The clarification dialogue: a small state machine over the open question and the last command acted on.
 
 States: nothing open; a `Question` open (until answered, withdrawn, superseded by a new command or a stop, or
-`timeout` s of source time after it was asked); a `LastCommand` remembered for as long ("no, the other one"
+`timeout` s of source time after it was asked: after the robot finished saying it, when its voice said when
+(`spoken`); what was begun before that is no answer); a `LastCommand` remembered for as long ("no, the other one"
 corrects it). Transitions return what to publish:
 - `clarify` / `clarify_place` ask (a Clarification) and open the question with the command drafted so far;
 - `reply` takes an utterance without an intent: an answer resolves the question into the drafted command,
@@ -17,7 +18,7 @@ from typing import Callable
 
 from common.counters import CLARIFICATION_COUNTER, FusionCounter
 from common.language import ANY_OBJECT, label_matches
-from common.schema import SPEECH, VISION, ClarificationReason, FusedCommand, Intent, Transcript, as_intent
+from common.schema import SPEECH, VISION, ClarificationReason, FusedCommand, Intent, Spoken, Transcript, as_intent
 from services.fusion import describe
 from services.fusion.afford import VERBS
 from services.fusion.decision import Act, Draft
@@ -50,6 +51,9 @@ class Question:
     candidates: list[SceneObject]
     expires: float  # source time
     question: str
+    # source time the robot finished saying it (its voice's Spoken `end`): the answer window opens then; None: not
+    # said aloud (no voice, or not yet), the window is open from the question on, as without a voice
+    opens: float | None = None
 
 
 class Dialogue:
@@ -88,6 +92,18 @@ class Dialogue:
             self.question = None
         if self.last is not None and said_at > self.last.expires:
             self.last = None
+
+    def spoken(self, said: Spoken) -> bool:
+        """The robot's voice said the open question aloud (`said.answers` is its id): the answer window opens at the
+        end of what was said and stays open `timeout` s from there, not from the words that raised the question
+        (a slow synthesis or a long question leaves the person the same time). A cut-short question (a stop) sends
+        its Spoken again with the earlier end: the latest counts. False: `said` is not about the open question."""
+        q = self.question
+        if q is None or said.answers != q.clarification_id:
+            return False
+        q.opens = said.end
+        q.expires = said.end + self.timeout
+        return True
 
     def acted(
         self, t: Transcript, intent: Intent, text: str, target: SceneObject, phrase: ObjectPhrase, place: str | None
@@ -197,8 +213,18 @@ class Dialogue:
     def reply(self, t: Transcript, u: Utterance, ctx: Context) -> list[Output] | None:
         """An utterance without an intent: the answer to the open question, a correction of the last command, or
         None when it is neither."""
-        if self.question is not None and (u.has_content or ctx.pointing is not None):
-            return self._answer(t, u, ctx, self.question)
+        q = self.question
+        if q is not None and (u.has_content or ctx.pointing is not None):
+            if q.opens is not None and t.start < q.opens:  # begun while the robot was still asking: no answer
+                self.count("answer_before_spoken")
+                self.log.info(
+                    "'%s' began %.2f s before the robot finished asking %s: not taken as its answer",
+                    t.text,
+                    q.opens - t.start,
+                    q.clarification_id,
+                )
+                return []
+            return self._answer(t, u, ctx, q)
         if self.last is not None and (u.other or (u.answer == "deny" and u.obj.specific)):
             return self._correct_last(t, u, ctx, self.last)
         return None

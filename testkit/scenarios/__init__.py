@@ -34,6 +34,7 @@ from common.schema import (
     Ray,
     RobotState,
     Sample,
+    Spoken,
     Transcript,
     Word,
 )
@@ -382,6 +383,8 @@ def deliver(core: FusionCore, key: str, sample: Sample, wall: float) -> list[Out
         return core.on_bodies(key, sample, wall)
     if isinstance(sample, RobotState):
         return core.on_robot_state(key, sample, wall)
+    if isinstance(sample, Spoken):
+        return core.on_spoken(key, sample, wall)
     raise TypeError(f"fusion takes no {type(sample).__name__}")
 
 
