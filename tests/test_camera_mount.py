@@ -110,3 +110,19 @@ def test_fusion_gives_the_target_in_the_base_frame_with_a_mount_and_only_then():
     (plain,) = pick_up_the_pointed_bottle()
     assert plain.target.id == target.id and plain.target.base is None and plain.target.base_frame_id is None
     assert "base_footprint" not in plain.prompt and " m in base" not in plain.prompt
+
+
+def test_go_there_gives_the_place_in_the_base_frame_too():
+    """ "Go there" pointing at the floor: the location where the 3-D ray meets it, also in the base frame."""
+    spot = np.array([0.2, 1.0, 2.0])  # on the floor 1 m below the camera, 2 m ahead, a little to its right
+    bottle = [thing("b0", "bottle", [-0.8, 0.5, 2.4])]
+    steps = [step(t / 10, lambda s: detections(bottle, stamp=s)) for t in range(-10, 20, 2)]
+    steps += [step(t / 10, lambda s: hands(pointing_hand(spot, hit=spot), stamp=s)) for t in range(-10, 20)]
+    steps.append(say(0.0, 0.6, "go there"))
+    (cmd,) = run_in_process(Scenario("go", sorted(steps, key=lambda s: s.t), []), profile=parse_profile(PROFILE))
+    assert cmd.intent == "go_to" and cmd.location is not None, cmd
+    assert cmd.location.position == pytest.approx(spot.tolist(), abs=1e-3)
+    # a level camera at (0.1, 0, 1.2): 2.1 m ahead, 0.2 m right, 1 m below the camera (0.2 m above the base origin)
+    assert cmd.location.base == pytest.approx([2.1, -0.2, 0.2], abs=1e-3)
+    assert cmd.location.base_frame_id == "base_footprint"
+    assert "(2.10, -0.20, 0.20) m in base_footprint" in cmd.prompt
