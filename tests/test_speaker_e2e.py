@@ -134,8 +134,10 @@ def play_the_clip(video: Path, wav: Path, lead: float) -> Played:
                 return Played(group, [], faces, transcripts, echo, again=2 * took)
             got = results.wait(2, timeout=start - time.time() + 60)
             assert time.time() > start, "the outputs came before the clip played"
-            faces.drain()
-            transcripts.drain()
+            # both transcripts: a command goes out at a higher Zenoh priority than they do (real time, express), so
+            # on a loaded machine the second command overtook its own transcript on the way to this test (issue #41)
+            transcripts.wait(2, timeout=30)
+            faces.drain(0.5)
         finally:
             client.close()
     except BaseException:
