@@ -26,6 +26,7 @@ from testkit.harness import Client, ProcessGroup, requires_services
 from testkit.images import read_image
 from testkit.scenarios.indoor import SCENES, evaluate, judge, load_lines, report, vision_pipeline
 from testkit.shared import shared_path, yolox_model
+from testkit.words import words_end_over
 
 DIALOGUE_TIMEOUT = 0.5  # s: each line is judged on its own, as in process
 MIN_RIGHT = 27  # of 30; measured 29 (in process and over Zenoh, relations + colour model merged), margin 2 lines
@@ -132,16 +133,21 @@ def test_the_indoor_scenes_over_zenoh(in_process, folder, tmp_path):
             cv2.imwrite(str(upright), read_image(str(folder / photo)))
             if camera is not None:
                 camera.terminate()
-                seen.drain(1.0)
-            before = len(seen.seen)
+            shown_from = time.time()  # this photo's frames are captured from now on; the last one's before
             camera = group.service("camera", "--source", str(upright), "--fps", "5", "--loop", "--encoding", "png")
-            seen.wait(before + 1, timeout=60, where=lambda k, s: isinstance(s, Detections))
-            time.sleep(3.0)  # detections of this photo only, over the whole window and the vision look-back
             for line in (x for x in lines if x.photo == photo):
-                # the words start (0.3 s a word, as `hri say` spaces them) after the last question expired
-                time.sleep(max(0.0, last_end + DIALOGUE_TIMEOUT + 0.3 * len(line.say.split()) + 0.2 - time.time()))
+                # the words end on a frame of this photo such that fusion's window and vision's look-back hold
+                # detections of this photo only, whatever vision's lag; they start after the last question expired
+                said = words_end_over(
+                    line.say,
+                    seen,
+                    lambda d, since=shown_from: isinstance(d, Detections) and d.stamp >= since,
+                    f"detections of {photo} only",
+                    lookback=True,
+                    earliest_start=last_end + DIALOGUE_TIMEOUT + 0.2,
+                )
                 n = len([s for _, s in results.drain() if isinstance(s, (FusedCommand, Clarification))])
-                last_end = time.time()
+                last_end = said.stamp
                 client.publish(
                     "hri/speech/kbd/transcript",
                     make_transcript(line.say, mic="kbd", end=last_end, confidence=0.95, source="test/kbd"),
