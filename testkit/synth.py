@@ -7,6 +7,7 @@ at a given signal-to-noise ratio measured over the speech itself (not over the s
 
 from __future__ import annotations
 
+import functools
 import shutil
 import subprocess
 import tempfile
@@ -101,8 +102,39 @@ def synthesize(  # noqa: PLR0913 - the voice's details, each with a default; cal
     lead/trail_silence: seconds of silence around the speech.
     noise_snr_db: if set, add pink noise so that speech power / noise power is this many dB.
     """
+    spoken = _spoken(text, voice, speed, noise_snr_db, lead_silence, trail_silence, pitch, noise_seed)
+    write_wav_int16(wav_path, spoken)
+    return Path(wav_path)
+
+
+# The same arguments always give the same samples (sox -R, piper without noise, espeak-ng), so a test session renders
+# each voice once: the suite asks for the same sentence in several noise conditions and from several test files.
+@functools.lru_cache(maxsize=4096)
+def _spoken(  # noqa: PLR0913 - synthesize's arguments, as its cache key
+    text: str,
+    voice: str,
+    speed: int,
+    noise_snr_db: float | None,
+    lead_silence: float,
+    trail_silence: float,
+    pitch: int | None,
+    noise_seed: int,
+) -> np.ndarray:
+    """The int16 samples `synthesize` writes (read-only: shared by every caller with these arguments)."""
+    samples = _voiced(text, voice, speed, lead_silence, trail_silence, pitch).astype(np.float64) / 32768.0
+    if noise_snr_db is not None:
+        samples = add_noise(samples, noise_snr_db, seed=noise_seed)
+    out = np.clip(np.round(samples * 32767.0), -32768, 32767).astype(np.int16)
+    out.flags.writeable = False
+    return out
+
+
+@functools.lru_cache(maxsize=4096)
+def _voiced(  # noqa: PLR0913 - synthesize's arguments before noise, as its cache key
+    text: str, voice: str, speed: int, lead_silence: float, trail_silence: float, pitch: int | None
+) -> np.ndarray:
+    """The voice's 16 kHz int16 samples with the silence padding, before any noise (read-only)."""
     sox = _need("sox", "sox")
-    wav_path = Path(wav_path)
     with tempfile.TemporaryDirectory(prefix="hri-synth-") as tmp:
         raw = Path(tmp) / "voice.wav"
         if voice == PIPER_VOICE:
@@ -135,11 +167,9 @@ def synthesize(  # noqa: PLR0913 - the voice's details, each with a default; cal
                 f"{trail_silence:.3f}",
             ]
         )
-        samples = read_wav_int16(mono).astype(np.float64) / 32768.0
-    if noise_snr_db is not None:
-        samples = add_noise(samples, noise_snr_db, seed=noise_seed)
-    write_wav_int16(wav_path, np.clip(np.round(samples * 32767.0), -32768, 32767).astype(np.int16))
-    return wav_path
+        samples = read_wav_int16(mono)
+    samples.flags.writeable = False
+    return samples
 
 
 PIPER_VOICE = "piper:joe"  # the `voice` name that selects the neural voice in `synthesize`

@@ -171,10 +171,15 @@ def hear(recogniser, samples: np.ndarray, rate: int) -> tuple[list[str], list[st
 
 
 @pytest.fixture(scope="module")
-def heard_clips():
+def recogniser() -> WhisperRecognizer:
+    """One model for the module: a decode keeps no state from the one before (speech tests load it once each)."""
+    return WhisperRecognizer()
+
+
+@pytest.fixture(scope="module")
+def heard_clips(recogniser):
     material = clips()
     assert len(material) == 100 and sorted(set(w for w, _, _ in material)) == list(WORDS)
-    recogniser = WhisperRecognizer()
     return [(word, *hear(recogniser, samples, rate)) for word, samples, rate in material]
 
 
@@ -208,7 +213,7 @@ def test_every_real_stop_stops_and_other_words_rarely_do(heard_clips):
 # -- one-word utterances that are not commands ------------------------------------------------------------------
 
 
-def test_a_word_the_short_decode_makes_a_command_is_too_doubtful_to_act_on(tmp_path):
+def test_a_word_the_short_decode_makes_a_command_is_too_doubtful_to_act_on(recogniser, tmp_path):
     """Favouring the command words turns some ordinary single words into one ("chair" -> "sure"; docs/speech.md,
     13 of 48 with the decode, 2 without). What keeps that from moving the robot: the replaced word carries the
     command's own probability as its confidence, below fusion's --low-speech-confidence, so fusion asks first and
@@ -217,7 +222,7 @@ def test_a_word_the_short_decode_makes_a_command_is_too_doubtful_to_act_on(tmp_p
     from testkit.speech_scoring import NON_COMMAND_WORDS, AudioCache
     from testkit.synth import PIPER_VOICE
 
-    cache, recogniser = AudioCache(tmp_path), WhisperRecognizer()
+    cache = AudioCache(tmp_path)
     segmenter = make_segmenter()
     replaced = []
     for voice in (PIPER_VOICE, "en-us"):
