@@ -637,6 +637,8 @@ def _cpu_per_frame(result: dict[str, Any], service: str, rate_hz: float, goal_hz
 def _rate_and_tail(
     result: dict[str, Any], label: str, service: str, hz: str, p99: str | None, cores: int = 2
 ) -> list[str]:
+    if service not in result["services"]:
+        return []  # not run (the speech-alone variant): nothing to judge
     o = result["outputs"].get(label)
     if not o or not o["count"]:
         return [f"{label}: nothing arrived ({_service_note(result, service)})"]

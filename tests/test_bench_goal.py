@@ -78,6 +78,9 @@ def test_a_growing_lag_and_a_silent_output_are_misses() -> None:
     outputs = run()["outputs"]
     del outputs["gesture persons"]
     assert goal_misses(run(outputs=outputs), 2)[0].startswith("gesture persons: nothing arrived")
+    # the speech-alone variant runs no video service: only its speech is judged
+    speech_alone = {"speech": {"cpu_share_of_machine": 0.05, "skipped": 0}, "total_cpu_cores": 0.12}
+    assert goal_misses(run(services=speech_alone, outputs={}), 2) == []
     assert GOAL["persons_hz"] == 5.0
 
 
