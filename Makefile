@@ -14,11 +14,14 @@ demo: setup
 
 # lint (complexity <= 12 and at most 8 arguments included, [tool.ruff.lint] in pyproject.toml), format and types
 # are checked first: a finding fails the run before the (slow) tests start; the 30 slowest tests are listed at the end
-# (where CI time goes)
+# (where CI time goes). The tests run in TEST_WORKERS processes (pytest-xdist), a whole module per worker
+# (--dist loadfile: a module's fixtures, e.g. its one Whisper model, load once); TEST_WORKERS=0 runs them in one
+# process (docs/foundation.md, "CI time")
+TEST_WORKERS ?= 2
 test:
 	@bash scripts/setup.sh --test
 	@$(MAKE) --no-print-directory _lint
-	@$(PY) -m pytest -q --durations=30 $(PYTEST_ARGS)
+	@$(PY) -m pytest -q --durations=30 -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 test-fast:
 	@bash scripts/setup.sh --test

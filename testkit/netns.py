@@ -12,6 +12,7 @@ not, for a skip. Processes run as `ip netns exec NS python -m ...` with this int
 
 from __future__ import annotations
 
+import fcntl
 import os
 import random
 import re
@@ -26,6 +27,7 @@ from testkit.harness import Proc, ProcessGroup
 NAME_PREFIX = "hrit"  # hrit-{pid}-{run}-{host}
 HOSTS = ("observer", "perception", "speech")  # link index 0, 1, 2 (observer: the root namespace)
 ROUTER_PORT = 7447
+SUBNET_LOCK = "/tmp/hrit-netns-subnet.lock"
 
 
 def _ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
@@ -94,6 +96,13 @@ class Network:
             raise
 
     def _build(self) -> None:
+        # the subnet is taken when the observer's address is added: hold a machine-wide lock until then, so test
+        # runs in parallel (pytest -n) never pick the same one
+        with open(SUBNET_LOCK, "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            self._build_locked()
+
+    def _build_locked(self) -> None:
         subnet = _free_subnet()
         tag = self.run.split("-")[1]
         for host in ("router", "perception", "speech"):
