@@ -96,8 +96,8 @@ class Network:
             raise
 
     def _build(self) -> None:
-        # the subnet is taken when the observer's address is added: hold a machine-wide lock until then, so test
-        # runs in parallel (pytest -n) never pick the same one
+        # a subnet counts as taken once the observer's address is in the root namespace (the first link): the whole
+        # build holds a machine-wide lock, so two runs at once (pytest -n, two checkouts) never pick the same one
         with open(SUBNET_LOCK, "w") as lock:
             fcntl.flock(lock, fcntl.LOCK_EX)
             self._build_locked()
