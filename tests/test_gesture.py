@@ -172,6 +172,21 @@ def test_wave_from_an_oscillating_wrist_not_from_a_still_palm():
     assert "wave" not in {e.gesture for e in small}
 
 
+def test_a_still_hand_whose_size_estimate_jitters_does_not_wave():
+    """A still photo's hand (issue #40): the wrist stays put to the pixel while the palm size MediaPipe reports wavers
+    by ~10 % frame to frame (33-37 px measured on people_multi/room_pointer_bystander_0219_t1). Far from the image's
+    left edge, a position divided by each frame's own palm size moved a palm at every frame: a wave from a still
+    photo. The same hand waved at the same place still waves."""
+    palm = real("open_palm_up")
+    far = palm - palm[0] + [10 * np.linalg.norm(palm[9] - palm[0]), 300]  # the wrist ~10 palms from the left edge
+    sizes = [1.0, 1.09, 0.97, 1.06, 0.95, 1.1, 0.98, 1.07]  # 10 fps, 3 s: the size jitter, the wrist still
+    jittering = [obs(far[0] + (far - far[0]) * sizes[i % len(sizes)]) for i in range(30)]
+    events, _ = frames(GestureTracker(), jittering, dt=0.1)
+    assert "wave" not in {e.gesture for e in events}
+    events, _ = frames(GestureTracker(), waving(far, seconds=3.0, amplitude_palms=0.6, fps=10), dt=0.1)
+    assert ("wave", "start") in [(e.gesture, e.phase) for e in events]
+
+
 def test_two_hands_keep_their_own_tracks_and_gestures():
     left = real("open_palm_up")
     right = real("point_right") + [800, 0]

@@ -396,7 +396,7 @@ class _Track:
     last_emit: float = 0.0
     misses: int = 0
     scores: deque = field(default_factory=lambda: deque(maxlen=15))
-    wrist_x: deque = field(default_factory=lambda: deque(maxlen=90))  # (stamp, x / palm)
+    wrist_x: deque = field(default_factory=lambda: deque(maxlen=90))  # (stamp, wrist x px, palm px)
     rays: deque = field(default_factory=lambda: deque(maxlen=5))  # (origin, direction)
     ray_source: str = "hand"
     hold: HoldMeter = field(default_factory=HoldMeter)
@@ -453,7 +453,7 @@ class GestureTracker:
             # the track keeps the hand it was created with: one stream carries one `hand` from start to end
             track.wrist, track.palm, track.last_seen = cue.wrist, cue.size, stamp
             track.scores.append(cue.score)
-            track.wrist_x.append((stamp, float(cue.wrist[0]) / track.palm))
+            track.wrist_x.append((stamp, float(cue.wrist[0]), track.palm))
             raw, ray = cue.raw, None
             if raw == "point" and cue.ray is not None:
                 if track.rays and track.ray_source != cue.source:
@@ -531,23 +531,31 @@ class GestureTracker:
 
     def _waving(self, track: _Track, stamp: float) -> bool:
         """Has this hand's wrist swung side to side (`wave_reversals` turns of `wave_amplitude` palms) within the
-        last `wave_window` s, since its last jump (faster than a hand moves: another hand, a slide change)?"""
-        xs: list[float] = []
+        last `wave_window` s, since its last jump (faster than a hand moves: another hand, a slide change)?
+
+        Swings are measured in pixels and scaled by the window's median palm size: a position divided by each
+        frame's own palm size moves whenever the size estimate jitters (a still hand 10 palms from the image edge
+        whose size wavers by 10 % "swings" a palm; issue #40, a wave from a still photo)."""
+        window: list[tuple[float, float]] = []  # (x px, palm px)
         last = None
-        for t, x in track.wrist_x:
-            if last is not None and abs(x - last[1]) > MAX_WRIST_SPEED_PALMS * max(t - last[0], 1e-3):
-                xs = []  # not the same hand's motion: the swing starts afresh
-            last = (t, x)
+        for t, x, palm in track.wrist_x:
+            if last is not None and abs(x - last[1]) > MAX_WRIST_SPEED_PALMS * max(palm, last[2]) * max(
+                t - last[0], 1e-3
+            ):
+                window = []  # not the same hand's motion: the swing starts afresh
+            last = (t, x, palm)
             if stamp - t <= self.wave_window:
-                xs.append(x)
-        if len(xs) < 4:
+                window.append((x, palm))
+        if len(window) < 4:
             return False
+        swing = self.wave_amplitude * float(np.median([palm for _, palm in window]))
+        xs = [x for x, _ in window]
         reversals, direction, extreme = 0, 0, xs[0]
         for x in xs[1:]:
-            if direction >= 0 and x < extreme - self.wave_amplitude:
+            if direction >= 0 and x < extreme - swing:
                 reversals += direction > 0
                 direction, extreme = -1, x
-            elif direction <= 0 and x > extreme + self.wave_amplitude:
+            elif direction <= 0 and x > extreme + swing:
                 reversals += direction < 0
                 direction, extreme = 1, x
             elif (direction >= 0 and x > extreme) or (direction < 0 and x < extreme):
