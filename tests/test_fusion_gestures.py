@@ -94,6 +94,22 @@ def test_a_wave_calls_the_robot_only_when_held_and_not_turned_away() -> None:
     assert [intent for intent, _ in again] == ["come_here", "come_here"]
 
 
+def test_a_person_waving_both_arms_calls_once() -> None:
+    """Both arms waved overhead (held-back intent/cat2_kard_two_hand_wave gave a come_here per arm, 0.04-0.08 s
+    apart): one call. Another person's wave, or the other arm waved again after the first call's episode is over,
+    is a call of its own."""
+    both = sorted(_wave(0.0, 2.0) + _wave(0.1, 2.0, hand="left"), key=lambda ke: ke[1].stamp)
+    assert [i for i, _ in _commands(Gestures(0.5, 1.5, 30.0), both)] == ["come_here"]
+    later = _wave(0.0, 2.0) + _wave(6.0, 2.0, hand="left")
+    assert [i for i, _ in _commands(Gestures(0.5, 1.5, 30.0), later)] == ["come_here", "come_here"]
+
+    def of(person: str, events: list[tuple[str, GestureEvent]]) -> list[tuple[str, GestureEvent]]:
+        return [(k, msgspec.structs.replace(ev, person=person)) for k, ev in events]
+
+    two_people = sorted(of("p1", _wave(0.0, 2.0)) + of("p2", _wave(0.1, 2.0, hand="left")), key=lambda ke: ke[1].stamp)
+    assert [i for i, _ in _commands(Gestures(0.5, 1.5, 30.0), two_people)] == ["come_here", "come_here"]
+
+
 def test_a_stop_without_the_marks_of_issue_40_is_never_held_back() -> None:
     """An open palm from a gesture service that does not measure the hold (`still` nil) stops at once, as before."""
     gestures = Gestures(0.5, 1.5, 30.0)

@@ -1,6 +1,6 @@
 """Gestures without speech: an open palm means stop, a wave come here, once per episode (the events of one hand
-and gesture close together), and only when the gesture is made *to the robot*; and the memory of the stops and
-waves given, which decides what an utterance said meanwhile means.
+and gesture close together; a person waving both arms calls once), and only when the gesture is made *to the
+robot*; and the memory of the stops and waves given, which decides what an utterance said meanwhile means.
 
 Deliberate, not incidental (issue #40: people talking with their hands gave 21-30 stops and calls nobody gave on
 12 real clips, different from run to run). The gesture service measures the marks it can see on the hand and the
@@ -46,6 +46,7 @@ class Episode:
     last: float  # the latest stamp of the episode's events
     ended: bool  # its last event was an `end`
     given: bool  # its command went out
+    person: str | None = None  # the person making it (GestureEvent.person), None: unknown
 
 
 @dataclass(frozen=True)
@@ -106,16 +107,34 @@ class Gestures:
         given = last is not None and not new and last.given
         give = not given and deliberate(ev, person)
         self.episodes[episode] = Episode(
-            max(ev.stamp, ev.end, last.last if last and not new else 0.0), ev.phase == "end", given or give
+            max(ev.stamp, ev.end, last.last if last and not new else 0.0),
+            ev.phase == "end",
+            given or give,
+            ev.person,
         )
         self._prune_episodes(ev.stamp)
         if not give:
             return None
+        if ev.gesture == "wave" and self._other_hand_called(key, ev):
+            return None  # both arms waved: one call (its episode counts as given, so it never calls later)
         if ev.gesture == "open_palm":
             self.stops.append((ev.start, ev.stamp))
             return GestureCommand("stop", True, _why(ev, person))
         self.waves.append(ev.start)
         return GestureCommand("come_here", False, _why(ev, person))
+
+    def _other_hand_called(self, key: str, ev: GestureEvent) -> bool:
+        """Has the same person's other hand on this camera already called with a wave that overlaps this one (or
+        ended within `episode_gap` before it began)? A person waving both arms calls once."""
+        return any(
+            k == key
+            and gesture == "wave"
+            and hand != ev.hand
+            and e.given
+            and e.person == ev.person
+            and e.last >= ev.start - self.episode_gap
+            for (k, hand, gesture), e in self.episodes.items()
+        )
 
     def _prune_episodes(self, stamp: float) -> None:
         if len(self.episodes) > MEMORY:
