@@ -141,7 +141,7 @@ class Inbox:
 
     def __init__(self) -> None:
         self.events: collections.deque[Item] = collections.deque()
-        self.streams: dict[str, Item] = {}  # insertion order = the order keys became pending
+        self.streams: dict[str, Item] = {}  # insertion order = the order keys became pending (kept when replaced)
         self.ready = threading.Condition()
         self.closed = False
 
@@ -150,7 +150,9 @@ class Inbox:
         with self.ready:
             outcome = "queued"
             if isinstance(item[1], STREAMS):
-                outcome = "skipped" if self.streams.pop(item[0], None) is not None else "queued"
+                # replaced in place: the key keeps its turn (popping and re-adding sent the busiest stream, the
+                # camera's frames, to the back every time, so a slow viewer could serve it never)
+                outcome = "skipped" if item[0] in self.streams else "queued"
                 self.streams[item[0]] = item
             elif len(self.events) >= MAX_BACKLOG:
                 return "dropped"
