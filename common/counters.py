@@ -36,6 +36,7 @@ SpeechCounter = Literal[
     "own_voice_spans",
     "own_voice_dropped",
     "barge_in",
+    "own_voice_clipped",  # the microphone at full scale under the robot's voice: the echo cannot be taken out
 ]
 # what a recogniser may give as the reason an utterance has no text (Recognition.dropped)
 NoTextReason = Literal["no_speech", "no_words"]

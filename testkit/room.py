@@ -22,7 +22,12 @@ from testkit.synth import RATE, pink_noise, speech_power
 ROOM_SEED = 1
 RT60 = 0.35  # seconds: a furnished living room
 OUTPUT_LATENCY = 0.012  # seconds from the announced play time to the direct sound at the microphone
-NOISE_LEVEL = 0.003  # background pink noise, ~ -50 dBFS
+NOISE_LEVEL = 0.003  # background pink noise, ~ -50 dBFS (before the microphone's gain)
+# The microphone's gain, set as an installer would so that the robot's own voice does not clip: piper speaks up to
+# full scale and this room's reverberation carries ~6x the direct sound's energy, so at gain 1 the echo peaked at
+# 2.6x full scale and ~1 % of a question's samples clipped on a 16-bit microphone, which no linear echo canceller
+# takes out (the live test's stop heard as "start with", 29 Nov). Everything the microphone hears is scaled alike.
+MIC_GAIN = 0.25
 
 
 def room_response(rt60: float = RT60, latency: float = OUTPUT_LATENCY, seed: int = ROOM_SEED) -> np.ndarray:
@@ -56,14 +61,27 @@ class LiveRoom:
     CHUNK = 320  # 20 ms
     HOLD = 0.08  # a chunk is published this long after its time: the robot's echo for it has arrived by then
 
-    def __init__(self, client, mic: str = "mic0", seconds: float = 120.0, ir: np.ndarray | None = None):  # noqa: ANN001
+    def __init__(  # noqa: ANN001
+        self,
+        client,
+        mic: str = "mic0",
+        seconds: float = 120.0,
+        ir: np.ndarray | None = None,
+        output_delays: tuple[float, ...] = (0.0,),
+    ):
+        """`output_delays`: how much later than `ir` says each utterance's echo arrives, in turn (a real sound
+        device's output latency differs at each start)."""
         self.client, self.mic = client, mic
         self.ir = room_response() if ir is None else ir
+        self.output_delays = output_delays
+        self.utterances = 0
+        self._voice_until = -1.0  # the end of the last voice chunk heard (a gap after it: a new utterance)
         self.t0 = time.time() + 0.5
         n = int(seconds * RATE)
         self.timeline = NOISE_LEVEL * pink_noise(seconds, seed=3)[:n]
         self.lock = threading.Lock()
         self.late_echo = 0
+        self.clipped = 0  # samples published at full scale
         self.published_until = 0  # samples
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
@@ -83,10 +101,13 @@ class LiveRoom:
 
         chunk = decode(s.payload.to_bytes(), AudioChunk)
         pcm = np.frombuffer(chunk.data, "<i2").astype(np.float64) / 32768.0
-        at = self.index(chunk.stamp)
-        if at < self.published_until:
+        if chunk.stamp > self._voice_until + 0.01:
+            self.utterances += 1
+        self._voice_until = chunk.stamp + len(pcm) / RATE
+        stamp = chunk.stamp + self.output_delays[(self.utterances - 1) % len(self.output_delays)]
+        if self.index(stamp) < self.published_until:
             self.late_echo += 1
-        self.put(chunk.stamp, echo_of(pcm, self.ir))
+        self.put(stamp, echo_of(pcm, self.ir))
 
     def start(self) -> None:
         self._thread.start()
@@ -103,7 +124,9 @@ class LiveRoom:
             if delay > 0:
                 self._stop.wait(delay)
             with self.lock:
-                data = np.clip(np.round(self.timeline[i : i + self.CHUNK] * 32767), -32768, 32767).astype("<i2")
+                level = np.round(self.timeline[i : i + self.CHUNK] * MIC_GAIN * 32767)
+                self.clipped += int(np.count_nonzero(np.abs(level) > 32767))
+                data = np.clip(level, -32768, 32767).astype("<i2")
                 self.published_until = i + self.CHUNK
             chunk = AudioChunk(
                 stamp=stamp,
@@ -121,10 +144,21 @@ class LiveRoom:
 LEAD = 0.5  # seconds of room before the robot starts speaking
 
 
-def scene(question: np.ndarray, clip: np.ndarray | None, at: float, ratio_db: float, ir: np.ndarray) -> np.ndarray:
+def later(audio: np.ndarray, seconds: float) -> np.ndarray:
+    """`audio` delayed by `seconds` (any fraction of a sample; negative: earlier), the same length."""
+    n = len(audio)
+    size = 1 << int(np.ceil(np.log2(n + int(abs(seconds) * RATE) + 2)))
+    turn = np.exp(-2j * np.pi * np.fft.rfftfreq(size) * seconds * RATE)
+    return np.fft.irfft(np.fft.rfft(audio, size) * turn, size)[:n]
+
+
+def scene(
+    question: np.ndarray, clip: np.ndarray | None, at: float, ratio_db: float, ir: np.ndarray, delay: float = 0.0
+) -> np.ndarray:
     """The microphone over one question of the robot's: LEAD s of room, the question through the room, the
-    person's `clip` (if any) starting `at` s into the question at `ratio_db` against the echo, 1.5 s after."""
-    echo = echo_of(question, ir)
+    person's `clip` (if any) starting `at` s into the question at `ratio_db` against the echo, 1.5 s after.
+    `delay`: the echo arrives this much later than `ir` says (a sound device's output latency differs per start)."""
+    echo = later(echo_of(question, ir), delay) if delay else echo_of(question, ir)
     n = int((LEAD + len(question) / RATE + 1.5) * RATE)
     mic = NOISE_LEVEL * pink_noise(n / RATE, seed=5)[:n]
     lead = int(LEAD * RATE)
@@ -133,7 +167,7 @@ def scene(question: np.ndarray, clip: np.ndarray | None, at: float, ratio_db: fl
         person = at_level(clip, echo, ratio_db)
         i = lead + int(at * RATE)
         mic[i : i + len(person)] += person[: max(0, n - i)]
-    return mic
+    return MIC_GAIN * mic
 
 
 def hear(stream, own_voice, mic: np.ndarray, question: np.ndarray, t0: float, text: str, n: int) -> list:  # noqa: ANN001

@@ -116,6 +116,29 @@ def test_the_echo_canceller_learns_the_room_and_keeps_a_voice_said_over_it():
     assert np.corrcoef(left[RATE : 2 * RATE], person[RATE : 2 * RATE])[0, 1] > 0.95
 
 
+@pytest.mark.parametrize("delay", [0.5 / RATE, 1 / RATE, 0.0023, -0.004])
+def test_the_echo_canceller_follows_an_echo_that_arrives_later_or_earlier_than_before(delay):
+    """A sound device's output latency differs at each start: the path learnt on one utterance, moved to where the
+    next one's echo arrives. Unmoved, one sample later already leaves most of the echo (7 dB taken out of 35)."""
+    from testkit.room import later
+
+    ir = room_response()
+    canceller = EchoCanceller()
+    reference = speech_like(3.0, 1)
+    canceller.cancel(echo_of(reference, ir)[: len(reference)], reference)
+    kept = canceller.path.copy()
+    reference2 = speech_like(3.0, 2)
+    mic2 = later(echo_of(reference2, ir)[: len(reference2)], delay)
+    left = canceller.apply(mic2, reference2)
+    assert 10 * np.log10(np.mean(mic2**2) / np.mean(left**2)) > 25
+    unmoved = EchoCanceller(path=kept.copy())
+    unmoved.follow_delay = lambda mic, reference: 0.0
+    assert 10 * np.log10(np.mean(mic2**2) / np.mean(unmoved.apply(mic2, reference2) ** 2)) < 15
+    # what does not sound like the echo (the robot's speaker muted: only a person) moves nothing
+    quiet = EchoCanceller(path=kept.copy())
+    assert quiet.follow_delay(speech_like(3.0, 3), reference2) == 0.0 and np.array_equal(quiet.path, kept)
+
+
 def test_own_voice_masks_the_announced_spans_plus_the_tail_and_a_cut_shortens_them():
     own = OwnVoice(tail=0.3)
     own.announce("a", "Which cup?", T, T + 2.0)
@@ -149,7 +172,11 @@ def whisper():  # noqa: ANN201
     return recogniser
 
 
-PIPELINE_QUESTIONS = ("Which cup: the red one or the blue one?", "I can't pick up a chair.")
+PIPELINE_QUESTIONS = (
+    "Which cup: the red one or the blue one?",
+    "I can't pick up a chair.",
+    "Which candy: the red one on the left, the green one in the middle or the blue one on the right?",
+)
 
 
 def robot_ears(whisper):  # noqa: ANN001, ANN201
@@ -171,14 +198,48 @@ def test_the_robot_hears_neither_its_question_nor_its_refusal_but_a_stop_said_ov
     stop = read_clip(shared_path("data/speech_commands/stop_2c6d3924_nohash_0.wav"))
     stream, own, counted = robot_ears(whisper)
     ir = room_response()
-    question, refusal = spoken_questions
+    question, refusal, _ = spoken_questions
     assert hear(stream, own, scene(question, None, 0, 0, ir), question, T, PIPELINE_QUESTIONS[0], 0) == []
     assert hear(stream, own, scene(refusal, None, 0, 0, ir), refusal, T + 20, PIPELINE_QUESTIONS[1], 1) == []
     assert counted.count("own_voice_spans") == 2 and "barge_in" not in counted
     # a person says "stop" over the question, as loud as the robot's echo
     heard = hear(stream, own, scene(question, stop, 0.5, 0.0, ir), question, T + 40, PIPELINE_QUESTIONS[0], 2)
     assert [t.text for t in heard] == ["stop"] and counted.count("barge_in") == 1
+    assert "own_voice_clipped" not in counted
     assert T + 40 + 0.5 + 0.3 < heard[0].end < T + 40 + 0.5 + 0.5 + 1.3  # stamped when it was said (LEAD 0.5)
+
+
+@pytest.mark.parametrize("delay", [1 / RATE, 0.0023])
+def test_a_stop_over_the_robot_is_heard_when_its_echo_comes_later_than_at_the_last_question(
+    spoken_questions, whisper, delay
+):
+    """The echo path learnt on one question, the next one's echo a sample (or 2.3 ms) later: the live test's
+    failure (a stop over the second question heard as 'start with'); with the path unmoved, 0 of 12 stops here."""
+    from testkit.room import hear, scene
+    from testkit.shared import shared_path
+
+    stop = read_clip(shared_path("data/speech_commands/stop_47d01978_nohash_0.wav"))
+    stream, own, counted = robot_ears(whisper)
+    ir = room_response()
+    question, _, long_question = spoken_questions
+    assert hear(stream, own, scene(question, None, 0, 0, ir), question, T, PIPELINE_QUESTIONS[0], 0) == []
+    mic = scene(long_question, stop, 0.6, 0.0, ir, delay=delay)
+    heard = hear(stream, own, mic, long_question, T + 20, PIPELINE_QUESTIONS[2], 1)
+    assert [t.text for t in heard] == ["stop"], counted
+
+
+def test_a_microphone_that_clips_under_the_robots_voice_is_reported(spoken_questions, whisper):
+    """The live room's old fault (the echo at 2.6x full scale): no linear canceller takes a clipped echo out, so
+    the pipeline says so, with what to do."""
+    from testkit.room import MIC_GAIN, hear, scene
+
+    question = spoken_questions[0]
+    room = scene(question, None, 0, 0, room_response())
+    for gain, reported in ((1 / MIC_GAIN, 1), (1.0, 0)):  # the microphone at gain 1 (as the live room was), as now
+        stream, own, counted = robot_ears(whisper)
+        mic = np.clip(np.round(room * gain * 32767), -32768, 32767) / 32768
+        hear(stream, own, mic, question, T, PIPELINE_QUESTIONS[0], 0)
+        assert counted.count("own_voice_clipped") == reported, gain
 
 
 def test_an_answer_after_the_question_is_heard_as_usual(spoken_questions, whisper, tmp_path):

@@ -258,6 +258,7 @@ EXPLAINED_COUNTERS: tuple[SpeechCounter, ...] = (
     "repeats_removed",
     "own_voice_dropped",
     "barge_in",
+    "own_voice_clipped",
 )
 
 Publish = Callable[[list[Heard]], None]

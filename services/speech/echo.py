@@ -32,6 +32,10 @@ FRAME = 320  # 20 ms frames for finding double talk
 BARGE_IN_PRIOR = 100.0  # the head start a stop word gets over the one word heard under the robot's voice
 BARGE_IN_SECONDS = 2.0  # ... in a cut of at most this much audio (a word said alone, as the short-utterance decode)
 DOUBLE_TALK = 4.0  # a frame whose residual power is this many times the quiet frames' is the person talking
+# How far the echo's delay may move from one utterance to the next and still be followed (a sound device's output
+# latency differs per start; one sample, 62 us, already leaves most of the echo above 1.5 kHz uncancelled)
+MAX_DELAY_CHANGE = 0.02  # seconds
+DELAY_MATCH = 0.5  # the predicted echo must match the microphone this well (correlation) for its delay to count
 
 
 def _fft_size(n: int) -> int:
@@ -46,12 +50,44 @@ class EchoCanceller:
     path: np.ndarray | None = None  # the fitted echo path, kept across utterances
 
     def apply(self, mic: np.ndarray, reference: np.ndarray) -> np.ndarray:
-        """`mic` less the echo of `reference` through the path fitted so far (no fit: `mic` as it is)."""
+        """`mic` less the echo of `reference` through the path fitted so far, moved to the echo's delay in `mic`
+        (no fit: `mic` as it is)."""
         if self.path is None or len(mic) == 0:
             return mic.astype(np.float32, copy=True)
+        self.follow_delay(mic, reference)
         size = _fft_size(len(mic) + self.taps)
         echo = np.fft.irfft(np.fft.rfft(reference.astype(np.float64), size) * np.fft.rfft(self.path, size), size)
         return (mic - echo[: len(mic)]).astype(np.float32)
+
+    def follow_delay(self, mic: np.ndarray, reference: np.ndarray) -> float:
+        """Move the kept path by how much later (or earlier) the echo arrives in `mic` than the path predicts, to
+        a fraction of a sample (the peak of their cross-correlation, parabolic); the move in samples, 0 when the
+        prediction does not match `mic` well enough to tell (no echo, or mostly another voice)."""
+        if self.path is None or len(mic) < FRAME or not np.any(reference):
+            return 0.0
+        n, max_lag = len(mic), int(MAX_DELAY_CHANGE * RATE)
+        size = _fft_size(n + self.taps + max_lag)
+        mic_spectrum = np.fft.rfft(mic.astype(np.float64), size)
+        ref_spectrum = np.fft.rfft(reference.astype(np.float64), size)
+        mic_energy = float(mic.astype(np.float64) @ mic.astype(np.float64))
+        moved = 0.0
+        for _ in range(2):  # a second look from the moved path takes out most of the parabola's bias
+            predicted = ref_spectrum * np.fft.rfft(self.path, size)
+            echo = np.fft.irfft(predicted, size)
+            xc = np.fft.irfft(mic_spectrum * np.conj(predicted), size)
+            lags = np.concatenate([xc[-max_lag:], xc[: max_lag + 1]])  # lag -max_lag .. +max_lag
+            i = int(np.argmax(lags))
+            match = lags[i] / (np.sqrt(mic_energy * float(echo @ echo)) + 1e-30)
+            if not 0 < i < len(lags) - 1 or match < DELAY_MATCH:
+                return moved
+            y0, y1, y2 = lags[i - 1], lags[i], lags[i + 1]
+            curve = y0 - 2 * y1 + y2
+            step = i - max_lag + (0.5 * (y0 - y2) / curve if curve < 0 else 0.0)
+            if abs(step) < 0.02:
+                break
+            self.path = delayed(self.path, step)
+            moved += step
+        return moved
 
     def cancel(self, mic: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """`mic` with the echo of `reference` (the same length, the same start time) taken out."""
@@ -68,6 +104,7 @@ class EchoCanceller:
         def correlate(r: np.ndarray) -> np.ndarray:
             return np.fft.irfft(np.conj(ref_spectrum) * np.fft.rfft(r, size), size)[: self.taps]
 
+        self.follow_delay(mic, reference)  # the fit starts from the kept path at this utterance's delay
         h = self.path if self.path is not None else np.zeros(self.taps)
         weights = np.ones(n)
         for _ in range(self.passes):
@@ -94,6 +131,14 @@ class EchoCanceller:
             p = r + (rs_new / rs) * p
             rs = rs_new
         return h
+
+
+def delayed(path: np.ndarray, samples: float) -> np.ndarray:
+    """`path` delayed by `samples` (a fraction of a sample too; negative: earlier), the same length."""
+    n = len(path)
+    size = _fft_size(2 * n)
+    turn = np.exp(-2j * np.pi * np.fft.rfftfreq(size) * samples)
+    return np.fft.irfft(np.fft.rfft(path, size) * turn, size)[:n]
 
 
 def talk_free(residual: np.ndarray, echo: np.ndarray) -> np.ndarray:

@@ -90,6 +90,8 @@ def worker_for(recogniser: Recogniser) -> RecognitionWorker:
 Count = Callable[[SpeechCounter, str], None]  # (counter name, detail for the log)
 
 CHECK_SECONDS = 0.5  # under the robot's voice, the masked audio is checked for a stop every this many seconds
+FULL_SCALE = 32767 / 32768  # a 16-bit sample at its limit
+CLIPPED_SHARE = 0.001  # a robot's utterance with this share of its microphone samples at full scale is reported
 
 
 @dataclass
@@ -266,6 +268,14 @@ class MicStream:
         mic = np.concatenate(span.parts)
         span.parts, span.checked = [mic], len(mic)
         start = self.stamp_of(span.first)
+        clipped = float(np.mean(np.abs(mic) >= FULL_SCALE)) if final and len(mic) else 0.0
+        if clipped >= CLIPPED_SHARE:
+            self.count(
+                "own_voice_clipped",
+                f"{self.mic}: {clipped:.1%} of the samples under the robot's voice at {start:.2f} are at full scale: "
+                "lower the microphone's gain or the speaker's volume (a clipped echo cannot be taken out, and a stop "
+                "said over the robot may be missed)",
+            )
         reference = self.own_voice.reference(start, len(mic))
         residual = self._canceller.cancel(mic, reference) if final else self._canceller.apply(mic, reference)
         own_texts = self.own_voice.texts(start, start + len(mic) / RATE)
