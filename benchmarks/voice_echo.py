@@ -42,7 +42,7 @@ def main() -> int:
     from services.speech.vad import make_segmenter
     from services.speech.whisper import WhisperRecognizer
     from services.voice.synth import PiperVoice
-    from testkit.room import hear, room_response, scene
+    from testkit.room import MIC_GAIN, hear, room_response, scene
     from testkit.synth import read_wav_int16
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -50,10 +50,8 @@ def main() -> int:
     parser.add_argument("--others", default="go,no", help="non-stop words said over the robot")
     parser.add_argument("--mic-gain", type=float, default=1.0, help="times testkit/room.py's MIC_GAIN")
     args = parser.parse_args()
-    import testkit.room
-
-    testkit.room.MIC_GAIN *= args.mic_gain
-    print(f"microphone gain {testkit.room.MIC_GAIN:g} over the room", flush=True)
+    gain = MIC_GAIN * args.mic_gain
+    print(f"microphone gain {gain:g} over the room", flush=True)
     shared = ROOT.parent / "shared" / "data" / "speech_commands"
     stops = sorted(shared.glob("stop_*.wav"))
     if not stops:
@@ -78,10 +76,10 @@ def main() -> int:
         stream, own = robot()
         t0 = 1.8e9 + 100 * j
         q0, q1 = (j + 1) % len(QUESTIONS), j % len(QUESTIONS)
-        alone = hear(stream, own, scene(questions[q0], None, 0, 0, ir), questions[q0], t0, QUESTIONS[q0], 0)
+        alone = hear(stream, own, scene(questions[q0], None, 0, 0, ir, gain=gain), questions[q0], t0, QUESTIONS[q0], 0)
         length = len(questions[q1]) / 16000
         at = 0.2 + 0.6 * ((j * 0.37) % 1) * max(0.0, length - 1.0)  # somewhere in its question, spread
-        mic = scene(questions[q1], clip(path), at, ratio, ir)
+        mic = scene(questions[q1], clip(path), at, ratio, ir, gain=gain)
         over = hear(stream, own, mic, questions[q1], t0 + 20, QUESTIONS[q1], 1)
         return [t.text for t in alone], [t.text for t in over]
 

@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from common.schema import AudioChunk
+from services.speech.echo import delayed
 from testkit.synth import RATE, pink_noise, speech_power
 
 ROOM_SEED = 1
@@ -144,21 +145,20 @@ class LiveRoom:
 LEAD = 0.5  # seconds of room before the robot starts speaking
 
 
-def later(audio: np.ndarray, seconds: float) -> np.ndarray:
-    """`audio` delayed by `seconds` (any fraction of a sample; negative: earlier), the same length."""
-    n = len(audio)
-    size = 1 << int(np.ceil(np.log2(n + int(abs(seconds) * RATE) + 2)))
-    turn = np.exp(-2j * np.pi * np.fft.rfftfreq(size) * seconds * RATE)
-    return np.fft.irfft(np.fft.rfft(audio, size) * turn, size)[:n]
-
-
 def scene(
-    question: np.ndarray, clip: np.ndarray | None, at: float, ratio_db: float, ir: np.ndarray, delay: float = 0.0
+    question: np.ndarray,
+    clip: np.ndarray | None,
+    at: float,
+    ratio_db: float,
+    ir: np.ndarray,
+    delay: float = 0.0,
+    gain: float = MIC_GAIN,
 ) -> np.ndarray:
     """The microphone over one question of the robot's: LEAD s of room, the question through the room, the
     person's `clip` (if any) starting `at` s into the question at `ratio_db` against the echo, 1.5 s after.
-    `delay`: the echo arrives this much later than `ir` says (a sound device's output latency differs per start)."""
-    echo = later(echo_of(question, ir), delay) if delay else echo_of(question, ir)
+    `delay`: the echo arrives this much later than `ir` says (a sound device's output latency differs per start);
+    `gain`: the microphone's."""
+    echo = delayed(echo_of(question, ir), delay * RATE) if delay else echo_of(question, ir)
     n = int((LEAD + len(question) / RATE + 1.5) * RATE)
     mic = NOISE_LEVEL * pink_noise(n / RATE, seed=5)[:n]
     lead = int(LEAD * RATE)
@@ -167,7 +167,7 @@ def scene(
         person = at_level(clip, echo, ratio_db)
         i = lead + int(at * RATE)
         mic[i : i + len(person)] += person[: max(0, n - i)]
-    return MIC_GAIN * mic
+    return gain * mic
 
 
 def hear(stream, own_voice, mic: np.ndarray, question: np.ndarray, t0: float, text: str, n: int) -> list:  # noqa: ANN001

@@ -10,7 +10,7 @@ import pytest
 from common.schema import Clarification, ClarificationReason, FusedCommand, Spoken, Target, Weights
 from services.ros2 import core as ros2_core
 from services.ros2.config import Ros2Config
-from services.speech.echo import EchoCanceller, OwnVoice
+from services.speech.echo import EchoCanceller, OwnVoice, delayed
 from services.voice.core import GAP_SECONDS, LEAD_SECONDS, Schedule, audio_chunks, to_pcm16, utterance_for
 from testkit.room import at_level, echo_of, room_response
 from testkit.synth import RATE, speech_power
@@ -120,15 +120,13 @@ def test_the_echo_canceller_learns_the_room_and_keeps_a_voice_said_over_it():
 def test_the_echo_canceller_follows_an_echo_that_arrives_later_or_earlier_than_before(delay):
     """A sound device's output latency differs at each start: the path learnt on one utterance, moved to where the
     next one's echo arrives. Unmoved, one sample later already leaves most of the echo (7 dB taken out of 35)."""
-    from testkit.room import later
-
     ir = room_response()
     canceller = EchoCanceller()
     reference = speech_like(3.0, 1)
     canceller.cancel(echo_of(reference, ir)[: len(reference)], reference)
     kept = canceller.path.copy()
     reference2 = speech_like(3.0, 2)
-    mic2 = later(echo_of(reference2, ir)[: len(reference2)], delay)
+    mic2 = delayed(echo_of(reference2, ir)[: len(reference2)], delay * RATE)
     left = canceller.apply(mic2, reference2)
     assert 10 * np.log10(np.mean(mic2**2) / np.mean(left**2)) > 25
     unmoved = EchoCanceller(path=kept.copy())
@@ -234,10 +232,10 @@ def test_a_microphone_that_clips_under_the_robots_voice_is_reported(spoken_quest
     from testkit.room import MIC_GAIN, hear, scene
 
     question = spoken_questions[0]
-    room = scene(question, None, 0, 0, room_response())
-    for gain, reported in ((1 / MIC_GAIN, 1), (1.0, 0)):  # the microphone at gain 1 (as the live room was), as now
+    for gain, reported in ((1.0, 1), (MIC_GAIN, 0)):  # the microphone at gain 1 (as the live room was), as now
         stream, own, counted = robot_ears(whisper)
-        mic = np.clip(np.round(room * gain * 32767), -32768, 32767) / 32768
+        room = scene(question, None, 0, 0, room_response(), gain=gain)
+        mic = np.clip(np.round(room * 32767), -32768, 32767) / 32768
         hear(stream, own, mic, question, T, PIPELINE_QUESTIONS[0], 0)
         assert counted.count("own_voice_clipped") == reported, gain
 

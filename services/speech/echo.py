@@ -65,11 +65,12 @@ class EchoCanceller:
         prediction does not match `mic` well enough to tell (no echo, or mostly another voice)."""
         if self.path is None or len(mic) < FRAME or not np.any(reference):
             return 0.0
-        n, max_lag = len(mic), int(MAX_DELAY_CHANGE * RATE)
+        y = mic.astype(np.float64)
+        n, max_lag = len(y), int(MAX_DELAY_CHANGE * RATE)
         size = _fft_size(n + self.taps + max_lag)
-        mic_spectrum = np.fft.rfft(mic.astype(np.float64), size)
+        mic_spectrum = np.fft.rfft(y, size)
         ref_spectrum = np.fft.rfft(reference.astype(np.float64), size)
-        mic_energy = float(mic.astype(np.float64) @ mic.astype(np.float64))
+        mic_energy = float(y @ y)
         moved = 0.0
         for _ in range(2):  # a second look from the moved path takes out most of the parabola's bias
             predicted = ref_spectrum * np.fft.rfft(self.path, size)
