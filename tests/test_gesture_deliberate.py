@@ -110,6 +110,41 @@ def test_the_hold_is_measured_in_source_time_whatever_frames_are_processed(fps: 
     assert last - held[-1] == pytest.approx(0.6, abs=0.2)
 
 
+@pytest.mark.parametrize("fps", [1.0, 0.6])
+def test_a_palm_held_up_is_held_when_a_loaded_stage_processes_a_frame_a_second(fps: float) -> None:
+    """On a loaded machine the hand stage processed ~1 frame a second (the demo's stop step under two busy loops):
+    the palm held up for 4 s is held from its 2nd processed frame, not started afresh on every frame."""
+    series = _series(lambda t: (0.0, 0.0), 4.0, fps)
+    held = _hold(series)
+    assert held[1] >= STOP_STILL_S and held[-1] == pytest.approx(series[-1][0], abs=1e-6)
+
+
+def test_a_hand_missed_by_the_frames_between_starts_its_hold_afresh() -> None:
+    """Frames that looked and did not see the hand for longer than the gap break the hold (it may have gone and
+    come back); frames nobody looked at do not."""
+    meter = HoldMeter()
+    centre, size = palm_centre(PALM), palm_size(PALM)
+    for t in (0.0, 0.2, 0.4):
+        meter.add(t, centre, size, True)
+    assert meter.still_for(0.4) == pytest.approx(0.4)  # held since its first sample
+    for t in (0.6, 0.8, 1.0):
+        meter.miss(t)
+    meter.add(1.2, centre, size, True)
+    assert meter.still_for(1.2) == 0.0
+    meter.add(2.2, centre, size, True)  # one second later, nothing missed between: held since 1.2
+    assert meter.still_for(2.2) == pytest.approx(1.0)
+
+
+def test_the_tracker_holds_a_palm_seen_once_a_second() -> None:
+    """Through the tracker at a loaded stage's rate: its open_palm events carry a hold a stop needs."""
+    tracker = GestureTracker()
+    events = []
+    for t, p in _series(lambda t: (0.0, 0.0), 6.0, 1.0):
+        events += tracker.update(t, [Observation("right", 0.9, p)])[1]
+    holds = [e.still for e in events if e.gesture == "open_palm" and e.phase != "end" and e.still is not None]
+    assert holds and max(holds) >= STOP_STILL_S
+
+
 def test_a_wrist_at_the_shoulder_is_raised_and_at_the_hip_is_not() -> None:
     body = np.zeros((33, 3))
     body[:, 2] = 1.0

@@ -9,7 +9,7 @@ differs in three marks the hand stage can see, and a wave in one more the body s
   by pose (`raised_hand`: above the shoulder, forearm up) has this shape;
 - **still**: the palm's centre moves less than `STILL_SPEED` palm sizes per second, measured over at least
   `SPEED_BASELINE_S` of source time (not frame to frame: the figure does not depend on the frame rate or on which
-  frames a paced stage processed);
+  frames a paced stage processed, down to a frame every `UNWATCHED_GAP_S` on a loaded machine);
 - **held**: `still_for` = source time since the shaped, still palm was first at that place (0: not now). Fusion
   decides how long is enough (services/fusion/gestures.py); the gesture service only measures;
 - **raised** (for a wave): the wrist at or above `RAISED_BELOW_SHOULDER` torso lengths below the shoulder, on the
@@ -33,7 +33,10 @@ FACE_ON = 0.55
 THUMB_OUT_PALMS = 0.6  # the thumb's tip at least this far (x palm size) from the middle knuckle: not tucked in
 STILL_SPEED = 1.0  # palm sizes per second
 SPEED_BASELINE_S = 0.15  # s of source time the palm's displacement is measured over, at least...
-SPEED_GAP_S = 0.5  # ...and at most (a hand missing longer than this starts afresh)
+SPEED_GAP_S = 0.5  # ...and at most (a hand missing longer than this starts afresh)...
+# ...unless no frame processed in between missed the hand: a stage behind on a loaded machine processes a frame a
+# second, and a palm held up for seconds is held all the same (a stop must stop when the robot is busy).
+UNWATCHED_GAP_S = 2.0
 RAISED_BELOW_SHOULDER = 0.25  # torso lengths: a wrist no lower than this below the shoulder is raised
 PALM_POINTS = (0, 5, 9, 13, 17)  # wrist and knuckles: the palm's centre, not the moving fingertips
 THUMB_TIP, MIDDLE_MCP, INDEX_MCP, LITTLE_MCP = 4, 9, 5, 17
@@ -85,6 +88,11 @@ class HoldMeter:
 
     samples: collections.deque = field(default_factory=lambda: collections.deque(maxlen=64))
     still_since: float | None = None
+    missed: float = -math.inf  # the latest processed frame that did not see this hand
+
+    def miss(self, stamp: float) -> None:
+        """A processed frame without this hand (frames a paced stage skipped are not misses: nobody looked)."""
+        self.missed = stamp
 
     def add(self, stamp: float, centre: np.ndarray, size: float, shaped: bool) -> None:
         b = self._baseline(stamp)
@@ -96,10 +104,12 @@ class HoldMeter:
         self.samples.append(_Sample(stamp, np.asarray(centre, dtype=float), size, shaped))
 
     def _baseline(self, stamp: float) -> _Sample | None:
-        """The latest sample at least `SPEED_BASELINE_S` before `stamp`, if it is at most `SPEED_GAP_S` before."""
+        """The latest sample at least `SPEED_BASELINE_S` before `stamp`, if it is at most `SPEED_GAP_S` before, or
+        `UNWATCHED_GAP_S` when no frame processed since missed the hand."""
         for s in reversed(self.samples):
             if stamp - s.stamp >= SPEED_BASELINE_S - 1e-9:
-                return s if stamp - s.stamp <= SPEED_GAP_S + 1e-9 else None
+                gap = SPEED_GAP_S if self.missed > s.stamp else UNWATCHED_GAP_S
+                return s if stamp - s.stamp <= gap + 1e-9 else None
         return None
 
     def still_for(self, stamp: float) -> float:

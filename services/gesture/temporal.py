@@ -473,6 +473,7 @@ class GestureTracker:
                 self.last_arms = [(a, ray if a is cue.arm else r) for a, r in self.last_arms]
         for track in self.tracks:
             if track.id not in seen_ids:
+                track.hold.miss(stamp)
                 events += self._marked(track, stamp, self._step(track, stamp, None, None))
         self.tracks = [t for t in self.tracks if stamp - t.last_seen <= self.forget_after or t.active]
         return cast("list[TrackedHand]", tracked), events  # every observation made a cue (fuse_arms): no None
