@@ -134,7 +134,8 @@ def test_clients_have_the_declared_roles():
 
 
 def make_service(name: str) -> Service:
-    args = service_parser(name, "test").parse_args([])
+    # --nice 0 --cv-threads 0: a Service applies both to its whole process, here the test process (tests/conftest.py)
+    args = service_parser(name, "test").parse_args(["--nice", "0", "--cv-threads", "0"])
     return Service(name, args, log=logging.getLogger(f"test.{name}"))
 
 
