@@ -213,6 +213,9 @@ def test_every_real_stop_stops_and_other_words_rarely_do(heard_clips):
 # -- one-word utterances that are not commands ------------------------------------------------------------------
 
 
+# 96 decodes: 144 s on a quiet 2-core machine, 276 s beside two busy loops (fresh clone, 29 Nov): over half of
+# pytest's default 300 s. A hang guard, not a speed check: the same as the one-word tests above
+@pytest.mark.timeout(1800)
 def test_a_word_the_short_decode_makes_a_command_is_too_doubtful_to_act_on(recogniser, tmp_path):
     """Favouring the command words turns some ordinary single words into one ("chair" -> "sure"; docs/speech.md,
     13 of 48 with the decode, 2 without). What keeps that from moving the robot: the replaced word carries the
