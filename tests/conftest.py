@@ -30,14 +30,15 @@ def _process_priority_kept():
     nice, threads = os.nice(0), _opencv_threads()
     yield
     changed = []
-    if os.nice(0) != nice:
-        changed.append(f"niceness {nice} -> {os.nice(0)}")
+    nice_now, threads_now = os.nice(0), _opencv_threads()
+    if nice_now != nice:
+        changed.append(f"niceness {nice} -> {nice_now}")
         try:
-            os.nice(nice - os.nice(0))
+            os.nice(nice - nice_now)
         except OSError:
             pass
-    if threads is not None and _opencv_threads() != threads:
-        changed.append(f"OpenCV threads {threads} -> {_opencv_threads()}")
+    if threads is not None and threads_now != threads:
+        changed.append(f"OpenCV threads {threads} -> {threads_now}")
         sys.modules["cv2"].setNumThreads(threads)
     if changed:
         pytest.fail(

@@ -231,10 +231,10 @@ def test_a_microphone_that_clips_under_the_robots_voice_is_reported(spoken_quest
     the pipeline says so, with what to do."""
     from testkit.room import MIC_GAIN, hear, scene
 
-    question = spoken_questions[0]
+    question, ir = spoken_questions[0], room_response()
     for gain, reported in ((1.0, 1), (MIC_GAIN, 0)):  # the microphone at gain 1 (as the live room was), as now
         stream, own, counted = robot_ears(whisper)
-        room = scene(question, None, 0, 0, room_response(), gain=gain)
+        room = scene(question, None, 0, 0, ir, gain=gain)
         mic = np.clip(np.round(room * 32767), -32768, 32767) / 32768
         hear(stream, own, mic, question, T, PIPELINE_QUESTIONS[0], 0)
         assert counted.count("own_voice_clipped") == reported, gain
