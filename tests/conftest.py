@@ -46,19 +46,3 @@ def _process_priority_kept():
             "starts) would inherit it; build a Service in process with --nice 0 --cv-threads 0",
             pytrace=False,
         )
-
-
-def pytest_collection_modifyitems(config, items):
-    """Under xdist workers (TEST_WORKERS > 0) the long modules go first (testkit.xdist_order.py); one process keeps
-    the collected order."""
-    if os.environ.get("PYTEST_XDIST_WORKER") is None:
-        return
-    from testkit.xdist_order import longest_first
-
-    items[:] = [items[i] for i in longest_first([item.nodeid for item in items])]
-
-
-def pytest_xdist_make_scheduler(config, log):
-    from testkit.xdist_order import make_scheduler
-
-    return make_scheduler(config, log)
