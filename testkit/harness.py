@@ -174,6 +174,14 @@ class Client:
         self._subs.append(self.session.declare_subscriber(keyexpr, col.on_sample))
         return col
 
+    def declare_alive(self, service: str, instance: str = "test") -> None:
+        """Stand in for `service` on the bus: its liveliness token, as the service declares it, until close(). A test
+        that publishes a modality itself (hands, transcripts) needs it: fusion waits for a live modality's samples
+        (their watermark, or its deadline) before it decides, and without a token knows the modality only from
+        arrivals. zenoh-python runs each subscription's callbacks on a thread of its own, so samples this client puts
+        on two keys may be handled out of the order it sent them (issue #41; docs/foundation.md)."""
+        self._subs.append(self.session.liveliness().declare_token(self.keys.alive(service, instance)))
+
     def stats(self, service: str, timeout: float = 2.0) -> dict[str, Any]:
         from common.schema import Stats
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from common.schema import Detections
 from testkit import words
@@ -24,16 +23,6 @@ def start(group: ProcessGroup, folder: Path, *fusion_args: str) -> Client:
     client.wait_alive("fusion", timeout=60)
     group.service("camera", "--source", str(folder), "--fps", "5", "--loop")
     return client
-
-
-def stand_in_for_gesture(client: Client) -> Any:
-    """The test publishes the pointing hands itself: declare the gesture service's liveliness token, as the service
-    does, so that fusion waits for the hands (their watermark, or its deadline) before it decides. Without it fusion
-    knows gesture is there only from arrivals, and a transcript handled before the hands sent ahead of it was decided
-    at once without them: zenoh-python runs each subscription's callbacks on a thread of its own, so samples on two
-    keys may be handled out of the order one client sent them (issue #41; docs/foundation.md). Keep the token (the
-    returned object) until the test ends."""
-    return client.session.liveliness().declare_token(client.keys.alive("gesture", "test"))
 
 
 def words_end_over(

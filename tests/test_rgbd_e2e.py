@@ -27,7 +27,7 @@ from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client
 from testkit.images import read_image
-from testkit.rgbd import stand_in_for_gesture, start, words_end_over
+from testkit.rgbd import start, words_end_over
 from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
@@ -142,7 +142,7 @@ def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):
         hit=[float(c) for c in hit],
     )
     client = start(group, tmp_path / "scene")
-    token = stand_in_for_gesture(client)  # fusion waits for the hands the test sends (not only their arrival)
+    client.declare_alive("gesture")  # the test sends the hands: fusion waits for them (not only their arrival)
     try:
         _, t0 = wait_for_bottles(client, "go there")  # the words end there: fusion's window holds frames with depth
         results = client.collect("hri/fusion/command")
@@ -174,7 +174,6 @@ def test_go_there_with_pointing_is_a_point_on_the_table(group, tmp_path):
         )
         cmd = results.wait(1, timeout=30)[0][1]
     finally:
-        token.undeclare()
         client.close()
     assert cmd.intent == "go_to" and cmd.location is not None, cmd
     loc = cmd.location

@@ -25,7 +25,7 @@ from common.schema import Clarification, Detections, FusedCommand, Hand, Hands, 
 from hri.cli import make_transcript
 from services.gesture.space import DepthView, Lifted, surface_hit
 from testkit.harness import Client, ProcessGroup
-from testkit.rgbd import stand_in_for_gesture, start, words_end_over
+from testkit.rgbd import start, words_end_over
 from testkit.shared import shared_path
 
 pytestmark = pytest.mark.integration
@@ -143,7 +143,7 @@ def proposed_labels(out: Sample) -> list[str]:
 def test_pick_up_that_one_never_yields_the_pointing_man_or_the_table(group: ProcessGroup, tmp_path: Path) -> None:
     depth = scene(tmp_path / "scene")
     client = start(group, tmp_path / "scene")
-    token = stand_in_for_gesture(client)  # fusion waits for the hands the test sends (not only their arrival)
+    client.declare_alive("gesture")  # the test sends the hands: fusion waits for them (not only their arrival)
     try:
         seen, end = wait_for_scene(client, "pick up that one")
         results = client.collect("hri/fusion/**")
@@ -153,7 +153,6 @@ def test_pick_up_that_one_never_yields_the_pointing_man_or_the_table(group: Proc
         point_and_say(client, depth, "pick up the table", end)
         table = results.wait(2, timeout=30)[1][1]
     finally:
-        token.undeclare()
         client.close()
     assert not {"person", "dining table"} & set(proposed_labels(that_one)), (seen, that_one)
     if isinstance(that_one, Clarification):
